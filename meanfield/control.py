@@ -1,0 +1,412 @@
+"""The backstepping density-feedback controller (paper, Section IV).
+
+Step I, virtual control (paper, eq. (6)), on the grid faces::
+
+    v_d = -(α ∇ρ̃ - ∇(σρ)) / ρ - u_W[ρ],        ρ̃ = ρ - ρ_*
+
+Step II, robot law (paper, eq. (9)), with ṽ = v_r - v_d::
+
+    b_i = ∫ ṽᵀ K_ξ^i dx,   g_i = ∫ ṽᵀ K_θ^i dx,   A = ∫ ṽᵀ (ρ ∇ρ̃ - ∂_t v_d) dx
+    u_i = k_u b_i + δu_i,  ω_i = -k_ω g_i + δω_i,  Σ_i b_i·δu_i - g_i δω_i = A
+
+so that (semi-discrete, exactly)::
+
+    dV₂/dt = -∫ α|∇ρ̃|² - Σ_i k_u |b_i|² - Σ_i k_ω g_i²,   V₂ = ∫ ½ρ̃² + ½|ṽ|²
+
+The extra inputs ``(δu, δω)`` come from a :class:`BetaGammaStrategy`; the default is
+the minimum-norm choice ``β_il = (b_i^(l))²/Z``, ``γ_i = g_i²/Z``,
+``Z = Σ|b_i|² + Σ g_i²`` (DESIGN.md §2), i.e. ``δu_i = A b_i / Z``, ``δω_i = -A g_i / Z``.
+
+``∂_t v_d`` is either *model-based* (chain rule through ``ρ`` with
+``∂_t ρ = -∇·((v_r + u_W) ρ - ∇(σρ))``, the Fokker–Planck right-hand side) or a finite
+difference of successive ``v_d``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Literal, Protocol
+
+import numpy as np
+
+from meanfield.errors import ParameterError
+from meanfield.grid import FaceField, Grid
+from meanfield.interaction import InteractionField
+from meanfield.robots import NavigationField
+
+__all__ = [
+    "AlphaSchedule",
+    "ConstantAlpha",
+    "SaturatingAlpha",
+    "BetaGammaStrategy",
+    "MinimumNormBetaGamma",
+    "UserBetaGamma",
+    "ExtraInputs",
+    "ControlState",
+    "BacksteppingController",
+]
+
+
+# ---------------------------------------------------------------------- α schedules
+class AlphaSchedule(Protocol):
+    """The gain α(x, t) > 0 of Step I, given as ``q = α/ρ`` on faces and its ρ-derivative."""
+
+    def over_rho(self, rho_f: np.ndarray) -> np.ndarray:
+        """``α/ρ`` at face densities ``rho_f``."""
+        ...
+
+    def over_rho_derivative(self, rho_f: np.ndarray) -> np.ndarray:
+        """``d(α/ρ)/dρ`` at face densities ``rho_f`` (model-based ∂_t v_d)."""
+        ...
+
+    def alpha(self, rho_f: np.ndarray) -> np.ndarray:
+        """``α`` at face densities ``rho_f``."""
+        ...
+
+
+def _positive(name: str, value: float) -> float:
+    value = float(value)
+    if not math.isfinite(value) or value <= 0:
+        raise ParameterError(name, value, "a finite number > 0")
+    return value
+
+
+@dataclass(frozen=True)
+class ConstantAlpha:
+    """``α(x, t) = α₀``: the paper's plain gain.  ``|v_d|`` grows like ``1/ρ`` where the crowd is thin."""
+
+    alpha0: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "alpha0", _positive("controller.alpha", self.alpha0))
+
+    def over_rho(self, rho_f):
+        return self.alpha0 / rho_f
+
+    def over_rho_derivative(self, rho_f):
+        return -self.alpha0 / (rho_f * rho_f)
+
+    def alpha(self, rho_f):
+        return self.alpha0 + 0.0 * rho_f
+
+
+@dataclass(frozen=True)
+class SaturatingAlpha:
+    """Density-scheduled gain ``α = α₀ ρ / (ρ + ρ_floor)``.
+
+    The Step-I term becomes ``α∇ρ̃/ρ = α₀ ∇ρ̃ / (ρ + ρ_floor)``: bounded by
+    ``α₀ |∇ρ̃| / ρ_floor`` where the crowd is thin, equal to the plain gain ``α₀`` where
+    ``ρ ≫ ρ_floor``.  The price: ``α_inf = α₀ ρ_min / (ρ_min + ρ_floor)`` in Theorems 1–2,
+    which is small where the density is small (slower guaranteed decay there).
+    """
+
+    alpha0: float
+    rho_floor: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "alpha0", _positive("controller.alpha", self.alpha0))
+        object.__setattr__(self, "rho_floor", _positive("controller.rho_floor", self.rho_floor))
+
+    def over_rho(self, rho_f):
+        return self.alpha0 / (rho_f + self.rho_floor)
+
+    def over_rho_derivative(self, rho_f):
+        d = rho_f + self.rho_floor
+        return -self.alpha0 / (d * d)
+
+    def alpha(self, rho_f):
+        return self.alpha0 * rho_f / (rho_f + self.rho_floor)
+
+
+# ---------------------------------------------------------------------- β/γ strategies
+@dataclass
+class ExtraInputs:
+    """The robots' extra inputs ``δu`` (n, 2), ``δω`` (n,) and the part of ``A`` left uncancelled.
+
+    ``shortfall = A - (Σ b_i·δu_i - Σ g_i δω_i)``: zero when the strategy meets the
+    paper's condition; otherwise ``dV₂/dt`` carries ``+shortfall`` (an ISS input).
+    """
+
+    du: np.ndarray
+    domega: np.ndarray
+    shortfall: float
+
+
+class BetaGammaStrategy(Protocol):
+    """Chooses ``(δu, δω)`` with ``Σ b_i·δu_i - Σ g_i δω_i = A`` (or reports the shortfall)."""
+
+    def __call__(self, b: np.ndarray, g: np.ndarray, A: float) -> ExtraInputs:
+        """Extra inputs for the integrals ``b`` (n, 2), ``g`` (n,) and ``A``."""
+        ...
+
+
+class MinimumNormBetaGamma:
+    """Minimum-norm solution: ``δu_i = A b_i / Z``, ``δω_i = -A g_i / Z`` (DESIGN.md §2).
+
+    Equivalent to ``β_il = (b_i^(l))²/Z`` and ``γ_i = g_i²/Z`` in the paper's eq. (9):
+    non-negative, summing to 1, zero where the integral is zero, and with no division by
+    a small integral.  When ``Z = 0`` (ṽ orthogonal to every kernel column) nothing can
+    cancel ``A``: the inputs are zero and the shortfall is ``A``.
+    """
+
+    name = "min-norm"
+
+    def __call__(self, b: np.ndarray, g: np.ndarray, A: float) -> ExtraInputs:
+        Z = (b * b).sum() + (g * g).sum()
+        if Z == 0:
+            return ExtraInputs(np.zeros_like(b), np.zeros_like(g), A)
+        s = A / Z
+        return ExtraInputs(s * b, -s * g, 0.0 * A)
+
+
+class UserBetaGamma:
+    """Wraps a user rule ``(b, g, A) -> (β (n, 2), γ (n,))`` into extra inputs.
+
+    The rule's output is checked against the paper's constraints (eq. (10)):
+    ``Σ β + Σ γ = 1`` and ``β_il = 0`` where ``b_i^(l) = 0`` (``γ_i`` likewise).  Then
+    ``δu_i^(l) = β_il A / b_i^(l)`` and ``δω_i = -γ_i A / g_i`` (paper, eq. (9)).
+    """
+
+    name = "user"
+
+    def __init__(self, rule: Callable[[np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]):
+        if not callable(rule):
+            raise ParameterError("beta_gamma", rule, "a callable (b, g, A) -> (beta, gamma)")
+        self.rule = rule
+
+    def __call__(self, b: np.ndarray, g: np.ndarray, A: float) -> ExtraInputs:
+        beta, gamma = self.rule(b, g, A)
+        beta = np.asarray(beta, float).reshape(b.shape)
+        gamma = np.asarray(gamma, float).reshape(g.shape)
+        total = beta.sum() + gamma.sum()
+        if not np.isfinite(total) or abs(total - 1.0) > 1e-9:
+            raise ParameterError("beta_gamma", f"sum {total}", "β and γ summing to 1 (eq. (10))")
+        if np.any((b == 0) & (beta != 0)) or np.any((g == 0) & (gamma != 0)):
+            raise ParameterError(
+                "beta_gamma", "non-zero weight on a zero integral", "β_il = 0 where b_il = 0, γ_i = 0 where g_i = 0"
+            )
+        with np.errstate(divide="ignore", invalid="ignore"):
+            du = np.where(b != 0, beta * A / np.where(b != 0, b, 1.0), 0.0)
+            dw = np.where(g != 0, -gamma * A / np.where(g != 0, g, 1.0), 0.0)
+        done = (b * du).sum() - (g * dw).sum()
+        return ExtraInputs(du, dw, A - done)
+
+
+# ---------------------------------------------------------------------- the controller
+@dataclass
+class ControlState:
+    """Everything the controller computed at one instant (for logging and checks)."""
+
+    v_d: FaceField
+    v_tilde: FaceField
+    rho_tilde: np.ndarray
+    b: np.ndarray
+    g: np.ndarray
+    A: float
+    u: np.ndarray
+    omega: np.ndarray
+    shortfall: float
+    dissipation: float  # ∫ α |∇ρ̃|²
+
+
+SigmaLike = float | Callable[[np.ndarray, np.ndarray, float], np.ndarray]
+
+
+class BacksteppingController:
+    """Density-feedback backstepping controller of the paper (eqs. (6) and (9)).
+
+    Parameters
+    ----------
+    grid : Grid
+    target : ndarray
+        Target density ``ρ_*`` on ``grid.shape`` (unit mass).
+    sigma : float or callable
+        Diffusion ``σ`` (>= 0) or ``σ(x, y, t)``; the SDE noise is ``sqrt(2σ) dB``.
+    alpha : AlphaSchedule
+        Step-I gain.
+    k_u, k_omega : float or array of shape (n,)
+        Step-II gains, every entry >= 0 (the paper asks only Σ > 0; the bound needs each >= 0).
+    strategy : BetaGammaStrategy
+        Extra-input rule (default :class:`MinimumNormBetaGamma`).
+    interaction : InteractionField or None
+        ``u_W`` (None: ``W = 0``).
+    dvd_dt : {"model", "finite-difference"}
+        How ``∂_t v_d`` is obtained.
+    """
+
+    def __init__(
+        self,
+        grid: Grid,
+        target: np.ndarray,
+        sigma: SigmaLike,
+        alpha: AlphaSchedule,
+        k_u: float | np.ndarray = 1.0,
+        k_omega: float | np.ndarray = 1.0,
+        strategy: BetaGammaStrategy | None = None,
+        interaction: InteractionField | None = None,
+        dvd_dt: Literal["model", "finite-difference"] = "model",
+    ):
+        self.grid = grid
+        target = np.asarray(target, float)
+        if target.shape != grid.shape:
+            raise ParameterError("target", target.shape, f"an array of grid.shape {grid.shape}")
+        self.target = target
+        if not callable(sigma):
+            sigma = float(sigma)
+            if not math.isfinite(sigma) or sigma < 0:
+                raise ParameterError("sigma", sigma, "a finite number >= 0, or a callable")
+        self.sigma = sigma
+        self.alpha = alpha
+        for name, k in (("k_u", k_u), ("k_omega", k_omega)):
+            arr = np.asarray(k, float)
+            if not np.all(np.isfinite(arr)) or np.any(arr < 0):
+                raise ParameterError(f"controller.{name}", k, "finite gains, every one >= 0")
+        self.k_u = np.asarray(k_u, float)
+        self.k_omega = np.asarray(k_omega, float)
+        self.strategy = strategy if strategy is not None else MinimumNormBetaGamma()
+        self.interaction = interaction
+        if dvd_dt not in ("model", "finite-difference"):
+            raise ParameterError("controller.dvd_dt", dvd_dt, "'model' or 'finite-difference'")
+        self.dvd_dt = dvd_dt
+        self._previous_vd: tuple[float, FaceField] | None = None
+
+    # ------------------------------------------------------------------ pieces
+    def sigma_on_cells(self, t: float):
+        """σ at the cell centres (scalar if constant)."""
+        if callable(self.sigma):
+            X, Y = self.grid.centers
+            return np.asarray(self.sigma(X, Y, t), float)
+        return self.sigma
+
+    def interaction_on_faces(self, rho: np.ndarray) -> FaceField | None:
+        """``u_W[ρ]`` on the faces, or None when ``W = 0``."""
+        return None if self.interaction is None else self.interaction.on_faces(rho)
+
+    def virtual_velocity(self, rho: np.ndarray, t: float = 0.0) -> FaceField:
+        """Step I: ``v_d = -(α∇ρ̃ - ∇(σρ))/ρ - u_W[ρ]`` on the faces (paper, eq. (6)).
+
+        ``ρ`` must be positive on the faces (the KDE always is); the schedule's ``α/ρ``
+        is evaluated directly, so a saturating schedule stays bounded as ``ρ → 0``.
+        """
+        g = self.grid
+        rho_t = rho - self.target
+        rx, ry = g.face_average(rho)
+        gx, gy = g.gradient(rho_t)
+        sx, sy = g.gradient(self.sigma_on_cells(t) * rho)
+        vx = -self.alpha.over_rho(rx) * gx + sx / rx
+        vy = -self.alpha.over_rho(ry) * gy + sy / ry
+        uw = self.interaction_on_faces(rho)
+        if uw is not None:
+            vx = vx - uw[0]
+            vy = vy - uw[1]
+        return vx, vy
+
+    def density_rate(self, rho: np.ndarray, v_r: FaceField, t: float = 0.0) -> np.ndarray:
+        """Fokker–Planck right-hand side ``-∇·((v_r + u_W)ρ - ∇(σρ))`` with ``v_a = 0`` (eq. (4)).
+
+        Central (face-average) fluxes, consistent with :meth:`virtual_velocity`, so that
+        with ``v_r = v_d`` it reduces exactly to ``∇·(α∇ρ̃)`` (Theorem 1).
+        """
+        g = self.grid
+        rx, ry = g.face_average(rho)
+        sx, sy = g.gradient(self.sigma_on_cells(t) * rho)
+        fx = v_r[0] * rx - sx
+        fy = v_r[1] * ry - sy
+        uw = self.interaction_on_faces(rho)
+        if uw is not None:
+            fx = fx + uw[0] * rx
+            fy = fy + uw[1] * ry
+        return -g.divergence((fx, fy))
+
+    def virtual_velocity_rate(self, rho: np.ndarray, rho_dot: np.ndarray, t: float = 0.0) -> FaceField:
+        """``∂_t v_d`` by the chain rule along ``∂_t ρ = rho_dot`` (σ and ρ_* frozen in time).
+
+        With ``q = α/ρ`` the schedule: ``∂_t v_d = -(q'(ρ) ρ̇ ∇ρ̃ + q ∇ρ̇) + ∇(σρ̇)/ρ
+        - ∇(σρ) ρ̇/ρ² - u_W[ρ̇]`` on the faces.
+        """
+        g = self.grid
+        rho_t = rho - self.target
+        sig = self.sigma_on_cells(t)
+        rf = g.face_average(rho)
+        df = g.face_average(rho_dot)
+        grt = g.gradient(rho_t)
+        grd = g.gradient(rho_dot)
+        gs = g.gradient(sig * rho)
+        gsd = g.gradient(sig * rho_dot)
+        out = []
+        for k in range(2):
+            q = self.alpha.over_rho(rf[k])
+            dq = self.alpha.over_rho_derivative(rf[k])
+            out.append(
+                -(dq * df[k] * grt[k] + q * grd[k]) + gsd[k] / rf[k] - gs[k] * df[k] / (rf[k] * rf[k])
+            )
+        uw = self.interaction_on_faces(rho_dot)
+        if uw is not None:
+            out = [out[0] - uw[0], out[1] - uw[1]]
+        return out[0], out[1]
+
+    def dissipation(self, rho: np.ndarray) -> float:
+        """``∫ α |∇ρ̃|² dx`` on the faces (the first term of dV₂/dt)."""
+        g = self.grid
+        gr = g.gradient(rho - self.target)
+        rf = g.face_average(rho)
+        a = (self.alpha.alpha(rf[0]), self.alpha.alpha(rf[1]))
+        return g.face_inner((a[0] * gr[0], a[1] * gr[1]), gr)
+
+    # ------------------------------------------------------------------ the law
+    def robot_inputs(
+        self, rho: np.ndarray, field: NavigationField, t: float = 0.0, dt: float | None = None
+    ) -> ControlState:
+        """Step II: robot inputs ``(u_i, ω_i)`` of eq. (9) for density ``rho`` and robots ``field``.
+
+        Parameters
+        ----------
+        rho : ndarray
+            Density (estimate) on the grid, positive.
+        field : NavigationField
+            The robots' kernels on the faces at this instant.
+        t : float
+            Time.
+        dt : float, optional
+            Step since the previous call (needed by ``dvd_dt="finite-difference"``).
+        """
+        g = self.grid
+        v_d = self.virtual_velocity(rho, t)
+        v_r = field.velocity()
+        vt = (v_r[0] - v_d[0], v_r[1] - v_d[1])
+        b, gg = field.moments(vt)
+        if self.dvd_dt == "model":
+            dvd = self.virtual_velocity_rate(rho, self.density_rate(rho, v_r, t), t)
+        else:
+            prev = self._previous_vd
+            if prev is None or dt is None or t <= prev[0]:
+                dvd = (np.zeros_like(v_d[0]), np.zeros_like(v_d[1]))
+            else:
+                h = t - prev[0]
+                dvd = ((v_d[0] - prev[1][0]) / h, (v_d[1] - prev[1][1]) / h)
+            self._previous_vd = (t, v_d)
+        rho_t = rho - self.target
+        rf = g.face_average(rho)
+        grt = g.gradient(rho_t)
+        A = g.face_inner(vt, (rf[0] * grt[0] - dvd[0], rf[1] * grt[1] - dvd[1]))
+        extra = self.strategy(b, gg, A)
+        u = self.k_u.reshape(-1, 1) * b + extra.du if self.k_u.ndim else self.k_u * b + extra.du
+        omega = -self.k_omega * gg + extra.domega
+        return ControlState(
+            v_d=v_d,
+            v_tilde=vt,
+            rho_tilde=rho_t,
+            b=b,
+            g=gg,
+            A=A,
+            u=u,
+            omega=omega,
+            shortfall=extra.shortfall,
+            dissipation=self.dissipation(rho),
+        )
+
+    def reset(self) -> None:
+        """Forget the previous ``v_d`` (finite-difference mode)."""
+        self._previous_vd = None

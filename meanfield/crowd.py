@@ -1,0 +1,77 @@
+"""The human crowd: Euler–Maruyama for the SDE (paper, eq. (1)) with reflecting walls.
+
+::
+
+    dX_j = ( u_W(X_j) + v_r(X_j, t) + v_a(X_j, t) ) dt + sqrt(2 σ(X_j, t)) dB_j
+
+The drift is computed by the caller (the closed loop knows the robots and the
+interaction); this module owns the positions, the noise and the walls.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from meanfield.domain import Domain
+from meanfield.errors import ParameterError
+
+__all__ = ["Crowd"]
+
+SigmaLike = float | Callable[[np.ndarray, np.ndarray, float], np.ndarray]
+
+
+class Crowd:
+    """Positions of ``N`` humans and their Euler–Maruyama step.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (N, 2)
+        Initial positions, inside Ω.
+    domain : Domain
+        Ω; the walls reflect.
+    sigma : float or callable
+        Diffusion ``σ >= 0`` or ``σ(x, y, t)``; the noise is ``sqrt(2σ) dB``.
+    rng : numpy.random.Generator
+        Source of the Brownian increments.
+    """
+
+    def __init__(self, positions: np.ndarray, domain: Domain, sigma: SigmaLike, rng: np.random.Generator):
+        positions = np.array(positions, dtype=float)
+        if positions.ndim != 2 or positions.shape[1] != 2 or len(positions) < 1:
+            raise ParameterError("crowd.positions", positions.shape, "an array of shape (N, 2), N >= 1")
+        if not np.all(np.isfinite(positions)):
+            raise ParameterError("crowd.positions", "non-finite values", "finite positions")
+        if not domain.contains(positions[:, 0], positions[:, 1], tol=1e-12).all():
+            raise ParameterError("crowd.positions", "points outside Ω", "every human inside the domain")
+        if not callable(sigma):
+            sigma = float(sigma)
+            if not math.isfinite(sigma) or sigma < 0:
+                raise ParameterError("crowd.sigma", sigma, "a finite number >= 0, or a callable")
+        self.positions = positions
+        self.domain = domain
+        self.sigma = sigma
+        self.rng = rng
+        self._noise = np.empty_like(positions)
+
+    @property
+    def n(self) -> int:
+        """Number of humans N."""
+        return len(self.positions)
+
+    def step(self, drift: np.ndarray, t: float, dt: float) -> None:
+        """One Euler–Maruyama step of eq. (1) with drift (N, 2), then reflect at the walls."""
+        x = self.positions
+        self.rng.standard_normal(out=self._noise)
+        if callable(self.sigma):
+            s = np.asarray(self.sigma(x[:, 0], x[:, 1], t), float)
+            if np.any(s < 0) or not np.all(np.isfinite(s)):
+                raise ParameterError("crowd.sigma", "negative or non-finite σ(x, t)", "σ(x, t) >= 0")
+            amp = np.sqrt(2.0 * s * dt)[:, None]
+        else:
+            amp = math.sqrt(2.0 * self.sigma * dt)
+        x += dt * drift
+        x += amp * self._noise
+        self.domain.reflect(x)

@@ -1,0 +1,206 @@
+"""Kernel density estimation of the crowd on the grid (paper, Section IV-A).
+
+The paper's estimate::
+
+    ρ̂(x) = 1/(N h²) Σ_j H((x - X_j)/h),     H(z) = exp(-|z|²/2) / (2π)
+
+Two evaluation methods give the same estimate:
+
+* ``"separable"``: exact.  The Gaussian factorises, ``ρ̂ = Gx Gyᵀ / (2π h² N)`` with
+  ``Gx[i, j] = exp(-(x_i - X_j)²/(2h²))``; cost O(N (nx + ny) + nx ny N) — the cheapest
+  choice for small grids (the paper's 30×30).
+* ``"binned"``: linear binning of the points onto a grid ``oversample`` times finer,
+  then one FFT convolution with the sampled Gaussian; cost O(N + G log G), for large
+  crowds.  The binning error falls 4× per halving of the bin size.
+
+Plain KDE leaks mass through the walls.  ``boundary="reflect"`` adds the mirror images
+of the points across the walls of a box (exact zero normal derivative at the walls);
+``"renormalize"`` divides by the kernel mass inside Ω, ``∫_Ω H_h(x - y) dy`` (any shape);
+``"none"`` is the paper's plain estimate.
+
+Default bandwidth (Silverman's rule in two dimensions, which coincides with Scott's):
+``h = σ̂ N^(-1/6)`` with ``σ̂² = (var X + var Y)/2``, floored at one grid cell.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+import numpy as np
+from scipy.signal import fftconvolve
+
+from meanfield.errors import ParameterError
+from meanfield.grid import Grid
+
+__all__ = ["KernelDensityEstimator", "silverman_bandwidth", "kde_direct"]
+
+Boundary = Literal["none", "reflect", "renormalize"]
+Method = Literal["auto", "separable", "binned"]
+
+
+def silverman_bandwidth(points: np.ndarray, floor: float = 0.0) -> float:
+    """Silverman/Scott rule ``h = σ̂ N^(-1/6)`` for a 2-D Gaussian KDE, at least ``floor``."""
+    n = len(points)
+    var = 0.5 * (points[:, 0].var() + points[:, 1].var()) if n > 1 else 0.0
+    return max(math.sqrt(var) * n ** (-1.0 / 6.0), floor)
+
+
+def kde_direct(points: np.ndarray, h: float, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The paper's KDE evaluated term by term at points ``(x, y)`` (reference, O(N·M))."""
+    dx = x[..., None] - points[:, 0]
+    dy = y[..., None] - points[:, 1]
+    return np.exp(-(dx**2 + dy**2) / (2 * h * h)).sum(-1) / (2 * math.pi * h * h * len(points))
+
+
+class KernelDensityEstimator:
+    """Gaussian KDE of a point cloud on ``grid``'s cell centres.
+
+    Parameters
+    ----------
+    grid : Grid
+        Where the estimate lives.
+    bandwidth : float or None
+        ``h > 0``; None uses :func:`silverman_bandwidth` on each call (floored at one cell).
+    boundary : {"reflect", "renormalize", "none"}
+        Wall correction (see module docstring); ``"reflect"`` needs a box domain and
+        falls back to ``"renormalize"`` on other shapes.
+    method : {"auto", "separable", "binned"}
+        ``"auto"`` picks ``"separable"`` when ``N * nx * ny <= 5e7``, else ``"binned"``.
+    normalize : bool
+        Rescale to unit mass on the grid (so ``ρ̂ - ρ_*`` has zero mean, as the
+        Poincaré inequality of Theorem 1 needs).
+    oversample : int
+        Refinement of the binning grid for ``"binned"``.
+    """
+
+    def __init__(
+        self,
+        grid: Grid,
+        bandwidth: float | None = None,
+        boundary: Boundary = "reflect",
+        method: Method = "auto",
+        normalize: bool = True,
+        oversample: int = 2,
+    ):
+        if bandwidth is not None:
+            bandwidth = float(bandwidth)
+            if not math.isfinite(bandwidth) or bandwidth <= 0:
+                raise ParameterError("density.bandwidth", bandwidth, "a number > 0, or None for the rule")
+        if boundary not in ("none", "reflect", "renormalize"):
+            raise ParameterError("density.boundary", boundary, "'none', 'reflect' or 'renormalize'")
+        if method not in ("auto", "separable", "binned"):
+            raise ParameterError("density.method", method, "'auto', 'separable' or 'binned'")
+        if int(oversample) < 1:
+            raise ParameterError("density.oversample", oversample, "an integer >= 1")
+        if boundary == "reflect" and grid.domain.kind != "box":
+            boundary = "renormalize"
+        self.grid = grid
+        self.bandwidth = bandwidth
+        self.boundary: Boundary = boundary
+        self.method: Method = method
+        self.normalize = normalize
+        self.oversample = int(oversample)
+        self._mass_cache: dict[float, np.ndarray] = {}
+
+    def bandwidth_for(self, points: np.ndarray) -> float:
+        """The bandwidth used for ``points``."""
+        if self.bandwidth is not None:
+            return self.bandwidth
+        return silverman_bandwidth(points, floor=max(self.grid.dx, self.grid.dy))
+
+    def __call__(self, points: np.ndarray) -> np.ndarray:
+        """Density estimate on the grid, shape ``grid.shape`` (zero outside Ω)."""
+        points = np.asarray(points, float)
+        if points.ndim != 2 or points.shape[1] != 2 or len(points) == 0:
+            raise ParameterError("points", points.shape, "an array of shape (N, 2) with N >= 1")
+        h = self.bandwidth_for(points)
+        g = self.grid
+        method = self.method
+        if method == "auto":
+            method = "separable" if len(points) * g.shape[0] * g.shape[1] <= 5e7 else "binned"
+        if method == "separable":
+            rho = self._separable(points, h)
+        else:
+            rho = self._binned(points, h)
+        if self.boundary == "renormalize":
+            rho = rho / self._kernel_mass(h)
+        if not g.is_box:
+            rho = np.where(g.active, rho, 0.0)
+        if self.normalize:
+            m = g.integrate(rho)
+            if m > 0:
+                rho *= 1.0 / m
+        return rho
+
+    # ------------------------------------------------------------------ methods
+    def _axis_factors(self, centres: np.ndarray, coords: np.ndarray, h: float, lo: float, hi: float):
+        s = -0.5 / (h * h)
+        d = centres[:, None] - coords[None, :]
+        f = np.exp(s * d * d)
+        if self.boundary == "reflect":
+            d = centres[:, None] - (2 * lo - coords)[None, :]
+            f += np.exp(s * d * d)
+            d = centres[:, None] - (2 * hi - coords)[None, :]
+            f += np.exp(s * d * d)
+        return f
+
+    def _separable(self, points: np.ndarray, h: float) -> np.ndarray:
+        g = self.grid
+        x0, x1, y0, y1 = g.domain.bounds
+        fx = self._axis_factors(g.x, points[:, 0], h, x0, x1)
+        fy = self._axis_factors(g.y, points[:, 1], h, y0, y1)
+        return (fx @ fy.T) * (1.0 / (2 * math.pi * h * h * len(points)))
+
+    def _binned(self, points: np.ndarray, h: float) -> np.ndarray:
+        g = self.grid
+        r = self.oversample
+        nx, ny = g.shape
+        mx, my = nx * r, ny * r
+        x0, x1, y0, y1 = g.domain.bounds
+        bx, by = g.dx / r, g.dy / r
+        # linear (cloud-in-cell) binning onto fine cell centres
+        s = np.clip((points[:, 0] - x0) / bx - 0.5, 0.0, mx - 1.0)
+        t = np.clip((points[:, 1] - y0) / by - 0.5, 0.0, my - 1.0)
+        i = np.minimum(s.astype(np.intp), mx - 2)
+        j = np.minimum(t.astype(np.intp), my - 2)
+        fs = s - i
+        ft = t - j
+        counts = np.zeros(mx * my)
+        base = i * my + j
+        np.add.at(counts, base, (1 - fs) * (1 - ft))
+        np.add.at(counts, base + my, fs * (1 - ft))
+        np.add.at(counts, base + 1, (1 - fs) * ft)
+        np.add.at(counts, base + my + 1, fs * ft)
+        counts = counts.reshape(mx, my)
+        # Gaussian sampled on fine-grid offsets, truncated at 6h (relative tail < 1e-8)
+        kx = min(int(math.ceil(6 * h / bx)), 2 * mx)
+        ky = min(int(math.ceil(6 * h / by)), 2 * my)
+        ox = np.arange(-kx, kx + 1) * bx
+        oy = np.arange(-ky, ky + 1) * by
+        ker = np.exp(-0.5 * (ox[:, None] ** 2 + oy[None, :] ** 2) / (h * h))
+        ker *= 1.0 / (2 * math.pi * h * h * len(points))
+        if self.boundary == "reflect":
+            # mirror images across the walls: pad the counts by reflection
+            px, py = min(kx, mx), min(ky, my)
+            counts = np.pad(counts, ((px, px), (py, py)), mode="symmetric")
+            fine = fftconvolve(counts, ker, mode="same")[px : px + mx, py : py + my]
+        else:
+            fine = fftconvolve(counts, ker, mode="same")
+        if r == 1:
+            return fine
+        # the coarse centre lies between fine centres: average the r×r block
+        return fine.reshape(nx, r, ny, r).mean(axis=(1, 3))
+
+    def _kernel_mass(self, h: float) -> np.ndarray:
+        """``∫_Ω H_h(x - y) dy`` at each cell centre (cached per bandwidth)."""
+        if h not in self._mass_cache:
+            g = self.grid
+            nx, ny = g.shape
+            ox = np.arange(-(nx - 1), nx) * g.dx
+            oy = np.arange(-(ny - 1), ny) * g.dy
+            ker = np.exp(-0.5 * (ox[:, None] ** 2 + oy[None, :] ** 2) / (h * h))
+            ker /= 2 * math.pi * h * h
+            m = fftconvolve(g.volume, ker, mode="same")
+            self._mass_cache[h] = np.where(g.active, np.maximum(m, 1e-300), 1.0)
+        return self._mass_cache[h]

@@ -1,0 +1,198 @@
+"""Navigation kernels K(ξ, θ) of the robots' signs and interaction potentials W.
+
+Navigation field of one robot (paper, Section III, and DESIGN.md §1)::
+
+    K(ξ, θ) = K̄(ξ) e(θ),            e(θ) = (cos θ, sin θ)
+    K̄(ξ)    = c exp(-|ξ|²/η)         (c: strength, η: range)
+    K_ξ     = ∂K/∂ξ = e(θ) ∇K̄(ξ)ᵀ    (2×2)
+    K_θ     = ∂K/∂θ = K̄(ξ) e⊥(θ),    e⊥(θ) = (-sin θ, cos θ)
+
+Any decaying magnitude K̄ with its gradient can be plugged in through
+:class:`CustomKernel`.  Every function here accepts complex arrays too (used by the
+complex-step tests of the Lyapunov identities).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from meanfield.errors import ParameterError
+
+__all__ = [
+    "NavigationKernel",
+    "GaussianKernel",
+    "CustomKernel",
+    "kernel_value",
+    "kernel_jacobian_xi",
+    "kernel_jacobian_theta",
+    "InteractionPotential",
+    "GaussianPotential",
+]
+
+
+@runtime_checkable
+class NavigationKernel(Protocol):
+    """Magnitude K̄(ξ) of a sign's field and its gradient ∇K̄(ξ)."""
+
+    def magnitude(self, xi_x: Any, xi_y: Any) -> np.ndarray:
+        """K̄ at offsets ``ξ = x - R``."""
+        ...
+
+    def magnitude_gradient(self, xi_x: Any, xi_y: Any) -> tuple[np.ndarray, np.ndarray]:
+        """∇K̄ at offsets ``ξ``."""
+        ...
+
+
+def _positive(name: str, value: float) -> float:
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(name, value, "a finite number > 0") from None
+    if not math.isfinite(value) or value <= 0:
+        raise ParameterError(name, value, "a finite number > 0")
+    return value
+
+
+@dataclass(frozen=True)
+class GaussianKernel:
+    """The paper's kernel ``K̄(ξ) = c exp(-|ξ|²/η)``.
+
+    Parameters
+    ----------
+    c : float
+        Strength (peak speed of the guided humans), > 0.
+    eta : float
+        Range (squared length scale), > 0.  ``K̄`` falls below ``ε`` outside the disk of
+        radius ``sqrt(η ln(c/ε))``.
+    """
+
+    c: float
+    eta: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "c", _positive("kernel.c", self.c))
+        object.__setattr__(self, "eta", _positive("kernel.eta", self.eta))
+
+    separable = True
+
+    def factor(self, d: Any) -> np.ndarray:
+        """One-dimensional factor ``exp(-d²/η)``: ``K̄(ξ) = c·factor(ξx)·factor(ξy)``."""
+        return np.exp(-(d * d) / self.eta)
+
+    def magnitude(self, xi_x: Any, xi_y: Any) -> np.ndarray:
+        """``K̄(ξ) = c exp(-|ξ|²/η)``."""
+        return self.c * np.exp(-(xi_x * xi_x + xi_y * xi_y) / self.eta)
+
+    def magnitude_gradient(self, xi_x: Any, xi_y: Any) -> tuple[np.ndarray, np.ndarray]:
+        """``∇K̄(ξ) = -(2/η) ξ K̄(ξ)``."""
+        k = self.magnitude(xi_x, xi_y)
+        s = -2.0 / self.eta
+        return s * xi_x * k, s * xi_y * k
+
+    def radius(self, eps: float) -> float:
+        """Radius ``r_ε = sqrt(η ln(c/ε))`` of the disk where ``K̄ > ε`` (0 if ``ε >= c``)."""
+        eps = _positive("eps", eps)
+        return math.sqrt(self.eta * math.log(self.c / eps)) if eps < self.c else 0.0
+
+
+@dataclass(frozen=True)
+class CustomKernel:
+    """A user kernel from two callables.
+
+    Parameters
+    ----------
+    magnitude_fn : callable
+        ``(xi_x, xi_y) -> K̄`` (arrays of equal shape), decaying with ``|ξ|``.
+    gradient_fn : callable
+        ``(xi_x, xi_y) -> (∂K̄/∂ξx, ∂K̄/∂ξy)``.
+    """
+
+    magnitude_fn: Callable[[Any, Any], Any]
+    gradient_fn: Callable[[Any, Any], tuple[Any, Any]]
+
+    separable = False
+
+    def magnitude(self, xi_x: Any, xi_y: Any) -> np.ndarray:
+        """K̄ from the user callable."""
+        return self.magnitude_fn(xi_x, xi_y)
+
+    def magnitude_gradient(self, xi_x: Any, xi_y: Any) -> tuple[np.ndarray, np.ndarray]:
+        """∇K̄ from the user callable."""
+        gx, gy = self.gradient_fn(xi_x, xi_y)
+        return gx, gy
+
+
+def kernel_value(kernel: NavigationKernel, xi_x: Any, xi_y: Any, theta: Any):
+    """``K(ξ, θ) = K̄(ξ) e(θ)``: the velocity a sign at offset ``ξ`` asks for (paper, §III).
+
+    Returns
+    -------
+    (Kx, Ky) : arrays broadcast from the inputs.
+    """
+    k = kernel.magnitude(xi_x, xi_y)
+    return k * np.cos(theta), k * np.sin(theta)
+
+
+def kernel_jacobian_xi(kernel: NavigationKernel, xi_x: Any, xi_y: Any, theta: Any) -> np.ndarray:
+    """``K_ξ = ∂K/∂ξ = e(θ) ∇K̄(ξ)ᵀ`` (paper, eq. (5)); shape ``(..., 2, 2)``, rows = components."""
+    gx, gy = kernel.magnitude_gradient(xi_x, xi_y)
+    c, s = np.cos(theta), np.sin(theta)
+    gx, gy, c, s = np.broadcast_arrays(gx, gy, c, s)
+    return np.stack([np.stack([c * gx, c * gy], -1), np.stack([s * gx, s * gy], -1)], -2)
+
+
+def kernel_jacobian_theta(kernel: NavigationKernel, xi_x: Any, xi_y: Any, theta: Any):
+    """``K_θ = ∂K/∂θ = K̄(ξ) e⊥(θ)`` (paper, eq. (5)); returns ``(K_θx, K_θy)``."""
+    k = kernel.magnitude(xi_x, xi_y)
+    return -k * np.sin(theta), k * np.cos(theta)
+
+
+# ---------------------------------------------------------------------- interaction W
+@runtime_checkable
+class InteractionPotential(Protocol):
+    """Pairwise potential W between humans; the SDE drift is ``(1/N) Σ_k ∇W(X_k - X_j)``."""
+
+    def gradient(self, z_x: Any, z_y: Any) -> tuple[np.ndarray, np.ndarray]:
+        """∇W at ``z``."""
+        ...
+
+
+@dataclass(frozen=True)
+class GaussianPotential:
+    """``W(z) = s exp(-|z|²/ℓ²)``; ``s > 0`` repels, ``s < 0`` attracts.
+
+    With the SDE's convention ``(1/N) Σ_k ∇W(X_k - X_j)``, ``∇W(X_k - X_j)`` points from
+    ``X_k`` towards ``X_j`` when ``s > 0``: human ``j`` is pushed away from ``k``.
+
+    Parameters
+    ----------
+    strength : float
+        ``s`` (any finite non-zero value).
+    length : float
+        ``ℓ > 0``.
+    """
+
+    strength: float
+    length: float
+
+    def __post_init__(self) -> None:
+        s = float(self.strength)
+        if not math.isfinite(s):
+            raise ParameterError("interaction.strength", s, "a finite number")
+        object.__setattr__(self, "strength", s)
+        object.__setattr__(self, "length", _positive("interaction.length", self.length))
+
+    def value(self, z_x: Any, z_y: Any) -> np.ndarray:
+        """``W(z)``."""
+        return self.strength * np.exp(-(z_x * z_x + z_y * z_y) / self.length**2)
+
+    def gradient(self, z_x: Any, z_y: Any) -> tuple[np.ndarray, np.ndarray]:
+        """``∇W(z) = -(2/ℓ²) z W(z)``."""
+        w = self.value(z_x, z_y)
+        s = -2.0 / self.length**2
+        return s * z_x * w, s * z_y * w

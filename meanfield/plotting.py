@@ -1,0 +1,162 @@
+"""Figures of a run, in the spirit of the paper's Figs. 2 and 3, and an animation.
+
+* ``target_and_error.png`` — Fig. 2: target density ρ_*; convergence error ‖ρ̃‖, ‖ṽ‖, V₂
+  and the fraction of humans in the target region over time.
+* ``snapshots.png`` — Fig. 3: four instants; top row humans (red), robots (blue circles)
+  and the arrows of v_r; bottom row the density estimates ρ̂.
+* ``animation.gif`` — the top row of Fig. 3 over the whole run (``--animate``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from meanfield.io import atomic_write_with  # noqa: E402
+from meanfield.robots import navigation_velocity  # noqa: E402
+
+if TYPE_CHECKING:
+    from meanfield.simulate import SimulationResult
+
+__all__ = ["plot_target_and_error", "plot_snapshots", "save_run_figures", "save_animation"]
+
+
+def _extent(ds):
+    x, y = ds["x"].values, ds["y"].values
+    dx, dy = x[1] - x[0], y[1] - y[0]
+    return (x[0] - dx / 2, x[-1] + dx / 2, y[0] - dy / 2, y[-1] + dy / 2)
+
+
+def plot_target_and_error(result: SimulationResult):
+    """Fig. 2 of the paper: target density (left) and convergence error over time (right)."""
+    ds = result.dataset
+    fig, (a0, a1) = plt.subplots(1, 2, figsize=(10, 4.2), constrained_layout=True)
+    im = a0.imshow(ds["target_density"].values.T, origin="lower", extent=_extent(ds), cmap="viridis")
+    c = (ds.attrs["target_center_x"], ds.attrs["target_center_y"])
+    a0.add_patch(plt.Circle(c, ds.attrs["target_radius"], fill=False, ec="w", ls="--", lw=1))
+    a0.set_title("target density ρ* (dashed: target region)")
+    a0.set_xlabel("x")
+    a0.set_ylabel("y")
+    a0.set_xlim(_extent(ds)[:2])
+    a0.set_ylim(_extent(ds)[2:])
+    fig.colorbar(im, ax=a0, shrink=0.85)
+    t = ds["time"].values
+    a1.semilogy(t, ds["rho_error_l2"].values, label="‖ρ̃‖ (L²)")
+    a1.semilogy(t, ds["v_error_l2"].values, label="‖ṽ‖ (L²)")
+    a1.semilogy(t, ds["V2"].values, label="V₂")
+    a1.set_xlabel("time")
+    a1.set_title("convergence error")
+    a2 = a1.twinx()
+    a2.plot(t, ds["fraction_in_target"].values, "k:", label="fraction in target")
+    a2.set_ylim(0, 1)
+    a2.set_ylabel("fraction of humans in target region")
+    h1, l1 = a1.get_legend_handles_labels()
+    h2, l2 = a2.get_legend_handles_labels()
+    a1.legend(h1 + h2, l1 + l2, loc="center right", fontsize=8)
+    return fig
+
+
+def _field_arrows(result: SimulationResult, k: int, m: int = 15):
+    ds = result.dataset
+    loop_kernel = result_kernel(result)
+    x0, x1, y0, y1 = _extent(ds)
+    xs = np.linspace(x0, x1, m + 2)[1:-1]
+    ys = np.linspace(y0, y1, m + 2)[1:-1]
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    pts = np.column_stack([X.ravel(), Y.ravel()])
+    R = np.column_stack([ds["robot_x"].values[k], ds["robot_y"].values[k]])
+    v = navigation_velocity(loop_kernel, R, ds["robot_heading"].values[k], pts)
+    return pts, v
+
+
+def result_kernel(result: SimulationResult):
+    """The scenario's Gaussian navigation kernel."""
+    from meanfield.kernels import GaussianKernel
+
+    k = result.scenario.kernel
+    return GaussianKernel(k.c, k.eta)
+
+
+def _draw_crowd(ax, result: SimulationResult, k: int):
+    ds = result.dataset
+    pts, v = _field_arrows(result, k)
+    ax.quiver(pts[:, 0], pts[:, 1], v[:, 0], v[:, 1], color="0.55", scale=result.scenario.kernel.c * 12,
+              width=0.004)
+    ax.plot(ds["human_x"].values[k], ds["human_y"].values[k], ".", color="tab:red", ms=3)
+    rx, ry, th = ds["robot_x"].values[k], ds["robot_y"].values[k], ds["robot_heading"].values[k]
+    ax.plot(rx, ry, "o", mfc="none", mec="tab:blue", ms=7, mew=1.5)
+    ax.quiver(rx, ry, np.cos(th), np.sin(th), color="tab:blue", scale=18, width=0.006)
+    _outline(ax, result)
+    ax.set_aspect("equal")
+    ax.set_title(f"t = {ds['time'].values[k]:.1f}, in target {ds['fraction_in_target'].values[k]:.0%}",
+                 fontsize=9)
+
+
+def _outline(ax, result: SimulationResult):
+    dom = result.scenario.domain
+    if dom.kind == "disk":
+        ax.add_patch(plt.Circle(dom.center, dom.radius, fill=False, ec="k", lw=1))
+    else:
+        v = np.vstack([dom.vertices, dom.vertices[:1]])
+        ax.plot(v[:, 0], v[:, 1], "k-", lw=1)
+    x0, x1, y0, y1 = dom.bounds
+    pad = 0.02 * max(x1 - x0, y1 - y0)
+    ax.set_xlim(x0 - pad, x1 + pad)
+    ax.set_ylim(y0 - pad, y1 + pad)
+
+
+def plot_snapshots(result: SimulationResult, count: int = 4):
+    """Fig. 3 of the paper: humans, robots, v_r arrows (top) and density estimates (bottom)."""
+    ds = result.dataset
+    n = ds.sizes["time"]
+    idx = np.unique(np.round(np.linspace(0, n - 1, count)).astype(int))
+    fig, axes = plt.subplots(2, len(idx), figsize=(3.2 * len(idx), 6.4), constrained_layout=True,
+                             squeeze=False)
+    vmax = float(np.nanmax(ds["density"].values[idx]))
+    for col, k in enumerate(idx):
+        _draw_crowd(axes[0, col], result, k)
+        im = axes[1, col].imshow(ds["density"].values[k].T, origin="lower", extent=_extent(ds),
+                                 vmin=0, vmax=vmax, cmap="viridis")
+        axes[1, col].set_title("density estimate ρ̂", fontsize=9)
+    fig.colorbar(im, ax=axes[1, :].tolist(), shrink=0.8)
+    return fig
+
+
+def _save(fig, path: Path) -> Path:
+    path = atomic_write_with(path, lambda p: fig.savefig(p, dpi=110))
+    plt.close(fig)
+    return path
+
+
+def save_run_figures(result: SimulationResult, out_dir: Path) -> dict[str, Path]:
+    """Write ``target_and_error.png`` and ``snapshots.png`` into ``out_dir``."""
+    out_dir = Path(out_dir)
+    return {
+        "target_and_error": _save(plot_target_and_error(result), out_dir / "target_and_error.png"),
+        "snapshots": _save(plot_snapshots(result), out_dir / "snapshots.png"),
+    }
+
+
+def save_animation(result: SimulationResult, path: Path, max_frames: int = 150, fps: int = 15) -> Path:
+    """Animated GIF of humans, robots and v_r over the run (at most ``max_frames`` frames)."""
+    from matplotlib.animation import FuncAnimation, PillowWriter
+
+    ds = result.dataset
+    n = ds.sizes["time"]
+    frames = np.unique(np.round(np.linspace(0, n - 1, min(n, max_frames))).astype(int))
+    fig, ax = plt.subplots(figsize=(5, 5), constrained_layout=True)
+
+    def draw(k):
+        ax.clear()
+        _draw_crowd(ax, result, int(k))
+
+    anim = FuncAnimation(fig, draw, frames=frames, interval=1000 / fps)
+    path = atomic_write_with(Path(path), lambda p: anim.save(p, writer=PillowWriter(fps=fps)))
+    plt.close(fig)
+    return path

@@ -1,0 +1,247 @@
+"""Robots: single integrators carrying signs, and the navigation velocity field they make.
+
+Robot model (paper, eq. (2))::
+
+    dR_i/dt = u_i,   dθ_i/dt = ω_i,   ‖u_i‖ <= u_max,  |ω_i| <= ω_max  (optional limits)
+
+Navigation field (paper, eq. (3)) and its time derivative (eq. (5))::
+
+    v_r(x, t)   = Σ_i K(x - R_i, θ_i)
+    ∂_t v_r     = Σ_i ( -K_ξ^i u_i + K_θ^i ω_i )
+
+:class:`NavigationField` evaluates ``v_r`` on the grid faces once per step and gives
+the integrals ``∫ Fᵀ K_ξ^i dx`` and ``∫ Fᵀ K_θ^i dx`` of any face field ``F`` against
+each robot's kernel (the ``b_i`` and ``g_i`` of the controller).  For the separable
+Gaussian kernel all of this reduces to small matrix products.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from meanfield.domain import Domain
+from meanfield.errors import ParameterError
+from meanfield.grid import FaceField, Grid
+from meanfield.kernels import NavigationKernel
+
+__all__ = ["RobotTeam", "NavigationField", "navigation_velocity", "saturate_inputs"]
+
+
+def _limit(name: str, value: float | None) -> float:
+    if value is None:
+        return math.inf
+    value = float(value)
+    if math.isnan(value) or value <= 0:
+        raise ParameterError(name, value, "a number > 0, or None/inf for no limit")
+    return value
+
+
+@dataclass
+class RobotTeam:
+    """States of ``n`` robots and their speed limits.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (n, 2)
+        Robot positions ``R_i``, each inside Ω.
+    headings : ndarray, shape (n,)
+        Sign orientations ``θ_i`` (radians).
+    u_max : float or None
+        Linear speed limit ``‖u_i‖ <= u_max`` (None: unlimited).
+    omega_max : float or None
+        Turning-rate limit ``|ω_i| <= ω_max`` (None: unlimited).
+    """
+
+    positions: np.ndarray
+    headings: np.ndarray
+    u_max: float | None = None
+    omega_max: float | None = None
+
+    def __post_init__(self) -> None:
+        self.positions = np.array(self.positions, dtype=float).reshape(-1, 2)
+        self.headings = np.array(self.headings, dtype=float).reshape(-1)
+        if len(self.positions) < 1:
+            raise ParameterError("robots.positions", "no robots", "at least one robot")
+        if self.headings.shape != (len(self.positions),):
+            raise ParameterError(
+                "robots.headings", self.headings.shape, f"one heading per robot ({len(self.positions)})"
+            )
+        if not (np.all(np.isfinite(self.positions)) and np.all(np.isfinite(self.headings))):
+            raise ParameterError("robots", "non-finite state", "finite positions and headings")
+        self.u_max = _limit("robots.u_max", self.u_max)
+        self.omega_max = _limit("robots.omega_max", self.omega_max)
+
+    @property
+    def n(self) -> int:
+        """Number of robots."""
+        return len(self.positions)
+
+    def check_inside(self, domain: Domain, tol: float = 1e-12) -> None:
+        """Raise :class:`ParameterError` if a robot is outside Ω."""
+        inside = domain.contains(self.positions[:, 0], self.positions[:, 1], tol=tol)
+        if not inside.all():
+            k = int(np.flatnonzero(~inside)[0])
+            raise ParameterError(
+                f"robots.positions[{k}]", self.positions[k].tolist(), "a point inside the domain"
+            )
+
+    def step(self, u: np.ndarray, omega: np.ndarray, dt: float, domain: Domain) -> None:
+        """Advance eq. (2) by one explicit Euler step, saturating and keeping robots in Ω.
+
+        ``u`` and ``omega`` are saturated with :func:`saturate_inputs` first, then the
+        positions are projected onto Ω (a robot that hits a wall slides along it).
+        """
+        u, omega = saturate_inputs(u, omega, self.u_max, self.omega_max)
+        self.positions += dt * u
+        domain.project(self.positions)
+        self.headings = np.mod(self.headings + dt * omega, 2 * np.pi)
+
+
+def saturate_inputs(
+    u: np.ndarray, omega: np.ndarray, u_max: float, omega_max: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Scale each ``u_i`` down to ``‖u_i‖ <= u_max`` (direction kept) and clip ``ω_i``."""
+    if math.isfinite(u_max):
+        speed = np.hypot(u[:, 0], u[:, 1])
+        over = speed > u_max
+        if over.any():
+            u = u.copy()
+            u[over] *= (u_max / speed[over])[:, None]
+    if math.isfinite(omega_max):
+        omega = np.clip(omega, -omega_max, omega_max)
+    return u, omega
+
+
+def navigation_velocity(
+    kernel: NavigationKernel, positions: np.ndarray, headings: np.ndarray, points: np.ndarray
+) -> np.ndarray:
+    """``v_r(x) = Σ_i K̄(x - R_i) e(θ_i)`` at ``points`` (N, 2) (paper, eq. (3)); shape (N, 2).
+
+    Cost O(N n); for very large crowds evaluate on a grid and interpolate.
+    """
+    dx = points[None, :, 0] - positions[:, None, 0]
+    dy = points[None, :, 1] - positions[:, None, 1]
+    k = kernel.magnitude(dx, dy)  # (n, N)
+    return np.stack([np.cos(headings) @ k, np.sin(headings) @ k], axis=1)
+
+
+class NavigationField:
+    """The robots' kernels sampled on the grid's faces at one instant.
+
+    Parameters
+    ----------
+    kernel : NavigationKernel
+    grid : Grid
+    positions, headings : ndarray
+        Robot states ``R_i`` (n, 2) and ``θ_i`` (n,); complex values are allowed
+        (complex-step differentiation in the tests).
+    """
+
+    def __init__(
+        self, kernel: NavigationKernel, grid: Grid, positions: np.ndarray, headings: np.ndarray
+    ):
+        self.kernel = kernel
+        self.grid = grid
+        self.cos = np.cos(headings)
+        self.sin = np.sin(headings)
+        rx = positions[:, 0][:, None]
+        ry = positions[:, 1][:, None]
+        self.separable = bool(getattr(kernel, "separable", False))
+        if self.separable:
+            s = -2.0 / kernel.eta
+            c = kernel.c
+            # one-dimensional factors (robot, coordinate)
+            dxf = grid.x_faces[None, :] - rx
+            dxc = grid.x[None, :] - rx
+            dyf = grid.y_faces[None, :] - ry
+            dyc = grid.y[None, :] - ry
+            self._fxf = c * kernel.factor(dxf)  # strength folded into the x factors
+            self._fxc = c * kernel.factor(dxc)
+            self._fyf = kernel.factor(dyf)
+            self._fyc = kernel.factor(dyc)
+            self._gxf = s * dxf * self._fxf
+            self._gxc = s * dxc * self._fxc
+            self._gyf = s * dyf * self._fyf
+            self._gyc = s * dyc * self._fyc
+        else:
+            Xx, Yx = grid.face_points_x
+            Xy, Yy = grid.face_points_y
+            rx3 = positions[:, 0][:, None, None]
+            ry3 = positions[:, 1][:, None, None]
+            self._kx = kernel.magnitude(Xx[None] - rx3, Yx[None] - ry3)
+            self._ky = kernel.magnitude(Xy[None] - rx3, Yy[None] - ry3)
+            self._gx_x, self._gy_x = kernel.magnitude_gradient(Xx[None] - rx3, Yx[None] - ry3)
+            self._gx_y, self._gy_y = kernel.magnitude_gradient(Xy[None] - rx3, Yy[None] - ry3)
+
+    # ---------------------------------------------------------------- the field itself
+    def velocity(self) -> FaceField:
+        """``v_r`` on the faces: x-component on x-faces, y-component on y-faces."""
+        if self.separable:
+            vx = (self.cos[:, None] * self._fxf).T @ self._fyc
+            vy = (self.sin[:, None] * self._fxc).T @ self._fyf
+            return vx, vy
+        return np.tensordot(self.cos, self._kx, 1), np.tensordot(self.sin, self._ky, 1)
+
+    def velocity_rate(self, u: np.ndarray, omega: np.ndarray) -> FaceField:
+        """``∂_t v_r = Σ_i (-K_ξ^i u_i + K_θ^i ω_i)`` on the faces (paper, eq. (5))."""
+        # -K_ξ u = -e(θ) (∇K̄ · u);  K_θ ω = K̄ e⊥(θ) ω
+        ux, uy = u[:, 0], u[:, 1]
+        if self.separable:
+            ax = -self.cos * ux
+            ay = -self.cos * uy
+            bw = -self.sin * omega
+            fx = (
+                (ax[:, None] * self._gxf).T @ self._fyc
+                + (ay[:, None] * self._fxf).T @ self._gyc
+                + (bw[:, None] * self._fxf).T @ self._fyc
+            )
+            ax = -self.sin * ux
+            ay = -self.sin * uy
+            bw = self.cos * omega
+            fy = (
+                (ax[:, None] * self._gxc).T @ self._fyf
+                + (ay[:, None] * self._fxc).T @ self._gyf
+                + (bw[:, None] * self._fxc).T @ self._fyf
+            )
+            return fx, fy
+        fx = np.tensordot(-self.cos * ux, self._gx_x, 1) + np.tensordot(-self.cos * uy, self._gy_x, 1)
+        fx = fx + np.tensordot(-self.sin * omega, self._kx, 1)
+        fy = np.tensordot(-self.sin * ux, self._gx_y, 1) + np.tensordot(-self.sin * uy, self._gy_y, 1)
+        fy = fy + np.tensordot(self.cos * omega, self._ky, 1)
+        return fx, fy
+
+    # ---------------------------------------------------------------- projections
+    def moments(self, F: FaceField) -> tuple[np.ndarray, np.ndarray]:
+        """``b_i = ∫ Fᵀ K_ξ^i dx`` (n, 2) and ``g_i = ∫ Fᵀ K_θ^i dx`` (n,) for a face field F.
+
+        With ``F = ṽ`` these are the ``b_i``, ``g_i`` of the robot law (paper, eq. (9)).
+        Integrals use the grid's face inner product, so ``Σ_i b_i·u_i - g_i ω_i`` equals
+        ``-<F, ∂_t v_r>`` exactly.
+        """
+        Wx = self.grid.weight_x * F[0]
+        Wy = self.grid.weight_y * F[1]
+        if self.separable:
+            # x-faces: factors (x at faces, y at centres); y-faces: (x at centres, y at faces)
+            Px = self._fxf @ Wx  # (n, ny)
+            Gx = self._gxf @ Wx
+            Py = self._fxc @ Wy  # (n, ny-1)
+            Gy = self._gxc @ Wy
+            s0x = (Px * self._fyc).sum(1)
+            s1x = (Gx * self._fyc).sum(1)
+            s2x = (Px * self._gyc).sum(1)
+            s0y = (Py * self._fyf).sum(1)
+            s1y = (Gy * self._fyf).sum(1)
+            s2y = (Py * self._gyf).sum(1)
+        else:
+            s0x = np.tensordot(self._kx, Wx, 2)
+            s1x = np.tensordot(self._gx_x, Wx, 2)
+            s2x = np.tensordot(self._gy_x, Wx, 2)
+            s0y = np.tensordot(self._ky, Wy, 2)
+            s1y = np.tensordot(self._gx_y, Wy, 2)
+            s2y = np.tensordot(self._gy_y, Wy, 2)
+        b = np.stack([self.cos * s1x + self.sin * s1y, self.cos * s2x + self.sin * s2y], axis=1)
+        g = -self.sin * s0x + self.cos * s0y
+        return b, g

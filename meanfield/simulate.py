@@ -1,0 +1,521 @@
+"""The closed loop: crowd SDE, robots, KDE density feedback and the backstepping law.
+
+One step (``dt``) of :class:`ClosedLoop`:
+
+1. ρ̂ = KDE of the humans' positions on the grid (paper, Section IV-A);
+2. the robots' kernels on the grid faces; ``v_r`` (eq. (3));
+3. controller: ``v_d`` (eq. (6)), ``ṽ``, ``b_i``, ``g_i``, ``A``, inputs ``(u_i, ω_i)`` (eq. (9));
+4. humans: one Euler–Maruyama step of eq. (1) with drift ``v_r + u_W + v_a`` at each human;
+5. robots: one Euler step of eq. (2), saturated at the speed limits, kept in Ω.
+
+:func:`run` returns a :class:`SimulationResult` holding an xarray Dataset of the recorded
+frames and the summary; :meth:`SimulationResult.save` writes them atomically.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from meanfield.control import (
+    BacksteppingController,
+    BetaGammaStrategy,
+    ConstantAlpha,
+    ControlState,
+    MinimumNormBetaGamma,
+    SaturatingAlpha,
+)
+from meanfield.crowd import Crowd
+from meanfield.density import KernelDensityEstimator
+from meanfield.domain import Domain
+from meanfield.errors import ParameterError, SimulationDiverged
+from meanfield.grid import Grid
+from meanfield.interaction import InteractionField
+from meanfield.kernels import GaussianKernel, GaussianPotential, NavigationKernel
+from meanfield.metrics import (
+    fraction_in_disk,
+    gaussian_target,
+    target_region_radius,
+    wasserstein2_to_grid_density,
+)
+from meanfield.robots import NavigationField, RobotTeam, navigation_velocity, saturate_inputs
+from meanfield.scenario import Scenario
+
+__all__ = ["ClosedLoop", "SimulationResult", "run", "robot_layout"]
+
+Disturbance = Callable[[np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]
+
+
+def robot_layout(domain: Domain, n: int, margin: float = 0.0) -> np.ndarray:
+    """``n`` robot positions on a regular lattice covering Ω (the paper's 4×4 for n = 16).
+
+    A box gets a cell-centred ``cols × rows`` lattice (``cols = ceil(sqrt(n))``), the last
+    row centred if it is partial; other shapes get the smallest square lattice over the
+    bounding box with at least ``n`` points inside Ω, of which ``n`` evenly spaced ones.
+    """
+    x0, x1, y0, y1 = domain.bounds
+    x0, x1, y0, y1 = x0 + margin, x1 - margin, y0 + margin, y1 - margin
+    if domain.kind == "box":
+        cols = math.ceil(math.sqrt(n))
+        rows = math.ceil(n / cols)
+        pts = []
+        for r in range(rows):
+            k = min(cols, n - r * cols)
+            y = y0 + (r + 0.5) * (y1 - y0) / rows
+            for c in range(k):
+                pts.append((x0 + (c + 0.5 + (cols - k) / 2) * (x1 - x0) / cols, y))
+        return np.array(pts, float)
+    m = math.ceil(math.sqrt(n))
+    while True:
+        xs = x0 + (np.arange(m) + 0.5) * (x1 - x0) / m
+        ys = y0 + (np.arange(m) + 0.5) * (y1 - y0) / m
+        X, Y = np.meshgrid(xs, ys, indexing="ij")
+        inside = domain.contains(X, Y) & _inset_ok(domain, X, Y, margin)
+        if inside.sum() >= n:
+            cand = np.column_stack([X[inside], Y[inside]])
+            idx = np.round(np.linspace(0, len(cand) - 1, n)).astype(int)
+            return cand[idx]
+        m += 1
+
+
+def _inset_ok(domain: Domain, X, Y, margin: float):
+    if margin <= 0 or domain.kind != "disk":
+        return np.ones_like(X, bool)
+    return np.hypot(X - domain.center[0], Y - domain.center[1]) <= domain.radius - margin
+
+
+def _robot_region(domain: Domain, margin: float) -> Domain:
+    """Where robots may stand: Ω, inset by ``margin`` for a box or a disk."""
+    if margin <= 0:
+        return domain
+    if domain.kind == "box":
+        x0, x1, y0, y1 = domain.bounds
+        return Domain.box(x1 - x0 - 2 * margin, y1 - y0 - 2 * margin, (x0 + margin, y0 + margin))
+    if domain.kind == "disk":
+        return Domain.disk(domain.radius - margin, domain.center)
+    raise ParameterError("robots.margin", margin, "0 for a polygon domain (a margin needs a box or a disk)")
+
+
+def _disturbance_from(scenario: Scenario) -> Disturbance | None:
+    d = scenario.disturbance
+    if d.kind == "none":
+        return None
+    if d.kind == "constant":
+        vx, vy = d.velocity
+        return lambda x, y, t: (np.full_like(x, vx), np.full_like(y, vy))
+    cx, cy = scenario.domain.center
+    s = d.strength
+    return lambda x, y, t: (-s * (y - cy), s * (x - cx))
+
+
+@dataclass
+class SimulationResult:
+    """Outcome of a closed-loop run.
+
+    Attributes
+    ----------
+    scenario : Scenario
+    dataset : xarray.Dataset
+        Recorded frames (robot states, humans, density estimates, V₁, V₂, errors, speeds).
+    summary : dict
+        ``fraction_in_target``, ``l2_error_initial``, ``l2_error_final``,
+        ``w2_to_target_final``, ``time_to_90``, ``max_robot_speed``, ``speed_limit``,
+        ``steps``, ``wall_seconds``, ``seed``, ``status``, the scenario, and more.
+    """
+
+    scenario: Scenario
+    dataset: Any
+    summary: dict[str, Any]
+
+    def save(self, out_dir: str | Path, figures: bool = True, animate: bool = False) -> dict[str, Path]:
+        """Write ``timeseries.nc``, ``scenario.toml``, figures and (last) ``summary.json``.
+
+        Every file is written atomically, and ``summary.json`` only once everything else
+        is in place, so a directory with a ``summary.json`` is complete.
+        """
+        from meanfield.io import atomic_write_json, atomic_write_text, atomic_write_with
+
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        paths: dict[str, Path] = {}
+        paths["timeseries"] = atomic_write_with(
+            out / "timeseries.nc", lambda p: self.dataset.to_netcdf(p, engine="h5netcdf")
+        )
+        paths["scenario"] = atomic_write_text(out / "scenario.toml", self.scenario.to_toml())
+        if figures:
+            from meanfield import plotting
+
+            paths.update(plotting.save_run_figures(self, out))
+            if animate:
+                paths["animation"] = plotting.save_animation(self, out / "animation.gif")
+        paths["summary"] = atomic_write_json(out / "summary.json", self.summary)
+        return paths
+
+
+class ClosedLoop:
+    """The paper's closed loop, built from a :class:`Scenario`.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    sigma : float or callable, optional
+        Overrides ``scenario.crowd.sigma``; a callable ``σ(x, y, t)`` is allowed here.
+    disturbance : callable, optional
+        ``v_a(x, y, t) -> (vx, vy)``, overriding ``scenario.disturbance``.
+    beta_gamma : BetaGammaStrategy, optional
+        Overrides ``scenario.controller.beta_gamma`` (e.g. a :class:`~meanfield.control.UserBetaGamma`).
+    kernel : NavigationKernel, optional
+        Overrides the scenario's Gaussian kernel.
+
+    Examples
+    --------
+    >>> from meanfield import ClosedLoop, paper_scenario
+    >>> loop = ClosedLoop(paper_scenario(seed=1).replace(t_final=0.1))
+    >>> result = loop.run(progress=False)
+    >>> sorted(result.summary)[:3]
+    ['A_final', 'fraction_in_target', 'l2_error_final']
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        *,
+        sigma: float | Callable | None = None,
+        disturbance: Disturbance | None = None,
+        beta_gamma: BetaGammaStrategy | None = None,
+        kernel: NavigationKernel | None = None,
+    ):
+        if not isinstance(scenario, Scenario):
+            raise ParameterError("scenario", type(scenario).__name__, "a Scenario")
+        self.scenario = sc = scenario
+        self.rng = np.random.default_rng(sc.seed)
+        self.domain = sc.domain
+        self.grid = Grid(sc.domain, sc.grid.cells)
+        self.kernel = kernel if kernel is not None else GaussianKernel(sc.kernel.c, sc.kernel.eta)
+        self.target = gaussian_target(self.grid, sc.target.center, sc.target.std)
+        self.target_center = sc.target.center
+        self.target_radius = target_region_radius(sc.domain, sc.target.center, sc.target.std)
+        bw = None if sc.density.bandwidth == "silverman" else sc.density.bandwidth
+        self.kde = KernelDensityEstimator(self.grid, bw, sc.density.boundary, sc.density.method)
+        sigma = sc.crowd.sigma if sigma is None else sigma
+        self.disturbance = disturbance if disturbance is not None else _disturbance_from(sc)
+        # initial states: humans first, then robot headings, from the one seeded generator
+        if sc.crowd.initial == "uniform":
+            humans = sc.domain.sample_uniform(sc.crowd.n, self.rng)
+        else:
+            humans = self._gaussian_crowd(sc.crowd.n, sc.crowd.initial_center, sc.crowd.initial_std)
+        self.crowd = Crowd(humans, sc.domain, sigma, self.rng)
+        self.robot_region = _robot_region(sc.domain, sc.robots.margin)
+        if sc.robots.layout == "grid":
+            rpos = robot_layout(sc.domain, sc.robots.n, sc.robots.margin)
+        elif sc.robots.layout == "random":
+            rpos = self.robot_region.sample_uniform(sc.robots.n, self.rng)
+        else:
+            rpos = np.asarray(sc.robots.positions, float)
+        if isinstance(sc.robots.headings, str):
+            heads = self.rng.uniform(0.0, 2 * np.pi, sc.robots.n)
+        else:
+            heads = np.asarray(sc.robots.headings, float)
+        self.robots = RobotTeam(rpos, heads, sc.robots.u_max, sc.robots.omega_max)
+        self.robots.check_inside(sc.domain)
+        self.interaction = None
+        if sc.interaction.kind == "gaussian":
+            pot = GaussianPotential(sc.interaction.strength, sc.interaction.length)
+            self.interaction = InteractionField(self.grid, pot)
+        c = sc.controller
+        alpha = (
+            ConstantAlpha(c.alpha) if c.alpha_schedule == "constant" else SaturatingAlpha(c.alpha, c.rho_floor)
+        )
+        strategy = beta_gamma if beta_gamma is not None else MinimumNormBetaGamma()
+        self.controller = BacksteppingController(
+            self.grid, self.target, sigma, alpha, c.k_u, c.k_omega, strategy, self.interaction, c.dvd_dt
+        )
+        self.t = 0.0
+        self.step_index = 0
+        self.last_state: ControlState | None = None
+        self.last_inputs: tuple[np.ndarray, np.ndarray] | None = None
+        self.density: np.ndarray = self.kde(self.crowd.positions)
+
+    def _gaussian_crowd(self, n: int, center, std) -> np.ndarray:
+        out = np.empty((0, 2))
+        while len(out) < n:
+            p = self.rng.normal(loc=center, scale=std, size=(2 * (n - len(out)) + 8, 2))
+            out = np.vstack([out, p[self.domain.contains(p[:, 0], p[:, 1])]])
+        return out[:n].copy()
+
+    # ------------------------------------------------------------------ one step
+    def human_drift(self, positions: np.ndarray) -> np.ndarray:
+        """``u_W(X_j) + v_r(X_j, t) + v_a(X_j, t)`` at every human (paper, eq. (1))."""
+        drift = navigation_velocity(self.kernel, self.robots.positions, self.robots.headings, positions)
+        if self.interaction is not None:
+            drift += self.interaction.at_points(positions)
+        if self.disturbance is not None:
+            ax, ay = self.disturbance(positions[:, 0], positions[:, 1], self.t)
+            drift[:, 0] += ax
+            drift[:, 1] += ay
+        return drift
+
+    def control(self) -> ControlState:
+        """Controller output for the current state (density estimate already computed)."""
+        field = NavigationField(self.kernel, self.grid, self.robots.positions, self.robots.headings)
+        return self.controller.robot_inputs(self.density, field, self.t, self.scenario.dt)
+
+    def step(self) -> ControlState:
+        """Advance the closed loop by one ``dt``; raise :class:`SimulationDiverged` on NaN/inf.
+
+        The state is only changed when every quantity entering the update is finite, so
+        after the exception the loop still holds the last good state.
+        """
+        dt = self.scenario.dt
+        state = self.control()
+        drift = self.human_drift(self.crowd.positions)
+        if not (np.isfinite(state.u).all() and np.isfinite(state.omega).all() and np.isfinite(drift).all()):
+            raise SimulationDiverged(
+                f"non-finite robot inputs or human drift at t = {self.t:.4g} (step {self.step_index}); "
+                "the state is kept at the last good step", self.step_index)
+        u, w = saturate_inputs(state.u, state.omega, self.robots.u_max, self.robots.omega_max)
+        self.crowd.step(drift, self.t, dt)
+        self.robots.step(u, w, dt, self.robot_region)
+        self.t = (self.step_index + 1) * dt
+        self.step_index += 1
+        self.last_state = state
+        self.last_inputs = (u, w)
+        self.density = self.kde(self.crowd.positions)
+        if not np.isfinite(self.density).all():
+            raise SimulationDiverged(f"non-finite density estimate at t = {self.t:.4g}", self.step_index)
+        return state
+
+    # ------------------------------------------------------------------ the run
+    def run(self, progress: bool = True, callback: Callable[[ClosedLoop], None] | None = None) -> SimulationResult:
+        """Run to ``t_final``, recording every ``record_every`` steps.
+
+        Parameters
+        ----------
+        progress : bool
+            Show a tqdm progress bar.
+        callback : callable, optional
+            Called as ``callback(loop)`` after every step.
+
+        Returns
+        -------
+        SimulationResult
+            With ``summary["status"]`` ``"completed"``, ``"diverged"`` (the message in
+            ``summary["message"]``; frames up to the last good state) or ``"interrupted"``
+            (KeyboardInterrupt; frames so far).
+        """
+        from tqdm.auto import tqdm
+
+        sc = self.scenario
+        rec = _Recorder(self)
+        rho_err0 = self.grid.norm(self.density - self.target)
+        t90 = None
+        frac = fraction_in_disk(self.crowd.positions, self.target_center, self.target_radius)
+        if frac >= 0.9:
+            t90 = 0.0
+        status, message = "completed", ""
+        n_steps = sc.steps - self.step_index
+        start = time.perf_counter()
+        bar = tqdm(total=n_steps, disable=not progress, desc=f"meanfield run {sc.name}", unit="step",
+                   mininterval=0.5)
+        try:
+            for _ in range(n_steps):
+                k = self.step_index
+                state = self.step()
+                if k % sc.record_every == 0:
+                    rec.record_control(state, k)
+                frac = fraction_in_disk(self.crowd.positions, self.target_center, self.target_radius)
+                if t90 is None and frac >= 0.9:
+                    t90 = self.t
+                if self.step_index % sc.record_every == 0 or self.step_index == sc.steps:
+                    rec.record_state(frac)
+                    bar.update(self.step_index - bar.n)
+                if callback is not None:
+                    callback(self)
+        except SimulationDiverged as exc:
+            status, message = "diverged", str(exc)
+        except KeyboardInterrupt:
+            status, message = "interrupted", f"interrupted at t = {self.t:.4g}"
+        finally:
+            bar.close()
+        wall = time.perf_counter() - start
+        if rec.last_recorded_step != self.step_index:
+            rec.record_state(frac)
+        dataset = rec.dataset()
+        final_err = self.grid.norm(self.density - self.target)
+        speeds = rec.max_speed
+        summary: dict[str, Any] = {
+            "status": status,
+            "message": message,
+            "fraction_in_target": frac,
+            "target_radius": self.target_radius,
+            "l2_error_initial": rho_err0,
+            "l2_error_final": final_err,
+            "l2_error_ratio": final_err / rho_err0 if rho_err0 > 0 else None,
+            "w2_to_target_final": wasserstein2_to_grid_density(
+                self.crowd.positions, self.grid, self.target, seed=sc.seed),
+            "time_to_90": t90,
+            "max_robot_speed": speeds,
+            "speed_limit": None if math.isinf(self.robots.u_max) else self.robots.u_max,
+            "max_robot_turn_rate": rec.max_turn,
+            "turn_rate_limit": None if math.isinf(self.robots.omega_max) else self.robots.omega_max,
+            "saturated_fraction": rec.saturated / max(rec.control_samples, 1),
+            "V2_initial": rec.first_V2,
+            "V2_final": float(dataset["V2"].values[-1]) if dataset.sizes["time"] else None,
+            "A_final": float(self.last_state.A) if self.last_state is not None else None,
+            "steps": self.step_index,
+            "time_final": self.t,
+            "wall_seconds": wall,
+            "steps_per_second": (self.step_index - (sc.steps - n_steps)) / wall if wall > 0 else None,
+            "seed": sc.seed,
+            "scenario": sc.to_dict(),
+        }
+        return SimulationResult(sc, dataset, summary)
+
+
+@dataclass
+class _Recorder:
+    """Collects frames; control quantities are those computed at the frame's state."""
+
+    loop: ClosedLoop
+    frames: dict[str, list] = field(default_factory=lambda: {k: [] for k in _Recorder.KEYS})
+    last_recorded_step: int = -1
+    max_speed: float = 0.0
+    max_turn: float = 0.0
+    saturated: int = 0
+    control_samples: int = 0
+    first_V2: float | None = None
+    pending: dict[str, Any] | None = None
+
+    KEYS = ("time", "robot_x", "robot_y", "robot_heading", "robot_speed", "robot_turn_rate",
+            "human_x", "human_y", "density", "V1", "V2", "rho_error_l2", "v_error_l2",
+            "fraction_in_target", "A", "shortfall", "dissipation", "saturated")
+
+    def __post_init__(self) -> None:
+        self.record_state(fraction_in_disk(self.loop.crowd.positions, self.loop.target_center,
+                                           self.loop.target_radius))
+
+    def record_control(self, state: ControlState, k: int) -> None:
+        g = self.loop.grid
+        u, w = self.loop.last_inputs
+        speed = np.hypot(u[:, 0], u[:, 1])
+        self.max_speed = max(self.max_speed, float(speed.max()))
+        self.max_turn = max(self.max_turn, float(np.abs(w).max()))
+        sat = bool((np.hypot(state.u[:, 0], state.u[:, 1]) > speed + 1e-12).any()
+                   or (np.abs(state.omega) > np.abs(w) + 1e-12).any())
+        self.saturated += int(sat)
+        self.control_samples += 1
+        rt = g.norm(state.rho_tilde)
+        vt = g.face_norm(state.v_tilde)
+        V2 = 0.5 * rt * rt + 0.5 * vt * vt
+        if self.first_V2 is None:
+            self.first_V2 = V2
+        # control values belong to the frame recorded at step k (state before the step)
+        idx = len(self.frames["time"]) - 1
+        vals = {"robot_speed": speed, "robot_turn_rate": w, "V1": rt * rt, "V2": V2, "rho_error_l2": rt,
+                "v_error_l2": vt, "A": state.A, "shortfall": state.shortfall,
+                "dissipation": state.dissipation, "saturated": sat}
+        for key, v in vals.items():
+            self.frames[key][idx] = v
+
+    def record_state(self, frac: float) -> None:
+        loop = self.loop
+        n = loop.robots.n
+        f = self.frames
+        f["time"].append(loop.t)
+        f["robot_x"].append(loop.robots.positions[:, 0].copy())
+        f["robot_y"].append(loop.robots.positions[:, 1].copy())
+        f["robot_heading"].append(loop.robots.headings.copy())
+        f["human_x"].append(loop.crowd.positions[:, 0].copy())
+        f["human_y"].append(loop.crowd.positions[:, 1].copy())
+        f["density"].append(loop.density.copy())
+        f["fraction_in_target"].append(frac)
+        for key in ("robot_speed", "robot_turn_rate"):
+            f[key].append(np.full(n, np.nan))
+        for key in ("V1", "V2", "rho_error_l2", "v_error_l2", "A", "shortfall", "dissipation"):
+            f[key].append(np.nan)
+        f["saturated"].append(False)
+        self.last_recorded_step = loop.step_index
+
+    def dataset(self):
+        import xarray as xr
+
+        loop = self.loop
+        f = self.frames
+        g = loop.grid
+        # the last frame's control quantities: evaluate the controller at the final state
+        if np.isnan(f["V2"][-1]):
+            try:
+                st = loop.control()
+                rt = g.norm(st.rho_tilde)
+                vt = g.face_norm(st.v_tilde)
+                f["V1"][-1], f["V2"][-1] = rt * rt, 0.5 * rt * rt + 0.5 * vt * vt
+                f["rho_error_l2"][-1], f["v_error_l2"][-1] = rt, vt
+                f["A"][-1], f["shortfall"][-1], f["dissipation"][-1] = st.A, st.shortfall, st.dissipation
+            except (FloatingPointError, ValueError):
+                pass
+        stack = np.asarray
+        ds = xr.Dataset(
+            data_vars={
+                "robot_x": (("time", "robot"), stack(f["robot_x"])),
+                "robot_y": (("time", "robot"), stack(f["robot_y"])),
+                "robot_heading": (("time", "robot"), stack(f["robot_heading"])),
+                "robot_speed": (("time", "robot"), stack(f["robot_speed"])),
+                "robot_turn_rate": (("time", "robot"), stack(f["robot_turn_rate"])),
+                "human_x": (("time", "human"), stack(f["human_x"])),
+                "human_y": (("time", "human"), stack(f["human_y"])),
+                "density": (("time", "x", "y"), stack(f["density"])),
+                "target_density": (("x", "y"), loop.target),
+                "V1": ("time", stack(f["V1"], float)),
+                "V2": ("time", stack(f["V2"], float)),
+                "rho_error_l2": ("time", stack(f["rho_error_l2"], float)),
+                "v_error_l2": ("time", stack(f["v_error_l2"], float)),
+                "fraction_in_target": ("time", stack(f["fraction_in_target"], float)),
+                "A": ("time", stack(f["A"], float)),
+                "shortfall": ("time", stack(f["shortfall"], float)),
+                "dissipation": ("time", stack(f["dissipation"], float)),
+                "saturated": ("time", stack(f["saturated"], np.int8)),
+            },
+            coords={"time": stack(f["time"], float), "x": g.x, "y": g.y,
+                    "robot": np.arange(loop.robots.n), "human": np.arange(loop.crowd.n)},
+            attrs={
+                "title": "meanfield closed-loop run (Zheng et al., robot-assisted crowd evacuation)",
+                "scenario_toml": loop.scenario.to_toml(),
+                "seed": loop.scenario.seed,
+                "target_center_x": loop.target_center[0],
+                "target_center_y": loop.target_center[1],
+                "target_radius": loop.target_radius,
+                "V1_definition": "V1 = integral of rho_tilde^2 (no factor 1/2)",
+                "V2_definition": "V2 = integral of rho_tilde^2/2 + |v_tilde|^2/2",
+            },
+        )
+        ds["robot_speed"].attrs["description"] = "applied (saturated) speed |u_i| during the step from this frame"
+        return ds
+
+
+def run(scenario: Scenario | str, *, seed: int | None = None, progress: bool = True, **overrides: Any) -> SimulationResult:
+    """Build a :class:`ClosedLoop` and run it.
+
+    Parameters
+    ----------
+    scenario : Scenario or str
+        A scenario, a built-in name (``"paper"``) or a TOML path.
+    seed : int, optional
+        Override the scenario's seed.
+    progress : bool
+        Show a progress bar.
+    **overrides
+        Passed to :class:`ClosedLoop` (``sigma``, ``disturbance``, ``beta_gamma``, ``kernel``).
+    """
+    from meanfield.scenario import load_scenario
+
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    if seed is not None:
+        scenario = scenario.replace(seed=seed)
+    return ClosedLoop(scenario, **overrides).run(progress=progress)
