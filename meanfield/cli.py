@@ -42,8 +42,13 @@ def _build_parser() -> argparse.ArgumentParser:
     r.add_argument("scenario", nargs="?", default="paper", help="built-in name (paper) or a TOML file")
     r.add_argument("--out", required=True, type=Path, help="output directory")
     r.add_argument("--seed", type=int, default=None, help="random seed (overrides the scenario's)")
-    r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a scenario field, e.g. --set robots.n=9 (repeatable)")
+    r.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scenario field, e.g. --set robots.n=9 (repeatable)",
+    )
     r.add_argument("--quiet", action="store_true", help="no progress bar, no summary printout")
     r.add_argument("--animate", action="store_true", help="also write animation.gif")
     r.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
@@ -66,13 +71,23 @@ def _cmd_run(args: argparse.Namespace) -> int:
     result.save(args.out, figures=not args.no_figures, animate=args.animate)
     s = result.summary
     if not args.quiet:
-        keys = ("status", "fraction_in_target", "l2_error_initial", "l2_error_final", "w2_to_target_final",
-                "time_to_90", "max_robot_speed", "speed_limit", "steps", "wall_seconds", "seed")
+        keys = (
+            "status",
+            "fraction_in_target",
+            "l2_error_initial",
+            "l2_error_final",
+            "w2_to_target_final",
+            "time_to_90",
+            "max_robot_speed",
+            "speed_limit",
+            "steps",
+            "wall_seconds",
+            "seed",
+        )
         print(json.dumps({k: s[k] for k in keys}, indent=2))
         print(f"outputs in {args.out}")
     if s["status"] != "completed":
-        print(f"meanfield: run {s['status']}: {s['message']} (outputs of the last good state written)",
-              file=sys.stderr)
+        print(f"meanfield: run {s['status']}: {s['message']} (outputs of the last good state written)", file=sys.stderr)
         return 1
     return 0
 

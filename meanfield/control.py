@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal, Protocol
+from typing import Any, Literal, Protocol
 
 import numpy as np
 
@@ -211,6 +211,20 @@ class ControlState:
     dissipation: float  # ∫ α |∇ρ̃|²
 
 
+@dataclass
+class _Prepared:
+    """Quantities of one density shared by the terms of the law."""
+
+    rho: np.ndarray
+    rho_t: np.ndarray
+    rf: FaceField
+    grt: FaceField
+    sigma: Any
+    gs: FaceField
+    q: FaceField
+    uw: FaceField | None
+
+
 SigmaLike = float | Callable[[np.ndarray, np.ndarray, float], np.ndarray]
 
 
@@ -271,6 +285,7 @@ class BacksteppingController:
             raise ParameterError("controller.dvd_dt", dvd_dt, "'model' or 'finite-difference'")
         self.dvd_dt = dvd_dt
         self._previous_vd: tuple[float, FaceField] | None = None
+        self._target_gradient = grid.gradient(self.target)
 
     # ------------------------------------------------------------------ pieces
     def sigma_on_cells(self, t: float):
@@ -284,24 +299,34 @@ class BacksteppingController:
         """``u_W[ρ]`` on the faces, or None when ``W = 0``."""
         return None if self.interaction is None else self.interaction.on_faces(rho)
 
+    def _prepare(self, rho: np.ndarray, t: float) -> _Prepared:
+        """Face quantities of ``ρ`` shared by every term of the law (computed once per step)."""
+        g = self.grid
+        rho_t = rho - self.target
+        rf = g.face_average(rho)
+        grt = g.gradient(rho_t)
+        sig = self.sigma_on_cells(t)
+        if callable(self.sigma):
+            gs = g.gradient(sig * rho)
+        else:  # ∇(σρ) = σ (∇ρ̃ + ∇ρ_*) for constant σ
+            gt = self._target_gradient
+            gs = (sig * (grt[0] + gt[0]), sig * (grt[1] + gt[1]))
+        q = (self.alpha.over_rho(rf[0]), self.alpha.over_rho(rf[1]))
+        return _Prepared(rho, rho_t, rf, grt, sig, gs, q, self.interaction_on_faces(rho))
+
     def virtual_velocity(self, rho: np.ndarray, t: float = 0.0) -> FaceField:
         """Step I: ``v_d = -(α∇ρ̃ - ∇(σρ))/ρ - u_W[ρ]`` on the faces (paper, eq. (6)).
 
         ``ρ`` must be positive on the faces (the KDE always is); the schedule's ``α/ρ``
         is evaluated directly, so a saturating schedule stays bounded as ``ρ → 0``.
         """
-        g = self.grid
-        rho_t = rho - self.target
-        rx, ry = g.face_average(rho)
-        gx, gy = g.gradient(rho_t)
-        sx, sy = g.gradient(self.sigma_on_cells(t) * rho)
-        vx = -self.alpha.over_rho(rx) * gx + sx / rx
-        vy = -self.alpha.over_rho(ry) * gy + sy / ry
-        uw = self.interaction_on_faces(rho)
-        if uw is not None:
-            vx = vx - uw[0]
-            vy = vy - uw[1]
-        return vx, vy
+        return self._virtual_velocity(self._prepare(rho, t))
+
+    def _virtual_velocity(self, p: _Prepared) -> FaceField:
+        out = [-p.q[k] * p.grt[k] + p.gs[k] / p.rf[k] for k in range(2)]
+        if p.uw is not None:
+            out = [out[k] - p.uw[k] for k in range(2)]
+        return out[0], out[1]
 
     def density_rate(self, rho: np.ndarray, v_r: FaceField, t: float = 0.0) -> np.ndarray:
         """Fokker–Planck right-hand side ``-∇·((v_r + u_W)ρ - ∇(σρ))`` with ``v_a = 0`` (eq. (4)).
@@ -309,16 +334,13 @@ class BacksteppingController:
         Central (face-average) fluxes, consistent with :meth:`virtual_velocity`, so that
         with ``v_r = v_d`` it reduces exactly to ``∇·(α∇ρ̃)`` (Theorem 1).
         """
-        g = self.grid
-        rx, ry = g.face_average(rho)
-        sx, sy = g.gradient(self.sigma_on_cells(t) * rho)
-        fx = v_r[0] * rx - sx
-        fy = v_r[1] * ry - sy
-        uw = self.interaction_on_faces(rho)
-        if uw is not None:
-            fx = fx + uw[0] * rx
-            fy = fy + uw[1] * ry
-        return -g.divergence((fx, fy))
+        return self._density_rate(self._prepare(rho, t), v_r)
+
+    def _density_rate(self, p: _Prepared, v_r: FaceField) -> np.ndarray:
+        flux = [v_r[k] * p.rf[k] - p.gs[k] for k in range(2)]
+        if p.uw is not None:
+            flux = [flux[k] + p.uw[k] * p.rf[k] for k in range(2)]
+        return -self.grid.divergence((flux[0], flux[1]))
 
     def virtual_velocity_rate(self, rho: np.ndarray, rho_dot: np.ndarray, t: float = 0.0) -> FaceField:
         """``∂_t v_d`` by the chain rule along ``∂_t ρ = rho_dot`` (σ and ρ_* frozen in time).
@@ -326,34 +348,30 @@ class BacksteppingController:
         With ``q = α/ρ`` the schedule: ``∂_t v_d = -(q'(ρ) ρ̇ ∇ρ̃ + q ∇ρ̇) + ∇(σρ̇)/ρ
         - ∇(σρ) ρ̇/ρ² - u_W[ρ̇]`` on the faces.
         """
+        return self._virtual_velocity_rate(self._prepare(rho, t), rho_dot)
+
+    def _virtual_velocity_rate(self, p: _Prepared, rho_dot: np.ndarray) -> FaceField:
         g = self.grid
-        rho_t = rho - self.target
-        sig = self.sigma_on_cells(t)
-        rf = g.face_average(rho)
         df = g.face_average(rho_dot)
-        grt = g.gradient(rho_t)
         grd = g.gradient(rho_dot)
-        gs = g.gradient(sig * rho)
-        gsd = g.gradient(sig * rho_dot)
+        gsd = g.gradient(p.sigma * rho_dot) if callable(self.sigma) else (p.sigma * grd[0], p.sigma * grd[1])
         out = []
         for k in range(2):
-            q = self.alpha.over_rho(rf[k])
-            dq = self.alpha.over_rho_derivative(rf[k])
-            out.append(
-                -(dq * df[k] * grt[k] + q * grd[k]) + gsd[k] / rf[k] - gs[k] * df[k] / (rf[k] * rf[k])
-            )
+            dq = self.alpha.over_rho_derivative(p.rf[k])
+            inv = 1.0 / p.rf[k]
+            out.append(-(dq * df[k] * p.grt[k] + p.q[k] * grd[k]) + (gsd[k] - p.gs[k] * df[k] * inv) * inv)
         uw = self.interaction_on_faces(rho_dot)
         if uw is not None:
             out = [out[0] - uw[0], out[1] - uw[1]]
         return out[0], out[1]
 
     def dissipation(self, rho: np.ndarray) -> float:
-        """``∫ α |∇ρ̃|² dx`` on the faces (the first term of dV₂/dt)."""
-        g = self.grid
-        gr = g.gradient(rho - self.target)
-        rf = g.face_average(rho)
-        a = (self.alpha.alpha(rf[0]), self.alpha.alpha(rf[1]))
-        return g.face_inner((a[0] * gr[0], a[1] * gr[1]), gr)
+        """``∫ α |∇ρ̃|² dx`` on the faces (the first term of dV₂/dt; dV₁/dt = -2× this)."""
+        return self._dissipation(self._prepare(rho, 0.0))
+
+    def _dissipation(self, p: _Prepared) -> float:
+        a = (p.q[0] * p.rf[0], p.q[1] * p.rf[1])  # α = (α/ρ)·ρ, as used in v_d
+        return self.grid.face_inner((a[0] * p.grt[0], a[1] * p.grt[1]), p.grt)
 
     # ------------------------------------------------------------------ the law
     def robot_inputs(
@@ -373,38 +391,35 @@ class BacksteppingController:
             Step since the previous call (needed by ``dvd_dt="finite-difference"``).
         """
         g = self.grid
-        v_d = self.virtual_velocity(rho, t)
+        p = self._prepare(rho, t)
+        v_d = self._virtual_velocity(p)
         v_r = field.velocity()
         vt = (v_r[0] - v_d[0], v_r[1] - v_d[1])
         b, gg = field.moments(vt)
         if self.dvd_dt == "model":
-            dvd = self.virtual_velocity_rate(rho, self.density_rate(rho, v_r, t), t)
+            dvd = self._virtual_velocity_rate(p, self._density_rate(p, v_r))
         else:
             prev = self._previous_vd
-            if prev is None or dt is None or t <= prev[0]:
+            if prev is None or t <= prev[0]:
                 dvd = (np.zeros_like(v_d[0]), np.zeros_like(v_d[1]))
             else:
                 h = t - prev[0]
                 dvd = ((v_d[0] - prev[1][0]) / h, (v_d[1] - prev[1][1]) / h)
             self._previous_vd = (t, v_d)
-        rho_t = rho - self.target
-        rf = g.face_average(rho)
-        grt = g.gradient(rho_t)
-        A = g.face_inner(vt, (rf[0] * grt[0] - dvd[0], rf[1] * grt[1] - dvd[1]))
+        A = g.face_inner(vt, (p.rf[0] * p.grt[0] - dvd[0], p.rf[1] * p.grt[1] - dvd[1]))
         extra = self.strategy(b, gg, A)
-        u = self.k_u.reshape(-1, 1) * b + extra.du if self.k_u.ndim else self.k_u * b + extra.du
-        omega = -self.k_omega * gg + extra.domega
+        k_u = self.k_u[:, None] if self.k_u.ndim else self.k_u
         return ControlState(
             v_d=v_d,
             v_tilde=vt,
-            rho_tilde=rho_t,
+            rho_tilde=p.rho_t,
             b=b,
             g=gg,
             A=A,
-            u=u,
-            omega=omega,
+            u=k_u * b + extra.du,
+            omega=-self.k_omega * gg + extra.domega,
             shortfall=extra.shortfall,
-            dissipation=self.dissipation(rho),
+            dissipation=self._dissipation(p),
         )
 
     def reset(self) -> None:

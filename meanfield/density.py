@@ -135,14 +135,25 @@ class KernelDensityEstimator:
 
     # ------------------------------------------------------------------ methods
     def _axis_factors(self, centres: np.ndarray, coords: np.ndarray, h: float, lo: float, hi: float):
+        """``exp(-(x_i - X_j)²/(2h²))`` for cell centres ``x_i``, plus the wall images.
+
+        With reflection, the image of ``X`` across ``lo`` seen from ``x_i`` equals ``X`` seen
+        from the mirrored centre ``2 lo - x_i``: one exponential on the centres extended by
+        their mirrors (as far as the kernel reaches, 8h) then a fold gives all three terms.
+        """
         s = -0.5 / (h * h)
-        d = centres[:, None] - coords[None, :]
-        f = np.exp(s * d * d)
-        if self.boundary == "reflect":
-            d = centres[:, None] - (2 * lo - coords)[None, :]
-            f += np.exp(s * d * d)
-            d = centres[:, None] - (2 * hi - coords)[None, :]
-            f += np.exp(s * d * d)
+        if self.boundary != "reflect":
+            d = centres[:, None] - coords[None, :]
+            return np.exp(s * d * d)
+        n = len(centres)
+        step = centres[1] - centres[0]
+        pad = min(n, int(math.ceil(8.0 * h / step)))
+        ext = np.concatenate([2 * lo - centres[:pad][::-1], centres, 2 * hi - centres[n - pad :][::-1]])
+        d = ext[:, None] - coords[None, :]
+        e = np.exp(s * d * d)
+        f = e[pad : pad + n].copy()
+        f[:pad] += e[:pad][::-1]
+        f[n - pad :] += e[pad + n :][::-1]
         return f
 
     def _separable(self, points: np.ndarray, h: float) -> np.ndarray:

@@ -58,9 +58,7 @@ class Domain:
 
     # ------------------------------------------------------------------ builders
     @classmethod
-    def box(
-        cls, width: float = 1.0, height: float = 1.0, origin: tuple[float, float] = (0.0, 0.0)
-    ) -> Domain:
+    def box(cls, width: float = 1.0, height: float = 1.0, origin: tuple[float, float] = (0.0, 0.0)) -> Domain:
         """Axis-aligned rectangle ``[x0, x0 + width] × [y0, y0 + height]``.
 
         Parameters
@@ -78,9 +76,7 @@ class Domain:
             raise ParameterError("height", height, "a number > 0")
         x0 = _finite("origin[0]", origin[0])
         y0 = _finite("origin[1]", origin[1])
-        v = np.array(
-            [[x0, y0], [x0 + width, y0], [x0 + width, y0 + height], [x0, y0 + height]], float
-        )
+        v = np.array([[x0, y0], [x0 + width, y0], [x0 + width, y0 + height], [x0, y0 + height]], float)
         return cls("box", v, (x0 + width / 2, y0 + height / 2), 0.0)
 
     @classmethod
@@ -116,9 +112,7 @@ class Domain:
         scale = np.max(np.abs(v - v.mean(axis=0))) ** 2
         tol = 1e-12 * scale
         if np.any(np.abs(cross) <= tol):
-            raise ParameterError(
-                "vertices", "collinear consecutive vertices", "a strictly convex vertex list"
-            )
+            raise ParameterError("vertices", "collinear consecutive vertices", "a strictly convex vertex list")
         if not (np.all(cross > 0) or np.all(cross < 0)):
             raise ParameterError(
                 "vertices",
@@ -131,9 +125,7 @@ class Domain:
         ang = np.arctan2(e[:, 1], e[:, 0])
         turn = np.mod(np.diff(np.r_[ang, ang[0]]) + np.pi, 2 * np.pi) - np.pi
         if abs(abs(turn.sum()) - 2 * np.pi) > 1e-6:
-            raise ParameterError(
-                "vertices", "a self-intersecting polygon", "a simple convex polygon"
-            )
+            raise ParameterError("vertices", "a self-intersecting polygon", "a simple convex polygon")
         c = v.mean(axis=0)
         return cls("polygon", v, (float(c[0]), float(c[1])), 0.0)
 
@@ -307,15 +299,12 @@ class Domain:
         """Inverse of :meth:`to_dict`; unknown keys are refused."""
         d = dict(d)
         kind = d.pop("kind", "box")
-        allowed = {"box": {"width", "height", "origin"}, "disk": {"radius", "center"},
-                   "polygon": {"vertices"}}
+        allowed = {"box": {"width", "height", "origin"}, "disk": {"radius", "center"}, "polygon": {"vertices"}}
         if kind not in allowed:
             raise ParameterError("domain.kind", kind, "one of 'box', 'disk', 'polygon'")
         unknown = set(d) - allowed[kind]
         if unknown:
-            raise ParameterError(
-                "domain", f"unknown key(s) {sorted(unknown)}", f"keys {sorted(allowed[kind])}"
-            )
+            raise ParameterError("domain", f"unknown key(s) {sorted(unknown)}", f"keys {sorted(allowed[kind])}")
         if kind == "box":
             return cls.box(d.get("width", 1.0), d.get("height", 1.0), tuple(d.get("origin", (0, 0))))
         if kind == "disk":

@@ -122,14 +122,10 @@ class Grid:
         frac = np.clip(frac, 0.0, 1.0)
         # x-faces: vertical segments x = x_faces[i], y in [ye[j], ye[j+1]]
         XF, YF = np.meshgrid(self.x_faces, ye[:-1], indexing="ij")
-        seg = shapely.linestrings(
-            np.stack([np.stack([XF, YF], -1), np.stack([XF, YF + self.dy], -1)], axis=-2)
-        )
+        seg = shapely.linestrings(np.stack([np.stack([XF, YF], -1), np.stack([XF, YF + self.dy], -1)], axis=-2))
         ax = np.clip(shapely.length(shapely.intersection(seg, poly)) / self.dy, 0.0, 1.0)
         XF, YF = np.meshgrid(xe[:-1], self.y_faces, indexing="ij")
-        seg = shapely.linestrings(
-            np.stack([np.stack([XF, YF], -1), np.stack([XF + self.dx, YF], -1)], axis=-2)
-        )
+        seg = shapely.linestrings(np.stack([np.stack([XF, YF], -1), np.stack([XF + self.dx, YF], -1)], axis=-2))
         ay = np.clip(shapely.length(shapely.intersection(seg, poly)) / self.dx, 0.0, 1.0)
         # a face is open only if both neighbours hold volume
         act = frac > 0

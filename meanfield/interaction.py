@@ -46,10 +46,7 @@ class _Convolver:
         nx, ny = self.shape_in
         mx, my = self.shape_out
         # out[a] = sum_c m[c] K[c - a + mx - 1] = (m * K_reversed)[a + n - 1]
-        return [
-            sfft.irfft2(mf * kf, self.fshape)[nx - 1 : nx - 1 + mx, ny - 1 : ny - 1 + my]
-            for kf in self.kf
-        ]
+        return [sfft.irfft2(mf * kf, self.fshape)[nx - 1 : nx - 1 + mx, ny - 1 : ny - 1 + my] for kf in self.kf]
 
 
 class InteractionField:

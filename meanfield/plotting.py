@@ -86,16 +86,14 @@ def result_kernel(result: SimulationResult):
 def _draw_crowd(ax, result: SimulationResult, k: int):
     ds = result.dataset
     pts, v = _field_arrows(result, k)
-    ax.quiver(pts[:, 0], pts[:, 1], v[:, 0], v[:, 1], color="0.55", scale=result.scenario.kernel.c * 12,
-              width=0.004)
+    ax.quiver(pts[:, 0], pts[:, 1], v[:, 0], v[:, 1], color="0.55", scale=result.scenario.kernel.c * 12, width=0.004)
     ax.plot(ds["human_x"].values[k], ds["human_y"].values[k], ".", color="tab:red", ms=3)
     rx, ry, th = ds["robot_x"].values[k], ds["robot_y"].values[k], ds["robot_heading"].values[k]
     ax.plot(rx, ry, "o", mfc="none", mec="tab:blue", ms=7, mew=1.5)
     ax.quiver(rx, ry, np.cos(th), np.sin(th), color="tab:blue", scale=18, width=0.006)
     _outline(ax, result)
     ax.set_aspect("equal")
-    ax.set_title(f"t = {ds['time'].values[k]:.1f}, in target {ds['fraction_in_target'].values[k]:.0%}",
-                 fontsize=9)
+    ax.set_title(f"t = {ds['time'].values[k]:.1f}, in target {ds['fraction_in_target'].values[k]:.0%}", fontsize=9)
 
 
 def _outline(ax, result: SimulationResult):
@@ -116,13 +114,13 @@ def plot_snapshots(result: SimulationResult, count: int = 4):
     ds = result.dataset
     n = ds.sizes["time"]
     idx = np.unique(np.round(np.linspace(0, n - 1, count)).astype(int))
-    fig, axes = plt.subplots(2, len(idx), figsize=(3.2 * len(idx), 6.4), constrained_layout=True,
-                             squeeze=False)
+    fig, axes = plt.subplots(2, len(idx), figsize=(3.2 * len(idx), 6.4), constrained_layout=True, squeeze=False)
     vmax = float(np.nanmax(ds["density"].values[idx]))
     for col, k in enumerate(idx):
         _draw_crowd(axes[0, col], result, k)
-        im = axes[1, col].imshow(ds["density"].values[k].T, origin="lower", extent=_extent(ds),
-                                 vmin=0, vmax=vmax, cmap="viridis")
+        im = axes[1, col].imshow(
+            ds["density"].values[k].T, origin="lower", extent=_extent(ds), vmin=0, vmax=vmax, cmap="viridis"
+        )
         axes[1, col].set_title("density estimate ρ̂", fontsize=9)
     fig.colorbar(im, ax=axes[1, :].tolist(), shrink=0.8)
     return fig

@@ -84,9 +84,7 @@ class RobotTeam:
         inside = domain.contains(self.positions[:, 0], self.positions[:, 1], tol=tol)
         if not inside.all():
             k = int(np.flatnonzero(~inside)[0])
-            raise ParameterError(
-                f"robots.positions[{k}]", self.positions[k].tolist(), "a point inside the domain"
-            )
+            raise ParameterError(f"robots.positions[{k}]", self.positions[k].tolist(), "a point inside the domain")
 
     def step(self, u: np.ndarray, omega: np.ndarray, dt: float, domain: Domain) -> None:
         """Advance eq. (2) by one explicit Euler step, saturating and keeping robots in Ω.
@@ -95,14 +93,16 @@ class RobotTeam:
         positions are projected onto Ω (a robot that hits a wall slides along it).
         """
         u, omega = saturate_inputs(u, omega, self.u_max, self.omega_max)
+        self.advance(u, omega, dt, domain)
+
+    def advance(self, u: np.ndarray, omega: np.ndarray, dt: float, domain: Domain) -> None:
+        """Euler step of eq. (2) with inputs already within the limits; robots kept in ``domain``."""
         self.positions += dt * u
         domain.project(self.positions)
         self.headings = np.mod(self.headings + dt * omega, 2 * np.pi)
 
 
-def saturate_inputs(
-    u: np.ndarray, omega: np.ndarray, u_max: float, omega_max: float
-) -> tuple[np.ndarray, np.ndarray]:
+def saturate_inputs(u: np.ndarray, omega: np.ndarray, u_max: float, omega_max: float) -> tuple[np.ndarray, np.ndarray]:
     """Scale each ``u_i`` down to ``‖u_i‖ <= u_max`` (direction kept) and clip ``ω_i``."""
     if math.isfinite(u_max):
         speed = np.hypot(u[:, 0], u[:, 1])
@@ -140,9 +140,7 @@ class NavigationField:
         (complex-step differentiation in the tests).
     """
 
-    def __init__(
-        self, kernel: NavigationKernel, grid: Grid, positions: np.ndarray, headings: np.ndarray
-    ):
+    def __init__(self, kernel: NavigationKernel, grid: Grid, positions: np.ndarray, headings: np.ndarray):
         self.kernel = kernel
         self.grid = grid
         self.cos = np.cos(headings)

@@ -53,8 +53,15 @@ __all__ = [
 
 
 # ---------------------------------------------------------------------- checks
-def _num(name: str, value: Any, *, lo: float | None = None, lo_open: bool = False,
-         hi: float | None = None, allowed: str | None = None) -> float:
+def _num(
+    name: str,
+    value: Any,
+    *,
+    lo: float | None = None,
+    lo_open: bool = False,
+    hi: float | None = None,
+    allowed: str | None = None,
+) -> float:
     desc = allowed or _range_text(lo, lo_open, hi)
     if isinstance(value, bool):
         raise ParameterError(name, value, desc)
@@ -107,7 +114,7 @@ def _point(name: str, value: Any) -> tuple[float, float]:
 def _optional_limit(name: str, value: Any) -> float | None:
     if value is None or (isinstance(value, str) and value == "none"):
         return None
-    x = _num(name, value, lo=0.0, lo_open=True, allowed="a number > 0, or \"none\" for no limit")
+    x = _num(name, value, lo=0.0, lo_open=True, allowed='a number > 0, or "none" for no limit')
     return x
 
 
@@ -262,8 +269,9 @@ class DensitySpec:
         if isinstance(self.bandwidth, str):
             _choice("density.bandwidth", self.bandwidth, ("silverman",))
         else:
-            self.bandwidth = _num("density.bandwidth", self.bandwidth, lo=0.0, lo_open=True,
-                                  allowed="a number > 0, or \"silverman\"")
+            self.bandwidth = _num(
+                "density.bandwidth", self.bandwidth, lo=0.0, lo_open=True, allowed='a number > 0, or "silverman"'
+            )
         self.boundary = _choice("density.boundary", self.boundary, ("reflect", "renormalize", "none"))
         self.method = _choice("density.method", self.method, ("auto", "separable", "binned"))
 
@@ -354,13 +362,16 @@ class Scenario:
                 raise ParameterError("crowd.initial_center", list(c), "a point inside the domain")
         if self.target_mass_in_domain() < 1e-6:
             raise ParameterError(
-                "target.center", list(self.target.center),
+                "target.center",
+                list(self.target.center),
                 "a target Gaussian with mass in the domain (centre inside Ω or within a few std)",
             )
         if self.robots.margin > 0:
             x0, x1, y0, y1 = dom.bounds
             if 2 * self.robots.margin >= min(x1 - x0, y1 - y0):
-                raise ParameterError("robots.margin", self.robots.margin, "less than half the domain's width and height")
+                raise ParameterError(
+                    "robots.margin", self.robots.margin, "less than half the domain's width and height"
+                )
 
     # ------------------------------------------------------------------ derived
     @property
@@ -497,8 +508,15 @@ def paper_scenario(seed: int = 0) -> Scenario:
         interaction=InteractionSpec(kind="none"),
         target=TargetSpec(center=(1.0, 1.0), std=0.15),
         density=DensitySpec(bandwidth=0.08, boundary="reflect"),
-        controller=ControllerSpec(alpha=0.1, alpha_schedule="saturating", rho_floor=0.2,
-                                  k_u=1.0, k_omega=10.0, beta_gamma="min-norm", dvd_dt="model"),
+        controller=ControllerSpec(
+            alpha=0.1,
+            alpha_schedule="saturating",
+            rho_floor=0.2,
+            k_u=1.0,
+            k_omega=10.0,
+            beta_gamma="min-norm",
+            dvd_dt="model",
+        ),
     )
 
 

@@ -229,9 +229,7 @@ class ClosedLoop:
             pot = GaussianPotential(sc.interaction.strength, sc.interaction.length)
             self.interaction = InteractionField(self.grid, pot)
         c = sc.controller
-        alpha = (
-            ConstantAlpha(c.alpha) if c.alpha_schedule == "constant" else SaturatingAlpha(c.alpha, c.rho_floor)
-        )
+        alpha = ConstantAlpha(c.alpha) if c.alpha_schedule == "constant" else SaturatingAlpha(c.alpha, c.rho_floor)
         strategy = beta_gamma if beta_gamma is not None else MinimumNormBetaGamma()
         self.controller = BacksteppingController(
             self.grid, self.target, sigma, alpha, c.k_u, c.k_omega, strategy, self.interaction, c.dvd_dt
@@ -278,10 +276,12 @@ class ClosedLoop:
         if not (np.isfinite(state.u).all() and np.isfinite(state.omega).all() and np.isfinite(drift).all()):
             raise SimulationDiverged(
                 f"non-finite robot inputs or human drift at t = {self.t:.4g} (step {self.step_index}); "
-                "the state is kept at the last good step", self.step_index)
+                "the state is kept at the last good step",
+                self.step_index,
+            )
         u, w = saturate_inputs(state.u, state.omega, self.robots.u_max, self.robots.omega_max)
         self.crowd.step(drift, self.t, dt)
-        self.robots.step(u, w, dt, self.robot_region)
+        self.robots.advance(u, w, dt, self.robot_region)
         self.t = (self.step_index + 1) * dt
         self.step_index += 1
         self.last_state = state
@@ -321,8 +321,7 @@ class ClosedLoop:
         status, message = "completed", ""
         n_steps = sc.steps - self.step_index
         start = time.perf_counter()
-        bar = tqdm(total=n_steps, disable=not progress, desc=f"meanfield run {sc.name}", unit="step",
-                   mininterval=0.5)
+        bar = tqdm(total=n_steps, disable=not progress, desc=f"meanfield run {sc.name}", unit="step", mininterval=0.5)
         try:
             for _ in range(n_steps):
                 k = self.step_index
@@ -358,7 +357,8 @@ class ClosedLoop:
             "l2_error_final": final_err,
             "l2_error_ratio": final_err / rho_err0 if rho_err0 > 0 else None,
             "w2_to_target_final": wasserstein2_to_grid_density(
-                self.crowd.positions, self.grid, self.target, seed=sc.seed),
+                self.crowd.positions, self.grid, self.target, seed=sc.seed
+            ),
             "time_to_90": t90,
             "max_robot_speed": speeds,
             "speed_limit": None if math.isinf(self.robots.u_max) else self.robots.u_max,
@@ -392,13 +392,29 @@ class _Recorder:
     first_V2: float | None = None
     pending: dict[str, Any] | None = None
 
-    KEYS = ("time", "robot_x", "robot_y", "robot_heading", "robot_speed", "robot_turn_rate",
-            "human_x", "human_y", "density", "V1", "V2", "rho_error_l2", "v_error_l2",
-            "fraction_in_target", "A", "shortfall", "dissipation", "saturated")
+    KEYS = (
+        "time",
+        "robot_x",
+        "robot_y",
+        "robot_heading",
+        "robot_speed",
+        "robot_turn_rate",
+        "human_x",
+        "human_y",
+        "density",
+        "V1",
+        "V2",
+        "rho_error_l2",
+        "v_error_l2",
+        "fraction_in_target",
+        "A",
+        "shortfall",
+        "dissipation",
+        "saturated",
+    )
 
     def __post_init__(self) -> None:
-        self.record_state(fraction_in_disk(self.loop.crowd.positions, self.loop.target_center,
-                                           self.loop.target_radius))
+        self.record_state(fraction_in_disk(self.loop.crowd.positions, self.loop.target_center, self.loop.target_radius))
 
     def record_control(self, state: ControlState, k: int) -> None:
         g = self.loop.grid
@@ -406,8 +422,10 @@ class _Recorder:
         speed = np.hypot(u[:, 0], u[:, 1])
         self.max_speed = max(self.max_speed, float(speed.max()))
         self.max_turn = max(self.max_turn, float(np.abs(w).max()))
-        sat = bool((np.hypot(state.u[:, 0], state.u[:, 1]) > speed + 1e-12).any()
-                   or (np.abs(state.omega) > np.abs(w) + 1e-12).any())
+        sat = bool(
+            (np.hypot(state.u[:, 0], state.u[:, 1]) > speed + 1e-12).any()
+            or (np.abs(state.omega) > np.abs(w) + 1e-12).any()
+        )
         self.saturated += int(sat)
         self.control_samples += 1
         rt = g.norm(state.rho_tilde)
@@ -417,9 +435,18 @@ class _Recorder:
             self.first_V2 = V2
         # control values belong to the frame recorded at step k (state before the step)
         idx = len(self.frames["time"]) - 1
-        vals = {"robot_speed": speed, "robot_turn_rate": w, "V1": rt * rt, "V2": V2, "rho_error_l2": rt,
-                "v_error_l2": vt, "A": state.A, "shortfall": state.shortfall,
-                "dissipation": state.dissipation, "saturated": sat}
+        vals = {
+            "robot_speed": speed,
+            "robot_turn_rate": w,
+            "V1": rt * rt,
+            "V2": V2,
+            "rho_error_l2": rt,
+            "v_error_l2": vt,
+            "A": state.A,
+            "shortfall": state.shortfall,
+            "dissipation": state.dissipation,
+            "saturated": sat,
+        }
         for key, v in vals.items():
             self.frames[key][idx] = v
 
@@ -481,8 +508,13 @@ class _Recorder:
                 "dissipation": ("time", stack(f["dissipation"], float)),
                 "saturated": ("time", stack(f["saturated"], np.int8)),
             },
-            coords={"time": stack(f["time"], float), "x": g.x, "y": g.y,
-                    "robot": np.arange(loop.robots.n), "human": np.arange(loop.crowd.n)},
+            coords={
+                "time": stack(f["time"], float),
+                "x": g.x,
+                "y": g.y,
+                "robot": np.arange(loop.robots.n),
+                "human": np.arange(loop.crowd.n),
+            },
             attrs={
                 "title": "meanfield closed-loop run (Zheng et al., robot-assisted crowd evacuation)",
                 "scenario_toml": loop.scenario.to_toml(),
@@ -498,7 +530,9 @@ class _Recorder:
         return ds
 
 
-def run(scenario: Scenario | str, *, seed: int | None = None, progress: bool = True, **overrides: Any) -> SimulationResult:
+def run(
+    scenario: Scenario | str, *, seed: int | None = None, progress: bool = True, **overrides: Any
+) -> SimulationResult:
     """Build a :class:`ClosedLoop` and run it.
 
     Parameters

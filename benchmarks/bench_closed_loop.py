@@ -1,0 +1,83 @@
+"""Closed-loop speed of the paper scenario on one core, against an anchor measured in the same run.
+
+Run:  python benchmarks/bench_closed_loop.py [--steps 3000] [--repeats 3] [--json FILE]
+
+Our figure: closed-loop steps per second of ``meanfield run paper`` (200 humans, 16 robots,
+30×30 grid, KDE + controller + SDE + robots + recording every 10 steps), best of
+``--repeats``.  Anchor: ``scipy.stats.gaussian_kde`` evaluating the same 200 points on the
+same 900 cell centres — the density estimate alone, done the usual way.  The ratio
+(anchor time per call / our time per full step) is what to compare across machines.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")  # one core
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import platform  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+from scipy.stats import gaussian_kde  # noqa: E402
+
+from meanfield import ClosedLoop, paper_scenario  # noqa: E402
+
+
+def closed_loop_rate(steps: int, repeats: int) -> float:
+    best = 0.0
+    for r in range(repeats):
+        sc = paper_scenario(seed=r).replace(t_final=steps * 0.01)
+        loop = ClosedLoop(sc)
+        t0 = time.perf_counter()
+        result = loop.run(progress=False)
+        wall = time.perf_counter() - t0
+        assert result.summary["steps"] == steps
+        best = max(best, steps / wall)
+    return best
+
+
+def anchor_rate(calls: int, repeats: int) -> float:
+    rng = np.random.default_rng(0)
+    pts = rng.uniform(0, 1, (2, 200))
+    xs = (np.arange(30) + 0.5) / 30
+    X, Y = np.meshgrid(xs, xs, indexing="ij")
+    grid = np.vstack([X.ravel(), Y.ravel()])
+    best = 0.0
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(calls):
+            gaussian_kde(pts, bw_method=0.08 / pts.std())(grid)
+        best = max(best, calls / (time.perf_counter() - t0))
+    return best
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--steps", type=int, default=3000)
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--json", default=None)
+    a = ap.parse_args()
+    ours = closed_loop_rate(a.steps, a.repeats)
+    anchor = anchor_rate(max(a.steps // 3, 100), a.repeats)
+    out = {
+        "benchmark": "closed loop, paper scenario (N=200, n=16, 30x30, dt=0.01)",
+        "ours_steps_per_second": ours,
+        "anchor": "scipy.stats.gaussian_kde, 200 points on 900 cell centres",
+        "anchor_calls_per_second": anchor,
+        "ratio_ours_over_anchor": ours / anchor,
+        "goal_steps_per_second": 2000,
+        "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+        f"Python {platform.python_version()}, numpy {np.__version__}",
+    }
+    print(json.dumps(out, indent=2))
+    if a.json:
+        with open(a.json, "w") as fh:
+            json.dump(out, fh, indent=2)
+
+
+if __name__ == "__main__":
+    main()
