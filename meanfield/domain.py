@@ -305,13 +305,18 @@ class Domain:
         unknown = set(d) - allowed[kind]
         if unknown:
             raise ParameterError("domain", f"unknown key(s) {sorted(unknown)}", f"keys {sorted(allowed[kind])}")
-        if kind == "box":
-            return cls.box(d.get("width", 1.0), d.get("height", 1.0), tuple(d.get("origin", (0, 0))))
-        if kind == "disk":
-            return cls.disk(d.get("radius", 1.0), tuple(d.get("center", (0, 0))))
-        if "vertices" not in d:
-            raise ParameterError("domain.vertices", None, "a list of [x, y] vertices")
-        return cls.polygon(d["vertices"])
+        try:
+            if kind == "box":
+                return cls.box(d.get("width", 1.0), d.get("height", 1.0), tuple(d.get("origin", (0, 0))))
+            if kind == "disk":
+                return cls.disk(d.get("radius", 1.0), tuple(d.get("center", (0, 0))))
+            if "vertices" not in d:
+                raise ParameterError("vertices", None, "a list of [x, y] vertices")
+            return cls.polygon(d["vertices"])
+        except ParameterError as exc:
+            raise ParameterError(f"domain.{exc.name}", exc.value, exc.allowed) from None
+        except (TypeError, ValueError) as exc:
+            raise ParameterError("domain", str(exc), f"a valid {kind} description") from None
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, Domain):
