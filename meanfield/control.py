@@ -4,7 +4,7 @@ Step I, virtual control (paper, eq. (6)), on the grid faces::
 
     v_d = -(α ∇ρ̃ - ∇(σρ)) / ρ - u_W[ρ],        ρ̃ = ρ - ρ_*
 
-Step II, robot law (paper, eq. (9)), with ṽ = v_r - v_d::
+Step II, robot law (paper, eq. (8)), with ṽ = v_r - v_d::
 
     b_i = ∫ ṽᵀ K_ξ^i dx,   g_i = ∫ ṽᵀ K_θ^i dx,   A = ∫ ṽᵀ (ρ ∇ρ̃ - ∂_t v_d) dx
     u_i = k_u b_i + δu_i,  ω_i = -k_ω g_i + δω_i,  Σ_i b_i·δu_i - g_i δω_i = A
@@ -145,7 +145,7 @@ class BetaGammaStrategy(Protocol):
 class MinimumNormBetaGamma:
     """Minimum-norm solution: ``δu_i = A b_i / Z``, ``δω_i = -A g_i / Z`` (DESIGN.md §2).
 
-    Equivalent to ``β_il = (b_i^(l))²/Z`` and ``γ_i = g_i²/Z`` in the paper's eq. (9):
+    Equivalent to ``β_il = (b_i^(l))²/Z`` and ``γ_i = g_i²/Z`` in the paper's eq. (8):
     non-negative, summing to 1, zero where the integral is zero, and with no division by
     a small integral.  When ``Z = 0`` (ṽ orthogonal to every kernel column) nothing can
     cancel ``A``: the inputs are zero and the shortfall is ``A``.
@@ -164,9 +164,12 @@ class MinimumNormBetaGamma:
 class UserBetaGamma:
     """Wraps a user rule ``(b, g, A) -> (β (n, 2), γ (n,))`` into extra inputs.
 
-    The rule's output is checked against the paper's constraints (eq. (10)):
+    The rule may return None when no admissible weights exist (e.g. every integral is
+    zero); the inputs are then zero and the whole ``A`` is reported as the shortfall.
+
+    The rule's output is checked against the paper's constraints (eq. (9)):
     ``Σ β + Σ γ = 1`` and ``β_il = 0`` where ``b_i^(l) = 0`` (``γ_i`` likewise).  Then
-    ``δu_i^(l) = β_il A / b_i^(l)`` and ``δω_i = -γ_i A / g_i`` (paper, eq. (9)).
+    ``δu_i^(l) = β_il A / b_i^(l)`` and ``δω_i = -γ_i A / g_i`` (paper, eq. (8)).
     """
 
     name = "user"
@@ -177,12 +180,15 @@ class UserBetaGamma:
         self.rule = rule
 
     def __call__(self, b: np.ndarray, g: np.ndarray, A: float) -> ExtraInputs:
-        beta, gamma = self.rule(b, g, A)
+        weights = self.rule(b, g, A)
+        if weights is None:  # the rule found no admissible weights: nothing cancels A
+            return ExtraInputs(np.zeros_like(b), np.zeros_like(g), A)
+        beta, gamma = weights
         beta = np.asarray(beta, float).reshape(b.shape)
         gamma = np.asarray(gamma, float).reshape(g.shape)
         total = beta.sum() + gamma.sum()
         if not np.isfinite(total) or abs(total - 1.0) > 1e-9:
-            raise ParameterError("beta_gamma", f"sum {total}", "β and γ summing to 1 (eq. (10))")
+            raise ParameterError("beta_gamma", f"sum {total}", "β and γ summing to 1 (eq. (9))")
         if np.any((b == 0) & (beta != 0)) or np.any((g == 0) & (gamma != 0)):
             raise ParameterError(
                 "beta_gamma", "non-zero weight on a zero integral", "β_il = 0 where b_il = 0, γ_i = 0 where g_i = 0"
@@ -304,6 +310,8 @@ class BacksteppingController:
         g = self.grid
         rho_t = rho - self.target
         rf = g.face_average(rho)
+        if not g.is_box:  # closed faces (outside Ω) carry nothing; avoid 0/0 there
+            rf = (np.where(g.aperture_x > 0, rf[0], 1.0), np.where(g.aperture_y > 0, rf[1], 1.0))
         grt = g.gradient(rho_t)
         sig = self.sigma_on_cells(t)
         if callable(self.sigma):
@@ -377,7 +385,7 @@ class BacksteppingController:
     def robot_inputs(
         self, rho: np.ndarray, field: NavigationField, t: float = 0.0, dt: float | None = None
     ) -> ControlState:
-        """Step II: robot inputs ``(u_i, ω_i)`` of eq. (9) for density ``rho`` and robots ``field``.
+        """Step II: robot inputs ``(u_i, ω_i)`` of eq. (8) for density ``rho`` and robots ``field``.
 
         Parameters
         ----------

@@ -76,9 +76,11 @@ def _field_arrows(result: SimulationResult, k: int, m: int = 15):
 
 
 def result_kernel(result: SimulationResult):
-    """The scenario's Gaussian navigation kernel."""
+    """The run's navigation kernel (the scenario's Gaussian unless overridden in Python)."""
     from meanfield.kernels import GaussianKernel
 
+    if result.kernel is not None:
+        return result.kernel
     k = result.scenario.kernel
     return GaussianKernel(k.c, k.eta)
 

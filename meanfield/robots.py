@@ -215,7 +215,7 @@ class NavigationField:
     def moments(self, F: FaceField) -> tuple[np.ndarray, np.ndarray]:
         """``b_i = ∫ Fᵀ K_ξ^i dx`` (n, 2) and ``g_i = ∫ Fᵀ K_θ^i dx`` (n,) for a face field F.
 
-        With ``F = ṽ`` these are the ``b_i``, ``g_i`` of the robot law (paper, eq. (9)).
+        With ``F = ṽ`` these are the ``b_i``, ``g_i`` of the robot law (paper, eq. (8)).
         Integrals use the grid's face inner product, so ``Σ_i b_i·u_i - g_i ω_i`` equals
         ``-<F, ∂_t v_r>`` exactly.
         """

@@ -4,7 +4,7 @@ One step (``dt``) of :class:`ClosedLoop`:
 
 1. ρ̂ = KDE of the humans' positions on the grid (paper, Section IV-A);
 2. the robots' kernels on the grid faces; ``v_r`` (eq. (3));
-3. controller: ``v_d`` (eq. (6)), ``ṽ``, ``b_i``, ``g_i``, ``A``, inputs ``(u_i, ω_i)`` (eq. (9));
+3. controller: ``v_d`` (eq. (6)), ``ṽ``, ``b_i``, ``g_i``, ``A``, inputs ``(u_i, ω_i)`` (eq. (8));
 4. humans: one Euler–Maruyama step of eq. (1) with drift ``v_r + u_W + v_a`` at each human;
 5. robots: one Euler step of eq. (2), saturated at the speed limits, kept in Ω.
 
@@ -132,6 +132,7 @@ class SimulationResult:
     scenario: Scenario
     dataset: Any
     summary: dict[str, Any]
+    kernel: NavigationKernel | None = None
 
     def save(self, out_dir: str | Path, figures: bool = True, animate: bool = False) -> dict[str, Path]:
         """Write ``timeseries.nc``, ``scenario.toml``, figures and (last) ``summary.json``.
@@ -148,10 +149,11 @@ class SimulationResult:
             out / "timeseries.nc", lambda p: self.dataset.to_netcdf(p, engine="h5netcdf")
         )
         paths["scenario"] = atomic_write_text(out / "scenario.toml", self.scenario.to_toml())
-        if figures:
+        if figures or animate:
             from meanfield import plotting
 
-            paths.update(plotting.save_run_figures(self, out))
+            if figures:
+                paths.update(plotting.save_run_figures(self, out))
             if animate:
                 paths["animation"] = plotting.save_animation(self, out / "animation.gif")
         paths["summary"] = atomic_write_json(out / "summary.json", self.summary)
@@ -224,6 +226,16 @@ class ClosedLoop:
             heads = np.asarray(sc.robots.headings, float)
         self.robots = RobotTeam(rpos, heads, sc.robots.u_max, sc.robots.omega_max)
         self.robots.check_inside(sc.domain)
+        self.overrides = sorted(
+            name
+            for name, value in (
+                ("sigma", sigma if sigma is not sc.crowd.sigma else None),
+                ("disturbance", disturbance),
+                ("beta_gamma", beta_gamma),
+                ("kernel", kernel),
+            )
+            if value is not None
+        )
         self.interaction = None
         if sc.interaction.kind == "gaussian":
             pot = GaussianPotential(sc.interaction.strength, sc.interaction.length)
@@ -238,6 +250,9 @@ class ClosedLoop:
         self.step_index = 0
         self.last_state: ControlState | None = None
         self.last_inputs: tuple[np.ndarray, np.ndarray] | None = None
+        self.max_robot_speed = 0.0
+        self.max_robot_turn_rate = 0.0
+        self.saturated_steps = 0
         self.density: np.ndarray = self.kde(self.crowd.positions)
 
     def _gaussian_crowd(self, n: int, center, std) -> np.ndarray:
@@ -286,6 +301,12 @@ class ClosedLoop:
         self.step_index += 1
         self.last_state = state
         self.last_inputs = (u, w)
+        speed = np.hypot(u[:, 0], u[:, 1])
+        self.max_robot_speed = max(self.max_robot_speed, float(speed.max()))
+        self.max_robot_turn_rate = max(self.max_robot_turn_rate, float(np.abs(w).max()))
+        self.saturated_steps += int(
+            (np.hypot(state.u[:, 0], state.u[:, 1]) > speed).any() or (np.abs(state.omega) > np.abs(w)).any()
+        )
         self.density = self.kde(self.crowd.positions)
         if not np.isfinite(self.density).all():
             raise SimulationDiverged(f"non-finite density estimate at t = {self.t:.4g}", self.step_index)
@@ -347,7 +368,6 @@ class ClosedLoop:
             rec.record_state(frac)
         dataset = rec.dataset()
         final_err = self.grid.norm(self.density - self.target)
-        speeds = rec.max_speed
         summary: dict[str, Any] = {
             "status": status,
             "message": message,
@@ -360,11 +380,12 @@ class ClosedLoop:
                 self.crowd.positions, self.grid, self.target, seed=sc.seed
             ),
             "time_to_90": t90,
-            "max_robot_speed": speeds,
+            "max_robot_speed": self.max_robot_speed,
             "speed_limit": None if math.isinf(self.robots.u_max) else self.robots.u_max,
-            "max_robot_turn_rate": rec.max_turn,
+            "max_robot_turn_rate": self.max_robot_turn_rate,
             "turn_rate_limit": None if math.isinf(self.robots.omega_max) else self.robots.omega_max,
-            "saturated_fraction": rec.saturated / max(rec.control_samples, 1),
+            "saturated_fraction": self.saturated_steps / max(self.step_index, 1),
+            "python_overrides": self.overrides,
             "V2_initial": rec.first_V2,
             "V2_final": float(dataset["V2"].values[-1]) if dataset.sizes["time"] else None,
             "A_final": float(self.last_state.A) if self.last_state is not None else None,
@@ -375,7 +396,7 @@ class ClosedLoop:
             "seed": sc.seed,
             "scenario": sc.to_dict(),
         }
-        return SimulationResult(sc, dataset, summary)
+        return SimulationResult(sc, dataset, summary, self.kernel)
 
 
 @dataclass
@@ -385,10 +406,6 @@ class _Recorder:
     loop: ClosedLoop
     frames: dict[str, list] = field(default_factory=lambda: {k: [] for k in _Recorder.KEYS})
     last_recorded_step: int = -1
-    max_speed: float = 0.0
-    max_turn: float = 0.0
-    saturated: int = 0
-    control_samples: int = 0
     first_V2: float | None = None
     pending: dict[str, Any] | None = None
 
@@ -420,14 +437,10 @@ class _Recorder:
         g = self.loop.grid
         u, w = self.loop.last_inputs
         speed = np.hypot(u[:, 0], u[:, 1])
-        self.max_speed = max(self.max_speed, float(speed.max()))
-        self.max_turn = max(self.max_turn, float(np.abs(w).max()))
         sat = bool(
             (np.hypot(state.u[:, 0], state.u[:, 1]) > speed + 1e-12).any()
             or (np.abs(state.omega) > np.abs(w) + 1e-12).any()
         )
-        self.saturated += int(sat)
-        self.control_samples += 1
         rt = g.norm(state.rho_tilde)
         vt = g.face_norm(state.v_tilde)
         V2 = 0.5 * rt * rt + 0.5 * vt * vt

@@ -1,0 +1,48 @@
+"""Shared helpers for the test suite: small grids and smooth positive densities."""
+
+from __future__ import annotations
+
+import matplotlib
+import numpy as np
+import pytest
+
+from meanfield import Domain, Grid
+
+matplotlib.use("Agg")
+
+# A convex pentagon used wherever a polygon domain is needed (counter-clockwise).
+PENTAGON = [(0.0, 0.0), (1.0, -0.1), (1.3, 0.6), (0.6, 1.1), (-0.2, 0.7)]
+
+
+def smooth_density(grid: Grid, floor: float = 0.05) -> np.ndarray:
+    """A smooth, strictly positive density of unit mass: two Gaussian bumps plus a floor."""
+    X, Y = grid.centers
+    x0, x1, y0, y1 = grid.domain.bounds
+    w, h = x1 - x0, y1 - y0
+    f = (
+        floor
+        + np.exp(-((X - x0 - 0.3 * w) ** 2 + (Y - y0 - 0.35 * h) ** 2) / (2 * (0.15 * w) ** 2))
+        + 0.6 * np.exp(-((X - x0 - 0.7 * w) ** 2 + (Y - y0 - 0.6 * h) ** 2) / (2 * (0.2 * w) ** 2))
+    )
+    return f / grid.integrate(f)
+
+
+def all_domains() -> list[Domain]:
+    """One domain of each shape: an offset box, a disk and a convex pentagon."""
+    return [
+        Domain.box(1.1, 0.9, origin=(-0.3, 0.7)),
+        Domain.disk(0.8, center=(0.2, -0.1)),
+        Domain.polygon(PENTAGON),
+    ]
+
+
+@pytest.fixture(params=["box", "disk", "polygon"])
+def domain(request) -> Domain:
+    """Each domain shape in turn."""
+    return dict(zip(["box", "disk", "polygon"], all_domains(), strict=True))[request.param]
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    """A fixed-seed generator (tests are deterministic)."""
+    return np.random.default_rng(20240611)
