@@ -165,10 +165,16 @@ class Domain:
         off = np.einsum("ij,ij->i", n, v)
         return v, n, off
 
-    def contains(self, x: Any, y: Any, tol: float = 0.0) -> np.ndarray:
-        """Whether points lie in the closed domain (boundary included, up to ``tol``)."""
+    def contains(self, x: Any, y: Any, tol: float | None = None) -> np.ndarray:
+        """Whether points lie in the closed domain (boundary included, up to ``tol``).
+
+        The default ``tol`` is ``1e-12 × diameter``, so points that round-off put a few
+        ulps outside the wall (projections, vertices) still count as inside.
+        """
         x = np.asarray(x, float)
         y = np.asarray(y, float)
+        if tol is None:
+            tol = 1e-12 * self.diameter
         if self.kind == "disk":
             cx, cy = self.center
             return (x - cx) ** 2 + (y - cy) ** 2 <= (self.radius + tol) ** 2

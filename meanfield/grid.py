@@ -204,7 +204,7 @@ class Grid:
         out[1:, :] -= fx
         out[:, :-1] += fy
         out[:, 1:] -= fy
-        return -out * self._inv_volume
+        return out * self._inv_volume
 
     def face_average(self, f: np.ndarray) -> FaceField:
         """Arithmetic mean of the two cells on each side of every interior face."""

@@ -42,6 +42,9 @@ class _Convolver:
         self.kf = [sfft.rfft2(kk[::-1, ::-1], self.fshape) for kk in self.k]
 
     def __call__(self, m: np.ndarray) -> list[np.ndarray]:
+        if np.iscomplexobj(m):  # linear map: real and imaginary parts separately
+            re, im = self(m.real), self(m.imag)
+            return [a + 1j * b for a, b in zip(re, im, strict=True)]
         mf = sfft.rfft2(m, self.fshape)
         nx, ny = self.shape_in
         mx, my = self.shape_out

@@ -65,7 +65,11 @@ CASES = [
 ]
 
 
-@pytest.mark.parametrize(("alpha", "sigma", "n", "k_u", "k_omega", "interaction"), CASES)
+@pytest.mark.parametrize(
+    ("alpha", "sigma", "n", "k_u", "k_omega", "interaction"),
+    CASES,
+    ids=["saturating", "constant-no-turning-gain", "per-robot-gains", "interaction", "interaction-constant"],
+)
 def test_lyapunov_identity_semi_discrete(alpha, sigma, n, k_u, k_omega, interaction):
     """dV₂/dt = -∫α|∇ρ̃|² - Σ k_u|b_i|² - Σ k_ω g_i² for the semi-discrete closed loop
     (ρ̇ = density_rate(ρ, v_r), Ṙ = u, θ̇ = ω; min-norm β/γ, model-based ∂_t v_d).

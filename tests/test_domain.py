@@ -31,9 +31,7 @@ from .conftest import PENTAGON
         (lambda: Domain.polygon([(0, 0), (1, 0), (2, 0), (1, 1)]), "vertices"),
         # a pentagram turns the same way at every vertex but is self-intersecting
         (
-            lambda: Domain.polygon(
-                [(math.cos(a), math.sin(a)) for a in np.pi / 2 + 4 * np.pi / 5 * np.arange(5)]
-            ),
+            lambda: Domain.polygon([(math.cos(a), math.sin(a)) for a in np.pi / 2 + 4 * np.pi / 5 * np.arange(5)]),
             "vertices",
         ),
     ],

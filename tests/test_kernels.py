@@ -125,9 +125,17 @@ def test_radius_is_zero_when_eps_reaches_the_peak():
         GaussianKernel(0.1, 1.0).radius(0.0)
 
 
-@pytest.mark.parametrize(("c", "eta", "name"), [(0.0, 1.0, "kernel.c"), (-1.0, 1.0, "kernel.c"),
-                                                (1.0, 0.0, "kernel.eta"), (1.0, -0.5, "kernel.eta"),
-                                                (float("nan"), 1.0, "kernel.c"), (1.0, float("inf"), "kernel.eta")])
+@pytest.mark.parametrize(
+    ("c", "eta", "name"),
+    [
+        (0.0, 1.0, "kernel.c"),
+        (-1.0, 1.0, "kernel.c"),
+        (1.0, 0.0, "kernel.eta"),
+        (1.0, -0.5, "kernel.eta"),
+        (float("nan"), 1.0, "kernel.c"),
+        (1.0, float("inf"), "kernel.eta"),
+    ],
+)
 def test_bad_kernel_parameters_refused(c, eta, name):
     with pytest.raises(ParameterError) as info:
         GaussianKernel(c, eta)

@@ -15,7 +15,6 @@ from meanfield.robots import saturate_inputs
 def _setup(rng, domain=None, n=4):
     domain = domain or Domain.box(1.0, 1.2)
     grid = Grid(domain, (14, 17))
-    x0, x1, y0, y1 = domain.bounds
     R = domain.sample_uniform(n, rng)
     th = rng.uniform(0, 2 * np.pi, n)
     return grid, GaussianKernel(0.5, 0.05), R, th

@@ -29,8 +29,14 @@ def test_toml_round_trip_paper():
 def test_toml_round_trip_other_shapes(domain):
     sc = Scenario(
         domain=domain,
-        robots=RobotSpec(n=2, layout="explicit", positions=[list(domain.center), list(domain.center)],
-                         headings=[0.1, 2.0], u_max=None, omega_max=1.5),
+        robots=RobotSpec(
+            n=2,
+            layout="explicit",
+            positions=[list(domain.center), list(domain.center)],
+            headings=[0.1, 2.0],
+            u_max=None,
+            omega_max=1.5,
+        ),
         target=TargetSpec(center=domain.center, std=0.2),
         t_final=1.0,
     )
