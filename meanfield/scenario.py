@@ -141,7 +141,7 @@ class CrowdSpec:
     initial: str = "uniform"
     initial_center: tuple[float, float] = (0.5, 0.5)
     initial_std: float = 0.1
-    sigma: float = 1e-4
+    sigma: float = 0.015
 
     def __post_init__(self) -> None:
         self.n = _int("crowd.n", self.n, 1)
@@ -206,8 +206,8 @@ def _all_numbers(x: Any) -> bool:
 class KernelSpec:
     """Navigation kernel ``K̄(ξ) = c exp(-|ξ|²/η)``: ``c > 0``, ``η > 0``."""
 
-    c: float = 0.5
-    eta: float = 0.03
+    c: float = 0.2
+    eta: float = 0.05
 
     def __post_init__(self) -> None:
         self.c = _num("kernel.c", self.c, lo=0.0, lo_open=True)
@@ -280,13 +280,13 @@ class DensitySpec:
 class ControllerSpec:
     """Backstepping controller gains and options (paper, eqs. (6) and (9))."""
 
-    alpha: float = 0.1
+    alpha: float = 0.2
     alpha_schedule: str = "saturating"
-    rho_floor: float = 0.2
-    k_u: float = 1.0
+    rho_floor: float = 2.0
+    k_u: float = 10.0
     k_omega: float = 10.0
     beta_gamma: str = "min-norm"
-    dvd_dt: str = "model"
+    dvd_dt: str = "finite-difference"
 
     def __post_init__(self) -> None:
         self.alpha = _num("controller.alpha", self.alpha, lo=0.0, lo_open=True)
@@ -322,7 +322,7 @@ class Scenario:
     name: str = "custom"
     seed: int = 0
     dt: float = 0.01
-    t_final: float = 30.0
+    t_final: float = 40.0
     record_every: int = 10
     domain: Domain = field(default_factory=lambda: Domain.box(1.0, 1.0))
     grid: GridSpec = field(default_factory=GridSpec)
@@ -498,24 +498,24 @@ def paper_scenario(seed: int = 0) -> Scenario:
         name="paper",
         seed=seed,
         dt=0.01,
-        t_final=30.0,
+        t_final=40.0,
         record_every=10,
         domain=Domain.box(1.0, 1.0),
         grid=GridSpec((30, 30)),
-        crowd=CrowdSpec(n=200, initial="uniform", sigma=1e-4),
-        robots=RobotSpec(n=16, layout="grid", headings="random", u_max=0.05, omega_max=3.0),
-        kernel=KernelSpec(c=0.5, eta=0.03),
+        crowd=CrowdSpec(n=200, initial="uniform", sigma=0.015),
+        robots=RobotSpec(n=16, layout="grid", headings="random", u_max=0.2, omega_max=3.0),
+        kernel=KernelSpec(c=0.2, eta=0.05),
         interaction=InteractionSpec(kind="none"),
         target=TargetSpec(center=(1.0, 1.0), std=0.15),
         density=DensitySpec(bandwidth=0.08, boundary="reflect"),
         controller=ControllerSpec(
-            alpha=0.1,
+            alpha=0.2,
             alpha_schedule="saturating",
-            rho_floor=0.2,
-            k_u=1.0,
+            rho_floor=2.0,
+            k_u=10.0,
             k_omega=10.0,
             beta_gamma="min-norm",
-            dvd_dt="model",
+            dvd_dt="finite-difference",
         ),
     )
 

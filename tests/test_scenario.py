@@ -60,7 +60,7 @@ def test_with_values_sets_and_validates():
     sc = paper_scenario()
     new = sc.with_values({"kernel.eta": 0.02, "robots.n": 9, "t_final": 1.5})
     assert new.kernel.eta == 0.02 and new.robots.n == 9 and new.t_final == 1.5
-    assert sc.kernel.eta == 0.03  # the original is untouched
+    assert sc.kernel.eta == paper_scenario().kernel.eta != 0.02  # the original is untouched
     assert _err(lambda: sc.with_values({"crowd.sigma": -1.0})).name == "crowd.sigma"
     assert _err(lambda: sc.with_values({"kernel.size": 1.0})).name == "kernel.size"
     assert _err(lambda: sc.with_values({"nope.c": 1.0})).name == "nope.c"
