@@ -33,7 +33,7 @@ import numpy as np
 from scipy.signal import fftconvolve
 
 from meanfield.errors import ParameterError
-from meanfield.grid import Grid
+from meanfield.grid import Grid, linear_binning
 
 __all__ = ["KernelDensityEstimator", "silverman_bandwidth", "kde_direct"]
 
@@ -172,20 +172,7 @@ class KernelDensityEstimator:
         mx, my = nx * r, ny * r
         x0, x1, y0, y1 = g.domain.bounds
         bx, by = g.dx / r, g.dy / r
-        # linear (cloud-in-cell) binning onto fine cell centres
-        s = np.clip((points[:, 0] - x0) / bx - 0.5, 0.0, mx - 1.0)
-        t = np.clip((points[:, 1] - y0) / by - 0.5, 0.0, my - 1.0)
-        i = np.minimum(s.astype(np.intp), mx - 2)
-        j = np.minimum(t.astype(np.intp), my - 2)
-        fs = s - i
-        ft = t - j
-        counts = np.zeros(mx * my)
-        base = i * my + j
-        np.add.at(counts, base, (1 - fs) * (1 - ft))
-        np.add.at(counts, base + my, fs * (1 - ft))
-        np.add.at(counts, base + 1, (1 - fs) * ft)
-        np.add.at(counts, base + my + 1, fs * ft)
-        counts = counts.reshape(mx, my)
+        counts = linear_binning(points, (x0, y0), (bx, by), (mx, my))
         # Gaussian sampled on fine-grid offsets, truncated at 6h (relative tail < 1e-8)
         kx = min(int(math.ceil(6 * h / bx)), 2 * mx)
         ky = min(int(math.ceil(6 * h / by)), 2 * my)

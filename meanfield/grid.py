@@ -33,10 +33,39 @@ import numpy as np
 from meanfield.domain import Domain
 from meanfield.errors import ParameterError
 
-__all__ = ["Grid", "FaceField"]
+__all__ = ["Grid", "FaceField", "linear_binning"]
 
 FaceField = tuple[np.ndarray, np.ndarray]
 """A vector field on interior faces: ``(Fx, Fy)`` of shapes ``(nx-1, ny)``, ``(nx, ny-1)``."""
+
+
+def linear_binning(
+    points: np.ndarray,
+    origin: tuple[float, float],
+    spacing: tuple[float, float],
+    shape: tuple[int, int],
+    weight: float = 1.0,
+) -> np.ndarray:
+    """Cloud-in-cell (bilinear) binning of ``points`` onto a lattice of centres.
+
+    The lattice has centres ``origin + (i + ½, j + ½) · spacing`` for ``(i, j) < shape``;
+    each point spreads ``weight`` over its four nearest centres with bilinear weights
+    (points beyond the outer centres go to the nearest edge).  Cost O(N).
+    """
+    mx, my = shape
+    s = np.clip((points[:, 0] - origin[0]) / spacing[0] - 0.5, 0.0, mx - 1.0)
+    t = np.clip((points[:, 1] - origin[1]) / spacing[1] - 0.5, 0.0, my - 1.0)
+    i = np.minimum(s.astype(np.intp), mx - 2)
+    j = np.minimum(t.astype(np.intp), my - 2)
+    fs = s - i
+    ft = t - j
+    out = np.zeros(mx * my)
+    base = i * my + j
+    np.add.at(out, base, weight * (1 - fs) * (1 - ft))
+    np.add.at(out, base + my, weight * fs * (1 - ft))
+    np.add.at(out, base + 1, weight * (1 - fs) * ft)
+    np.add.at(out, base + my + 1, weight * fs * ft)
+    return out.reshape(mx, my)
 
 
 @dataclass(eq=False)

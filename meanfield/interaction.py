@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import fft as sfft
 
-from meanfield.grid import FaceField, Grid
+from meanfield.grid import FaceField, Grid, linear_binning
 from meanfield.kernels import InteractionPotential
 
 __all__ = ["InteractionField"]
@@ -95,19 +95,7 @@ class InteractionField:
         the cell centres by FFT and interpolated back bilinearly.
         """
         g = self.grid
-        nx, ny = g.shape
         x0, _, y0, _ = g.domain.bounds
-        s = np.clip((points[:, 0] - x0) / g.dx - 0.5, 0.0, nx - 1.0)
-        t = np.clip((points[:, 1] - y0) / g.dy - 0.5, 0.0, ny - 1.0)
-        i = np.minimum(s.astype(np.intp), nx - 2)
-        j = np.minimum(t.astype(np.intp), ny - 2)
-        fs, ft = s - i, t - j
-        m = np.zeros(nx * ny)
-        base = i * ny + j
-        w = 1.0 / len(points)
-        np.add.at(m, base, w * (1 - fs) * (1 - ft))
-        np.add.at(m, base + ny, w * fs * (1 - ft))
-        np.add.at(m, base + 1, w * (1 - fs) * ft)
-        np.add.at(m, base + ny + 1, w * fs * ft)
-        gx, gy = self._cells(m.reshape(nx, ny))
+        m = linear_binning(points, (x0, y0), (g.dx, g.dy), g.shape, 1.0 / len(points))
+        gx, gy = self._cells(m)
         return np.column_stack([g.interpolate(gx, points), g.interpolate(gy, points)])
