@@ -239,12 +239,6 @@ class Grid:
         """Arithmetic mean of the two cells on each side of every interior face."""
         return 0.5 * (f[1:, :] + f[:-1, :]), 0.5 * (f[:, 1:] + f[:, :-1])
 
-    def face_values(self, func, t: float = 0.0) -> FaceField:
-        """Sample a vector function ``func(x, y, t) -> (vx, vy)`` on the faces (normal components)."""
-        Xx, Yx = self.face_points_x
-        Xy, Yy = self.face_points_y
-        return np.asarray(func(Xx, Yx, t)[0], float), np.asarray(func(Xy, Yy, t)[1], float)
-
     def to_cells(self, F: FaceField) -> tuple[np.ndarray, np.ndarray]:
         """Average a face field to cell centres (for plots); wall faces count as zero."""
         nx, ny = self.cells

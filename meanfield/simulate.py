@@ -59,8 +59,8 @@ def robot_layout(domain: Domain, n: int, margin: float = 0.0) -> np.ndarray:
     row centred if it is partial; other shapes get the smallest square lattice over the
     bounding box with at least ``n`` points inside Ω, of which ``n`` evenly spaced ones.
     """
-    x0, x1, y0, y1 = domain.bounds
-    x0, x1, y0, y1 = x0 + margin, x1 - margin, y0 + margin, y1 - margin
+    region = _robot_region(domain, margin)
+    x0, x1, y0, y1 = region.bounds
     if domain.kind == "box":
         cols = math.ceil(math.sqrt(n))
         rows = math.ceil(n / cols)
@@ -76,18 +76,12 @@ def robot_layout(domain: Domain, n: int, margin: float = 0.0) -> np.ndarray:
         xs = x0 + (np.arange(m) + 0.5) * (x1 - x0) / m
         ys = y0 + (np.arange(m) + 0.5) * (y1 - y0) / m
         X, Y = np.meshgrid(xs, ys, indexing="ij")
-        inside = domain.contains(X, Y) & _inset_ok(domain, X, Y, margin)
+        inside = region.contains(X, Y)
         if inside.sum() >= n:
             cand = np.column_stack([X[inside], Y[inside]])
             idx = np.round(np.linspace(0, len(cand) - 1, n)).astype(int)
             return cand[idx]
         m += 1
-
-
-def _inset_ok(domain: Domain, X, Y, margin: float):
-    if margin <= 0 or domain.kind != "disk":
-        return np.ones_like(X, bool)
-    return np.hypot(X - domain.center[0], Y - domain.center[1]) <= domain.radius - margin
 
 
 def _robot_region(domain: Domain, margin: float) -> Domain:
@@ -253,6 +247,7 @@ class ClosedLoop:
         self.max_robot_speed = 0.0
         self.max_robot_turn_rate = 0.0
         self.saturated_steps = 0
+        self.last_saturated = False
         self.density: np.ndarray = self.kde(self.crowd.positions)
 
     def _gaussian_crowd(self, n: int, center, std) -> np.ndarray:
@@ -304,9 +299,10 @@ class ClosedLoop:
         speed = np.hypot(u[:, 0], u[:, 1])
         self.max_robot_speed = max(self.max_robot_speed, float(speed.max()))
         self.max_robot_turn_rate = max(self.max_robot_turn_rate, float(np.abs(w).max()))
-        self.saturated_steps += int(
+        self.last_saturated = bool(
             (np.hypot(state.u[:, 0], state.u[:, 1]) > speed).any() or (np.abs(state.omega) > np.abs(w)).any()
         )
+        self.saturated_steps += self.last_saturated
         self.density = self.kde(self.crowd.positions)
         if not np.isfinite(self.density).all():
             raise SimulationDiverged(f"non-finite density estimate at t = {self.t:.4g}", self.step_index)
@@ -348,7 +344,7 @@ class ClosedLoop:
                 k = self.step_index
                 state = self.step()
                 if k % sc.record_every == 0:
-                    rec.record_control(state, k)
+                    rec.record_control(state)
                 frac = fraction_in_disk(self.crowd.positions, self.target_center, self.target_radius)
                 if t90 is None and frac >= 0.9:
                     t90 = self.t
@@ -407,7 +403,6 @@ class _Recorder:
     frames: dict[str, list] = field(default_factory=lambda: {k: [] for k in _Recorder.KEYS})
     last_recorded_step: int = -1
     first_V2: float | None = None
-    pending: dict[str, Any] | None = None
 
     KEYS = (
         "time",
@@ -433,33 +428,29 @@ class _Recorder:
     def __post_init__(self) -> None:
         self.record_state(fraction_in_disk(self.loop.crowd.positions, self.loop.target_center, self.loop.target_radius))
 
-    def record_control(self, state: ControlState, k: int) -> None:
+    def _lyapunov_values(self, state: ControlState) -> dict[str, float]:
+        """‖ρ̃‖, ‖ṽ‖, V₁ = ∫ρ̃², V₂ = ∫½ρ̃² + ½|ṽ|² and the law's scalars at one state."""
         g = self.loop.grid
-        u, w = self.loop.last_inputs
-        speed = np.hypot(u[:, 0], u[:, 1])
-        sat = bool(
-            (np.hypot(state.u[:, 0], state.u[:, 1]) > speed + 1e-12).any()
-            or (np.abs(state.omega) > np.abs(w) + 1e-12).any()
-        )
         rt = g.norm(state.rho_tilde)
         vt = g.face_norm(state.v_tilde)
-        V2 = 0.5 * rt * rt + 0.5 * vt * vt
-        if self.first_V2 is None:
-            self.first_V2 = V2
-        # control values belong to the frame recorded at step k (state before the step)
-        idx = len(self.frames["time"]) - 1
-        vals = {
-            "robot_speed": speed,
-            "robot_turn_rate": w,
+        return {
             "V1": rt * rt,
-            "V2": V2,
+            "V2": 0.5 * rt * rt + 0.5 * vt * vt,
             "rho_error_l2": rt,
             "v_error_l2": vt,
             "A": state.A,
             "shortfall": state.shortfall,
             "dissipation": state.dissipation,
-            "saturated": sat,
         }
+
+    def record_control(self, state: ControlState) -> None:
+        """Fill the latest frame with the control computed at its state (before the step)."""
+        u, w = self.loop.last_inputs
+        vals = self._lyapunov_values(state)
+        if self.first_V2 is None:
+            self.first_V2 = vals["V2"]
+        vals.update(robot_speed=np.hypot(u[:, 0], u[:, 1]), robot_turn_rate=w, saturated=self.loop.last_saturated)
+        idx = len(self.frames["time"]) - 1
         for key, v in vals.items():
             self.frames[key][idx] = v
 
@@ -491,12 +482,8 @@ class _Recorder:
         # the last frame's control quantities: evaluate the controller at the final state
         if np.isnan(f["V2"][-1]):
             try:
-                st = loop.control()
-                rt = g.norm(st.rho_tilde)
-                vt = g.face_norm(st.v_tilde)
-                f["V1"][-1], f["V2"][-1] = rt * rt, 0.5 * rt * rt + 0.5 * vt * vt
-                f["rho_error_l2"][-1], f["v_error_l2"][-1] = rt, vt
-                f["A"][-1], f["shortfall"][-1], f["dissipation"][-1] = st.A, st.shortfall, st.dissipation
+                for key, v in self._lyapunov_values(loop.control()).items():
+                    f[key][-1] = v
             except (FloatingPointError, ValueError):
                 pass
         stack = np.asarray
