@@ -2,7 +2,8 @@
 
 Implements Zheng et al., "Multi-Robot-Assisted Human Crowd Evacuation using Navigation
 Velocity Fields": the human SDE crowd, robots and their navigation velocity fields, KDE
-density estimation, the backstepping density-feedback controller and the closed loop.
+density estimation, the backstepping density-feedback controller, the closed loop and a
+finite-volume Fokker–Planck solver of the crowd's mean-field limit.
 
 Quick start::
 
@@ -23,6 +24,7 @@ from meanfield.crowd import Crowd
 from meanfield.density import KernelDensityEstimator, silverman_bandwidth
 from meanfield.domain import Domain
 from meanfield.errors import ParameterError, SimulationDiverged
+from meanfield.fokker_planck import FokkerPlanck
 from meanfield.grid import Grid
 from meanfield.interaction import InteractionField
 from meanfield.kernels import (
@@ -48,6 +50,7 @@ __all__ = [
     "CustomKernel",
     "Domain",
     "ExtraInputs",
+    "FokkerPlanck",
     "GaussianKernel",
     "GaussianPotential",
     "Grid",

@@ -1,4 +1,4 @@
-"""Command-line interface: ``meanfield run``, ``meanfield scenario``.
+"""Command-line interface: ``meanfield run``, ``meanfield compare``, ``meanfield scenario``.
 
 Exit status: 0 success; 1 the run diverged or was interrupted (outputs of the last good
 state are still written); 2 invalid input (bad parameter, unknown scenario or key).
@@ -52,6 +52,27 @@ def _build_parser() -> argparse.ArgumentParser:
     r.add_argument("--quiet", action="store_true", help="no progress bar, no summary printout")
     r.add_argument("--animate", action="store_true", help="also write animation.gif")
     r.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+    c = sub.add_parser(
+        "compare",
+        help="agents (SDE) against the Fokker–Planck PDE under the same robot trajectories, for several N",
+    )
+    c.add_argument("scenario", nargs="?", default="paper", help="built-in name (paper) or a TOML file")
+    c.add_argument("--out", required=True, type=Path, help="output directory")
+    c.add_argument("--seed", type=int, default=None, help="random seed (overrides the scenario's)")
+    c.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a scenario field")
+    c.add_argument(
+        "--n-agents", default="100,1000,10000,100000", help="comma-separated crowd sizes (default 100,...,100000)"
+    )
+    c.add_argument("--t-final", type=float, default=None, help="horizon (default: the scenario's t_final)")
+    c.add_argument("--cells", type=int, default=64, help="PDE and density grid, cells per side (default 64)")
+    c.add_argument(
+        "--repulsion",
+        default="0.5,0.1",
+        help="STRENGTH,LENGTH of the repulsive Gaussian W for the second case, or 'none' (default 0.5,0.1)",
+    )
+    c.add_argument("--record-interval", type=float, default=1.0, help="time between measurements (default 1)")
+    c.add_argument("--quiet", action="store_true", help="no progress bar, no summary printout")
+    c.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     s = sub.add_parser("scenario", help="print a scenario as TOML (a starting point for your own)")
     s.add_argument("scenario", nargs="?", default="paper")
     return p
@@ -92,6 +113,65 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _int_list(name: str, text: str) -> tuple[int, ...]:
+    try:
+        values = tuple(int(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise ParameterError(name, text, "comma-separated integers, e.g. 100,1000,10000") from None
+    if not values:
+        raise ParameterError(name, text, "at least one integer")
+    return values
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from meanfield.compare import run_comparison
+    from meanfield.scenario import load_scenario
+
+    if args.seed is not None and args.seed < 0:
+        raise ParameterError("--seed", args.seed, "an integer >= 0")
+    sc = load_scenario(args.scenario, seed=args.seed)
+    if args.set:
+        sc = sc.with_values(_parse_set(args.set))
+    sizes = _int_list("--n-agents", args.n_agents)
+    if args.cells < 4:
+        raise ParameterError("--cells", args.cells, "an integer >= 4")
+    if args.t_final is not None and not args.t_final > 0:
+        raise ParameterError("--t-final", args.t_final, "a time > 0")
+    repulsion = None
+    if args.repulsion.strip().lower() != "none":
+        try:
+            repulsion = tuple(float(v) for v in args.repulsion.split(","))
+        except ValueError:
+            repulsion = ()
+        if len(repulsion) != 2:
+            raise ParameterError("--repulsion", args.repulsion, "STRENGTH,LENGTH (two numbers > 0) or 'none'")
+    report = run_comparison(
+        sc,
+        sizes,
+        repulsion=repulsion,
+        t_final=args.t_final,
+        cells=(args.cells, args.cells),
+        record_interval=args.record_interval,
+        seed=args.seed,
+        progress=not args.quiet,
+    )
+    report.save(args.out, figures=not args.no_figures)
+    if not args.quiet:
+        for case in report.cases:
+            s = case.summary
+            print(f"{s['label']}: status {s['status']}")
+            for name in ("error_to_expected", "error_to_pde", "error_to_expected_paper_sign"):
+                if f"{name}_mean" in s:
+                    means = ", ".join(f"N={n}: {v:.4g}" for n, v in s[f"{name}_mean"].items())
+                    print(f"  {name}: {means}; slope over 1e2..1e4: {s[f'{name}_slope_1e2_1e4']}")
+        print(f"outputs in {args.out}")
+    bad = [c.summary for c in report.cases if c.summary["status"] != "completed"]
+    if bad:
+        print(f"meanfield: compare {bad[0]['status']}: {bad[0]['message']}", file=sys.stderr)
+        return 1
+    return 0
+
+
 def _cmd_scenario(args: argparse.Namespace) -> int:
     from meanfield.scenario import load_scenario
 
@@ -105,6 +185,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         if args.command == "run":
             return _cmd_run(args)
+        if args.command == "compare":
+            return _cmd_compare(args)
         return _cmd_scenario(args)
     except ParameterError as exc:
         print(f"meanfield: error: {exc}", file=sys.stderr)

@@ -32,11 +32,16 @@ from typing import Any, Literal, Protocol
 import numpy as np
 
 from meanfield.errors import ParameterError
+from meanfield.fokker_planck import FokkerPlanck
 from meanfield.grid import FaceField, Grid
 from meanfield.interaction import InteractionField
 from meanfield.robots import NavigationField
 
+DVD_DT_OPTIONS = ("model", "fokker-planck", "finite-difference")
+"""The ways :class:`BacksteppingController` obtains ``∂_t v_d``."""
+
 __all__ = [
+    "DVD_DT_OPTIONS",
     "AlphaSchedule",
     "ConstantAlpha",
     "SaturatingAlpha",
@@ -252,8 +257,11 @@ class BacksteppingController:
         Extra-input rule (default :class:`MinimumNormBetaGamma`).
     interaction : InteractionField or None
         ``u_W`` (None: ``W = 0``).
-    dvd_dt : {"model", "finite-difference"}
-        How ``∂_t v_d`` is obtained.
+    dvd_dt : {"model", "fokker-planck", "finite-difference"}
+        How ``∂_t v_d`` is obtained: the chain rule along the model's ``∂_t ρ`` with
+        central fluxes (``"model"``, consistent with Theorem 1's identity) or with the
+        Scharfetter–Gummel right-hand side of :class:`~meanfield.fokker_planck.FokkerPlanck`
+        (``"fokker-planck"``), or a backward difference of ``v_d`` between calls.
     """
 
     def __init__(
@@ -266,7 +274,7 @@ class BacksteppingController:
         k_omega: float | np.ndarray = 1.0,
         strategy: BetaGammaStrategy | None = None,
         interaction: InteractionField | None = None,
-        dvd_dt: Literal["model", "finite-difference"] = "model",
+        dvd_dt: Literal["model", "fokker-planck", "finite-difference"] = "model",
     ):
         self.grid = grid
         target = np.asarray(target, float)
@@ -287,9 +295,10 @@ class BacksteppingController:
         self.k_omega = np.asarray(k_omega, float)
         self.strategy = strategy if strategy is not None else MinimumNormBetaGamma()
         self.interaction = interaction
-        if dvd_dt not in ("model", "finite-difference"):
-            raise ParameterError("controller.dvd_dt", dvd_dt, "'model' or 'finite-difference'")
+        if dvd_dt not in DVD_DT_OPTIONS:
+            raise ParameterError("controller.dvd_dt", dvd_dt, " or ".join(map(repr, DVD_DT_OPTIONS)))
         self.dvd_dt = dvd_dt
+        self._fokker_planck = FokkerPlanck(grid, sigma, interaction=interaction) if dvd_dt == "fokker-planck" else None
         self._previous_vd: tuple[float, FaceField] | None = None
         self._target_gradient = grid.gradient(self.target)
 
@@ -406,6 +415,8 @@ class BacksteppingController:
         b, gg = field.moments(vt)
         if self.dvd_dt == "model":
             dvd = self._virtual_velocity_rate(p, self._density_rate(p, v_r))
+        elif self.dvd_dt == "fokker-planck":
+            dvd = self._virtual_velocity_rate(p, self._fokker_planck.rhs(rho, t, face_velocity=v_r))
         else:
             prev = self._previous_vd
             if prev is None or t <= prev[0]:

@@ -160,3 +160,66 @@ def save_animation(result: SimulationResult, path: Path, max_frames: int = 150, 
     path = atomic_write_with(Path(path), lambda p: anim.save(p, writer=PillowWriter(fps=fps)))
     plt.close(fig)
     return path
+
+
+def plot_comparison_errors(report):
+    """Log–log error against ``N`` per case, with fitted slopes and an ``N^(-1/2)`` guide."""
+    from meanfield.compare import fit_slope
+
+    cases = report.cases
+    fig, axes = plt.subplots(1, len(cases), figsize=(5.2 * len(cases), 4.4), constrained_layout=True, squeeze=False)
+    styles = {
+        "error_to_expected": ("o-", "C0", "KDE − E[KDE] under PDE"),
+        "error_to_pde": ("s--", "C1", "KDE − PDE (incl. KDE bias)"),
+        "error_to_expected_paper_sign": ("^:", "C3", "vs PDE with the paper's ∇W∗ρ sign"),
+    }
+    for ax, case in zip(axes[0], cases, strict=True):
+        ns = case.dataset["n_agents"].values.astype(float)
+        fit = (ns >= 100) & (ns <= 10_000)
+        for name, (fmt, color, text) in styles.items():
+            if name not in case.dataset:
+                continue
+            m = case.mean_errors(name)
+            slope = fit_slope(ns[fit], m[fit]) if fit.sum() >= 2 else float("nan")
+            ax.loglog(ns, m, fmt, color=color, label=f"{text}: slope {slope:.2f}")
+        m0 = case.mean_errors("error_to_expected")[0]
+        ax.loglog(ns, m0 * (ns / ns[0]) ** -0.5, color="0.6", lw=0.8, label="N^(-1/2)")
+        ax.set_xlabel("number of agents N")
+        ax.set_ylabel("time-mean L² distance")
+        ax.set_title(case.label, fontsize=10)
+        ax.legend(fontsize=7.5)
+        ax.grid(True, which="both", alpha=0.3)
+    fig.suptitle("Agents (SDE) against the Fokker–Planck PDE, same robot trajectories (slopes fitted on N ≤ 10⁴)")
+    return fig
+
+
+def plot_comparison_snapshots(report, count: int = 3):
+    """PDE density against the largest crowd's estimate at ``count`` times (first case)."""
+    case = report.cases[0]
+    ds = case.dataset
+    n_t = ds.sizes["time"]
+    ks = np.unique(np.round(np.linspace(0, n_t - 1, count)).astype(int))
+    fig, axes = plt.subplots(2, len(ks), figsize=(3.2 * len(ks), 6.2), constrained_layout=True, squeeze=False)
+    ext = _extent(ds)
+    n_max = int(ds["n_agents"].values[-1])
+    for col, k in enumerate(ks):
+        pde = ds["pde_density"].values[k]
+        est = ds["agents_density"].values[-1, k]
+        vmax = max(np.percentile(pde, 99), np.percentile(est, 99))  # a corner peak would wash out the rest
+        for row, (f, name) in enumerate(((pde, "PDE"), (est, f"agents KDE, N = {n_max}"))):
+            ax = axes[row, col]
+            ax.imshow(f.T, origin="lower", extent=ext, vmin=0, vmax=vmax, cmap="viridis")
+            ax.set_title(f"{name}, t = {ds['time'].values[k]:.3g}", fontsize=9)
+            ax.set_xticks([])
+            ax.set_yticks([])
+    fig.suptitle(case.label)
+    return fig
+
+
+def save_comparison_figures(report, out_dir: Path) -> dict[str, Path]:
+    """Write ``error_vs_n.png`` and ``comparison_snapshots.png`` into ``out_dir``."""
+    out_dir = Path(out_dir)
+    return {
+        "error_vs_n": _save(plot_comparison_errors(report), out_dir / "error_vs_n.png"),
+        "comparison_snapshots": _save(plot_comparison_snapshots(report), out_dir / "comparison_snapshots.png"),
+    }

@@ -295,7 +295,7 @@ class ControllerSpec:
         self.k_u = _num("controller.k_u", self.k_u, lo=0.0)
         self.k_omega = _num("controller.k_omega", self.k_omega, lo=0.0)
         self.beta_gamma = _choice("controller.beta_gamma", self.beta_gamma, ("min-norm",))
-        self.dvd_dt = _choice("controller.dvd_dt", self.dvd_dt, ("model", "finite-difference"))
+        self.dvd_dt = _choice("controller.dvd_dt", self.dvd_dt, ("model", "fokker-planck", "finite-difference"))
 
 
 _SECTIONS: dict[str, type] = {
