@@ -99,24 +99,47 @@ def scharfetter_gummel(
 
     Notes
     -----
-    Evaluated without overflow for any ``P``: with ``s = |P|`` the larger coefficient is
-    ``(σ_f/h) s / (1 - e^{-s})`` and the smaller one that times ``e^{-s}``, so their ratio
-    is ``e^{P}`` to round-off, which keeps the discrete Gibbs state exact.
+    With ``s = |P|`` the smaller coefficient is ``(σ_f/h) B(s) = (σ_f/h) s / (e^s - 1)``,
+    evaluated with ``expm1`` (no overflow, full relative accuracy for every ``s``), and the
+    larger one is the smaller plus ``|a|`` (``B(-s) = B(s) + s``).  So their ratio is
+    ``e^{|P|}`` to round-off, which keeps the discrete Gibbs state exact.
     """
     a = np.asarray(drift, dtype=float)
-    d = np.broadcast_to(np.asarray(diffusion, dtype=float), a.shape)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        dh = d / spacing
-        s = np.abs(a) / dh
-        big = np.where(s > 0, s / -np.expm1(-s), 1.0)
-        big = dh * big
-        small = big * np.exp(-s)
-    diffusive = d > 0
-    upwind = np.abs(a)
-    big = np.where(diffusive, big, upwind)
-    small = np.where(diffusive, small, 0.0)
-    forward = a >= 0
-    return np.where(forward, big, small), np.where(forward, small, big)
+    out_l, out_r = np.empty_like(a), np.empty_like(a)
+    _scharfetter_gummel_into(a, diffusion, spacing, 1.0, out_l, out_r, np.empty_like(a), np.empty_like(a))
+    return out_l, out_r
+
+
+def _scharfetter_gummel_into(a, diffusion, spacing, length, out_l, out_r, t1, t2) -> None:
+    """:func:`scharfetter_gummel` times ``length``, written into ``out_l``, ``out_r``.
+
+    No temporaries (``t1``, ``t2`` are work arrays of ``a``'s shape): a fresh half-megabyte
+    array per operation costs more in page faults than the arithmetic.
+    """
+    np.maximum(a, 0.0, out=out_l)
+    np.subtract(out_l, a, out=out_r)  # max(-a, 0), exactly
+    if np.ndim(diffusion) == 0:
+        d = float(diffusion)
+        if d > 0.0:
+            np.abs(a, out=t1)
+            t1 *= spacing / d
+            np.maximum(t1, 1e-300, out=t1)  # B(0) = 1 as the limit s -> 0
+            with np.errstate(over="ignore"):  # e^s = inf: B(s) = 0
+                np.expm1(t1, out=t2)
+            np.divide(t1, t2, out=t1)
+            t1 *= d / spacing
+            out_l += t1
+            out_r += t1
+    else:
+        d = np.broadcast_to(np.asarray(diffusion, dtype=float), a.shape)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            s = np.maximum(np.abs(a) * spacing / d, 1e-300)
+            small = np.where(d > 0, (d / spacing) * (s / np.expm1(s)), 0.0)
+        out_l += small
+        out_r += small
+    if np.ndim(length) or length != 1.0:
+        out_l *= length
+        out_r *= length
 
 
 def _check_point_velocity(name: str, value, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
@@ -160,6 +183,14 @@ def _positive_number(name: str, value) -> float:
     return v
 
 
+class _StepTooLarge(ParameterError):
+    """A step above the method's bound; ``bound`` is the bound at the offending stage."""
+
+    def __init__(self, bound: float, *args):
+        super().__init__(*args)
+        self.bound = bound
+
+
 class _Coefficients:
     """Scharfetter–Gummel face coefficients times face length, and derived bounds."""
 
@@ -170,6 +201,12 @@ class _Coefficients:
         self._out_x = None
         self._out_y = None
         self.bounds: dict[str, float] = {}
+
+    def reset(self) -> None:
+        """Forget the derived quantities (the arrays were overwritten)."""
+        self._out_x = None
+        self._out_y = None
+        self.bounds = {}
 
     def outflow(self, shape) -> tuple[np.ndarray, np.ndarray]:
         """Σ of the outgoing coefficients of each cell, per direction."""
@@ -273,7 +310,9 @@ class FokkerPlanck:
         self._static: tuple[FaceField, FaceField] | None = None  # (drift, diffusion) when cacheable
         self._potential_drift: FaceField | None = None
         self._coeff_cache: _Coefficients | None = None
+        self._dynamic: _Coefficients | None = None
         self._lu_cache: dict = {}
+        self._work: dict[str, np.ndarray] = {}
 
     # ------------------------------------------------------------------ validation
     def check_density(self, rho, name: str = "rho") -> np.ndarray:
@@ -370,18 +409,62 @@ class FokkerPlanck:
             ax, ay = ax + face_velocity[0], ay + face_velocity[1]
         return ax, ay
 
+    def _buffer(self, name: str, shape: tuple[int, ...]) -> np.ndarray:
+        """A work array reused from step to step (see :func:`_scharfetter_gummel_into`)."""
+        b = self._work.get(name)
+        if b is None or b.shape != shape:
+            b = self._work[name] = np.empty(shape)
+        return b
+
     def _coefficients(self, rho: np.ndarray, t: float, face_velocity: FaceField | None) -> _Coefficients:
+        """Face coefficients at ``(ρ, t)``; cached when nothing depends on time or ``ρ``.
+
+        The dynamic set is written into the same arrays every call: a caller must be done
+        with the previous set before asking for the next.
+        """
         cacheable = not self.time_dependent and self.interaction is None and face_velocity is None
         if cacheable and self._coeff_cache is not None:
             return self._coeff_cache
         g = self.grid
-        ax, ay = self.drift(rho, t, face_velocity)
-        _, (dxf, dyf) = self._base_drift(t)
-        lx, rx = scharfetter_gummel(ax, dxf, g.dx)
-        ly, ry = scharfetter_gummel(ay, dyf, g.dy)
-        c = _Coefficients(lx * g._len_x, rx * g._len_x, ly * g._len_y, ry * g._len_y)
+        nx, ny = g.shape
+        (bx, by), (dxf, dyf) = self._base_drift(t)
+        uw = self.interaction.on_faces(rho) if self.interaction is not None else None
         if cacheable:
-            self._coeff_cache = c
+            arrays = [np.empty((nx - 1, ny)), np.empty((nx - 1, ny)), np.empty((nx, ny - 1)), np.empty((nx, ny - 1))]
+        else:
+            arrays = [
+                self._buffer(k, sh)
+                for k, sh in (("lx", (nx - 1, ny)), ("rx", (nx - 1, ny)), ("ly", (nx, ny - 1)), ("ry", (nx, ny - 1)))
+            ]
+        for k, (base, d, h, length) in enumerate(((bx, dxf, g.dx, g._len_x), (by, dyf, g.dy, g._len_y))):
+            shape = base.shape
+            a = base
+            if uw is not None or face_velocity is not None:
+                a = self._buffer(f"a{k}", shape)
+                np.copyto(a, base)
+                if uw is not None:
+                    a += uw[k]
+                if face_velocity is not None:
+                    a += face_velocity[k]
+            length = g.dy if (g.is_box and k == 0) else g.dx if g.is_box else length
+            _scharfetter_gummel_into(
+                a,
+                d,
+                h,
+                length,
+                arrays[2 * k],
+                arrays[2 * k + 1],
+                self._buffer(f"t1{k}", shape),
+                self._buffer(f"t2{k}", shape),
+            )
+        if cacheable:
+            self._coeff_cache = _Coefficients(*arrays)
+            return self._coeff_cache
+        c = self._dynamic
+        if c is None:
+            c = self._dynamic = _Coefficients(*arrays)
+        else:
+            c.reset()
         return c
 
     # ------------------------------------------------------------------ right-hand side
@@ -396,18 +479,27 @@ class FokkerPlanck:
 
     def rhs(self, rho: np.ndarray, t: float = 0.0, face_velocity: FaceField | None = None) -> np.ndarray:
         """``∂_t ρ = -∇·J`` (paper, eq. (4)) on the cells, zero flux through the walls."""
-        return self._apply(self._coefficients(rho, t, face_velocity), rho, "xy") * self.grid._inv_volume
+        c = self._coefficients(rho, t, face_velocity)
+        return self._apply(c, rho, "xy", np.empty(rho.shape)) * self.grid._inv_volume
 
-    @staticmethod
-    def _apply(c: _Coefficients, rho: np.ndarray, axes: str) -> np.ndarray:
-        """Mass rate ``A ρ`` (per cell, not divided by volume) along ``axes``."""
-        out = np.zeros_like(rho)
+    def _apply(self, c: _Coefficients, rho: np.ndarray, axes: str, out: np.ndarray) -> np.ndarray:
+        """Mass rate ``A ρ`` (per cell, not divided by volume) along ``axes``, into ``out``."""
+        out[...] = 0.0
+        nx, ny = rho.shape
         if "x" in axes:
-            G = c.lx * rho[:-1, :] - c.rx * rho[1:, :]
+            G = self._buffer("Gx", (nx - 1, ny))
+            T = self._buffer("Tx", (nx - 1, ny))
+            np.multiply(c.lx, rho[:-1, :], out=G)
+            np.multiply(c.rx, rho[1:, :], out=T)
+            G -= T
             out[:-1, :] -= G
             out[1:, :] += G
         if "y" in axes:
-            G = c.ly * rho[:, :-1] - c.ry * rho[:, 1:]
+            G = self._buffer("Gy", (nx, ny - 1))
+            T = self._buffer("Ty", (nx, ny - 1))
+            np.multiply(c.ly, rho[:, :-1], out=G)
+            np.multiply(c.ry, rho[:, 1:], out=T)
+            G -= T
             out[:, :-1] -= G
             out[:, 1:] += G
         return out
@@ -471,7 +563,8 @@ class FokkerPlanck:
         return self._implicit(rho, t, dt, fv)
 
     def _too_large(self, dt: float, bound: float, what: str) -> ParameterError:
-        return ParameterError(
+        return _StepTooLarge(
+            bound,
             "dt",
             dt,
             f"dt <= {bound:.6g}, the {what} bound of method={self.method!r} at this state "
@@ -480,50 +573,68 @@ class FokkerPlanck:
 
     def _heun(self, rho, t, dt, fv, check):
         g = self.grid
+        iv = g._inv_volume
         c1 = self._coefficients(rho, t, fv)
         if check and dt > self._bound(c1, "xy") * (1 + 1e-12):
             raise self._too_large(dt, self._bound(c1, "xy"), "stability/positivity")
-        iv = g._inv_volume
-        r1 = rho + dt * self._apply(c1, rho, "xy") * iv
+        r1 = self._apply(c1, rho, "xy", np.empty(rho.shape))
+        r1 *= dt * iv
+        r1 += rho
         c2 = self._coefficients(r1, t + dt, fv)
         if check and dt > self._bound(c2, "xy") * (1 + 1e-12):
             raise self._too_large(dt, self._bound(c2, "xy"), "stability/positivity")
-        return 0.5 * (rho + r1 + dt * self._apply(c2, r1, "xy") * iv)
+        out = self._apply(c2, r1, "xy", np.empty(rho.shape))
+        out *= dt * iv
+        out += r1
+        out += rho
+        out *= 0.5
+        return out
 
     def _sweep(self, c: _Coefficients, rhs_mass: np.ndarray, tau: float, axis: str, cache_key) -> np.ndarray:
-        """Solve ``(V - τ A_axis) ρ' = rhs_mass`` by tridiagonal solves along ``axis``."""
+        """Solve ``(V - τ A_axis) ρ' = rhs_mass`` by tridiagonal solves along ``axis``.
+
+        The systems of all grid lines form one tridiagonal matrix (zero couplings between
+        lines), solved by one LAPACK call; ``rhs_mass`` may be overwritten.
+        """
         g = self.grid
         V = g.volume
         if axis == "x":
-            lo, hi, Vt, b = c.lx.T, c.rx.T, V.T, rhs_mass.T
+            lo, hi, Vt = c.lx.T, c.rx.T, V.T
+            b = self._buffer("bx", (V.shape[1], V.shape[0]))
+            np.copyto(b, rhs_mass.T)
         else:
-            lo, hi, Vt, b = c.ly, c.ry, V, rhs_mass
+            lo, hi, Vt = c.ly, c.ry, V
+            b = rhs_mass if rhs_mass.flags.c_contiguous else np.ascontiguousarray(rhs_mass)
+        rows, n = Vt.shape
         key = (axis, tau, cache_key) if cache_key is not None else None
         lu = self._lu_cache.get(key) if key is not None else None
         if lu is None:
-            rows, n = Vt.shape
-            d = Vt.copy()
-            d[:, :-1] += tau * lo
-            d[:, 1:] += tau * hi
-            d[Vt <= 0] = 1.0  # cells outside Ω: identity rows
-            du = np.zeros((rows, n))
-            du[:, :-1] = -tau * hi
-            dl = np.zeros((rows, n))
-            dl[:, :-1] = -tau * lo
-            dl_, d_, du_ = dl.ravel()[:-1], d.ravel(), du.ravel()[:-1]
+            du = self._buffer("du" + axis, (rows, n))
+            np.multiply(hi, -tau, out=du[:, :-1])
+            du[:, -1] = 0.0
+            dl = self._buffer("dl" + axis, (rows, n))
+            np.multiply(lo, -tau, out=dl[:, :-1])
+            dl[:, -1] = 0.0
+            d = self._buffer("d" + axis, (rows, n))
+            np.copyto(d, Vt)
+            d[:, :-1] -= dl[:, :-1]  # column sums of the matrix are the volumes: mass is conserved
+            d[:, 1:] -= du[:, :-1]
+            if not g.is_box:
+                d[Vt <= 0] = 1.0  # cells outside Ω: identity rows
+            dl_, d_, du_ = dl.reshape(-1)[:-1], d.reshape(-1), du.reshape(-1)[:-1]
             if key is None:
-                _, _, _, x, info = lapack.dgtsv(dl_, d_, du_, np.ascontiguousarray(b).reshape(-1, 1), 1, 1, 1, 1)
+                _, _, _, x, info = lapack.dgtsv(dl_, d_, du_, b.reshape(-1, 1), 1, 1, 1, 1)
                 if info != 0:  # pragma: no cover - M-matrices are non-singular
                     raise FloatingPointError(f"tridiagonal solve failed (info={info})")
-                x = x.reshape(b.shape)
+                x = x.reshape(rows, n)
                 return x.T if axis == "x" else x
-            lu = lapack.dgttrf(dl_, d_, du_)
+            lu = lapack.dgttrf(dl_.copy(), d_.copy(), du_.copy())
             if lu[-1] != 0:  # pragma: no cover
                 raise FloatingPointError(f"tridiagonal factorisation failed (info={lu[-1]})")
             self._lu_cache[key] = lu
         dl_, d_, du_, du2, ipiv, _ = lu
-        x, info = lapack.dgttrs(dl_, d_, du_, du2, ipiv, np.ascontiguousarray(b).reshape(-1, 1))
-        x = x.reshape(b.shape)
+        x, info = lapack.dgttrs(dl_, d_, du_, du2, ipiv, b.reshape(-1, 1), overwrite_b=1)
+        x = x.reshape(rows, n)
         return x.T if axis == "x" else x
 
     def _cache_key(self, fv):
@@ -537,15 +648,22 @@ class FokkerPlanck:
         self._parity = not getattr(self, "_parity", False)
         first, second = ("x", "y") if self._parity else ("y", "x")
         r = self._sweep(c, V * rho, dt, first, key)
-        return self._sweep(c, V * r, dt, second, key)
+        return np.array(self._sweep(c, V * r, dt, second, key))
 
     def _adi(self, rho, t, dt, fv, check):
         c = self._coefficients(rho, t + 0.5 * dt, fv)
         key = self._cache_key(fv)
         V = self.grid.volume
         h = 0.5 * dt
-        r = self._sweep(c, V * rho + h * self._apply(c, rho, "y"), h, "x", key)
-        out = self._sweep(c, V * r + h * self._apply(c, r, "x"), h, "y", key)
+        vr = self._buffer("vr", rho.shape)
+        b = self._apply(c, rho, "y", self._buffer("rhs", rho.shape))
+        b *= h
+        b += np.multiply(V, rho, out=vr)
+        r = self._sweep(c, b, h, "x", key)
+        b = self._apply(c, r, "x", self._buffer("rhs", rho.shape))
+        b *= h
+        b += np.multiply(V, r, out=vr)
+        out = np.array(self._sweep(c, b, h, "y", key))
         if check and out.min() < 0:  # possible only above the positivity bound
             bound = 2.0 * min(self._bound(c, "x"), self._bound(c, "y"))
             raise self._too_large(dt, bound, "positivity")
@@ -657,7 +775,16 @@ class FokkerPlanck:
                 fv = fv_const if fv_fn is None else _check_face_field("face_velocity", fv_fn(t), self.grid)
                 h = dt if dt is not None else self.automatic_dt(rho, t, fv)
                 h = min(h, t_final - t)
-                rho = self._step(rho, t, h, fv, check=True)
+                for attempt in range(60):
+                    try:
+                        new = self._step(rho, t, h, fv, check=True)
+                        break
+                    except _StepTooLarge as exc:
+                        # automatic step: the drift grew within the step; retry below its bound
+                        if dt is not None or attempt == 59:
+                            raise
+                        h = min(0.5 * h, self.cfl * exc.bound)
+                rho = new
                 t = t + h if t_final - (t + h) > 1e-13 * span else t_final
                 if callback is not None:
                     callback(t, rho)
