@@ -378,6 +378,11 @@ def run_comparison(
     ``repulsion = (strength, length)`` of ``W(z) = strength · exp(-|z|²/length²)``,
     ``strength > 0`` (repulsive under the SDE's convention).
     """
+    sizes = tuple(int(n) for n in n_agents)
+    if not sizes or any(n < 2 for n in sizes) or len(set(sizes)) != len(sizes):
+        raise ParameterError("n_agents", n_agents, "distinct integers >= 2")
+    if not (math.isfinite(float(record_interval)) and float(record_interval) > 0):
+        raise ParameterError("record_interval", record_interval, "a number > 0")
     if repulsion is not None:
         s, ell = (float(v) for v in repulsion)
         if not (math.isfinite(s) and s > 0 and math.isfinite(ell) and ell > 0):

@@ -122,8 +122,9 @@ def _scharfetter_gummel_into(a, diffusion, spacing, length, out_l, out_r, t1, t2
         d = float(diffusion)
         if d > 0.0:
             np.abs(a, out=t1)
-            t1 *= spacing / d
-            np.maximum(t1, 1e-300, out=t1)  # B(0) = 1 as the limit s -> 0
+            t1 *= spacing
+            t1 /= d  # s = |a| h / σ_f (inf for a subnormal σ_f: clipped below)
+            np.clip(t1, 1e-300, 1e300, out=t1)  # B(0) = 1 as s -> 0; B(1e300) = 0
             with np.errstate(over="ignore"):  # e^s = inf: B(s) = 0
                 np.expm1(t1, out=t2)
             np.divide(t1, t2, out=t1)
@@ -133,7 +134,7 @@ def _scharfetter_gummel_into(a, diffusion, spacing, length, out_l, out_r, t1, t2
     else:
         d = np.broadcast_to(np.asarray(diffusion, dtype=float), a.shape)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            s = np.maximum(np.abs(a) * spacing / d, 1e-300)
+            s = np.clip(np.abs(a) * spacing / d, 1e-300, 1e300)
             small = np.where(d > 0, (d / spacing) * (s / np.expm1(s)), 0.0)
         out_l += small
         out_r += small
