@@ -123,9 +123,9 @@ def _scharfetter_gummel_into(a, diffusion, spacing, length, out_l, out_r, t1, t2
         if d > 0.0:
             np.abs(a, out=t1)
             t1 *= spacing
-            t1 /= d  # s = |a| h / σ_f (inf for a subnormal σ_f: clipped below)
-            np.clip(t1, 1e-300, 1e300, out=t1)  # B(0) = 1 as s -> 0; B(1e300) = 0
-            with np.errstate(over="ignore"):  # e^s = inf: B(s) = 0
+            with np.errstate(over="ignore"):  # s = inf for a subnormal σ_f: clipped below; e^s = inf: B(s) = 0
+                t1 /= d
+                np.clip(t1, 1e-300, 1e300, out=t1)  # B(0) = 1 as s -> 0; B(1e300) = 0
                 np.expm1(t1, out=t2)
             np.divide(t1, t2, out=t1)
             t1 *= d / spacing
