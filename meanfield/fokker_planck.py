@@ -28,12 +28,12 @@ Time stepping (``method``):
     ``dt <= min_c V_c / Σ_out(c)``, the forward-Euler positivity bound, which is also its
     stability bound; the step is chosen automatically, and a user ``dt`` above the bound
     is refused.
-``"split"``
+``"split"`` (the default on cut-cell grids)
     Directional splitting: backward-Euler sweeps along x then y (the order alternates
     each step), each a batch of tridiagonal solves (LAPACK ``gtsv``), O(cells) per step
     whatever the drift does.  Every sweep matrix is an M-matrix, so ``ρ >= 0`` for any
     ``dt``.  First order in time.
-``"adi"``
+``"adi"`` (the default on a box)
     Peaceman–Rachford alternating-direction implicit scheme (Crank–Nicolson halves),
     second order in time, two tridiagonal sweeps per step, stable for any ``dt``.
     Guaranteed positive when ``dt <= 2 min(V_c / Σ_out^x(c), V_c / Σ_out^y(c))`` (about
@@ -242,8 +242,10 @@ class FokkerPlanck:
         ``W``; adds ``u_W[ρ](x) = ∫ ∇W(y - x) ρ(y) dy`` (the SDE's sign).
     disturbance : callable, optional
         ``v_a(x, y, t) -> (vx, vy)``, the unmodelled drift of the paper.
-    method : {"adi", "split", "explicit", "implicit"}, default "adi"
-        Time integrator (see the module docstring for order and positivity).
+    method : {"adi", "split", "explicit", "implicit"}, optional
+        Time integrator (see the module docstring for order and positivity).  Default:
+        ``"adi"`` on a box; ``"split"`` on cut-cell grids (disks, polygons), whose small
+        cells would bound the ADI and explicit steps.
     time_dependent : bool, default True
         Whether ``sigma``, ``velocity`` or ``disturbance`` depend on ``t``.  When False
         they are evaluated once and the face coefficients (and factorisations) reused.
@@ -269,7 +271,7 @@ class FokkerPlanck:
         potential: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
         interaction: InteractionPotential | InteractionField | None = None,
         disturbance: PointVelocity | None = None,
-        method: Method = "adi",
+        method: Method | None = None,
         time_dependent: bool = True,
         cfl: float = 0.9,
     ):
@@ -300,6 +302,8 @@ class FokkerPlanck:
             raise ParameterError(
                 "interaction", type(interaction).__name__, "an InteractionPotential, InteractionField or None"
             )
+        if method is None:
+            method = "adi" if grid.is_box else "split"
         if method not in METHODS:
             raise ParameterError("method", method, f"one of {', '.join(map(repr, METHODS))}")
         self.method = method
@@ -506,16 +510,20 @@ class FokkerPlanck:
         return out
 
     # ------------------------------------------------------------------ step bounds
-    def _bound(self, c: _Coefficients, axes: str) -> float:
-        """``min_c V_c / Σ_out(c)`` over the faces along ``axes`` (cached per coefficient set)."""
-        if axes in c.bounds:
-            return c.bounds[axes]
+    def _bound(self, c: _Coefficients, axes: str, typical: bool = False) -> float:
+        """``min_c V_c / Σ_out(c)`` over the faces along ``axes`` (cached per coefficient set).
+
+        ``typical``: only over the cells at least half inside Ω (a step size, not a bound).
+        """
+        key = axes + ("-typical" if typical else "")
+        if key in c.bounds:
+            return c.bounds[key]
         g = self.grid
         ox, oy = c.outflow(g.shape)
         out = (ox if "x" in axes else 0.0) + (oy if "y" in axes else 0.0)
-        mask = g.active & (out > 0)
+        mask = (g.volume_fraction >= 0.5 if typical else g.active) & (out > 0)
         b = float(np.min(g.volume[mask] / out[mask])) if np.any(mask) else math.inf
-        c.bounds[axes] = b
+        c.bounds[key] = b
         return b
 
     def positivity_bound(self, rho: np.ndarray, t: float = 0.0, face_velocity: FaceField | None = None) -> float:
@@ -702,10 +710,11 @@ class FokkerPlanck:
     def automatic_dt(self, rho: np.ndarray, t: float = 0.0, face_velocity: FaceField | None = None) -> float:
         """The step ``solve`` takes when ``dt`` is None.
 
-        ``cfl`` × the positivity bound for ``"explicit"`` and ``"adi"``; for the
-        unconditionally positive ``"split"`` and ``"implicit"``, ``cfl`` × four times
-        the explicit bound (their error is first order in ``dt``; pass a ``dt`` to go
-        further).
+        ``cfl`` × the positivity bound for ``"explicit"`` and ``"adi"`` (on cut-cell
+        grids the smallest cell sets it: prefer ``"split"`` there, or pass ``dt``); for
+        the unconditionally positive ``"split"`` and ``"implicit"``, ``cfl`` × four times
+        the explicit bound of the cells at least half inside Ω (their error is first
+        order in ``dt``; pass a ``dt`` to go further).
         """
         c = self._coefficients(rho, t, face_velocity)
         if self.method == "explicit":
@@ -713,7 +722,7 @@ class FokkerPlanck:
         elif self.method == "adi":
             b = 2.0 * min(self._bound(c, "x"), self._bound(c, "y"))
         else:
-            b = 4.0 * self._bound(c, "xy")
+            b = 4.0 * self._bound(c, "xy", typical=True)
         if not math.isfinite(b):  # no drift and no diffusion: nothing moves
             return math.inf
         return self.cfl * b

@@ -851,3 +851,24 @@ def test_benchmark_problem_self_convergence_is_second_order():
     d2 = diff(sols[64], sols[128])
     order = math.log2(d1 / d2)
     assert 1.8 <= order <= 2.3, (d1, d2, order)
+
+
+def test_polygon_gibbs_state_and_default_method():
+    """On a convex polygon (cut cells) the default method is the unconditionally positive
+    "split", its automatic step is not set by the smallest cut cell, and the discrete
+    Gibbs state of a gradient drift is reached to round-off (exact steady state)."""
+    g = Grid(Domain.polygon([(0.0, 0.0), (1.0, 0.0), (0.3, 0.9)]), cells=(40, 40))
+    U = lambda x, y: 3 * (x - 0.4) ** 2 + 2 * (y - 0.3) ** 2  # noqa: E731
+    fp = FokkerPlanck(g, 0.05, potential=U, time_dependent=False)
+    assert fp.method == "split"
+    rho0 = g.normalize(np.ones(g.shape))
+    full = g.volume_fraction >= 0.5
+    # the step is 0.9 × 4 × the explicit bound of the full cells: h²/(4σ) on this grid
+    assert fp.automatic_dt(rho0) > 0.5 * g.dx**2 / (4 * 0.05)
+    assert g.volume_fraction[g.active].min() < 0.5 * full.mean()  # there are small cut cells
+    X, Y = g.centers
+    gibbs = np.where(g.active, np.exp(-U(X, Y) / 0.05), 0.0)
+    gibbs /= g.integrate(gibbs)
+    rho = FokkerPlanck(g, 0.05, potential=U, method="implicit", time_dependent=False).solve(rho0, 200.0, dt=5.0)
+    assert np.abs(rho - gibbs).max() <= 1e-10 * gibbs.max()
+    assert rho.min() >= 0.0
