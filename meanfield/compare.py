@@ -153,7 +153,7 @@ def compare_agents_pde(
     cells: tuple[int, int] = (64, 64),
     bandwidth: float | None = None,
     record_interval: float = 1.0,
-    method: str = "adi",
+    method: str | None = None,
     seed: int | None = None,
     progress: bool = False,
     label: str | None = None,
@@ -179,7 +179,8 @@ def compare_agents_pde(
     record_interval : float
         Time between measurements.
     method : str
-        :class:`~meanfield.fokker_planck.FokkerPlanck` time integrator.
+        :class:`~meanfield.fokker_planck.FokkerPlanck` time integrator (default: the
+        solver's, ADI on a box, split on cut-cell grids).
     seed : int, optional
         Seed of the agents' initial positions and noise (default: the scenario's).
     progress : bool
@@ -217,6 +218,7 @@ def compare_agents_pde(
     disturbance = _disturbance_from(scenario)
     field_w = InteractionField(grid, interaction) if interaction is not None else None
     fp = FokkerPlanck(grid, sigma, interaction=field_w, disturbance=disturbance, method=method)
+    method = fp.method
     fp_flipped = None
     if interaction is not None:  # the paper's written sign: ∇W * ρ = -u_W[ρ] for even W
         flipped = GaussianPotential(-interaction.strength, interaction.length)
