@@ -78,15 +78,22 @@ def _build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _cmd_run(args: argparse.Namespace) -> int:
+def _scenario_from(args: argparse.Namespace):
+    """The scenario named by ``args.scenario``, after ``--seed`` and ``--set``."""
     from meanfield.scenario import load_scenario
-    from meanfield.simulate import ClosedLoop
 
     if args.seed is not None and args.seed < 0:
         raise ParameterError("--seed", args.seed, "an integer >= 0")
     sc = load_scenario(args.scenario, seed=args.seed)
     if args.set:
         sc = sc.with_values(_parse_set(args.set))
+    return sc
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from meanfield.simulate import ClosedLoop
+
+    sc = _scenario_from(args)
     loop = ClosedLoop(sc)
     result = loop.run(progress=not args.quiet)
     result.save(args.out, figures=not args.no_figures, animate=args.animate)
@@ -125,13 +132,8 @@ def _int_list(name: str, text: str) -> tuple[int, ...]:
 
 def _cmd_compare(args: argparse.Namespace) -> int:
     from meanfield.compare import run_comparison
-    from meanfield.scenario import load_scenario
 
-    if args.seed is not None and args.seed < 0:
-        raise ParameterError("--seed", args.seed, "an integer >= 0")
-    sc = load_scenario(args.scenario, seed=args.seed)
-    if args.set:
-        sc = sc.with_values(_parse_set(args.set))
+    sc = _scenario_from(args)
     sizes = _int_list("--n-agents", args.n_agents)
     if args.cells < 4:
         raise ParameterError("--cells", args.cells, "an integer >= 4")

@@ -30,7 +30,7 @@ import numpy as np
 
 from meanfield.crowd import Crowd
 from meanfield.density import KernelDensityEstimator
-from meanfield.errors import ParameterError, SimulationDiverged
+from meanfield.errors import ParameterError, SimulationDiverged, positive_number
 from meanfield.fokker_planck import FokkerPlanck
 from meanfield.grid import Grid
 from meanfield.interaction import InteractionField
@@ -38,6 +38,7 @@ from meanfield.kernels import GaussianKernel, GaussianPotential
 from meanfield.metrics import gaussian_target
 from meanfield.robots import NavigationField, navigation_velocity
 from meanfield.scenario import Scenario
+from meanfield.simulate import ClosedLoop, _disturbance_from, initial_crowd
 
 __all__ = [
     "AgentsPdeComparison",
@@ -79,8 +80,6 @@ def record_robot_trajectory(
         Show a progress bar.
     """
     from tqdm.auto import tqdm
-
-    from meanfield.simulate import ClosedLoop
 
     loop = ClosedLoop(scenario)
     steps = scenario.steps if t_final is None else min(scenario.steps, int(round(t_final / scenario.dt)))
@@ -125,15 +124,12 @@ class AgentsPdeComparison:
         return self.dataset[name].mean("time").values
 
 
-def _initial(scenario: Scenario, grid: Grid, n: int, rng: np.random.Generator) -> np.ndarray:
-    c = scenario.crowd
-    if c.initial == "uniform":
-        return scenario.domain.sample_uniform(n, rng)
-    out = np.empty((0, 2))
-    while len(out) < n:
-        p = rng.normal(loc=c.initial_center, scale=c.initial_std, size=(2 * (n - len(out)) + 8, 2))
-        out = np.vstack([out, p[scenario.domain.contains(p[:, 0], p[:, 1])]])
-    return out[:n].copy()
+def _crowd_sizes(n_agents) -> tuple[int, ...]:
+    """Distinct crowd sizes >= 2, sorted, or a :class:`ParameterError`."""
+    sizes = tuple(int(n) for n in n_agents)
+    if not sizes or any(n < 2 for n in sizes) or len(set(sizes)) != len(sizes):
+        raise ParameterError("n_agents", n_agents, "distinct integers >= 2")
+    return tuple(sorted(sizes))
 
 
 def _initial_density(scenario: Scenario, grid: Grid) -> np.ndarray:
@@ -191,13 +187,8 @@ def compare_agents_pde(
 
     if not isinstance(scenario, Scenario):
         raise ParameterError("scenario", type(scenario).__name__, "a Scenario")
-    sizes = tuple(int(n) for n in n_agents)
-    if not sizes or any(n < 2 for n in sizes) or len(set(sizes)) != len(sizes):
-        raise ParameterError("n_agents", n_agents, "distinct integers >= 2")
-    sizes = tuple(sorted(sizes))
-    rec_int = float(record_interval)
-    if not math.isfinite(rec_int) or rec_int <= 0:
-        raise ParameterError("record_interval", record_interval, "a number > 0")
+    sizes = _crowd_sizes(n_agents)
+    rec_int = positive_number("record_interval", record_interval)
     if trajectory is None:
         trajectory = record_robot_trajectory(scenario, t_final, progress=progress)
     dt = scenario.dt
@@ -213,8 +204,6 @@ def compare_agents_pde(
     kernel = GaussianKernel(scenario.kernel.c, scenario.kernel.eta)
     kde = KernelDensityEstimator(grid, bandwidth, scenario.density.boundary)
     sigma = scenario.crowd.sigma
-    from meanfield.simulate import _disturbance_from
-
     disturbance = _disturbance_from(scenario)
     field_w = InteractionField(grid, interaction) if interaction is not None else None
     fp = FokkerPlanck(grid, sigma, interaction=field_w, disturbance=disturbance, method=method)
@@ -228,7 +217,7 @@ def compare_agents_pde(
     crowds = {}
     for n in sizes:
         rng = np.random.default_rng([seed, n])
-        crowds[n] = Crowd(_initial(scenario, grid, n, rng), scenario.domain, sigma, rng)
+        crowds[n] = Crowd(initial_crowd(scenario, n, rng), scenario.domain, sigma, rng)
 
     times: list[float] = []
     pde_frames: list[np.ndarray] = []
@@ -380,42 +369,23 @@ def run_comparison(
     ``repulsion = (strength, length)`` of ``W(z) = strength · exp(-|z|²/length²)``,
     ``strength > 0`` (repulsive under the SDE's convention).
     """
-    sizes = tuple(int(n) for n in n_agents)
-    if not sizes or any(n < 2 for n in sizes) or len(set(sizes)) != len(sizes):
-        raise ParameterError("n_agents", n_agents, "distinct integers >= 2")
-    if not (math.isfinite(float(record_interval)) and float(record_interval) > 0):
-        raise ParameterError("record_interval", record_interval, "a number > 0")
+    _crowd_sizes(n_agents)  # checked before the closed loop runs, not after
+    positive_number("record_interval", record_interval)
     if repulsion is not None:
         s, ell = (float(v) for v in repulsion)
         if not (math.isfinite(s) and s > 0 and math.isfinite(ell) and ell > 0):
             raise ParameterError("repulsion", repulsion, "(strength > 0, length > 0)")
-    trajectory = record_robot_trajectory(scenario, t_final, progress=progress)
-    cases = [
-        compare_agents_pde(
-            scenario,
-            n_agents,
-            trajectory=trajectory,
-            t_final=t_final,
-            cells=cells,
-            record_interval=record_interval,
-            seed=seed,
-            progress=progress,
-            label="W = 0",
-        )
-    ]
+    common = {
+        "trajectory": record_robot_trajectory(scenario, t_final, progress=progress),
+        "t_final": t_final,
+        "cells": cells,
+        "record_interval": record_interval,
+        "seed": seed,
+        "progress": progress,
+    }
+    cases = [compare_agents_pde(scenario, n_agents, label="W = 0", **common)]
     if repulsion is not None and cases[0].summary["status"] == "completed":
-        cases.append(
-            compare_agents_pde(
-                scenario,
-                n_agents,
-                interaction=GaussianPotential(s, ell),
-                trajectory=trajectory,
-                t_final=t_final,
-                cells=cells,
-                record_interval=record_interval,
-                seed=seed,
-                progress=progress,
-                label=f"repulsive W (strength {s:g}, length {ell:g})",
-            )
-        )
+        w = GaussianPotential(s, ell)
+        label = f"repulsive W (strength {s:g}, length {ell:g})"
+        cases.append(compare_agents_pde(scenario, n_agents, interaction=w, label=label, **common))
     return ComparisonReport(scenario, cases)

@@ -31,7 +31,7 @@ from typing import Any, Literal, Protocol
 
 import numpy as np
 
-from meanfield.errors import ParameterError
+from meanfield.errors import ParameterError, positive_number
 from meanfield.fokker_planck import FokkerPlanck
 from meanfield.grid import FaceField, Grid
 from meanfield.interaction import InteractionField
@@ -71,13 +71,6 @@ class AlphaSchedule(Protocol):
         ...
 
 
-def _positive(name: str, value: float) -> float:
-    value = float(value)
-    if not math.isfinite(value) or value <= 0:
-        raise ParameterError(name, value, "a finite number > 0")
-    return value
-
-
 @dataclass(frozen=True)
 class ConstantAlpha:
     """``α(x, t) = α₀``: the paper's plain gain.  ``|v_d|`` grows like ``1/ρ`` where the crowd is thin."""
@@ -85,7 +78,7 @@ class ConstantAlpha:
     alpha0: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "alpha0", _positive("controller.alpha", self.alpha0))
+        object.__setattr__(self, "alpha0", positive_number("controller.alpha", self.alpha0))
 
     def over_rho(self, rho_f):
         return self.alpha0 / rho_f
@@ -111,8 +104,8 @@ class SaturatingAlpha:
     rho_floor: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "alpha0", _positive("controller.alpha", self.alpha0))
-        object.__setattr__(self, "rho_floor", _positive("controller.rho_floor", self.rho_floor))
+        object.__setattr__(self, "alpha0", positive_number("controller.alpha", self.alpha0))
+        object.__setattr__(self, "rho_floor", positive_number("controller.rho_floor", self.rho_floor))
 
     def over_rho(self, rho_f):
         return self.alpha0 / (rho_f + self.rho_floor)

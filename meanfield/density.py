@@ -125,6 +125,11 @@ class KernelDensityEstimator:
             rho = self._separable(points, h)
         else:
             rho = self._binned(points, h)
+        return self._finish(rho, h)
+
+    def _finish(self, rho: np.ndarray, h: float) -> np.ndarray:
+        """Wall correction (renormalize), zero outside Ω, unit mass: shared by every evaluation."""
+        g = self.grid
         if self.boundary == "renormalize":
             rho = rho / self._kernel_mass(h)
         if not g.is_box:
@@ -161,15 +166,7 @@ class KernelDensityEstimator:
         fx = self._axis_factors(g.x, g.x, h, x0, x1)
         fy = self._axis_factors(g.y, g.y, h, y0, y1)
         out = fx @ (np.where(g.active, rho, 0.0) * g.volume) @ fy.T / (2 * math.pi * h * h)
-        if self.boundary == "renormalize":
-            out = out / self._kernel_mass(h)
-        if not g.is_box:
-            out = np.where(g.active, out, 0.0)
-        if self.normalize:
-            m = g.integrate(out)
-            if m > 0:
-                out *= 1.0 / m
-        return out
+        return self._finish(out, h)
 
     # ------------------------------------------------------------------ methods
     def _axis_factors(self, centres: np.ndarray, coords: np.ndarray, h: float, lo: float, hi: float):

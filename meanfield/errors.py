@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
-__all__ = ["ParameterError", "SimulationDiverged"]
+__all__ = ["ParameterError", "SimulationDiverged", "positive_number"]
 
 
 class ParameterError(ValueError):
@@ -33,3 +34,14 @@ class SimulationDiverged(RuntimeError):
     def __init__(self, message: str, last_good_step: int):
         self.last_good_step = last_good_step
         super().__init__(message)
+
+
+def positive_number(name: str, value: Any) -> float:
+    """``value`` as a finite float ``> 0``, or a :class:`ParameterError` naming ``name``."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(name, value, "a finite number > 0") from None
+    if not math.isfinite(v) or v <= 0:
+        raise ParameterError(name, value, "a finite number > 0")
+    return v

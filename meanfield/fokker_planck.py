@@ -61,7 +61,7 @@ from scipy import sparse
 from scipy.linalg import lapack
 from scipy.sparse import linalg as splinalg
 
-from meanfield.errors import ParameterError
+from meanfield.errors import ParameterError, positive_number
 from meanfield.grid import FaceField, Grid
 from meanfield.interaction import InteractionField
 from meanfield.kernels import InteractionPotential
@@ -172,16 +172,6 @@ def _check_face_field(name: str, value, grid: Grid) -> FaceField:
     if not (np.all(np.isfinite(fx)) and np.all(np.isfinite(fy))):
         raise ParameterError(name, "non-finite values (NaN or inf)", "finite face velocities")
     return fx, fy
-
-
-def _positive_number(name: str, value) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(name, value, "a finite number > 0") from None
-    if not math.isfinite(v) or v <= 0:
-        raise ParameterError(name, value, "a finite number > 0")
-    return v
 
 
 class _StepTooLarge(ParameterError):
@@ -308,7 +298,7 @@ class FokkerPlanck:
             raise ParameterError("method", method, f"one of {', '.join(map(repr, METHODS))}")
         self.method = method
         self.time_dependent = bool(time_dependent)
-        cfl_v = _positive_number("cfl", cfl)
+        cfl_v = positive_number("cfl", cfl)
         if cfl_v > 1:
             raise ParameterError("cfl", cfl, "a number in (0, 1]")
         self.cfl = cfl_v
@@ -556,7 +546,7 @@ class FokkerPlanck:
             robots), held constant over the step.
         """
         rho = self.check_density(rho)
-        dt = _positive_number("dt", dt)
+        dt = positive_number("dt", dt)
         if face_velocity is not None:
             face_velocity = _check_face_field("face_velocity", face_velocity, self.grid)
         return self._step(rho, float(t), dt, face_velocity, check=True)
@@ -766,7 +756,7 @@ class FokkerPlanck:
         if not (math.isfinite(t0) and math.isfinite(t_final)) or t_final < t0:
             raise ParameterError("t_final", t_final, f"a finite time >= t0 = {t0}")
         if dt is not None:
-            dt = _positive_number("dt", dt)
+            dt = positive_number("dt", dt)
         fv_fn = None
         fv_const = None
         if callable(face_velocity):

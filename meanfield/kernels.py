@@ -21,7 +21,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from meanfield.errors import ParameterError
+from meanfield.errors import ParameterError, positive_number
 
 __all__ = [
     "NavigationKernel",
@@ -48,16 +48,6 @@ class NavigationKernel(Protocol):
         ...
 
 
-def _positive(name: str, value: float) -> float:
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(name, value, "a finite number > 0") from None
-    if not math.isfinite(value) or value <= 0:
-        raise ParameterError(name, value, "a finite number > 0")
-    return value
-
-
 @dataclass(frozen=True)
 class GaussianKernel:
     """The paper's kernel ``K̄(ξ) = c exp(-|ξ|²/η)``.
@@ -75,8 +65,8 @@ class GaussianKernel:
     eta: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "c", _positive("kernel.c", self.c))
-        object.__setattr__(self, "eta", _positive("kernel.eta", self.eta))
+        object.__setattr__(self, "c", positive_number("kernel.c", self.c))
+        object.__setattr__(self, "eta", positive_number("kernel.eta", self.eta))
 
     separable = True
 
@@ -96,7 +86,7 @@ class GaussianKernel:
 
     def radius(self, eps: float) -> float:
         """Radius ``r_ε = sqrt(η ln(c/ε))`` of the disk where ``K̄ > ε`` (0 if ``ε >= c``)."""
-        eps = _positive("eps", eps)
+        eps = positive_number("eps", eps)
         return math.sqrt(self.eta * math.log(self.c / eps)) if eps < self.c else 0.0
 
 
@@ -185,7 +175,7 @@ class GaussianPotential:
         if not math.isfinite(s):
             raise ParameterError("interaction.strength", s, "a finite number")
         object.__setattr__(self, "strength", s)
-        object.__setattr__(self, "length", _positive("interaction.length", self.length))
+        object.__setattr__(self, "length", positive_number("interaction.length", self.length))
 
     def value(self, z_x: Any, z_y: Any) -> np.ndarray:
         """``W(z)``."""

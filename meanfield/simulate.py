@@ -84,6 +84,19 @@ def robot_layout(domain: Domain, n: int, margin: float = 0.0) -> np.ndarray:
         m += 1
 
 
+def initial_crowd(scenario: Scenario, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` initial positions from the scenario's crowd law (uniform on Ω, or a normal
+    law restricted to Ω by rejection), drawn from ``rng``."""
+    c = scenario.crowd
+    if c.initial == "uniform":
+        return scenario.domain.sample_uniform(n, rng)
+    out = np.empty((0, 2))
+    while len(out) < n:
+        p = rng.normal(loc=c.initial_center, scale=c.initial_std, size=(2 * (n - len(out)) + 8, 2))
+        out = np.vstack([out, p[scenario.domain.contains(p[:, 0], p[:, 1])]])
+    return out[:n].copy()
+
+
 def _robot_region(domain: Domain, margin: float) -> Domain:
     """Where robots may stand: Ω, inset by ``margin`` for a box or a disk."""
     if margin <= 0:
@@ -202,10 +215,7 @@ class ClosedLoop:
         sigma = sc.crowd.sigma if sigma is None else sigma
         self.disturbance = disturbance if disturbance is not None else _disturbance_from(sc)
         # initial states: humans first, then robot headings, from the one seeded generator
-        if sc.crowd.initial == "uniform":
-            humans = sc.domain.sample_uniform(sc.crowd.n, self.rng)
-        else:
-            humans = self._gaussian_crowd(sc.crowd.n, sc.crowd.initial_center, sc.crowd.initial_std)
+        humans = initial_crowd(sc, sc.crowd.n, self.rng)
         self.crowd = Crowd(humans, sc.domain, sigma, self.rng)
         self.robot_region = _robot_region(sc.domain, sc.robots.margin)
         if sc.robots.layout == "grid":
@@ -249,13 +259,6 @@ class ClosedLoop:
         self.saturated_steps = 0
         self.last_saturated = False
         self.density: np.ndarray = self.kde(self.crowd.positions)
-
-    def _gaussian_crowd(self, n: int, center, std) -> np.ndarray:
-        out = np.empty((0, 2))
-        while len(out) < n:
-            p = self.rng.normal(loc=center, scale=std, size=(2 * (n - len(out)) + 8, 2))
-            out = np.vstack([out, p[self.domain.contains(p[:, 0], p[:, 1])]])
-        return out[:n].copy()
 
     # ------------------------------------------------------------------ one step
     def human_drift(self, positions: np.ndarray) -> np.ndarray:
