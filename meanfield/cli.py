@@ -1,5 +1,8 @@
 """Command-line interface: ``meanfield run``, ``meanfield compare``, ``meanfield scenario``.
 
+Packages built on :mod:`meanfield` add sub-commands through the ``meanfield.commands``
+entry points (:mod:`meanfield.plugins`): ``meanfield analyze`` comes from :mod:`analysis`.
+
 Exit status: 0 success; 1 the run diverged or was interrupted (outputs of the last good
 state are still written); 2 invalid input (bad parameter, unknown scenario or key).
 """
@@ -12,6 +15,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from meanfield import plugins
 from meanfield.errors import ParameterError
 
 __all__ = ["main"]
@@ -75,7 +79,22 @@ def _build_parser() -> argparse.ArgumentParser:
     c.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     s = sub.add_parser("scenario", help="print a scenario as TOML (a starting point for your own)")
     s.add_argument("scenario", nargs="?", default="paper")
+    for name in plugins.available("command"):  # e.g. `meanfield analyze` from the analysis package
+        try:
+            handler = plugins.load("command", name)(sub)
+        except (ImportError, AttributeError) as exc:  # a broken plugin must not break the other commands
+            handler = _unavailable(name, exc)
+            sub.add_parser(name, help=f"(unavailable: {exc})", add_help=False).add_argument("rest", nargs="*")
+        sub.choices[name].set_defaults(plugin_handler=handler)
     return p
+
+
+def _unavailable(name: str, exc: Exception):
+    def handler(args: argparse.Namespace) -> int:
+        print(f"meanfield: error: the '{name}' command could not be loaded: {exc}", file=sys.stderr)
+        return 2
+
+    return handler
 
 
 def _scenario_from(args: argparse.Namespace):
@@ -189,7 +208,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_run(args)
         if args.command == "compare":
             return _cmd_compare(args)
-        return _cmd_scenario(args)
+        if args.command == "scenario":
+            return _cmd_scenario(args)
+        return args.plugin_handler(args)
     except ParameterError as exc:
         print(f"meanfield: error: {exc}", file=sys.stderr)
         return 2

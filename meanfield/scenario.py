@@ -12,7 +12,8 @@ A :class:`Scenario` is a tree of small dataclasses, one per TOML table::
     [disturbance] kind ("none" | "constant" | "swirl"), velocity, strength
     [target]      center, std                  (Gaussian ρ_* restricted to Ω)
     [density]     bandwidth, boundary, method
-    [controller]  alpha, alpha_schedule, rho_floor, k_u, k_omega, beta_gamma, dvd_dt
+    [controller]  alpha, alpha_schedule, rho_floor, k_u, k_omega, beta_gamma, dvd_dt, kind
+    [controller.options]  options of a controller plugin (e.g. the NMPC horizon)
 
 Every field is checked when the scenario is built (or read); a bad value raises
 :class:`~meanfield.errors.ParameterError` naming the field and the allowed range, and an
@@ -34,6 +35,7 @@ import numpy as np
 
 from meanfield.domain import Domain
 from meanfield.errors import ParameterError
+from meanfield.plugins import available
 
 __all__ = [
     "Scenario",
@@ -278,7 +280,14 @@ class DensitySpec:
 
 @dataclass
 class ControllerSpec:
-    """Backstepping controller gains and options (paper, eqs. (6) and (9))."""
+    """Controller gains and options (paper, eqs. (6) and (8)).
+
+    ``beta_gamma`` is ``"min-norm"`` (DESIGN.md §2) or an installed strategy plugin, such
+    as ``"bounded"`` (the speed-limited program of :mod:`analysis.bounded`).  ``kind`` is
+    ``"backstepping"`` (the paper's law) or an installed controller plugin, such as
+    ``"nmpc"`` (:mod:`analysis.nmpc`); ``options`` is passed to that plugin, which
+    validates it.  See :mod:`meanfield.plugins`.
+    """
 
     alpha: float = 0.2
     alpha_schedule: str = "saturating"
@@ -287,6 +296,8 @@ class ControllerSpec:
     k_omega: float = 10.0
     beta_gamma: str = "min-norm"
     dvd_dt: str = "finite-difference"
+    kind: str = "backstepping"
+    options: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.alpha = _num("controller.alpha", self.alpha, lo=0.0, lo_open=True)
@@ -294,8 +305,12 @@ class ControllerSpec:
         self.rho_floor = _num("controller.rho_floor", self.rho_floor, lo=0.0, lo_open=True)
         self.k_u = _num("controller.k_u", self.k_u, lo=0.0)
         self.k_omega = _num("controller.k_omega", self.k_omega, lo=0.0)
-        self.beta_gamma = _choice("controller.beta_gamma", self.beta_gamma, ("min-norm",))
+        self.beta_gamma = _choice("controller.beta_gamma", self.beta_gamma, ("min-norm", *available("beta_gamma")))
         self.dvd_dt = _choice("controller.dvd_dt", self.dvd_dt, ("model", "fokker-planck", "finite-difference"))
+        self.kind = _choice("controller.kind", self.kind, ("backstepping", *available("controller")))
+        if not isinstance(self.options, dict):
+            raise ParameterError("controller.options", self.options, "a table of options for the controller kind")
+        self.options = dict(self.options)
 
 
 _SECTIONS: dict[str, type] = {
@@ -396,16 +411,22 @@ class Scenario:
         return dataclasses.replace(self, **changes)
 
     def with_values(self, assignments: dict[str, Any]) -> Scenario:
-        """A copy with dotted fields set, e.g. ``{"kernel.eta": 0.02, "robots.n": 9}``."""
+        """A copy with dotted fields set, e.g. ``{"kernel.eta": 0.02, "robots.n": 9}``.
+
+        Keys under ``controller.options.`` may be new (the controller plugin checks them).
+        """
         d = self.to_dict()
         for key, value in assignments.items():
             parts = key.split(".")
             node = d
-            for p in parts[:-1]:
+            for depth, p in enumerate(parts[:-1]):
+                if parts[:depth + 1] == ["controller", "options"]:
+                    node = node.setdefault(p, {})  # free-form: the controller plugin validates it
+                    continue
                 if p not in node or not isinstance(node[p], dict):
                     raise ParameterError(key, value, "an existing scenario field")
                 node = node[p]
-            if parts[-1] not in node:
+            if parts[-1] not in node and parts[:-1] != ["controller", "options"]:
                 raise ParameterError(key, value, "an existing scenario field")
             node[parts[-1]] = value
         return Scenario.from_dict(d)
@@ -429,6 +450,10 @@ class Scenario:
                     if key == "robots" and f.name in ("u_max", "omega_max"):
                         sec[f.name] = "none"
                     continue
+                if isinstance(v, dict):
+                    if not v:
+                        continue
+                    v = dict(v)
                 sec[f.name] = list(v) if isinstance(v, tuple) else v
             out[key] = sec
         return out

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from meanfield import plugins
 from meanfield.control import (
     BacksteppingController,
     BetaGammaStrategy,
@@ -246,9 +247,19 @@ class ClosedLoop:
             self.interaction = InteractionField(self.grid, pot)
         c = sc.controller
         alpha = ConstantAlpha(c.alpha) if c.alpha_schedule == "constant" else SaturatingAlpha(c.alpha, c.rho_floor)
-        strategy = beta_gamma if beta_gamma is not None else MinimumNormBetaGamma()
-        self.controller = BacksteppingController(
+        if beta_gamma is not None:
+            strategy = beta_gamma
+        elif c.beta_gamma == "min-norm":
+            strategy = MinimumNormBetaGamma()
+        else:
+            strategy = plugins.load("beta_gamma", c.beta_gamma)(sc)
+        self.sigma = sigma
+        self.backstepping = BacksteppingController(
             self.grid, self.target, sigma, alpha, c.k_u, c.k_omega, strategy, self.interaction, c.dvd_dt
+        )
+        # the controller plugin (e.g. NMPC) sees the whole loop; backstepping is the paper's law
+        self.controller = (
+            self.backstepping if c.kind == "backstepping" else plugins.load("controller", c.kind)(self)
         )
         self.t = 0.0
         self.step_index = 0
