@@ -86,6 +86,16 @@ class RobotTeam:
             k = int(np.flatnonzero(~inside)[0])
             raise ParameterError(f"robots.positions[{k}]", self.positions[k].tolist(), "a point inside the domain")
 
+    def at_limit(self, u: np.ndarray, omega: np.ndarray, rtol: float = 1e-6) -> np.ndarray:
+        """Robots whose commanded input reaches a limit: ``‖u_i‖ >= (1 - rtol) u_max`` or
+        ``|ω_i| >= (1 - rtol) ω_max`` (a saturated command counts); bool array of shape (n,)."""
+        out = np.zeros(len(omega), dtype=bool)
+        if math.isfinite(self.u_max):
+            out |= np.hypot(u[:, 0], u[:, 1]) >= (1 - rtol) * self.u_max
+        if math.isfinite(self.omega_max):
+            out |= np.abs(omega) >= (1 - rtol) * self.omega_max
+        return out
+
     def step(self, u: np.ndarray, omega: np.ndarray, dt: float, domain: Domain) -> None:
         """Advance eq. (2) by one explicit Euler step, saturating and keeping robots in Ω.
 
@@ -109,7 +119,8 @@ def saturate_inputs(u: np.ndarray, omega: np.ndarray, u_max: float, omega_max: f
         over = speed > u_max
         if over.any():
             u = u.copy()
-            u[over] *= (u_max / speed[over])[:, None]
+            # scaled a hair below the limit, so that round-off never puts ‖u_i‖ above it
+            u[over] *= (u_max / speed[over] * (1 - 4 * np.finfo(float).eps))[:, None]
     if math.isfinite(omega_max):
         omega = np.clip(omega, -omega_max, omega_max)
     return u, omega

@@ -269,6 +269,8 @@ class ClosedLoop:
         self.max_robot_turn_rate = 0.0
         self.saturated_steps = 0
         self.last_saturated = False
+        self.binding_steps = 0
+        self.last_at_limit = 0
         self.density: np.ndarray = self.kde(self.crowd.positions)
 
     # ------------------------------------------------------------------ one step
@@ -317,6 +319,8 @@ class ClosedLoop:
             (np.hypot(state.u[:, 0], state.u[:, 1]) > speed).any() or (np.abs(state.omega) > np.abs(w)).any()
         )
         self.saturated_steps += self.last_saturated
+        self.last_at_limit = int(self.robots.at_limit(state.u, state.omega).sum())
+        self.binding_steps += self.last_at_limit > 0
         self.density = self.kde(self.crowd.positions)
         if not np.isfinite(self.density).all():
             raise SimulationDiverged(f"non-finite density estimate at t = {self.t:.4g}", self.step_index)
@@ -395,6 +399,9 @@ class ClosedLoop:
             "max_robot_turn_rate": self.max_robot_turn_rate,
             "turn_rate_limit": None if math.isinf(self.robots.omega_max) else self.robots.omega_max,
             "saturated_fraction": self.saturated_steps / max(self.step_index, 1),
+            "limits_binding_fraction": self.binding_steps / max(self.step_index, 1),
+            "shortfall_mean": _finite_mean(dataset["shortfall"].values),
+            "shortfall_max": _finite_max(dataset["shortfall"].values),
             "python_overrides": self.overrides,
             "V2_initial": rec.first_V2,
             "V2_final": float(dataset["V2"].values[-1]) if dataset.sizes["time"] else None,
@@ -407,6 +414,16 @@ class ClosedLoop:
             "scenario": sc.to_dict(),
         }
         return SimulationResult(sc, dataset, summary, self.kernel)
+
+
+def _finite_mean(x: np.ndarray) -> float | None:
+    x = x[np.isfinite(x)]
+    return float(x.mean()) if x.size else None
+
+
+def _finite_max(x: np.ndarray) -> float | None:
+    x = x[np.isfinite(x)]
+    return float(x.max()) if x.size else None
 
 
 @dataclass
@@ -437,6 +454,7 @@ class _Recorder:
         "shortfall",
         "dissipation",
         "saturated",
+        "robots_at_limit",
     )
 
     def __post_init__(self) -> None:
@@ -463,7 +481,12 @@ class _Recorder:
         vals = self._lyapunov_values(state)
         if self.first_V2 is None:
             self.first_V2 = vals["V2"]
-        vals.update(robot_speed=np.hypot(u[:, 0], u[:, 1]), robot_turn_rate=w, saturated=self.loop.last_saturated)
+        vals.update(
+            robot_speed=np.hypot(u[:, 0], u[:, 1]),
+            robot_turn_rate=w,
+            saturated=self.loop.last_saturated,
+            robots_at_limit=self.loop.last_at_limit,
+        )
         idx = len(self.frames["time"]) - 1
         for key, v in vals.items():
             self.frames[key][idx] = v
@@ -485,6 +508,7 @@ class _Recorder:
         for key in ("V1", "V2", "rho_error_l2", "v_error_l2", "A", "shortfall", "dissipation"):
             f[key].append(np.nan)
         f["saturated"].append(False)
+        f["robots_at_limit"].append(-1)
         self.last_recorded_step = loop.step_index
 
     def dataset(self):
@@ -521,6 +545,7 @@ class _Recorder:
                 "shortfall": ("time", stack(f["shortfall"], float)),
                 "dissipation": ("time", stack(f["dissipation"], float)),
                 "saturated": ("time", stack(f["saturated"], np.int8)),
+                "robots_at_limit": ("time", stack(f["robots_at_limit"], np.int16)),
             },
             coords={
                 "time": stack(f["time"], float),
@@ -541,6 +566,10 @@ class _Recorder:
             },
         )
         ds["robot_speed"].attrs["description"] = "applied (saturated) speed |u_i| during the step from this frame"
+        ds["robots_at_limit"].attrs["description"] = (
+            "robots whose commanded input reached a speed or turn-rate limit in the step from this frame"
+            " (-1: none recorded)"
+        )
         return ds
 
 

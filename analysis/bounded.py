@@ -1,0 +1,402 @@
+"""Bounded β/γ design: the robots' extra inputs under speed limits (cvxpy + Clarabel).
+
+The paper's Step-II law (eq. (8)) is ``u_i = k_u b_i + δu_i``, ``ω_i = -k_ω g_i + δω_i``,
+and (semi-discrete, exactly)
+
+.. math::
+
+    \\dot V_2 = -\\int α|∇ρ̃|^2 - \\sum_i k_u|b_i|^2 - \\sum_i k_ω g_i^2
+              + A - \\Big(\\sum_i b_i·δu_i - \\sum_i g_i δω_i\\Big).
+
+The paper asks ``Σ b_i·δu_i − Σ g_i δω_i = A`` through its β/γ weights, and ignores that a
+real robot has ``‖u_i‖ ≤ u_max`` and ``|ω_i| ≤ ω_max``.  This module chooses the extra
+inputs by the convex program of DESIGN.md §2::
+
+    minimise    Σ‖δu_i‖² + Σ δω_i²                      (least effort)
+    subject to  Σ b_i·δu_i − Σ g_i δω_i ≥ A              (V₂ decreases as promised)
+                ‖k_u b_i + δu_i‖ ≤ u_max                 (second-order cones)
+                |−k_ω g_i + δω_i| ≤ ω_max
+
+When no input within the limits reaches ``A`` (the robots are too few or too slow), the
+inputs maximise ``Σ b_i·δu_i − Σ g_i δω_i`` instead, and the *shortfall*
+``A − (Σ b_i·δu_i − Σ g_i δω_i) > 0`` enters ``dV₂/dt`` as the input of Theorem 2's ISS
+bound.  An infeasible program is therefore not an error: it is a reported shortfall.
+
+Condition ``"inequality"`` (default) spends no effort when ``A < 0`` (V₂ already decreases
+faster than promised); ``"equality"`` is the paper's condition ``= A``, whose solution
+without limits is exactly the closed-form minimum-norm choice
+``δu_i = A b_i / Z``, ``δω_i = −A g_i / Z``, ``Z = Σ|b_i|² + Σ g_i²``.
+
+The program is built once with cvxpy Parameters (disciplined parametrised programming,
+DPP) and re-solved each step by Clarabel.  :func:`bounded_inputs_exact` solves the same
+program exactly through its one-dimensional dual (the blocks decouple for a fixed
+multiplier); it is the tests' reference and a fast alternative (``method="exact"``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from meanfield.control import ExtraInputs
+from meanfield.errors import ParameterError
+from meanfield.scenario import Scenario
+
+__all__ = [
+    "CONDITIONS",
+    "BoundedInputs",
+    "BoundedBetaGamma",
+    "bounded_inputs_exact",
+    "achievable_range",
+    "bounded_strategy_for",
+]
+
+CONDITIONS = ("inequality", "equality")
+"""How the extra inputs must meet ``A``: at least (``≥ A``) or exactly (the paper's ``= A``)."""
+
+_METHODS = ("clarabel", "exact")
+
+
+@dataclass
+class BoundedInputs(ExtraInputs):
+    """Extra inputs of the bounded program, with what the limits did.
+
+    Attributes
+    ----------
+    du, domega, shortfall
+        As :class:`~meanfield.control.ExtraInputs`; ``shortfall`` is ``A`` minus what the
+        inputs achieve (``> 0`` only when the limits make ``A`` unreachable, or, with
+        condition ``"equality"``, ``< 0`` when ``A`` lies below the reachable range).
+    feasible : bool
+        Whether the condition on ``A`` could be met within the limits.
+    speed_binding, turn_binding : ndarray of bool, shape (n,)
+        Robots whose total input sits on the speed (turn-rate) limit.
+    achievable : (float, float)
+        The range of ``Σ b_i·δu_i − Σ g_i δω_i`` reachable within the limits.
+    solve_seconds : float
+        Wall time of this solve.
+    """
+
+    feasible: bool = True
+    speed_binding: np.ndarray | None = None
+    turn_binding: np.ndarray | None = None
+    achievable: tuple[float, float] = (-math.inf, math.inf)
+    solve_seconds: float = 0.0
+
+
+def _limit(name: str, value: float | None) -> float:
+    if value is None:
+        return math.inf
+    value = float(value)
+    if math.isnan(value) or value <= 0:
+        raise ParameterError(name, value, "a limit > 0, or None for no limit")
+    return value
+
+
+def _gains(name: str, k: float | np.ndarray, n: int) -> np.ndarray:
+    arr = np.broadcast_to(np.asarray(k, float), (n,)) if np.ndim(k) == 0 else np.asarray(k, float)
+    if arr.shape != (n,) or not np.all(np.isfinite(arr)) or np.any(arr < 0):
+        raise ParameterError(name, k, f"a gain >= 0 or {n} gains >= 0")
+    return np.array(arr)
+
+
+def _check_integrals(b: np.ndarray, g: np.ndarray, A: float, n: int) -> tuple[np.ndarray, np.ndarray, float]:
+    b = np.asarray(b, float)
+    g = np.asarray(g, float)
+    if b.shape != (n, 2) or g.shape != (n,):
+        raise ParameterError("b, g", (b.shape, g.shape), f"arrays of shapes ({n}, 2) and ({n},)")
+    A = float(A)
+    if not (np.all(np.isfinite(b)) and np.all(np.isfinite(g)) and math.isfinite(A)):
+        raise ParameterError("b, g, A", "non-finite values", "finite integrals")
+    return b, g, A
+
+
+def achievable_range(
+    b: np.ndarray, g: np.ndarray, k_u: np.ndarray, k_omega: np.ndarray, u_max: float, omega_max: float
+) -> tuple[float, float]:
+    """Range of ``Σ b_i·δu_i − Σ g_i δω_i`` over inputs within the limits (closed form).
+
+    Each robot's term is a linear function over a disk (a segment): its maximum is
+    ``u_max|b_i| − k_u|b_i|²`` and its minimum ``−u_max|b_i| − k_u|b_i|²``; likewise
+    ``ω_max|g_i| − k_ω g_i²`` and ``−ω_max|g_i| − k_ω g_i²``.  A zero integral with an
+    infinite limit contributes 0 (``0·∞`` read as 0).
+    """
+    nb = np.hypot(b[:, 0], b[:, 1])
+    ng = np.abs(g)
+    with np.errstate(invalid="ignore"):
+        reach = np.where(nb > 0, u_max * nb, 0.0).sum() + np.where(ng > 0, omega_max * ng, 0.0).sum()
+    base = -(k_u * nb * nb).sum() - (k_omega * ng * ng).sum()
+    return float(base - reach), float(base + reach)
+
+
+def _scales(
+    lam: float, nb: np.ndarray, k: np.ndarray, limit: float
+) -> np.ndarray:
+    """Per-robot scale ``s_i = clip(λ, −k_i − L/|b_i|, −k_i + L/|b_i|)`` (``δ = s_i b_i``)."""
+    with np.errstate(divide="ignore"):
+        half = np.where(nb > 0, limit / np.where(nb > 0, nb, 1.0), math.inf)
+    return np.clip(lam, -k - half, -k + half)
+
+
+def bounded_inputs_exact(
+    b: np.ndarray,
+    g: np.ndarray,
+    A: float,
+    k_u: float | np.ndarray,
+    k_omega: float | np.ndarray,
+    u_max: float | None,
+    omega_max: float | None,
+    condition: Literal["inequality", "equality"] = "inequality",
+) -> BoundedInputs:
+    """Exact solution of the bounded program through its one-dimensional dual.
+
+    For a multiplier ``λ`` of the condition on ``A`` the program decouples per robot:
+    ``δu_i`` is the projection of ``λ b_i`` onto the disk ``‖k_u b_i + δu‖ ≤ u_max``,
+    which lies on the line of ``b_i``: ``δu_i = s_i(λ) b_i`` with
+    ``s_i = clip(λ, −k_u − u_max/|b_i|, −k_u + u_max/|b_i|)``; likewise
+    ``δω_i = −t_i(λ) g_i`` with ``t_i = clip(λ, −k_ω − ω_max/|g_i|, −k_ω + ω_max/|g_i|)``.
+    The achieved value ``c(λ) = Σ|b_i|² s_i + Σ g_i² t_i`` is non-decreasing and
+    piecewise linear, so ``c(λ) = A`` is solved exactly between two breakpoints.
+
+    Parameters
+    ----------
+    b : ndarray, shape (n, 2)
+    g : ndarray, shape (n,)
+    A : float
+        The integrals of eq. (8).
+    k_u, k_omega : float or ndarray, shape (n,)
+        Step-II gains (>= 0).
+    u_max, omega_max : float or None
+        Limits (None: none).
+    condition : {"inequality", "equality"}
+        ``≥ A`` (λ ≥ 0) or ``= A`` (λ free).
+    """
+    t0 = time.perf_counter()
+    n = np.shape(b)[0] if np.ndim(b) == 2 else -1
+    b, g, A = _check_integrals(b, g, A, n)
+    ku = _gains("k_u", k_u, n)
+    kw = _gains("k_omega", k_omega, n)
+    U = _limit("u_max", u_max)
+    W = _limit("omega_max", omega_max)
+    if condition not in CONDITIONS:
+        raise ParameterError("condition", condition, " or ".join(map(repr, CONDITIONS)))
+    nb = np.hypot(b[:, 0], b[:, 1])
+    ng = np.abs(g)
+    lo, hi = achievable_range(b, g, ku, kw, U, W)
+    wb = nb * nb
+    wg = ng * ng
+
+    def achieved(lam: float) -> float:
+        return float((wb * _scales(lam, nb, ku, U)).sum() + (wg * _scales(lam, ng, kw, W)).sum())
+
+    # candidate multipliers: the breakpoints of c(λ), where a robot enters or leaves a limit
+    with np.errstate(divide="ignore"):
+        bu = np.where(nb > 0, U / np.where(nb > 0, nb, 1.0), math.inf)
+        bw = np.where(ng > 0, W / np.where(ng > 0, ng, 1.0), math.inf)
+    knots = np.concatenate([-ku - bu, -ku + bu, -kw - bw, -kw + bw])
+    knots = np.unique(knots[np.isfinite(knots)])
+    lam_min = 0.0 if condition == "inequality" else -math.inf
+    feasible = A <= hi and (condition == "inequality" or A >= lo)
+    if wb.sum() + wg.sum() == 0:
+        lam = 0.0  # every integral is zero: no input changes the value; least effort
+    elif condition == "inequality" and achieved(0.0) >= A:
+        lam = 0.0  # the condition already holds at the least-effort point
+    elif not feasible:
+        lam = math.inf if A > hi else -math.inf  # the input that comes closest to A
+    else:
+        pts = knots[knots > lam_min] if condition == "inequality" else knots
+        pts = np.concatenate([[lam_min if math.isfinite(lam_min) else (pts.min() - 1.0 if pts.size else -1.0)], pts])
+        vals = np.array([achieved(p) for p in pts])
+        if vals[-1] < A:  # beyond the last breakpoint c(λ) is linear with the unconstrained slope
+            slope = (wb * (bu == math.inf)).sum() + (wg * (bw == math.inf)).sum()
+            lam = pts[-1] + (A - vals[-1]) / slope
+        elif vals[0] > A:  # equality, A below the first breakpoint (unlimited robots only)
+            slope = (wb * (bu == math.inf)).sum() + (wg * (bw == math.inf)).sum()
+            lam = pts[0] - (vals[0] - A) / slope
+        else:
+            j = int(np.searchsorted(vals, A, side="left"))
+            if vals[j] == A:
+                lam = float(pts[j])
+            else:
+                lam = float(pts[j - 1] + (A - vals[j - 1]) * (pts[j] - pts[j - 1]) / (vals[j] - vals[j - 1]))
+    su = _scales(lam, nb, ku, U)
+    tw = _scales(lam, ng, kw, W)
+    if math.isinf(lam):  # every robot on its limit: finite scales from the clip
+        su = np.where(np.isfinite(su), su, 0.0)
+        tw = np.where(np.isfinite(tw), tw, 0.0)
+    du = su[:, None] * b
+    dw = -tw * g
+    return _finish(b, g, A, ku, kw, U, W, du, dw, feasible, (lo, hi), time.perf_counter() - t0)
+
+
+def _finish(
+    b: np.ndarray,
+    g: np.ndarray,
+    A: float,
+    ku: np.ndarray,
+    kw: np.ndarray,
+    U: float,
+    W: float,
+    du: np.ndarray,
+    dw: np.ndarray,
+    feasible: bool,
+    achievable: tuple[float, float],
+    seconds: float,
+) -> BoundedInputs:
+    """Project the totals onto the limits (removes a solver's round-off), report the shortfall."""
+    u = ku[:, None] * b + du
+    speed = np.hypot(u[:, 0], u[:, 1])
+    if math.isfinite(U):
+        over = speed > U
+        u[over] *= (U / speed[over] * (1 - 4 * np.finfo(float).eps))[:, None]  # never above U by round-off
+        speed = np.minimum(speed, U)
+    w = -kw * g + dw
+    if math.isfinite(W):
+        w = np.clip(w, -W, W)
+    du = u - ku[:, None] * b
+    dw = w + kw * g
+    done = float((b * du).sum() - (g * dw).sum())
+    rtol = 1e-7
+    return BoundedInputs(
+        du=du,
+        domega=dw,
+        shortfall=A - done,
+        feasible=feasible,
+        speed_binding=speed >= U * (1 - rtol) if math.isfinite(U) else np.zeros(len(g), bool),
+        turn_binding=np.abs(w) >= W * (1 - rtol) if math.isfinite(W) else np.zeros(len(g), bool),
+        achievable=achievable,
+        solve_seconds=seconds,
+    )
+
+
+class BoundedBetaGamma:
+    """β/γ strategy under speed limits: the convex program of this module, re-solved each step.
+
+    Parameters
+    ----------
+    n : int
+        Number of robots.
+    k_u, k_omega : float or ndarray, shape (n,)
+        The controller's Step-II gains (the base inputs ``k_u b_i`` and ``−k_ω g_i``).
+    u_max, omega_max : float or None
+        Speed and turn-rate limits (None: none).
+    condition : {"inequality", "equality"}
+        ``Σ b_i·δu_i − Σ g_i δω_i ≥ A`` (default) or ``= A`` (the paper's).
+    method : {"clarabel", "exact"}
+        cvxpy + Clarabel (the program built once with Parameters, DPP) or the exact
+        one-dimensional dual of :func:`bounded_inputs_exact`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> s = BoundedBetaGamma(2, k_u=1.0, k_omega=1.0, u_max=0.5, omega_max=1.0)
+    >>> out = s(np.array([[0.1, 0.0], [0.0, 0.2]]), np.array([0.0, 0.1]), 0.05)
+    >>> bool(out.feasible), abs(out.shortfall) < 1e-6
+    (True, True)
+    """
+
+    name = "bounded"
+
+    def __init__(
+        self,
+        n: int,
+        k_u: float | np.ndarray,
+        k_omega: float | np.ndarray,
+        u_max: float | None,
+        omega_max: float | None,
+        condition: Literal["inequality", "equality"] = "inequality",
+        method: Literal["clarabel", "exact"] = "clarabel",
+    ):
+        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
+            raise ParameterError("n", n, "an integer >= 1 (the number of robots)")
+        self.n = int(n)
+        self.k_u = _gains("k_u", k_u, self.n)
+        self.k_omega = _gains("k_omega", k_omega, self.n)
+        self.u_max = _limit("u_max", u_max)
+        self.omega_max = _limit("omega_max", omega_max)
+        if condition not in CONDITIONS:
+            raise ParameterError("condition", condition, " or ".join(map(repr, CONDITIONS)))
+        if method not in _METHODS:
+            raise ParameterError("method", method, " or ".join(map(repr, _METHODS)))
+        self.condition = condition
+        self.method = method
+        self.last: BoundedInputs | None = None
+        if method == "clarabel":
+            self._build()
+
+    def _build(self) -> None:
+        """The parametrised program (DPP): compiled on the first solve, then only re-filled."""
+        import cvxpy as cp
+
+        n = self.n
+        self._b = cp.Parameter((n, 2), name="b")
+        self._g = cp.Parameter(n, name="g")
+        self._A = cp.Parameter(name="A")
+        self._du = cp.Variable((n, 2), name="du")
+        self._dw = cp.Variable(n, name="domega")
+        gain = cp.sum(cp.multiply(self._b, self._du)) - self._g @ self._dw
+        cons = [gain == self._A if self.condition == "equality" else gain >= self._A]
+        if math.isfinite(self.u_max):
+            u = cp.multiply(self.k_u[:, None], self._b) + self._du
+            cons.append(cp.SOC(np.full(n, self.u_max), u, axis=1))
+        if math.isfinite(self.omega_max):
+            w = cp.multiply(-self.k_omega, self._g) + self._dw
+            cons += [w <= self.omega_max, -w <= self.omega_max]
+        self._problem = cp.Problem(cp.Minimize(cp.sum_squares(self._du) + cp.sum_squares(self._dw)), cons)
+        assert self._problem.is_dpp()
+
+    def __call__(self, b: np.ndarray, g: np.ndarray, A: float) -> BoundedInputs:
+        """Extra inputs for the integrals ``b`` (n, 2), ``g`` (n,) and ``A`` of eq. (8)."""
+        if self.method == "exact":
+            out = bounded_inputs_exact(
+                b, g, A, self.k_u, self.k_omega, self.u_max, self.omega_max, self.condition
+            )
+        else:
+            out = self._solve(b, g, A)
+        self.last = out
+        return out
+
+    def _solve(self, b: np.ndarray, g: np.ndarray, A: float) -> BoundedInputs:
+        import cvxpy as cp
+
+        t0 = time.perf_counter()
+        b, g, A = _check_integrals(b, g, A, self.n)
+        U, W = self.u_max, self.omega_max
+        lo, hi = achievable_range(b, g, self.k_u, self.k_omega, U, W)
+        if A > hi or (self.condition == "equality" and A < lo) or (b * b).sum() + (g * g).sum() == 0:
+            # unreachable: the closest reachable value is attained on the limits, in closed
+            # form (the cone program would be infeasible; its minimiser is this point)
+            out = bounded_inputs_exact(b, g, A, self.k_u, self.k_omega, U, W, self.condition)
+            out.solve_seconds = time.perf_counter() - t0
+            return out
+        self._b.value = b
+        self._g.value = g
+        self._A.value = A
+        try:
+            self._problem.solve(solver=cp.CLARABEL)
+            status = self._problem.status
+        except cp.SolverError:
+            status = "solver_error"
+        if status not in ("optimal", "optimal_inaccurate") or self._du.value is None:
+            # A on the edge of the reachable range: the feasible set is (nearly) one point
+            out = bounded_inputs_exact(b, g, A, self.k_u, self.k_omega, U, W, self.condition)
+            out.solve_seconds = time.perf_counter() - t0
+            return out
+        return _finish(
+            b, g, A, self.k_u, self.k_omega, U, W, np.array(self._du.value), np.array(self._dw.value),
+            True, (lo, hi), time.perf_counter() - t0,
+        )
+
+
+def bounded_strategy_for(scenario: Scenario) -> BoundedBetaGamma:
+    """The ``bounded`` β/γ strategy of a scenario (entry point ``meanfield.beta_gamma``).
+
+    Takes the gains from ``[controller]`` and the limits from ``[robots]``.
+    """
+    c = scenario.controller
+    r = scenario.robots
+    return BoundedBetaGamma(r.n, c.k_u, c.k_omega, r.u_max, r.omega_max)
