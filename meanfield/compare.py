@@ -38,7 +38,7 @@ from meanfield.kernels import GaussianKernel, GaussianPotential
 from meanfield.metrics import gaussian_target
 from meanfield.robots import NavigationField, navigation_velocity
 from meanfield.scenario import Scenario
-from meanfield.simulate import ClosedLoop, _disturbance_from, initial_crowd
+from meanfield.simulate import ClosedLoop, disturbance_for, initial_crowd
 
 __all__ = [
     "AgentsPdeComparison",
@@ -204,7 +204,7 @@ def compare_agents_pde(
     kernel = GaussianKernel(scenario.kernel.c, scenario.kernel.eta)
     kde = KernelDensityEstimator(grid, bandwidth, scenario.density.boundary)
     sigma = scenario.crowd.sigma
-    disturbance = _disturbance_from(scenario)
+    disturbance = disturbance_for(scenario)
     field_w = InteractionField(grid, interaction) if interaction is not None else None
     fp = FokkerPlanck(grid, sigma, interaction=field_w, disturbance=disturbance, method=method)
     method = fp.method

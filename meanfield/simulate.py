@@ -48,7 +48,7 @@ from meanfield.metrics import (
 from meanfield.robots import NavigationField, RobotTeam, navigation_velocity, saturate_inputs
 from meanfield.scenario import Scenario
 
-__all__ = ["ClosedLoop", "SimulationResult", "run", "robot_layout"]
+__all__ = ["ClosedLoop", "SimulationResult", "run", "robot_layout", "alpha_schedule_for", "disturbance_for", "initial_crowd"]
 
 Disturbance = Callable[[np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]
 
@@ -85,6 +85,12 @@ def robot_layout(domain: Domain, n: int, margin: float = 0.0) -> np.ndarray:
         m += 1
 
 
+def alpha_schedule_for(scenario: Scenario) -> ConstantAlpha | SaturatingAlpha:
+    """The Step-I gain α(ρ) of ``scenario.controller`` (``"constant"`` or ``"saturating"``)."""
+    c = scenario.controller
+    return ConstantAlpha(c.alpha) if c.alpha_schedule == "constant" else SaturatingAlpha(c.alpha, c.rho_floor)
+
+
 def initial_crowd(scenario: Scenario, n: int, rng: np.random.Generator) -> np.ndarray:
     """``n`` initial positions from the scenario's crowd law (uniform on Ω, or a normal
     law restricted to Ω by rejection), drawn from ``rng``."""
@@ -110,7 +116,8 @@ def _robot_region(domain: Domain, margin: float) -> Domain:
     raise ParameterError("robots.margin", margin, "0 for a polygon domain (a margin needs a box or a disk)")
 
 
-def _disturbance_from(scenario: Scenario) -> Disturbance | None:
+def disturbance_for(scenario: Scenario) -> Disturbance | None:
+    """The scenario's disturbance ``v_a(x, y, t) -> (vx, vy)`` (eq. (1)), or None without one."""
     d = scenario.disturbance
     if d.kind == "none":
         return None
@@ -214,7 +221,7 @@ class ClosedLoop:
         bw = None if sc.density.bandwidth == "silverman" else sc.density.bandwidth
         self.kde = KernelDensityEstimator(self.grid, bw, sc.density.boundary, sc.density.method)
         sigma = sc.crowd.sigma if sigma is None else sigma
-        self.disturbance = disturbance if disturbance is not None else _disturbance_from(sc)
+        self.disturbance = disturbance if disturbance is not None else disturbance_for(sc)
         # initial states: humans first, then robot headings, from the one seeded generator
         humans = initial_crowd(sc, sc.crowd.n, self.rng)
         self.crowd = Crowd(humans, sc.domain, sigma, self.rng)
@@ -246,7 +253,7 @@ class ClosedLoop:
             pot = GaussianPotential(sc.interaction.strength, sc.interaction.length)
             self.interaction = InteractionField(self.grid, pot)
         c = sc.controller
-        alpha = ConstantAlpha(c.alpha) if c.alpha_schedule == "constant" else SaturatingAlpha(c.alpha, c.rho_floor)
+        alpha = alpha_schedule_for(sc)
         if beta_gamma is not None:
             strategy = beta_gamma
         elif c.beta_gamma == "min-norm":
@@ -271,6 +278,7 @@ class ClosedLoop:
         self.last_saturated = False
         self.binding_steps = 0
         self.last_at_limit = 0
+        self.last_shortfall_applied = float("nan")
         self.density: np.ndarray = self.kde(self.crowd.positions)
 
     # ------------------------------------------------------------------ one step
@@ -320,11 +328,25 @@ class ClosedLoop:
         )
         self.saturated_steps += self.last_saturated
         self.last_at_limit = int(self.robots.at_limit(state.u, state.omega).sum())
+        self.last_shortfall_applied = self.applied_shortfall(state, u, w)
         self.binding_steps += self.last_at_limit > 0
         self.density = self.kde(self.crowd.positions)
         if not np.isfinite(self.density).all():
             raise SimulationDiverged(f"non-finite density estimate at t = {self.t:.4g}", self.step_index)
         return state
+
+    def applied_shortfall(self, state: ControlState, u: np.ndarray, omega: np.ndarray) -> float:
+        """``A − (Σ b_i·δu_i − Σ g_i δω_i)`` for the inputs actually applied (after saturation).
+
+        With ``δu_i = u_i − k_u b_i`` and ``δω_i = ω_i + k_ω g_i``, so that
+        ``dV₂/dt = −∫α|∇ρ̃|² − Σ k_u|b_i|² − Σ k_ω g_i² + applied shortfall`` (eq. (8)):
+        the part of ``A`` the robots did not cancel, whatever the strategy or the clipping.
+        """
+        c = self.backstepping
+        k_u = c.k_u[:, None] if c.k_u.ndim else c.k_u
+        du = u - k_u * state.b
+        dw = omega + c.k_omega * state.g
+        return float(state.A - ((state.b * du).sum() - (state.g * dw).sum()))
 
     # ------------------------------------------------------------------ the run
     def run(self, progress: bool = True, callback: Callable[[ClosedLoop], None] | None = None) -> SimulationResult:
@@ -402,6 +424,7 @@ class ClosedLoop:
             "limits_binding_fraction": self.binding_steps / max(self.step_index, 1),
             "shortfall_mean": _finite_mean(dataset["shortfall"].values),
             "shortfall_max": _finite_max(dataset["shortfall"].values),
+            "shortfall_applied_mean": _finite_mean(dataset["shortfall_applied"].values),
             "python_overrides": self.overrides,
             "V2_initial": rec.first_V2,
             "V2_final": float(dataset["V2"].values[-1]) if dataset.sizes["time"] else None,
@@ -455,6 +478,7 @@ class _Recorder:
         "dissipation",
         "saturated",
         "robots_at_limit",
+        "shortfall_applied",
     )
 
     def __post_init__(self) -> None:
@@ -486,6 +510,7 @@ class _Recorder:
             robot_turn_rate=w,
             saturated=self.loop.last_saturated,
             robots_at_limit=self.loop.last_at_limit,
+            shortfall_applied=self.loop.last_shortfall_applied,
         )
         idx = len(self.frames["time"]) - 1
         for key, v in vals.items():
@@ -509,6 +534,7 @@ class _Recorder:
             f[key].append(np.nan)
         f["saturated"].append(False)
         f["robots_at_limit"].append(-1)
+        f["shortfall_applied"].append(np.nan)
         self.last_recorded_step = loop.step_index
 
     def dataset(self):
@@ -546,6 +572,7 @@ class _Recorder:
                 "dissipation": ("time", stack(f["dissipation"], float)),
                 "saturated": ("time", stack(f["saturated"], np.int8)),
                 "robots_at_limit": ("time", stack(f["robots_at_limit"], np.int16)),
+                "shortfall_applied": ("time", stack(f["shortfall_applied"], float)),
             },
             coords={
                 "time": stack(f["time"], float),
@@ -566,6 +593,10 @@ class _Recorder:
             },
         )
         ds["robot_speed"].attrs["description"] = "applied (saturated) speed |u_i| during the step from this frame"
+        ds["shortfall"].attrs["description"] = "A minus what the strategy's (unclipped) extra inputs cancel"
+        ds["shortfall_applied"].attrs["description"] = (
+            "A minus what the applied (saturated) inputs cancel: dV2/dt = -diss - sum k_u|b|^2 - sum k_w g^2 + this"
+        )
         ds["robots_at_limit"].attrs["description"] = (
             "robots whose commanded input reached a speed or turn-rate limit in the step from this frame"
             " (-1: none recorded)"

@@ -271,12 +271,29 @@ def test_closed_loop_with_bounded_strategy_never_commands_beyond_the_limits():
     )
     loop = ClosedLoop(sc)
     assert isinstance(loop.controller.strategy, BoundedBetaGamma)
-    commanded = []
-    loop.run(progress=False, callback=lambda lp: commanded.append(lp.last_state.u.copy()))
+    commanded, reported, applied = [], [], []
+
+    def record(lp):
+        commanded.append(lp.last_state.u.copy())
+        reported.append(lp.last_state.shortfall)
+        applied.append(lp.last_shortfall_applied)
+
+    loop.run(progress=False, callback=record)
     speeds = np.hypot(*np.concatenate(commanded).T)
     assert speeds.max() <= 0.1  # the commands themselves, before any saturation
     assert loop.saturated_steps == 0
     assert loop.binding_steps > 0  # the paper scenario is limit-bound
+    # nothing clipped: the shortfall the strategy reports is the one the robots apply
+    assert len(applied) == sc.steps and max(reported) > 0
+    np.testing.assert_allclose(applied, reported, rtol=1e-9)
+
+
+def test_clipped_min_norm_hides_its_shortfall_which_the_loop_measures():
+    sc = paper_scenario(seed=2).with_values({"robots.u_max": 0.1, "t_final": 0.2, "record_every": 1})
+    ds = ClosedLoop(sc).run(progress=False).dataset
+    ok = np.isfinite(ds["shortfall"].values)
+    np.testing.assert_allclose(ds["shortfall"].values[ok], 0.0, atol=1e-9)  # min-norm meets A before clipping
+    assert np.nanmin(ds["shortfall_applied"].values) > 0  # the clipping loses part of it
 
 
 def test_unknown_strategy_is_refused_with_the_installed_names():
