@@ -133,10 +133,9 @@ def achievable_range(
     return float(base - reach), float(base + reach)
 
 
-def _scales(
-    lam: float, nb: np.ndarray, k: np.ndarray, limit: float
-) -> np.ndarray:
-    """Per-robot scale ``s_i = clip(λ, −k_i − L/|b_i|, −k_i + L/|b_i|)`` (``δ = s_i b_i``)."""
+def _scales(lam: float | np.ndarray, nb: np.ndarray, k: np.ndarray, limit: float) -> np.ndarray:
+    """Per-robot scale ``s_i = clip(λ, −k_i − L/|b_i|, −k_i + L/|b_i|)`` (``δ = s_i b_i``);
+    ``lam`` of shape (m, 1) gives all m multipliers at once, shape (m, n)."""
     with np.errstate(divide="ignore"):
         half = np.where(nb > 0, limit / np.where(nb > 0, nb, 1.0), math.inf)
     return np.clip(lam, -k - half, -k + half)
@@ -210,7 +209,7 @@ def bounded_inputs_exact(
     else:
         pts = knots[knots > lam_min] if condition == "inequality" else knots
         pts = np.concatenate([[lam_min if math.isfinite(lam_min) else (pts.min() - 1.0 if pts.size else -1.0)], pts])
-        vals = np.array([achieved(p) for p in pts])
+        vals = (wb * _scales(pts[:, None], nb, ku, U)).sum(axis=1) + (wg * _scales(pts[:, None], ng, kw, W)).sum(axis=1)
         if vals[-1] < A:  # beyond the last breakpoint c(λ) is linear with the unconstrained slope
             slope = (wb * (bu == math.inf)).sum() + (wg * (bw == math.inf)).sum()
             lam = pts[-1] + (A - vals[-1]) / slope
@@ -342,6 +341,8 @@ class BoundedBetaGamma:
         self.condition = condition
         self.method = method
         self.last: BoundedInputs | None = None
+        self.cone_solves = 0  # calls that ran Clarabel
+        self.closed_form_solves = 0  # calls answered in closed form (A unreachable, or method "exact")
         if method == "clarabel":
             self._build()
 
@@ -372,6 +373,7 @@ class BoundedBetaGamma:
             out = bounded_inputs_exact(
                 b, g, A, self.k_u, self.k_omega, self.u_max, self.omega_max, self.condition
             )
+            self.closed_form_solves += 1
         else:
             out = self._solve(b, g, A)
         self.last = out
@@ -389,7 +391,9 @@ class BoundedBetaGamma:
             # form (the cone program would be infeasible; its minimiser is this point)
             out = bounded_inputs_exact(b, g, A, self.k_u, self.k_omega, U, W, self.condition)
             out.solve_seconds = time.perf_counter() - t0
+            self.closed_form_solves += 1
             return out
+        self.cone_solves += 1
         self._b.value = b
         self._g.value = g
         self._A.value = A

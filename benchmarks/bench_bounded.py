@@ -1,0 +1,137 @@
+"""Speed of the bounded β/γ program (analysis.bounded), against anchors measured in the same run.
+
+Run:  python benchmarks/bench_bounded.py [--solves 500] [--steps 2000] [--json FILE]
+
+1. One re-solve of the program at n = 16 (the paper's robots): the cvxpy problem built
+   once with Parameters (DPP) and re-solved by Clarabel, median and 90th percentile over
+   ``--solves`` random instances at the paper scenario's scale with ``A`` reachable (so the
+   cone program really runs).  Anchor: the same program rebuilt from scratch and solved
+   each time (what code without Parameters does).  Beside it, the exact 1-D dual.
+2. The paper scenario's closed loop with the ``bounded`` strategy, steps per second,
+   against the same loop with the min-norm strategy (anchor) in the same run, with the
+   number of steps at which Clarabel actually ran (the rest were answered in closed form
+   because ``A`` was out of the robots' reach).
+
+Goals (issue 4): median re-solve ≤ 1.5 ms; closed loop ≥ 500 steps per second.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")  # one core
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import platform  # noqa: E402
+import time  # noqa: E402
+
+import cvxpy as cp  # noqa: E402
+import numpy as np  # noqa: E402
+
+from analysis.bounded import BoundedBetaGamma, achievable_range  # noqa: E402
+from meanfield import ClosedLoop, paper_scenario  # noqa: E402
+
+N, K_U, K_W, U_MAX, W_MAX = 16, 10.0, 10.0, 0.2, 3.0
+
+
+def _instances(count: int, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray, float]]:
+    """Random integrals at the paper scenario's scale, with A at half the reachable maximum."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(count):
+        b = rng.normal(scale=0.02, size=(N, 2))
+        g = rng.normal(scale=0.02, size=N)
+        hi = achievable_range(b, g, np.full(N, K_U), np.full(N, K_W), U_MAX, W_MAX)[1]
+        out.append((b, g, 0.5 * hi))
+    return out
+
+
+def _timed(fn, instances) -> np.ndarray:
+    times = []
+    for b, g, A in instances:
+        t0 = time.perf_counter()
+        fn(b, g, A)
+        times.append(time.perf_counter() - t0)
+    return np.array(times)
+
+
+def _rebuild_and_solve(b, g, A):
+    du = cp.Variable((N, 2))
+    dw = cp.Variable(N)
+    cons = [
+        cp.sum(cp.multiply(b, du)) - g @ dw >= A,
+        cp.SOC(np.full(N, U_MAX), K_U * b + du, axis=1),
+        cp.abs(-K_W * g + dw) <= W_MAX,
+    ]
+    cp.Problem(cp.Minimize(cp.sum_squares(du) + cp.sum_squares(dw)), cons).solve(
+        solver=cp.CLARABEL, **BoundedBetaGamma.SOLVER_OPTIONS
+    )
+
+
+def resolve_times(solves: int) -> dict:
+    inst = _instances(solves)
+    dpp = BoundedBetaGamma(N, K_U, K_W, U_MAX, W_MAX)
+    dpp(*inst[0])  # the first call compiles the parametrised problem
+    ours = _timed(dpp, inst)
+    assert dpp.cone_solves == solves + 1, "every instance must reach the cone program"
+    exact = _timed(BoundedBetaGamma(N, K_U, K_W, U_MAX, W_MAX, method="exact"), inst)
+    rebuild = _timed(_rebuild_and_solve, inst[: max(solves // 5, 20)])
+    return {
+        "dpp_resolve_ms_median": 1e3 * float(np.median(ours)),
+        "dpp_resolve_ms_p90": 1e3 * float(np.percentile(ours, 90)),
+        "anchor_rebuild_and_solve_ms_median": 1e3 * float(np.median(rebuild)),
+        "ratio_resolve_over_rebuild": float(np.median(ours) / np.median(rebuild)),
+        "exact_dual_ms_median": 1e3 * float(np.median(exact)),
+        "goal_resolve_ms_median": 1.5,
+    }
+
+
+def closed_loop(steps: int, repeats: int) -> dict:
+    rates = {"min-norm": 0.0, "bounded": 0.0}
+    cone = closed = 0
+    for r in range(repeats):
+        for strategy in rates:
+            sc = paper_scenario(seed=r).with_values({"t_final": steps * 0.01, "controller.beta_gamma": strategy})
+            loop = ClosedLoop(sc)
+            t0 = time.perf_counter()
+            res = loop.run(progress=False)
+            rate = steps / (time.perf_counter() - t0)
+            assert res.summary["steps"] == steps
+            rates[strategy] = max(rates[strategy], rate)
+            if strategy == "bounded":
+                cone += loop.controller.strategy.cone_solves
+                closed += loop.controller.strategy.closed_form_solves
+    return {
+        "bounded_steps_per_second": rates["bounded"],
+        "anchor_min_norm_steps_per_second": rates["min-norm"],
+        "ratio_bounded_over_min_norm": rates["bounded"] / rates["min-norm"],
+        "bounded_steps_with_clarabel": cone,
+        "bounded_steps_in_closed_form": closed,
+        "goal_steps_per_second": 500,
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--solves", type=int, default=500)
+    ap.add_argument("--steps", type=int, default=2000)
+    ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--json", default=None)
+    a = ap.parse_args()
+    out = {
+        "benchmark": "bounded beta/gamma program (cvxpy DPP + Clarabel), n = 16",
+        **resolve_times(a.solves),
+        **closed_loop(a.steps, a.repeats),
+        "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+        f"Python {platform.python_version()}, numpy {np.__version__}, cvxpy {cp.__version__}",
+    }
+    print(json.dumps(out, indent=2))
+    if a.json:
+        with open(a.json, "w") as fh:
+            json.dump(out, fh, indent=2)
+
+
+if __name__ == "__main__":
+    main()
