@@ -119,6 +119,9 @@ def _handle(args: argparse.Namespace) -> int:
         g = report["gains_scenario"]
         print(f"mu2 = {p['mu2']:.6g} (Payne–Weinberger bound {p['payne_weinberger']:.4g}, exact {p['exact']})")
         print(f"at the target: alpha_inf = {g['alpha_inf']:.4g}, k_p = {g['k_p']:.4g}, ISS gain = {g['iss_gain']:.4g}")
+        b = g["bulk"]
+        print(f"  bulk (95 % of the mass, not a guarantee): alpha = {b['alpha']:.4g}, k_p = {b['k_p']:.4g}, "
+              f"ISS gain = {b['iss_gain']:.4g}")
         cov = ", ".join(f"eps={k}: n={v['n']}" for k, v in report["coverage"].items())
         print(f"coverage estimate: {cov}")
         if "robot_count" in report:

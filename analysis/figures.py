@@ -90,8 +90,9 @@ def plot_limits(study: LimitsStudy):
         err = np.nanmedian(np.stack([r.rho_error for r in runs]), axis=0)
         axes[0].plot(t, err, styles[strategy], color=colors[u], label=f"{strategy}, u_max = {u:g}")
         at = np.stack([r.robots_at_limit for r in runs]).astype(float)
+        keep = (at >= 0).any(axis=0)  # frames where the count was recorded (not the last one)
         at[at < 0] = np.nan
-        axes[1].plot(t, np.nanmean(at, axis=0) / study.robots, styles[strategy], color=colors[u])
+        axes[1].plot(t[keep], np.nanmean(at[:, keep], axis=0) / study.robots, styles[strategy], color=colors[u])
     axes[0].set_yscale("log")
     axes[0].set_xlabel("t")
     axes[0].set_ylabel("‖ρ̂ − ρ_*‖ (median over seeds)")

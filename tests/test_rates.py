@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from analysis.rates import GainReport, decay_rate, gains_for_scenario, gains_from_run, iss_gain
+from analysis.rates import GainReport, decay_rate, gains_for_scenario, gains_from_run, iss_gain, mass_quantile_level
 from meanfield import ClosedLoop, Domain, ParameterError, paper_scenario
 
 
@@ -85,3 +85,22 @@ def test_disk_domain_uses_its_own_eigenvalue():
     j11 = 1.8411837813406593
     assert r.mu2 == pytest.approx((j11 / 0.5) ** 2, rel=5e-3)
     assert np.isfinite(r.iss_gain)
+
+
+def test_mass_quantile_level_on_a_hand_example():
+    rho = np.array([4.0, 1.0, 3.0, 2.0])
+    vol = np.full(4, 0.1)  # masses 0.4, 0.1, 0.3, 0.2 of 1.0
+    assert mass_quantile_level(rho, vol, 0.05) == 1.0
+    assert mass_quantile_level(rho, vol, 0.1) == 1.0  # the cell holding 1.0 brings 10 %
+    assert mass_quantile_level(rho, vol, 0.25) == 2.0
+    assert mass_quantile_level(rho, vol, 1.0) == 4.0
+
+
+def test_bulk_constants_are_finite_where_the_rigorous_ones_are_vacuous():
+    """The saturating α of the paper scenario vanishes with ρ: the theorem's α_inf is ~0."""
+    r = gains_for_scenario(paper_scenario(), mu2=math.pi**2)
+    assert r.alpha_inf < 1e-12  # the target's far corner is nearly empty
+    b = r.bulk
+    assert b["rho_level"] > r.rho_min
+    assert b["alpha"] == pytest.approx(0.2 * b["rho_level"] / (b["rho_level"] + 2.0), rel=1e-12)
+    assert b["k_p"] == pytest.approx(2 * b["alpha"] * math.pi**2, rel=1e-12)
