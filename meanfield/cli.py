@@ -84,7 +84,8 @@ def _build_parser() -> argparse.ArgumentParser:
             handler = plugins.load("command", name)(sub)
         except (ImportError, AttributeError) as exc:  # a broken plugin must not break the other commands
             handler = _unavailable(name, exc)
-            sub.add_parser(name, help=f"(unavailable: {exc})", add_help=False).add_argument("rest", nargs="*")
+            stub = sub.add_parser(name, help=f"(unavailable: {exc})", add_help=False)
+            stub.add_argument("rest", nargs=argparse.REMAINDER)
         sub.choices[name].set_defaults(plugin_handler=handler)
     return p
 

@@ -48,7 +48,15 @@ from meanfield.metrics import (
 from meanfield.robots import NavigationField, RobotTeam, navigation_velocity, saturate_inputs
 from meanfield.scenario import Scenario
 
-__all__ = ["ClosedLoop", "SimulationResult", "run", "robot_layout", "alpha_schedule_for", "disturbance_for", "initial_crowd"]
+__all__ = [
+    "ClosedLoop",
+    "SimulationResult",
+    "run",
+    "robot_layout",
+    "alpha_schedule_for",
+    "disturbance_for",
+    "initial_crowd",
+]
 
 Disturbance = Callable[[np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]
 
