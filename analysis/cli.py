@@ -60,11 +60,11 @@ def register(subparsers: Any):
     a.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a scenario field")
     a.add_argument("--cells", type=int, default=128, help="cells per side of the eigenvalue grid (default 128)")
     a.add_argument(
-        "--eps", default="0.5,0.2,0.1,0.05", help="coverage levels ε as fractions of the kernel peak c (default 0.5,...)"
+        "--eps", default="0.5,0.2,0.1,0.05", help="coverage levels ε as fractions of the kernel peak c"
     )
     a.add_argument("--robot-counts", default="1,2,4,6,9,12,16,25", help="robot counts of the empirical study")
     a.add_argument(
-        "--limits", default=None, help="speed limits u_max of the limits study (default: 0.25, 0.5, 1, 2 × the scenario's)"
+        "--limits", default=None, help="speed limits of the limits study (default 0.25, 0.5, 1, 2 × the scenario's)"
     )
     a.add_argument("--seeds", default="0-2", help="seeds of the studies, 'A-B' or 'a,b' (default 0-2)")
     a.add_argument("--workers", type=int, default=None, help="worker processes (default: the cores)")
