@@ -77,7 +77,8 @@ def plot_robot_count(study: RobotCountStudy, coverage: dict[float, int], c: floa
 
 
 def plot_limits(study: LimitsStudy):
-    """How often the speed limits bind and what they cost: error curves, binding, outcome."""
+    """How often the speed limits bind and what they cost: error curves, the part of ``A`` the
+    applied inputs leave uncancelled (the ISS input), the final fraction against ``u_max``."""
     plt = _pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(14, 4.0))
     settings = study.settings()
@@ -89,17 +90,21 @@ def plot_limits(study: LimitsStudy):
         t = runs[0].time
         err = np.nanmedian(np.stack([r.rho_error for r in runs]), axis=0)
         axes[0].plot(t, err, styles[strategy], color=colors[u], label=f"{strategy}, u_max = {u:g}")
-        at = np.stack([r.robots_at_limit for r in runs]).astype(float)
-        keep = (at >= 0).any(axis=0)  # frames where the count was recorded (not the last one)
-        at[at < 0] = np.nan
-        axes[1].plot(t[keep], np.nanmean(at[:, keep], axis=0) / study.robots, styles[strategy], color=colors[u])
+        short = np.stack([r.shortfall_applied for r in runs])
+        keep = np.isfinite(short).any(axis=0)  # frames where control was recorded (not the last one)
+        axes[1].plot(t[keep], np.nanmedian(short[:, keep], axis=0), styles[strategy], color=colors[u])
     axes[0].set_yscale("log")
     axes[0].set_xlabel("t")
     axes[0].set_ylabel("‖ρ̂ − ρ_*‖ (median over seeds)")
     axes[0].legend(fontsize=7)
     axes[1].set_xlabel("t")
-    axes[1].set_ylabel("fraction of robots at a limit (mean over seeds)")
-    axes[1].set_ylim(-0.02, 1.02)
+    axes[1].set_ylabel("applied shortfall: A not cancelled (median)")
+    axes[1].set_yscale("symlog", linthresh=1e-2)
+    axes[1].axhline(0.0, color="k", lw=0.6)
+    binding = ", ".join(
+        f"{s} {u:g}: {study.median(s, u, 'limits_binding_fraction'):.0%}" for s, u in settings
+    )
+    axes[1].set_title("steps with a robot at a limit (median): " + binding, fontsize=6.5, wrap=True)
     for strategy in dict.fromkeys(s for s, _ in settings):
         us = [u for s, u in settings if s == strategy]
         axes[2].plot(us, [study.median(strategy, u, "fraction_in_target") for u in us], "o" + styles[strategy],
@@ -109,6 +114,8 @@ def plot_limits(study: LimitsStudy):
                 axes[2].scatter(r.u_max * (1.03 if strategy == "bounded" else 0.97),
                                 r.summary["fraction_in_target"], s=9, color="0.6")
     axes[2].set_xscale("log")
+    axes[2].set_xticks(limits, [f"{u:g}" for u in limits])
+    axes[2].minorticks_off()
     axes[2].set_xlabel("speed limit u_max")
     axes[2].set_ylabel("final fraction in target")
     axes[2].legend(fontsize=7)
