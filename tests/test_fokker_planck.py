@@ -43,7 +43,7 @@ def _box(n: int, lx: float = 1.0, ly: float = 1.0, origin=(0.0, 0.0), ny: int | 
 
 @functools.cache
 def _disk(n: int) -> Grid:
-    """Cut-cell disk grids are costly to build (exact intersections) and read-only here: shared."""
+    """Cut-cell disk grids are read-only here: built once and shared."""
     return Grid(Domain.disk(0.5, center=(0.5, 0.5)), (n, n))
 
 

@@ -2,7 +2,7 @@
 in a clump and must reach an exit on the wall.
 
 Nothing here needs a TOML file: a Scenario is a tree of validated dataclasses. For a disk
-the grid uses cut cells (volume fractions and face apertures from shapely) and the KDE
+the grid uses cut cells (volume fractions and face apertures, exact for the circle) and the KDE
 falls back from "reflect" to "renormalize". Run:  python docs/examples/disk_domain.py [t_final]
 """
 
