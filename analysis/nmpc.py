@@ -142,7 +142,7 @@ class NMPCOptions:
     r_omega: float = 1e-3
     terminal: float = 1.0
     flux: str = "upwind"
-    max_iter: int = 30
+    max_iter: int = 50
     tol: float = 1e-6
     hessian: str = "exact"
     warm_start: bool = True
@@ -476,8 +476,10 @@ class NMPCController:
     ----------
     stats : list of dict
         One entry per solve: ``t``, ``seconds`` (wall time of the solve), ``status`` (IPOPT),
-        ``success``, ``iterations``, ``cost``, ``projected`` (whether the returned inputs had to
-        be projected back onto the limits).
+        ``success``, ``iterations``, ``cost``, ``max_speed_solver`` and ``max_turn_rate_solver``
+        (the largest ``‖u_ik‖``, ``|ω_ik|`` of IPOPT's solution, before projection) and
+        ``projected`` (whether the returned inputs had to be projected back onto the limits,
+        which IPOPT meets only to its tolerance).
     backstepping_seconds : list of float
         Wall time of the backstepping law (``robot_inputs``) at every call, measured in the
         same run: the reference of the compute comparison.
@@ -563,7 +565,7 @@ class NMPCController:
             [rho0, rx0, ry0, th0, target, Ux, Uy, W, Rx, Ry, Th, P, opti.lam_g],
             [Ux, Uy, W, Rx, Ry, Th, P, opti.lam_g, opti.f],
             ["rho0", "rx0", "ry0", "th0", "target", "ux", "uy", "omega", "rx", "ry", "th", "rho", "lam_g"],
-            ["ux", "uy", "omega", "rx", "ry", "th", "rho", "lam_g", "cost"],
+            ["ux_opt", "uy_opt", "omega_opt", "rx_opt", "ry_opt", "th_opt", "rho_opt", "lam_g_opt", "cost"],
         )
 
     # ------------------------------------------------------------------ pieces
@@ -652,11 +654,11 @@ class NMPCController:
         seconds = time.perf_counter() - t0
         st = self.solver.stats()
         H, n = self.options.horizon, self.n
-        u = np.stack([np.asarray(out["ux"]).reshape(n, H).T, np.asarray(out["uy"]).reshape(n, H).T], axis=-1)
-        w = np.asarray(out["omega"]).reshape(n, H).T
-        R = np.stack([np.asarray(out["rx"]).reshape(n, H).T, np.asarray(out["ry"]).reshape(n, H).T], axis=-1)
-        T = np.asarray(out["th"]).reshape(n, H).T
-        P = np.asarray(out["rho"]).reshape(-1, H).T.reshape(H, *self.model.shape)
+        u = np.stack([np.asarray(out["ux_opt"]).reshape(n, H).T, np.asarray(out["uy_opt"]).reshape(n, H).T], axis=-1)
+        w = np.asarray(out["omega_opt"]).reshape(n, H).T
+        R = np.stack([np.asarray(out["rx_opt"]).reshape(n, H).T, np.asarray(out["ry_opt"]).reshape(n, H).T], axis=-1)
+        T = np.asarray(out["th_opt"]).reshape(n, H).T
+        P = np.asarray(out["rho_opt"]).reshape(-1, H).T.reshape(H, *self.model.shape)
         return NMPCPlan(
             u=u,
             omega=w,
@@ -664,7 +666,7 @@ class NMPCController:
             headings=np.concatenate([headings[None], T]),
             rho=np.concatenate([rho_c[None], P]),
             cost=float(out["cost"]),
-            lam_g=np.asarray(out["lam_g"]).ravel(),
+            lam_g=np.asarray(out["lam_g_opt"]).ravel(),
             status=str(st.get("return_status", "unknown")),
             success=bool(st.get("success", False)),
             iterations=int(st.get("iter_count", -1)),
@@ -739,9 +741,13 @@ class NMPCController:
             rho_c = self.restrict(np.asarray(rho, float))
             shift = int(round(elapsed / h)) if self.plan is not None and elapsed >= 0 else 0
             previous = self.plan if o.warm_start else None
-            plan = self.solve(rho_c, positions, headings, self.initial_guess(rho_c, positions, headings, previous, shift))
+            plan = self.solve(
+                rho_c, positions, headings, self.initial_guess(rho_c, positions, headings, previous, shift)
+            )
             u, w = self.project(plan.u, plan.omega)
-            projected = bool(np.any(np.abs(u - plan.u) > 1e-12) or np.any(np.abs(w - plan.omega) > 1e-12))
+            raw_speed = float(np.hypot(plan.u[..., 0], plan.u[..., 1]).max())
+            raw_turn = float(np.abs(plan.omega).max())
+            projected = bool(np.any(np.abs(u - plan.u) > 0) or np.any(np.abs(w - plan.omega) > 0))
             plan.u, plan.omega = u, w
             self.plan, self._t_plan, elapsed = plan, t, 0.0
             self.stats.append(
@@ -752,13 +758,13 @@ class NMPCController:
                     "success": plan.success,
                     "iterations": plan.iterations,
                     "cost": plan.cost,
+                    "max_speed_solver": raw_speed,
+                    "max_turn_rate_solver": raw_turn,
                     "projected": projected,
                 }
             )
         k = min(int(math.floor(elapsed / h + 1e-9)), o.horizon - 1)
-        return dataclasses.replace(
-            state, u=self.plan.u[k].copy(), omega=self.plan.omega[k].copy(), shortfall=math.nan
-        )
+        return dataclasses.replace(state, u=self.plan.u[k].copy(), omega=self.plan.omega[k].copy(), shortfall=math.nan)
 
     def reset(self) -> None:
         """Forget the plan (next call re-solves from zero inputs), the statistics and the
