@@ -154,6 +154,8 @@ class NavigationField:
     def __init__(self, kernel: NavigationKernel, grid: Grid, positions: np.ndarray, headings: np.ndarray):
         self.kernel = kernel
         self.grid = grid
+        self.positions = np.array(positions).reshape(-1, 2)  # the robots it was built for (dtype kept)
+        self.headings = np.array(headings).reshape(-1)
         self.cos = np.cos(headings)
         self.sin = np.sin(headings)
         rx = positions[:, 0][:, None]
