@@ -43,7 +43,7 @@ from typing import Literal
 import numpy as np
 
 from meanfield.control import ExtraInputs
-from meanfield.errors import ParameterError
+from meanfield.errors import ParameterError, limit_or_inf
 from meanfield.scenario import Scenario
 
 __all__ = [
@@ -88,15 +88,6 @@ class BoundedInputs(ExtraInputs):
     solve_seconds: float = 0.0
 
 
-def _limit(name: str, value: float | None) -> float:
-    if value is None:
-        return math.inf
-    value = float(value)
-    if math.isnan(value) or value <= 0:
-        raise ParameterError(name, value, "a limit > 0, or None for no limit")
-    return value
-
-
 def _gains(name: str, k: float | np.ndarray, n: int) -> np.ndarray:
     arr = np.broadcast_to(np.asarray(k, float), (n,)) if np.ndim(k) == 0 else np.asarray(k, float)
     if arr.shape != (n,) or not np.all(np.isfinite(arr)) or np.any(arr < 0):
@@ -133,11 +124,16 @@ def achievable_range(
     return float(base - reach), float(base + reach)
 
 
+def _half_widths(nb: np.ndarray, limit: float) -> np.ndarray:
+    """``L/|b_i|``: how far the scale of robot ``i`` may move from ``−k_i`` (∞ for ``b_i = 0``)."""
+    with np.errstate(divide="ignore"):
+        return np.where(nb > 0, limit / np.where(nb > 0, nb, 1.0), math.inf)
+
+
 def _scales(lam: float | np.ndarray, nb: np.ndarray, k: np.ndarray, limit: float) -> np.ndarray:
     """Per-robot scale ``s_i = clip(λ, −k_i − L/|b_i|, −k_i + L/|b_i|)`` (``δ = s_i b_i``);
     ``lam`` of shape (m, 1) gives all m multipliers at once, shape (m, n)."""
-    with np.errstate(divide="ignore"):
-        half = np.where(nb > 0, limit / np.where(nb > 0, nb, 1.0), math.inf)
+    half = _half_widths(nb, limit)
     return np.clip(lam, -k - half, -k + half)
 
 
@@ -179,8 +175,8 @@ def bounded_inputs_exact(
     b, g, A = _check_integrals(b, g, A, n)
     ku = _gains("k_u", k_u, n)
     kw = _gains("k_omega", k_omega, n)
-    U = _limit("u_max", u_max)
-    W = _limit("omega_max", omega_max)
+    U = limit_or_inf("u_max", u_max)
+    W = limit_or_inf("omega_max", omega_max)
     if condition not in CONDITIONS:
         raise ParameterError("condition", condition, " or ".join(map(repr, CONDITIONS)))
     nb = np.hypot(b[:, 0], b[:, 1])
@@ -193,9 +189,8 @@ def bounded_inputs_exact(
         return float((wb * _scales(lam, nb, ku, U)).sum() + (wg * _scales(lam, ng, kw, W)).sum())
 
     # candidate multipliers: the breakpoints of c(λ), where a robot enters or leaves a limit
-    with np.errstate(divide="ignore"):
-        bu = np.where(nb > 0, U / np.where(nb > 0, nb, 1.0), math.inf)
-        bw = np.where(ng > 0, W / np.where(ng > 0, ng, 1.0), math.inf)
+    bu = _half_widths(nb, U)
+    bw = _half_widths(ng, W)
     knots = np.concatenate([-ku - bu, -ku + bu, -kw - bw, -kw + bw])
     knots = np.unique(knots[np.isfinite(knots)])
     lam_min = 0.0 if condition == "inequality" else -math.inf
@@ -332,8 +327,8 @@ class BoundedBetaGamma:
         self.n = int(n)
         self.k_u = _gains("k_u", k_u, self.n)
         self.k_omega = _gains("k_omega", k_omega, self.n)
-        self.u_max = _limit("u_max", u_max)
-        self.omega_max = _limit("omega_max", omega_max)
+        self.u_max = limit_or_inf("u_max", u_max)
+        self.omega_max = limit_or_inf("omega_max", omega_max)
         if condition not in CONDITIONS:
             raise ParameterError("condition", condition, " or ".join(map(repr, CONDITIONS)))
         if method not in _METHODS:

@@ -18,34 +18,10 @@ import time
 from pathlib import Path
 from typing import Any
 
+from meanfield.cli import add_scenario_arguments, float_list, int_list, scenario_from_args
 from meanfield.errors import ParameterError
 
 __all__ = ["register", "analyze"]
-
-
-def _floats(name: str, text: str) -> list[float]:
-    try:
-        values = [float(v) for v in text.split(",") if v.strip()]
-    except ValueError:
-        raise ParameterError(name, text, "comma-separated numbers, e.g. 0.05,0.1,0.2") from None
-    if not values:
-        raise ParameterError(name, text, "at least one number")
-    return values
-
-
-def _ints(name: str, text: str) -> list[int]:
-    """``"0-4"`` or ``"1,2,4"``."""
-    try:
-        if "-" in text and "," not in text:
-            a, b = text.split("-")
-            values = list(range(int(a), int(b) + 1))
-        else:
-            values = [int(v) for v in text.split(",") if v.strip()]
-    except ValueError:
-        raise ParameterError(name, text, "integers as 'A-B' or 'a,b,c'") from None
-    if not values:
-        raise ParameterError(name, text, "at least one integer")
-    return values
 
 
 def register(subparsers: Any):
@@ -54,10 +30,7 @@ def register(subparsers: Any):
         "analyze",
         help="Poincaré constant, decay rate and ISS gain, robot count, cost of speed limits (JSON + figures)",
     )
-    a.add_argument("scenario", nargs="?", default="paper", help="built-in name (paper) or a TOML file")
-    a.add_argument("--out", required=True, type=Path, help="output directory")
-    a.add_argument("--seed", type=int, default=None, help="random seed of the reference run (overrides the scenario's)")
-    a.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a scenario field")
+    add_scenario_arguments(a, seed_help="random seed of the reference run (overrides the scenario's)")
     a.add_argument("--cells", type=int, default=128, help="cells per side of the eigenvalue grid (default 128)")
     a.add_argument(
         "--eps", default="0.5,0.2,0.1,0.05", help="coverage levels ε as fractions of the kernel peak c"
@@ -74,27 +47,20 @@ def register(subparsers: Any):
 
 
 def _handle(args: argparse.Namespace) -> int:
-    from meanfield.cli import _parse_set
-    from meanfield.scenario import load_scenario
-
-    if args.seed is not None and args.seed < 0:
-        raise ParameterError("--seed", args.seed, "an integer >= 0")
-    sc = load_scenario(args.scenario, seed=args.seed)
-    if args.set:
-        sc = sc.with_values(_parse_set(args.set))
+    sc = scenario_from_args(args)
     if args.cells < 4:
         raise ParameterError("--cells", args.cells, "an integer >= 4")
-    eps = _floats("--eps", args.eps)
+    eps = float_list("--eps", args.eps)
     if not all(0 < e < 1 for e in eps):
         raise ParameterError("--eps", args.eps, "fractions of the kernel peak, each in (0, 1)")
-    counts = _ints("--robot-counts", args.robot_counts)
+    counts = int_list("--robot-counts", args.robot_counts, ranges=True)
     if min(counts) < 1:
         raise ParameterError("--robot-counts", args.robot_counts, "robot counts, each >= 1")
-    seeds = _ints("--seeds", args.seeds)
+    seeds = int_list("--seeds", args.seeds, ranges=True)
     if min(seeds) < 0:
         raise ParameterError("--seeds", args.seeds, "seeds >= 0")
     if args.limits is not None:
-        limits = _floats("--limits", args.limits)
+        limits = float_list("--limits", args.limits)
         if not all(math.isfinite(u) and u > 0 for u in limits):
             raise ParameterError("--limits", args.limits, "speed limits, each > 0")
     elif sc.robots.u_max is not None:

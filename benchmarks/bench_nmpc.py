@@ -39,7 +39,7 @@ import casadi  # noqa: E402
 import numpy as np  # noqa: E402
 
 from meanfield import ClosedLoop, paper_scenario  # noqa: E402
-from meanfield.cli import _parse_set  # noqa: E402
+from meanfield.cli import parse_set  # noqa: E402
 
 
 def one_run(seed: int, t_final: float, sets: dict) -> dict:
@@ -81,7 +81,7 @@ def main() -> None:
     ap.add_argument("--json", default=None, help="write the figures as JSON")
     ap.add_argument("--out", default=None, help="write the printed report as text")
     a = ap.parse_args()
-    sets = _parse_set(a.set)
+    sets = parse_set(a.set)
     runs = [one_run(r, a.t_final, sets) for r in range(a.repeats)]
     med = {
         k: statistics.median(r[k] for r in runs)

@@ -18,10 +18,11 @@ from pathlib import Path
 from meanfield import plugins
 from meanfield.errors import ParameterError
 
-__all__ = ["main"]
+__all__ = ["main", "add_scenario_arguments", "scenario_from_args", "parse_set", "int_list", "float_list"]
 
 
-def _parse_set(values: Sequence[str]) -> dict[str, object]:
+def parse_set(values: Sequence[str]) -> dict[str, object]:
+    """``["robots.n=9", ...]`` as ``{"robots.n": 9, ...}``, each value read as TOML (else a string)."""
     import tomllib
 
     out: dict[str, object] = {}
@@ -36,6 +37,23 @@ def _parse_set(values: Sequence[str]) -> dict[str, object]:
     return out
 
 
+def add_scenario_arguments(parser: argparse.ArgumentParser, seed_help: str = "random seed (overrides the scenario's)"):
+    """The arguments every scenario command shares: ``[scenario] --out DIR [--seed S] [--set K=V]...``.
+
+    Read them back with :func:`scenario_from_args`.  Command plugins use both.
+    """
+    parser.add_argument("scenario", nargs="?", default="paper", help="built-in name (paper) or a TOML file")
+    parser.add_argument("--out", required=True, type=Path, help="output directory")
+    parser.add_argument("--seed", type=int, default=None, help=seed_help)
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scenario field, e.g. --set robots.n=9 (repeatable)",
+    )
+
+
 def _build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="meanfield",
@@ -43,16 +61,7 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     sub = p.add_subparsers(dest="command", required=True)
     r = sub.add_parser("run", help="run a closed-loop scenario and write its outputs")
-    r.add_argument("scenario", nargs="?", default="paper", help="built-in name (paper) or a TOML file")
-    r.add_argument("--out", required=True, type=Path, help="output directory")
-    r.add_argument("--seed", type=int, default=None, help="random seed (overrides the scenario's)")
-    r.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a scenario field, e.g. --set robots.n=9 (repeatable)",
-    )
+    add_scenario_arguments(r)
     r.add_argument("--quiet", action="store_true", help="no progress bar, no summary printout")
     r.add_argument("--animate", action="store_true", help="also write animation.gif")
     r.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
@@ -60,10 +69,7 @@ def _build_parser() -> argparse.ArgumentParser:
         "compare",
         help="agents (SDE) against the Fokker–Planck PDE under the same robot trajectories, for several N",
     )
-    c.add_argument("scenario", nargs="?", default="paper", help="built-in name (paper) or a TOML file")
-    c.add_argument("--out", required=True, type=Path, help="output directory")
-    c.add_argument("--seed", type=int, default=None, help="random seed (overrides the scenario's)")
-    c.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a scenario field")
+    add_scenario_arguments(c)
     c.add_argument(
         "--n-agents", default="100,1000,10000,100000", help="comma-separated crowd sizes (default 100,...,100000)"
     )
@@ -98,7 +104,7 @@ def _unavailable(name: str, exc: Exception):
     return handler
 
 
-def _scenario_from(args: argparse.Namespace):
+def scenario_from_args(args: argparse.Namespace):
     """The scenario named by ``args.scenario``, after ``--seed`` and ``--set``."""
     from meanfield.scenario import load_scenario
 
@@ -106,14 +112,14 @@ def _scenario_from(args: argparse.Namespace):
         raise ParameterError("--seed", args.seed, "an integer >= 0")
     sc = load_scenario(args.scenario, seed=args.seed)
     if args.set:
-        sc = sc.with_values(_parse_set(args.set))
+        sc = sc.with_values(parse_set(args.set))
     return sc
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from meanfield.simulate import ClosedLoop
 
-    sc = _scenario_from(args)
+    sc = scenario_from_args(args)
     loop = ClosedLoop(sc)
     result = loop.run(progress=not args.quiet)
     result.save(args.out, figures=not args.no_figures, animate=args.animate)
@@ -140,21 +146,38 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _int_list(name: str, text: str) -> tuple[int, ...]:
+def int_list(name: str, text: str, ranges: bool = False) -> tuple[int, ...]:
+    """Comma-separated integers (``"1,2,4"``), or with ``ranges`` also ``"A-B"`` (inclusive)."""
     try:
-        values = tuple(int(v) for v in text.split(",") if v.strip())
+        if ranges and "-" in text and "," not in text:
+            a, b = text.split("-")
+            values = tuple(range(int(a), int(b) + 1))
+        else:
+            values = tuple(int(v) for v in text.split(",") if v.strip())
     except ValueError:
-        raise ParameterError(name, text, "comma-separated integers, e.g. 100,1000,10000") from None
+        allowed = "integers as 'A-B' or 'a,b,c'" if ranges else "comma-separated integers, e.g. 100,1000,10000"
+        raise ParameterError(name, text, allowed) from None
     if not values:
         raise ParameterError(name, text, "at least one integer")
+    return values
+
+
+def float_list(name: str, text: str) -> tuple[float, ...]:
+    """Comma-separated numbers, e.g. ``"0.05,0.1,0.2"``."""
+    try:
+        values = tuple(float(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise ParameterError(name, text, "comma-separated numbers, e.g. 0.05,0.1,0.2") from None
+    if not values:
+        raise ParameterError(name, text, "at least one number")
     return values
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
     from meanfield.compare import run_comparison
 
-    sc = _scenario_from(args)
-    sizes = _int_list("--n-agents", args.n_agents)
+    sc = scenario_from_args(args)
+    sizes = int_list("--n-agents", args.n_agents)
     if args.cells < 4:
         raise ParameterError("--cells", args.cells, "an integer >= 4")
     if args.t_final is not None and not args.t_final > 0:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-__all__ = ["ParameterError", "SimulationDiverged", "positive_number"]
+__all__ = ["ParameterError", "SimulationDiverged", "positive_number", "limit_or_inf"]
 
 
 class ParameterError(ValueError):
@@ -45,3 +45,16 @@ def positive_number(name: str, value: Any) -> float:
     if not math.isfinite(v) or v <= 0:
         raise ParameterError(name, value, "a finite number > 0")
     return v
+
+
+def limit_or_inf(name: str, value: Any) -> float:
+    """A speed or turn-rate limit: ``value`` as a float ``> 0``, ``math.inf`` for None (no limit).
+
+    Raises :class:`ParameterError` naming ``name`` for NaN or a value ``<= 0``.
+    """
+    if value is None:
+        return math.inf
+    value = float(value)
+    if math.isnan(value) or value <= 0:
+        raise ParameterError(name, value, "a number > 0, or None/inf for no limit")
+    return value

@@ -23,20 +23,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from meanfield.domain import Domain
-from meanfield.errors import ParameterError
+from meanfield.errors import ParameterError, limit_or_inf
 from meanfield.grid import FaceField, Grid
 from meanfield.kernels import NavigationKernel
 
 __all__ = ["RobotTeam", "NavigationField", "navigation_velocity", "saturate_inputs"]
-
-
-def _limit(name: str, value: float | None) -> float:
-    if value is None:
-        return math.inf
-    value = float(value)
-    if math.isnan(value) or value <= 0:
-        raise ParameterError(name, value, "a number > 0, or None/inf for no limit")
-    return value
 
 
 @dataclass
@@ -71,8 +62,8 @@ class RobotTeam:
             )
         if not (np.all(np.isfinite(self.positions)) and np.all(np.isfinite(self.headings))):
             raise ParameterError("robots", "non-finite state", "finite positions and headings")
-        self.u_max = _limit("robots.u_max", self.u_max)
-        self.omega_max = _limit("robots.omega_max", self.omega_max)
+        self.u_max = limit_or_inf("robots.u_max", self.u_max)
+        self.omega_max = limit_or_inf("robots.omega_max", self.omega_max)
 
     @property
     def n(self) -> int:

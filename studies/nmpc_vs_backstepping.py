@@ -38,7 +38,7 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from meanfield.cli import _parse_set  # noqa: E402
+from meanfield.cli import parse_set  # noqa: E402
 from meanfield.scenario import paper_scenario  # noqa: E402
 
 SUMMARY_KEYS = (
@@ -281,7 +281,7 @@ def main() -> None:
         _figures(saved["rows"], a.out)
         _report(saved["rows"], {k: {**v, **_medians(saved["rows"], k)} for k, v in saved["medians"].items()})
         return
-    sets = _parse_set(a.set)
+    sets = parse_set(a.set)
     seeds = _seeds(a.seeds)
     jobs = [(s, k, sets, a.t_final) for s in seeds for k in ("nmpc", "backstepping")]  # long jobs first
     with ProcessPoolExecutor(a.workers) as ex:

@@ -16,7 +16,7 @@ import os
 import statistics
 from concurrent.futures import ProcessPoolExecutor
 
-from meanfield.cli import _parse_set
+from meanfield.cli import parse_set
 from meanfield.scenario import paper_scenario
 
 KEYS = ("fraction_in_target", "l2_error_initial", "l2_error_final", "l2_error_ratio", "time_to_90",
@@ -48,7 +48,7 @@ def main() -> None:
     ap.add_argument("--out", default=None)
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     a = ap.parse_args()
-    sets = _parse_set(a.set)
+    sets = parse_set(a.set)
     with ProcessPoolExecutor(a.workers) as ex:
         rows = list(ex.map(_one, [(s, sets) for s in _seeds(a.seeds)]))
     print("| seed | fraction_in_target | l2 initial | l2 final | ratio | time_to_90 | max speed / limit |")
