@@ -35,10 +35,9 @@ from meanfield.fokker_planck import FokkerPlanck
 from meanfield.grid import Grid
 from meanfield.interaction import InteractionField
 from meanfield.kernels import GaussianKernel, GaussianPotential
-from meanfield.metrics import gaussian_target
 from meanfield.robots import NavigationField, navigation_velocity
 from meanfield.scenario import Scenario
-from meanfield.simulate import ClosedLoop, disturbance_for, initial_crowd
+from meanfield.simulate import ClosedLoop, disturbance_for, initial_crowd, initial_density
 
 __all__ = [
     "AgentsPdeComparison",
@@ -132,13 +131,6 @@ def _crowd_sizes(n_agents) -> tuple[int, ...]:
     return tuple(sorted(sizes))
 
 
-def _initial_density(scenario: Scenario, grid: Grid) -> np.ndarray:
-    c = scenario.crowd
-    if c.initial == "uniform":
-        return grid.normalize(np.ones(grid.shape))
-    return gaussian_target(grid, c.initial_center, c.initial_std)
-
-
 def compare_agents_pde(
     scenario: Scenario,
     n_agents: tuple[int, ...] = (100, 1_000, 10_000, 100_000),
@@ -212,7 +204,7 @@ def compare_agents_pde(
     if interaction is not None:  # the paper's written sign: ∇W * ρ = -u_W[ρ] for even W
         flipped = GaussianPotential(-interaction.strength, interaction.length)
         fp_flipped = FokkerPlanck(grid, sigma, interaction=flipped, disturbance=disturbance, method=method)
-    rho = _initial_density(scenario, grid)
+    rho = initial_density(scenario, grid)
     rho_flip = rho.copy() if fp_flipped is not None else None
     crowds = {}
     for n in sizes:

@@ -56,6 +56,7 @@ __all__ = [
     "alpha_schedule_for",
     "disturbance_for",
     "initial_crowd",
+    "initial_density",
 ]
 
 Disturbance = Callable[[np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]
@@ -110,6 +111,15 @@ def initial_crowd(scenario: Scenario, n: int, rng: np.random.Generator) -> np.nd
         p = rng.normal(loc=c.initial_center, scale=c.initial_std, size=(2 * (n - len(out)) + 8, 2))
         out = np.vstack([out, p[scenario.domain.contains(p[:, 0], p[:, 1])]])
     return out[:n].copy()
+
+
+def initial_density(scenario: Scenario, grid: Grid) -> np.ndarray:
+    """The density of the scenario's initial crowd law on ``grid`` (unit mass): uniform on Ω,
+    or the normal law restricted to Ω — the mean-field initial condition of eq. (4)."""
+    c = scenario.crowd
+    if c.initial == "uniform":
+        return grid.normalize(np.ones(grid.shape))
+    return gaussian_target(grid, c.initial_center, c.initial_std)
 
 
 def _robot_region(domain: Domain, margin: float) -> Domain:

@@ -1,0 +1,334 @@
+"""The density plants the theorem checks run: the crowd's PDE closed under Step I (and Step II).
+
+Two discretisations of eq. (4) with ``v_r = v_d + w`` (``w = ṽ + v_a``, zero for Theorem 1):
+
+* :func:`model_trajectory` — the controller's own semi-discrete model (central face
+  fluxes, :meth:`~meanfield.control.BacksteppingController.density_rate`), on which
+  ``v_r = v_d`` turns eq. (4) into ``ρ̃̇ = ∇_h·(α ∇_h ρ̃) − ∇_h·(w ρ_f)`` *exactly*.
+  It is integrated by an implicit stiff solver (SciPy's BDF) to a tight tolerance, so
+  what it shows is the theorem's argument on the grid, free of time-stepping error.  It
+  never divides by ρ, so it also shows when ρ would have to become negative — where
+  ``v_d`` is undefined and no crowd can follow.
+* :func:`fokker_planck_trajectory` — the toolkit's Fokker–Planck solver
+  (Scharfetter–Gummel fluxes, positive) driven by ``v_d(ρⁿ) + w`` re-evaluated every
+  step: the closed loop as a sampled-data feedback realises it.
+
+Both record ``V₁ = ∫ρ̃²`` and the Step-I dissipation ``∫α|∇ρ̃|²`` along the way.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import sparse
+from scipy.integrate import solve_ivp
+
+from meanfield.control import BacksteppingController
+from meanfield.fokker_planck import FokkerPlanck
+from meanfield.grid import FaceField, Grid
+
+__all__ = [
+    "Trajectory",
+    "RobotLoopTrajectory",
+    "alpha_on_faces",
+    "face_points",
+    "model_trajectory",
+    "fokker_planck_trajectory",
+    "robot_loop_trajectory",
+]
+
+FaceDisturbance = Callable[[float], FaceField]
+"""``w(t)`` on the grid's interior faces (x-faces, y-faces)."""
+
+
+@dataclass
+class Trajectory:
+    """A recorded density trajectory of a Step-I plant.
+
+    Attributes
+    ----------
+    t : ndarray
+        Times.
+    V1 : ndarray
+        ``∫ρ̃²`` (no ½).
+    dissipation : ndarray
+        ``∫α|∇ρ̃|²`` on the faces.
+    dV1_dt : ndarray
+        ``2⟨ρ̃, ρ̇⟩`` along the plant's own right-hand side.
+    rho_min, rho_max : ndarray
+        Extremes of ρ over the cells.
+    alpha_min : ndarray
+        ``min α`` over the open faces (the theorem's ``α_inf`` is its minimum over t).
+    w_norm : ndarray
+        ``‖w(t)‖`` on the faces (0 for Theorem 1).
+    rho_final : ndarray
+        The last density.
+    """
+
+    t: np.ndarray
+    V1: np.ndarray
+    dissipation: np.ndarray
+    dV1_dt: np.ndarray
+    rho_min: np.ndarray
+    rho_max: np.ndarray
+    alpha_min: np.ndarray
+    w_norm: np.ndarray
+    rho_final: np.ndarray
+    info: dict = field(default_factory=dict)
+
+    @property
+    def rho_error(self) -> np.ndarray:
+        """``‖ρ̃(t)‖``."""
+        return np.sqrt(np.maximum(self.V1, 0.0))
+
+
+def face_points(grid: Grid) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+    """Midpoints of the interior x-faces and y-faces, where face fields live."""
+    return grid.face_points_x, grid.face_points_y
+
+
+def alpha_on_faces(ctrl: BacksteppingController, rho: np.ndarray) -> FaceField:
+    """``α(ρ_f)`` on the faces, as the controller uses it (``α = (α/ρ)·ρ``).
+
+    A density-dependent schedule is evaluated at ``max(ρ_f, 0)``: the semi-discrete model
+    may carry ρ slightly below zero, where a saturating ``α ∝ ρ`` would turn negative
+    (backward diffusion).  Constant α is unaffected."""
+    rf = ctrl.grid.face_average(rho)
+    return ctrl.alpha.alpha(np.maximum(rf[0], 0.0)), ctrl.alpha.alpha(np.maximum(rf[1], 0.0))
+
+
+def _open_min(grid: Grid, a: FaceField) -> float:
+    if grid.is_box:
+        return float(min(a[0].min(), a[1].min()))
+    vals = [a[0][grid.aperture_x > 0], a[1][grid.aperture_y > 0]]
+    return float(min(v.min() for v in vals if v.size))
+
+
+def _measure(ctrl: BacksteppingController, rho: np.ndarray, rho_dot: np.ndarray, w: FaceField | None) -> tuple:
+    g = ctrl.grid
+    rt = rho - ctrl.target
+    a = alpha_on_faces(ctrl, rho)
+    grt = g.gradient(rt)
+    diss = g.face_inner((a[0] * grt[0], a[1] * grt[1]), grt)
+    inside = rho[g.active]
+    wn = g.face_norm(w) if w is not None else 0.0
+    return g.inner(rt, rt), diss, 2.0 * g.inner(rt, rho_dot), inside.min(), inside.max(), _open_min(g, a), wn
+
+
+def _model_rate(ctrl: BacksteppingController, rho: np.ndarray, w: FaceField | None) -> np.ndarray:
+    """``∇_h·(α∇_hρ̃) − ∇_h·(w ρ_f)``: eq. (4) with ``v_r = v_d + w`` on the controller's faces."""
+    g = ctrl.grid
+    a = alpha_on_faces(ctrl, rho)
+    grt = g.gradient(rho - ctrl.target)
+    flux = [-a[k] * grt[k] for k in range(2)]
+    if w is not None:
+        rf = g.face_average(rho)
+        flux = [flux[k] + w[k] * rf[k] for k in range(2)]
+    return -g.divergence((flux[0], flux[1]))
+
+
+def _sparsity(grid: Grid) -> sparse.csr_matrix:
+    """The 5-point stencil of the active cells (Jacobian pattern for the stiff solver)."""
+    nx, ny = grid.shape
+    idx = np.arange(nx * ny).reshape(nx, ny)
+    rows = [idx.ravel()]
+    cols = [idx.ravel()]
+    for a, b in ((idx[:-1, :], idx[1:, :]), (idx[:, :-1], idx[:, 1:])):
+        rows += [a.ravel(), b.ravel()]
+        cols += [b.ravel(), a.ravel()]
+    r, c = np.concatenate(rows), np.concatenate(cols)
+    return sparse.csr_matrix((np.ones(r.size), (r, c)), shape=(nx * ny, nx * ny))
+
+
+def model_trajectory(
+    ctrl: BacksteppingController,
+    rho0: np.ndarray,
+    t_eval: np.ndarray,
+    w: FaceDisturbance | None = None,
+    rtol: float = 1e-8,
+) -> Trajectory:
+    """Integrate the controller's semi-discrete closed loop ``v_r = v_d + w`` (Theorems 1 and 2).
+
+    ``ρ̇ = ∇_h·(α(ρ_f)∇_h(ρ − ρ_*)) − ∇_h·(w ρ_f)``, the exact substitution of eq. (6)
+    into eq. (4) on the controller's faces, by BDF with relative tolerance ``rtol``.
+    Cells outside Ω (cut-cell grids) stay at zero.
+
+    Parameters
+    ----------
+    ctrl : BacksteppingController
+        Supplies the grid, ``ρ_*`` and the α schedule.
+    rho0 : ndarray
+        Initial density on the grid.
+    t_eval : ndarray
+        Recording times (increasing, starting at the initial time).
+    w : callable, optional
+        ``w(t)`` on the faces (Theorem 2's ``ṽ + v_a``).
+    rtol : float
+        Relative tolerance of the integrator.
+    """
+    g = ctrl.grid
+    shape = g.shape
+    t_eval = np.asarray(t_eval, float)
+
+    def rate(t: float, y: np.ndarray) -> np.ndarray:
+        rho = y.reshape(shape)
+        out = _model_rate(ctrl, rho, None if w is None else w(t))
+        return np.where(g.active, out, 0.0).ravel()
+
+    sol = solve_ivp(
+        rate,
+        (t_eval[0], t_eval[-1]),
+        np.asarray(rho0, float).ravel(),
+        method="BDF",
+        t_eval=t_eval,
+        rtol=rtol,
+        atol=rtol * 1e-4 * float(np.abs(rho0).max()),
+        jac_sparsity=_sparsity(g),
+    )
+    if not sol.success:
+        raise RuntimeError(f"the stiff integrator failed: {sol.message}")
+    rows = []
+    for k, t in enumerate(sol.t):
+        rho = sol.y[:, k].reshape(shape)
+        wf = None if w is None else w(t)
+        rows.append(_measure(ctrl, rho, _model_rate(ctrl, rho, wf), wf))
+    cols = [np.array(c, float) for c in zip(*rows, strict=True)]
+    return Trajectory(sol.t, *cols, rho_final=sol.y[:, -1].reshape(shape), info={"nfev": int(sol.nfev)})
+
+
+def fokker_planck_trajectory(
+    ctrl: BacksteppingController,
+    fp: FokkerPlanck,
+    rho0: np.ndarray,
+    t_final: float,
+    dt: float,
+    w: FaceDisturbance | None = None,
+    record_every: int = 1,
+) -> Trajectory:
+    """Run the Fokker–Planck plant under the sampled Step-I feedback ``v_r = v_d(ρⁿ) + w(tⁿ)``.
+
+    Every step re-evaluates eq. (6) at the current density and hands it to
+    :meth:`~meanfield.fokker_planck.FokkerPlanck.step` as the face velocity.
+
+    Parameters
+    ----------
+    ctrl : BacksteppingController
+    fp : FokkerPlanck
+        The plant (same grid and σ as ``ctrl``; no prescribed robot field).
+    rho0 : ndarray
+    t_final, dt : float
+        Horizon and step.
+    w : callable, optional
+        ``w(t)`` on the faces.
+    record_every : int
+        Record every so many steps (and the last).
+    """
+    steps = int(round(t_final / dt))
+    rho = np.asarray(rho0, float).copy()
+    times, rows = [], []
+    t = 0.0
+    for k in range(steps + 1):
+        wf = None if w is None else w(t)
+        v = ctrl.virtual_velocity(rho, t)
+        if wf is not None:
+            v = (v[0] + wf[0], v[1] + wf[1])
+        if k % record_every == 0 or k == steps:
+            times.append(t)
+            rows.append(_measure(ctrl, rho, fp.rhs(rho, t, face_velocity=v), wf))
+        if k == steps:
+            break
+        rho = fp.step(rho, t, dt, face_velocity=v)
+        t = (k + 1) * dt
+    cols = [np.array(c, float) for c in zip(*rows, strict=True)]
+    return Trajectory(np.array(times), *cols, rho_final=rho, info={"dt": dt, "steps": steps})
+
+
+@dataclass
+class RobotLoopTrajectory:
+    """A recorded run of the PDE plant closed by the robot law (Theorem 3).
+
+    Every array is per recorded step.  ``dV2_dt`` is the semi-discrete rate
+    ``⟨ρ̃, ρ̇⟩ + ⟨ṽ, ∂_t v_r − ∂_t v_d⟩`` along the plant's own ``ρ̇`` and the applied
+    inputs; ``claim`` is ``−∫α|∇ρ̃|² − Σk_u|b_i|² − Σk_ω g_i² + shortfall`` (eq. (8) with
+    the part of ``A`` the applied inputs did not cancel).
+    """
+
+    t: np.ndarray
+    V2: np.ndarray
+    rho_error: np.ndarray
+    v_error: np.ndarray
+    dV2_dt: np.ndarray
+    claim: np.ndarray
+    action: np.ndarray  # Σ k_u|b_i|² + Σ k_ω g_i²
+    dissipation: np.ndarray
+    shortfall: np.ndarray
+    speed: np.ndarray  # largest commanded robot speed
+    at_limit: np.ndarray  # robots whose command reached a limit
+    info: dict = field(default_factory=dict)
+
+
+def robot_loop_trajectory(
+    loop: Any, fp: FokkerPlanck, t_final: float, dt: float, record_every: int = 1
+) -> RobotLoopTrajectory:
+    """Close the Fokker–Planck plant with the robot law of ``loop.backstepping`` (eqs. (6), (8)).
+
+    The controller sees the exact density (no estimate); robots integrate eq. (2) with
+    the loop's limits (saturated as in :class:`~meanfield.simulate.ClosedLoop`).
+
+    Parameters
+    ----------
+    loop : ClosedLoop
+        Supplies the grid, kernel, controller, robots and robot region (its crowd is unused).
+    fp : FokkerPlanck
+        The plant.
+    t_final, dt : float
+    record_every : int
+    """
+    from meanfield.robots import NavigationField, saturate_inputs
+    from meanfield.simulate import initial_density
+
+    g, ctrl, robots = loop.grid, loop.backstepping, loop.robots
+    rho = initial_density(loop.scenario, g)
+    k_u = np.broadcast_to(ctrl.k_u, (robots.n,))
+    k_w = np.broadcast_to(ctrl.k_omega, (robots.n,))
+    steps = int(round(t_final / dt))
+    rows = []
+    t = 0.0
+    for k in range(steps):
+        field_ = NavigationField(loop.kernel, g, robots.positions, robots.headings)
+        st = ctrl.robot_inputs(rho, field_, t)
+        u, w = saturate_inputs(st.u, st.omega, robots.u_max, robots.omega_max)
+        v_r = field_.velocity()
+        if k % record_every == 0:
+            rho_dot = fp.rhs(rho, t, face_velocity=v_r)
+            dvr = field_.velocity_rate(u, w)
+            dvd = ctrl.virtual_velocity_rate(rho, rho_dot, t)
+            dV2 = g.inner(st.rho_tilde, rho_dot) + g.face_inner(st.v_tilde, (dvr[0] - dvd[0], dvr[1] - dvd[1]))
+            action = float((k_u * (st.b**2).sum(1)).sum() + (k_w * st.g**2).sum())
+            short = loop.applied_shortfall(st, u, w)
+            re, ve = g.norm(st.rho_tilde), g.face_norm(st.v_tilde)
+            rows.append(
+                (
+                    t,
+                    0.5 * re * re + 0.5 * ve * ve,
+                    re,
+                    ve,
+                    dV2,
+                    -st.dissipation - action + short,
+                    action,
+                    st.dissipation,
+                    short,
+                    float(np.hypot(st.u[:, 0], st.u[:, 1]).max()),
+                    int(robots.at_limit(st.u, st.omega).sum()),
+                )
+            )
+        if not (np.isfinite(u).all() and np.isfinite(w).all()):
+            break
+        rho = fp.step(rho, t, dt, face_velocity=v_r)
+        robots.advance(u, w, dt, loop.robot_region)
+        t = (k + 1) * dt
+    cols = [np.array(c, float) for c in zip(*rows, strict=True)]
+    return RobotLoopTrajectory(*cols, info={"dt": dt, "steps": steps})

@@ -1,0 +1,201 @@
+"""Theorem 2 (paper: Theorem "step I ISS"): ``‖ρ̃‖`` is input-to-state stable to ``‖ṽ + v_a‖``.
+
+With ``v_r = v_d + ṽ`` and a disturbance ``v_a`` (``w = ṽ + v_a``), the proof (see
+:mod:`analysis.rates`) gives, for every ``c₁ ∈ (0, 1)``,
+
+    ‖ρ̃(t)‖ ≤ max( ‖ρ̃₀‖ e^{−(1−c₁) α_inf μ₂ t},  sup ρ · sup‖w‖ / (c₁ √μ₂ α_inf) ),
+
+so the bound held against the run is the smallest of these over a grid of ``c₁`` — a
+valid ``β(‖ρ̃₀‖, t) + γ sup‖w‖`` at every ``t``.  ``α_inf`` and ``sup ρ`` are taken along
+the run, as the theorem's constants are.  The plant is the Fokker–Planck solver under
+the sampled feedback ``v_d(ρⁿ) + w``; the default ``ṽ`` is a persistent uniform drift
+pointing away from the target (it fights the controller everywhere), plus the
+scenario's own ``v_a``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from analysis.poincare import neumann_eigenvalue
+from meanfield.control import ConstantAlpha
+from meanfield.fokker_planck import FokkerPlanck
+from meanfield.grid import FaceField, Grid
+from meanfield.scenario import Scenario
+from meanfield.simulate import ClosedLoop, disturbance_for, initial_density
+from verification.plant import Trajectory, fokker_planck_trajectory
+from verification.result import CheckResult, worst
+from verification.theorem1 import feedback_step
+
+__all__ = ["CLAIM", "DEFAULT_SPEED", "check_theorem2", "iss_bound", "away_from_target"]
+
+CLAIM = "Theorem 2: with v_r = v_d + ṽ and a disturbance v_a, ‖ρ̃‖ is ISS to ‖ṽ + v_a‖ (given sup ρ < ∞)."
+DEFAULT_SPEED = 0.05
+"""Speed of the default persistent ``ṽ`` (a quarter of the paper scenario's kernel strength)."""
+C1_GRID = np.linspace(0.02, 0.98, 49)
+
+
+def iss_bound(
+    t: np.ndarray, rho0_error: float, sup_w: float, sup_rho: float, alpha_inf: float, mu2: float
+) -> np.ndarray:
+    """Theorem 2's bound ``min_{c₁} max(‖ρ̃₀‖e^{−(1−c₁)α_inf μ₂ t}, sup ρ sup‖w‖/(c₁√μ₂ α_inf))``.
+
+    Each ``c₁`` gives a valid bound, so their minimum is one; ``inf`` when ``α_inf = 0``.
+    """
+    t = np.asarray(t, float)
+    if alpha_inf <= 0:
+        return np.full(t.shape, math.inf)
+    c1 = C1_GRID[:, None]
+    transient = rho0_error * np.exp(-(1 - c1) * alpha_inf * mu2 * t[None, :])
+    ultimate = sup_rho * sup_w / (c1 * math.sqrt(mu2) * alpha_inf)
+    return np.maximum(transient, ultimate).min(axis=0)
+
+
+def away_from_target(grid: Grid, target_center: tuple[float, float], speed: float) -> Callable[[float], FaceField]:
+    """A uniform drift of the given speed from ρ_*'s centre towards Ω's centre, on the faces."""
+    x0, x1, y0, y1 = grid.domain.bounds
+    d = np.array([(x0 + x1) / 2 - target_center[0], (y0 + y1) / 2 - target_center[1]])
+    n = float(np.hypot(*d))
+    d = d / n if n > 0 else np.array([-1.0, 0.0])
+    fx = np.full((grid.shape[0] - 1, grid.shape[1]), speed * d[0])
+    fy = np.full((grid.shape[0], grid.shape[1] - 1), speed * d[1])
+    return lambda t: (fx, fy)
+
+
+def _faces(grid: Grid, v_a: Callable, t: float) -> FaceField:
+    (xx, xy), (yx, yy) = grid.face_points_x, grid.face_points_y
+    return np.asarray(v_a(xx, xy, t)[0], float), np.asarray(v_a(yx, yy, t)[1], float)
+
+
+def _figure(path: Path, series: list[tuple[str, Trajectory, np.ndarray]]) -> None:
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.5, 3.8))
+    for label, tr, bound in series:
+        (line,) = ax.semilogy(tr.t, tr.rho_error, label=f"{label}: ‖ρ̃‖")
+        if np.isfinite(bound).all():
+            ax.semilogy(tr.t, bound, "--", color=line.get_color(), label="ISS bound")
+    ax.set_xlabel("t")
+    ax.set_title("‖ρ̃(t)‖ against β(‖ρ̃₀‖, t) + γ sup‖ṽ + v_a‖")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def check_theorem2(
+    scenario: Scenario,
+    out_dir: Path,
+    *,
+    quick: bool = False,
+    progress: bool = False,
+    workers: int | None = None,
+    v_tilde: Callable[[float], FaceField] | None = None,
+    speed: float = DEFAULT_SPEED,
+) -> CheckResult:
+    """Check Theorem 2 under a persistent ``ṽ`` and the scenario's ``v_a``.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    out_dir : Path
+        Report directory (figure ``figures/theorem2.png``).
+    quick : bool
+        Horizon 1.5 (else 4).
+    v_tilde : callable, optional
+        ``ṽ(t)`` on the grid's faces; default :func:`away_from_target` at ``speed``.
+    speed : float
+        Speed of the default ``ṽ``.
+    """
+    start = time.perf_counter()
+    loop = ClosedLoop(scenario)
+    grid, ctrl = loop.grid, loop.backstepping
+    mu2 = neumann_eigenvalue(grid)
+    rho0 = initial_density(scenario, grid)
+    t_final = 1.5 if quick else 4.0
+    vt = v_tilde if v_tilde is not None else away_from_target(grid, scenario.target.center, speed)
+    v_a = disturbance_for(scenario)
+
+    def w(t: float) -> FaceField:
+        a = vt(t)
+        if v_a is None:
+            return a
+        b = _faces(grid, v_a, t)
+        return a[0] + b[0], a[1] + b[1]
+
+    c = scenario.controller
+    schedules = [(f"scenario α ({c.alpha_schedule}, α₀={c.alpha:g})", ctrl.alpha)]
+    if c.alpha_schedule != "constant":
+        schedules.append((f"constant α = {c.alpha:g}", ConstantAlpha(c.alpha)))
+    cases: list[dict[str, Any]] = []
+    series = []
+    for label, schedule in schedules:
+        ctrl.alpha = schedule
+        dt = feedback_step(min(grid.dx, grid.dy), c.alpha, scenario.dt)
+        fp = FokkerPlanck(grid, ctrl.sigma, method="split", interaction=ctrl.interaction)
+        traj = fokker_planck_trajectory(ctrl, fp, rho0, t_final, dt, w=w, record_every=max(1, int(round(0.02 / dt))))
+        alpha_inf = float(traj.alpha_min.min())
+        sup_rho = float(traj.rho_max.max())
+        sup_w = float(traj.w_norm.max())
+        err = traj.rho_error
+        bound = iss_bound(traj.t, float(err[0]), sup_w, sup_rho, alpha_inf, mu2)
+        ratio = err / bound
+        i = int(np.argmax(ratio))
+        gain = sup_rho / (math.sqrt(mu2) * alpha_inf) if alpha_inf > 0 else math.inf
+        cases.append(
+            {
+                "case": label,
+                "verdict": "holds" if ratio[i] <= 1 + 1e-9 else "fails",
+                "worst_ratio_to_bound": float(ratio[i]),
+                "worst_ratio_time": float(traj.t[i]),
+                "rho_error_initial": float(err[0]),
+                "rho_error_final": float(err[-1]),
+                "rho_error_max": float(err.max()),
+                "sup_w": sup_w,
+                "sup_rho": sup_rho,
+                "alpha_inf": alpha_inf,
+                "iss_gain_c1_to_1": gain,
+                "ultimate_bound_c1_to_1": gain * sup_w,
+                "dt": dt,
+                "t_final": t_final,
+            }
+        )
+        series.append((label, traj, bound))
+    ctrl.alpha = schedules[0][1]
+    figdir = out_dir / "figures"
+    figdir.mkdir(parents=True, exist_ok=True)
+    _figure(figdir / "theorem2.png", series)
+    first = cases[0]
+    summary = "; ".join(
+        f"{k['case']}: {k['verdict']}, worst ‖ρ̃‖/bound {k['worst_ratio_to_bound']:.3g}, "
+        f"final ‖ρ̃‖ {k['rho_error_final']:.3g} vs ultimate γ·sup‖w‖ {k['ultimate_bound_c1_to_1']:.3g}"
+        for k in cases
+    )
+    return CheckResult(
+        key="theorem2",
+        claim=CLAIM,
+        verdict=worst([k["verdict"] for k in cases]),
+        summary=summary,
+        measured={"worst_ratio_to_bound": first["worst_ratio_to_bound"], "rho_error_final": first["rho_error_final"]},
+        bound={
+            "iss_gain": first["iss_gain_c1_to_1"],
+            "sup_w": first["sup_w"],
+            "ultimate_bound": first["ultimate_bound_c1_to_1"],
+            "v_tilde": "user" if v_tilde is not None else f"uniform drift away from the target, speed {speed:g}",
+            "v_a": "scenario" if v_a is not None else "none",
+        },
+        criterion=(
+            "On the Fokker–Planck plant under v_r = v_d(ρⁿ) + ṽ + v_a: holds when ‖ρ̃(t)‖ stays below "
+            "min over c₁ ∈ [0.02, 0.98] of max(‖ρ̃₀‖e^{−(1−c₁)α_inf μ₂ t}, sup ρ sup‖ṽ+v_a‖/(c₁√μ₂ α_inf)) at "
+            "every record (α_inf, sup ρ along the run, μ₂ discrete); worst over the α cases."
+        ),
+        cases=cases,
+        figures=["figures/theorem2.png"],
+        seconds=time.perf_counter() - start,
+    )
