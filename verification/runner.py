@@ -39,10 +39,10 @@ CLAIMS: dict[str, str] = {
     "theorem1": theorem1.CLAIM,
     "theorem2": theorem2.CLAIM,
     "theorem3": theorem3.CLAIM,
-    "mean_field": "Mean-field limit: the agents' density (SDE, eq. (1)) follows the Fokker–Planck equation (4) as N grows.",
-    "robot_count": "Discussion: regularly placed robots whose influence sets cover Ω give a rough lower estimate of n.",
-    "agents": "MATLAB study: point-mass humans under the robot law are guided to the target location.",
-    "pedestrians": "Unity study: humans with bodies and a local view are also guided to the target location.",
+    "mean_field": mean_field.CLAIM,
+    "robot_count": robot_count.CLAIM,
+    "agents": agents.CLAIM,
+    "pedestrians": agents.PEDESTRIANS_CLAIM,
 }
 
 

@@ -111,7 +111,8 @@ def _figure(path: Path, series: list[tuple[str, Trajectory, float]]) -> None:
     fig, ax = plt.subplots(1, 2, figsize=(10, 3.8))
     for label, tr, k_p in series:
         (line,) = ax[0].semilogy(tr.t, tr.V1, label=f"{label}: V₁")
-        ax[0].semilogy(tr.t, tr.V1[0] * np.exp(-k_p * tr.t), "--", color=line.get_color(), label=f"bound, k_p={k_p:.3g}")
+        bound = tr.V1[0] * np.exp(-k_p * tr.t)
+        ax[0].semilogy(tr.t, bound, "--", color=line.get_color(), label=f"bound, k_p={k_p:.3g}")
         ax[1].plot(tr.t, -tr.dV1_dt, color=line.get_color(), label=f"{label}: −dV₁/dt")
         ax[1].plot(tr.t, 2 * tr.dissipation, ":", color=line.get_color(), label="2∫α|∇ρ̃|²")
     ax[0].set_xlabel("t")
