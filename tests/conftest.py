@@ -2,13 +2,32 @@
 
 from __future__ import annotations
 
+import os
+
 import matplotlib
 import numpy as np
 import pytest
+from hypothesis import Phase, settings
 
 from meanfield import Domain, Grid
 
 matplotlib.use("Agg")
+
+# ---------------------------------------------------------------------- hypothesis profiles
+# Select with HYPOTHESIS_PROFILE (default "ci"); a decorator's own settings (e.g. an explicit
+# max_examples) still take precedence over the profile.
+#   ci       deterministic (derandomize, no example database), sized so that
+#            tests/test_properties.py runs in well under a minute on 2 cores
+#   dev      more examples, random seeds, the local example database replays failures
+#   release  10x ci, random seeds: the broad search before a release (several minutes)
+#   mutation ci without shrinking: verification.mutation only asks *whether* a test fails
+settings.register_profile("ci", max_examples=150, derandomize=True, database=None, deadline=None, print_blob=True)
+settings.register_profile("dev", max_examples=100, deadline=None, print_blob=True)
+settings.register_profile("release", max_examples=400, deadline=None, print_blob=True)
+settings.register_profile(
+    "mutation", parent=settings.get_profile("ci"), phases=(Phase.explicit, Phase.reuse, Phase.generate)
+)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 # A convex pentagon used wherever a polygon domain is needed (counter-clockwise).
 PENTAGON = [(0.0, 0.0), (1.0, -0.1), (1.3, 0.6), (0.6, 1.1), (-0.2, 0.7)]
