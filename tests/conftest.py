@@ -16,14 +16,14 @@ matplotlib.use("Agg")
 # ---------------------------------------------------------------------- hypothesis profiles
 # Select with HYPOTHESIS_PROFILE (default "ci"); a decorator's own settings (e.g. an explicit
 # max_examples) still take precedence over the profile.
-#   ci       deterministic (derandomize, no example database), sized so that
-#            tests/test_properties.py runs in well under a minute on 2 cores
-#   dev      more examples, random seeds, the local example database replays failures
-#   release  10x ci, random seeds: the broad search before a release (several minutes)
+#   ci       deterministic (derandomize, no example database); tests/test_properties.py
+#            takes ~15 s on 2 cores
+#   dev      more examples, random seeds; the local example database replays failures
+#   release  10x ci, random seeds: the broad search before a release (a few minutes)
 #   mutation ci without shrinking: verification.mutation only asks *whether* a test fails
-settings.register_profile("ci", max_examples=150, derandomize=True, database=None, deadline=None, print_blob=True)
-settings.register_profile("dev", max_examples=100, deadline=None, print_blob=True)
-settings.register_profile("release", max_examples=400, deadline=None, print_blob=True)
+settings.register_profile("ci", max_examples=200, derandomize=True, database=None, deadline=None, print_blob=True)
+settings.register_profile("dev", max_examples=500, deadline=None, print_blob=True)
+settings.register_profile("release", max_examples=2000, deadline=None, print_blob=True)
 settings.register_profile(
     "mutation", parent=settings.get_profile("ci"), phases=(Phase.explicit, Phase.reuse, Phase.generate)
 )

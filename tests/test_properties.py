@@ -11,12 +11,15 @@ operators of :class:`~meanfield.grid.Grid` (where the Lyapunov identities are ex
   ``θ̇ = ω``, ``dV₂/dt = -∫α|∇ρ̃|² - Σ k_u|b_i|² - Σ k_ω g_i² + shortfall`` (an identity),
   for the minimum-norm β/γ (shortfall 0) and the speed-limited program
   (:class:`analysis.bounded.BoundedBetaGamma`, whose total inputs respect the limits);
+* ``∂_t v_d`` by finite differences (the scenarios' default) is the backward difference of
+  ``v_d`` and tends to the model-based ``∂_t v_d`` as the step shrinks;
 * the Fokker–Planck solver conserves mass and keeps ``ρ >= 0`` (``"split"`` and
   ``"implicit"`` at any ``dt``, ``"explicit"`` and ``"adi"`` at their automatic step), and
   its Scharfetter–Gummel flux is the model's central flux plus a non-negative numerical
   diffusion of at most the upwind amount ``|a|h/2``;
 * the bounded β/γ program: limits, the sign convention of the shortfall and the algebraic
-  form of the ``dV₂/dt`` identity, with per-robot gains and zero integrals.
+  form of the ``dV₂/dt`` identity, with per-robot gains and zero integrals (and, as a strict
+  xfail, a measured limitation of its Clarabel path with tiny limits).
 
 ``dV/dt`` is computed independently of the controller's own terms by complex-step
 differentiation along the closed-loop vector field: ``Im V(x + iεẋ)/ε = V'(x)ẋ`` with no
@@ -33,6 +36,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import pytest
 from hypothesis import event, given, note
 from hypothesis import strategies as st
 
@@ -167,10 +171,10 @@ class Case:
     def interaction(self) -> InteractionField | None:
         return None if self.potential is None else InteractionField(self.grid, self.potential)
 
-    def controller(self, strategy=None) -> BacksteppingController:
+    def controller(self, strategy=None, dvd_dt: str = "model") -> BacksteppingController:
         return BacksteppingController(
             self.grid, self.target, self.sigma, self.alpha, self.k_u, self.k_omega,
-            strategy or MinimumNormBetaGamma(), self.interaction(), "model",
+            strategy or MinimumNormBetaGamma(), self.interaction(), dvd_dt,
         )  # fmt: skip
 
     def field(self, R=None, th=None) -> NavigationField:
@@ -197,8 +201,8 @@ def _per_robot(k: float | np.ndarray, n: int) -> np.ndarray:
 # ---------------------------------------------------------------------- Theorem 1
 def alpha_inf(grid: Grid, alpha, rho: np.ndarray) -> float:
     """``min α(ρ_f)`` over the open faces, α as the controller forms it (``(α/ρ)(ρ_f)·ρ_f``)."""
-    rf = grid.face_average(rho)
-    return float(min((alpha.over_rho(r) * r)[m].min() for r, m in zip(rf, _open_faces(grid), strict=True)))
+    rf = [r[m] for r, m in zip(grid.face_average(rho), _open_faces(grid), strict=True)]
+    return float(min((alpha.over_rho(r) * r).min() for r in rf))
 
 
 @given(name=st.sampled_from(list(_GRID_SPECS)), data=st.data())
@@ -347,11 +351,60 @@ def test_theorem3_identity_bounded(case: Case, u_frac, w_frac, condition, method
     event(f"limit binding: {bool(np.any(out.speed_binding) or np.any(out.turn_binding))}")
 
 
+@given(case=cases(), log_step=st.floats(-8.0, -5.0))
+def test_finite_difference_dvd_dt_is_the_backward_difference_and_tends_to_the_model(case: Case, log_step):
+    """``dvd_dt="finite-difference"`` (the scenarios' default): the first call uses
+    ``∂_t v_d = 0``; the next one the backward difference ``(v_d(t) - v_d(t-h))/h`` in
+    ``A = ∫ṽᵀ(ρ∇ρ̃ - ∂_t v_d)``, and along one Euler step of the closed loop its ``A``
+    tends to the model-based (chain-rule) ``A`` as ``h → 0``."""
+    g = case.grid
+    fd = case.controller(dvd_dt="finite-difference")
+    model = case.controller()
+    f0 = case.field()
+    s0 = fd.robot_inputs(case.rho, f0, t=0.0)
+    rf0 = g.face_average(case.rho)
+    a0 = g.face_inner(s0.v_tilde, (rf0[0] * g.gradient(s0.rho_tilde)[0], rf0[1] * g.gradient(s0.rho_tilde)[1]))
+    assert abs(s0.A - a0) <= 1e-12 * (abs(a0) + g.face_norm(s0.v_tilde) * g.norm(case.rho))
+    # one explicit Euler step of the closed loop, of a size relative to its fastest rate
+    rho_dot = model.density_rate(case.rho, f0.velocity())
+    h_min = min(g.dx, g.dy)
+    v_max = max(np.abs(c).max() for c in f0.velocity())
+    rate = max(
+        1.0,
+        np.abs(rho_dot).max() / case.rho[g.active].min(),
+        v_max / h_min + case.sigma / h_min**2,
+        np.abs(s0.u).max() / math.sqrt(case.kernel.eta),
+        np.abs(s0.omega).max(),
+    )
+    h = 10.0**log_step / rate
+    rho1 = case.rho + h * rho_dot
+    R1, th1 = case.R + h * s0.u, case.th + h * s0.omega
+    f1 = case.field(R1, th1)
+    s1 = fd.robot_inputs(rho1, f1, t=h)
+    vd0, vd1 = fd.virtual_velocity(case.rho), fd.virtual_velocity(rho1)
+    dvd = ((vd1[0] - vd0[0]) / h, (vd1[1] - vd0[1]) / h)
+    rf1, gr1 = g.face_average(rho1), g.gradient(s1.rho_tilde)
+    A_def = g.face_inner(s1.v_tilde, (rf1[0] * gr1[0] - dvd[0], rf1[1] * gr1[1] - dvd[1]))
+    abs_vt = (np.abs(s1.v_tilde[0]), np.abs(s1.v_tilde[1]))
+    size = g.face_inner(abs_vt, (np.abs(rf1[0] * gr1[0]) + np.abs(dvd[0]), np.abs(rf1[1] * gr1[1]) + np.abs(dvd[1])))
+    assert abs(s1.A - A_def) <= 1e-9 * size, (s1.A, A_def)
+    A_model = model.robot_inputs(rho1, f1, t=h).A
+    # the difference quotient's own round-off (ρ may barely move in h): the rounding of ρ
+    # (~eps ρ per cell) moves v_d by ~eps (α + σ)/h_min, plus ~eps |v_d| from its evaluation
+    alpha_f = [
+        np.where(o, case.alpha.over_rho(np.where(o, r, 1.0)) * r, 0.0) for r, o in zip(rf1, _open_faces(g), strict=True)
+    ]
+    m = [(alpha_f[k] + case.sigma) / h_min + np.abs(vd0[k]) + np.abs(vd1[k]) for k in range(2)]
+    roundoff = 1e-13 * g.face_inner(abs_vt, (m[0], m[1])) / h
+    note(f"h={h:.3g} A_fd={s1.A:.8g} A_model={A_model:.8g} size={size:.3g} roundoff={roundoff:.3g}")
+    assert abs(s1.A - A_model) <= 1e-3 * size + roundoff
+
+
 def _check_shortfall_convention(out, A: float, condition: str) -> None:
     """The documented sign of the shortfall: > 0 only when ``A`` is above the reachable range;
     with ``"equality"`` < 0 only when below it; else ~0 (or < 0 with ``"inequality"``)."""
     lo, hi = out.achievable
-    tol = 1e-6 * (abs(A) + 1e-3 * (abs(lo) + abs(hi))) + 1e-14
+    tol = 1e-6 * (abs(A) + 1e-3 * (abs(lo) + abs(hi))) + 1e-300
     if out.feasible:
         assert out.shortfall <= tol
         if condition == "equality":
@@ -367,7 +420,9 @@ def programs(draw):
     """Random integrals (some exactly zero), per-robot or scalar gains, limits or none."""
     n = draw(st.integers(1, 6))
     scale = 10 ** draw(st.floats(-3.0, 0.0))
-    vals = st.floats(-1.0, 1.0)
+    # entries within a factor 20 of the scale (or exactly zero, below): well-conditioned for
+    # the interior-point solver, whose tolerances are absolute (see the xfail test below)
+    vals = st.floats(0.05, 1.0).flatmap(lambda v: st.sampled_from([v, -v]))
     b = scale * np.array([[draw(vals), draw(vals)] for _ in range(n)])
     g = scale * np.array([draw(vals) for _ in range(n)])
     zero_b = np.array(draw(st.lists(st.booleans(), min_size=n, max_size=n)))
@@ -415,6 +470,27 @@ def test_bounded_program_constraints_and_shortfall(problem, condition, method):
         effort = lambda o: float((o.du**2).sum() + (o.domega**2).sum())  # noqa: E731
         assert effort(ex) <= effort(out) * (1 + 1e-6) + 1e-14
         assert out.feasible == ex.feasible
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="finding: the Clarabel path meets A only to the interior-point solver's absolute "
+    "tolerance; with limits of ~1e-7 and integrals of ~1e-10 it reports feasible=True with a "
+    "shortfall up to ~1e3 A (the exact dual: ~1e-15 relative). Realistic limits (0.1 m/s, "
+    "1 rad/s) are accurate at every integral scale down to 1e-10 (measured)",
+)
+def test_clarabel_meets_A_relative_to_its_size_with_tiny_limits():
+    rng = np.random.default_rng(0)
+    worst = 0.0
+    for _ in range(20):
+        n = int(rng.integers(1, 7))
+        b, g = 1e-10 * rng.normal(size=(n, 2)), 1e-10 * rng.normal(size=n)
+        A = abs(rng.normal()) * 1e-20 * n
+        out = BoundedBetaGamma(n, 10.0, 10.0, 1e-7, 1e-7)(b, g, A)
+        exact = bounded_inputs_exact(b, g, A, 10.0, 10.0, 1e-7, 1e-7)
+        assert out.feasible and exact.feasible and exact.shortfall <= 1e-12 * A
+        worst = max(worst, out.shortfall / A)
+    assert worst <= 1e-6, worst
 
 
 # ---------------------------------------------------------------------- Fokker–Planck solver

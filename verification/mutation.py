@@ -175,6 +175,14 @@ MUTATIONS: tuple[Mutation, ...] = (
         "Theorems 1 and 3 (the dissipation term)",
     ),
     Mutation(
+        "fd-dvd-dt-sign",
+        "finite-difference ∂_t v_d (the scenarios' default): (v_d(t) - v_d(t-h))/h  ->  /(-h)",
+        "meanfield/control.py",
+        "                h = t - prev[0]\n",
+        "                h = prev[0] - t\n",
+        "Theorem 3 with dvd_dt='finite-difference' (A must contain ∂_t v_d)",
+    ),
+    Mutation(
         "sg-drift-reversed",
         "Scharfetter–Gummel: upwind coefficients swapped, the drift enters with the wrong sign "
         "(still an M-matrix, still mass-conserving)",
