@@ -20,14 +20,14 @@ import numpy as np
 
 from analysis.poincare import neumann_eigenvalue
 from analysis.rates import decay_rate
-from meanfield.control import ConstantAlpha
+from meanfield.control import AlphaSchedule, ConstantAlpha
 from meanfield.fokker_planck import FokkerPlanck
 from meanfield.scenario import Scenario
 from meanfield.simulate import ClosedLoop, initial_density
 from verification.plant import Trajectory, fokker_planck_trajectory, model_trajectory
 from verification.result import CheckResult, worst
 
-__all__ = ["CLAIM", "check_theorem1", "exponential_verdict", "fitted_rate", "feedback_step"]
+__all__ = ["CLAIM", "alpha_cases", "check_theorem1", "exponential_verdict", "fitted_rate", "feedback_step"]
 
 CLAIM = (
     "Theorem 1: with v_r ≡ v_d (and v_a ≡ 0), V₁ = ∫ρ̃² decays exponentially, "
@@ -79,6 +79,16 @@ def feedback_step(h: float, alpha_max: float, dt_max: float) -> float:
     grid at ``dt = 0.01``).
     """
     return min(dt_max, 0.9 * h * h / (4.0 * alpha_max))
+
+
+def alpha_cases(scenario: Scenario, schedule: AlphaSchedule) -> list[tuple[str, AlphaSchedule]]:
+    """The α schedules Theorems 1 and 2 are checked with: the scenario's, and constant ``α₀``
+    when the scenario's depends on ρ (the one gain with a non-vanishing ``α_inf``)."""
+    c = scenario.controller
+    cases = [(f"scenario α ({c.alpha_schedule}, α₀={c.alpha:g})", schedule)]
+    if c.alpha_schedule != "constant":
+        cases.append((f"constant α = {c.alpha:g}", ConstantAlpha(c.alpha)))
+    return cases
 
 
 def _case(
@@ -150,9 +160,7 @@ def check_theorem1(
     t_final = 1.5 if quick else 4.0
     h = min(grid.dx, grid.dy)
     c = scenario.controller
-    schedules = [(f"scenario α ({c.alpha_schedule}, α₀={c.alpha:g})", ctrl.alpha)]
-    if c.alpha_schedule != "constant":
-        schedules.append((f"constant α = {c.alpha:g}", ConstantAlpha(c.alpha)))
+    schedules = alpha_cases(scenario, ctrl.alpha)
     cases, series = [], []
     for label, schedule in schedules:
         ctrl.alpha = schedule

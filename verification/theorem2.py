@@ -24,14 +24,13 @@ from typing import Any
 import numpy as np
 
 from analysis.poincare import neumann_eigenvalue
-from meanfield.control import ConstantAlpha
 from meanfield.fokker_planck import FokkerPlanck
 from meanfield.grid import FaceField, Grid
 from meanfield.scenario import Scenario
 from meanfield.simulate import ClosedLoop, disturbance_for, initial_density
 from verification.plant import Trajectory, fokker_planck_trajectory
 from verification.result import CheckResult, worst
-from verification.theorem1 import feedback_step
+from verification.theorem1 import alpha_cases, feedback_step
 
 __all__ = ["CLAIM", "DEFAULT_SPEED", "check_theorem2", "iss_bound", "away_from_target"]
 
@@ -130,9 +129,7 @@ def check_theorem2(
         return a[0] + b[0], a[1] + b[1]
 
     c = scenario.controller
-    schedules = [(f"scenario α ({c.alpha_schedule}, α₀={c.alpha:g})", ctrl.alpha)]
-    if c.alpha_schedule != "constant":
-        schedules.append((f"constant α = {c.alpha:g}", ConstantAlpha(c.alpha)))
+    schedules = alpha_cases(scenario, ctrl.alpha)
     cases: list[dict[str, Any]] = []
     series = []
     for label, schedule in schedules:
