@@ -14,6 +14,8 @@ A :class:`Scenario` is a tree of small dataclasses, one per TOML table::
     [density]     bandwidth, boundary, method
     [controller]  alpha, alpha_schedule, rho_floor, k_u, k_omega, beta_gamma, dvd_dt, kind
     [controller.options]  options of a controller plugin (e.g. the NMPC horizon)
+    [view]        radius ("none" | > 0), walk_speed, turning_rate   (local view, Unity study)
+    [pedestrians] backend ("point-mass" | "jupedsim"), model, radius, max_speed, time_step
 
 Every field is checked when the scenario is built (or read); a bad value raises
 :class:`~meanfield.errors.ParameterError` naming the field and the allowed range, and an
@@ -48,7 +50,11 @@ __all__ = [
     "TargetSpec",
     "DensitySpec",
     "ControllerSpec",
+    "ViewSpec",
+    "PedestrianSpec",
+    "PEDESTRIAN_MODELS",
     "paper_scenario",
+    "paper_unity_scenario",
     "builtin_scenarios",
     "load_scenario",
 ]
@@ -113,11 +119,10 @@ def _point(name: str, value: Any) -> tuple[float, float]:
     return (_num(f"{name}[0]", a), _num(f"{name}[1]", b))
 
 
-def _optional_limit(name: str, value: Any) -> float | None:
+def _optional_limit(name: str, value: Any, what: str = 'a number > 0, or "none" for no limit') -> float | None:
     if value is None or (isinstance(value, str) and value == "none"):
         return None
-    x = _num(name, value, lo=0.0, lo_open=True, allowed='a number > 0, or "none" for no limit')
-    return x
+    return _num(name, value, lo=0.0, lo_open=True, allowed=what)
 
 
 # ---------------------------------------------------------------------- sections
@@ -313,6 +318,65 @@ class ControllerSpec:
         self.options = dict(self.options)
 
 
+@dataclass
+class ViewSpec:
+    """The humans' local view (the paper's Unity study, Section V-B).
+
+    A human follows the navigation field ``v_r`` (eq. (3)) only while some robot is within
+    ``radius`` of it; otherwise it walks a persistent random walk at ``walk_speed`` whose
+    heading diffuses with ``turning_rate`` (rad²/s, so the heading decorrelates as
+    ``exp(-turning_rate t)``; see :mod:`meanfield.local_view`).  ``radius = "none"`` (the
+    default) is the paper's model (eq. (1)): every human feels every robot.
+    """
+
+    radius: float | None = None
+    walk_speed: float = 0.0
+    turning_rate: float = 0.0
+
+    def __post_init__(self) -> None:
+        self.radius = _optional_limit("view.radius", self.radius, what='a view radius > 0, or "none" (no gating)')
+        self.walk_speed = _num("view.walk_speed", self.walk_speed, lo=0.0)
+        self.turning_rate = _num("view.turning_rate", self.turning_rate, lo=0.0)
+
+
+# the JuPedSim operational models the pedestrian backend can use (meanfield.jupedsim_api)
+PEDESTRIAN_MODELS = (
+    "collision-free-speed",
+    "collision-free-speed-v2",
+    "collision-free-speed-v3",
+    "anticipation-velocity",
+    "generalized-centrifugal-force",
+    "social-force",
+    "warp-driver",
+)
+
+
+@dataclass
+class PedestrianSpec:
+    """The crowd backend: ``"point-mass"`` (the SDE of eq. (1), :mod:`meanfield.crowd`) or
+    ``"jupedsim"`` (bodies of ``radius`` metres moved by a JuPedSim operational ``model``,
+    :mod:`meanfield.pedestrian_crowd`).
+
+    With ``"jupedsim"``, each control period ``dt`` every human gets a desired velocity
+    (``v_r`` or its random walk) whose speed is capped at ``max_speed``; JuPedSim advances
+    in steps of ``time_step`` (``dt`` must be a whole number of them).  ``radius``,
+    ``max_speed``, ``time_step`` and ``model`` are ignored by the point-mass backend.
+    """
+
+    backend: str = "point-mass"
+    model: str = "collision-free-speed"
+    radius: float = 0.2
+    max_speed: float = 1.34
+    time_step: float = 0.01
+
+    def __post_init__(self) -> None:
+        self.backend = _choice("pedestrians.backend", self.backend, ("point-mass", "jupedsim"))
+        self.model = _choice("pedestrians.model", self.model, PEDESTRIAN_MODELS)
+        self.radius = _num("pedestrians.radius", self.radius, lo=0.0, lo_open=True)
+        self.max_speed = _num("pedestrians.max_speed", self.max_speed, lo=0.0, lo_open=True)
+        self.time_step = _num("pedestrians.time_step", self.time_step, lo=0.0, lo_open=True)
+
+
 _SECTIONS: dict[str, type] = {
     "grid": GridSpec,
     "crowd": CrowdSpec,
@@ -323,6 +387,8 @@ _SECTIONS: dict[str, type] = {
     "target": TargetSpec,
     "density": DensitySpec,
     "controller": ControllerSpec,
+    "view": ViewSpec,
+    "pedestrians": PedestrianSpec,
 }
 
 
@@ -349,6 +415,8 @@ class Scenario:
     target: TargetSpec = field(default_factory=TargetSpec)
     density: DensitySpec = field(default_factory=DensitySpec)
     controller: ControllerSpec = field(default_factory=ControllerSpec)
+    view: ViewSpec = field(default_factory=ViewSpec)
+    pedestrians: PedestrianSpec = field(default_factory=PedestrianSpec)
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
@@ -381,12 +449,32 @@ class Scenario:
                 list(self.target.center),
                 "a target Gaussian with mass in the domain (centre inside Ω or within a few std)",
             )
+        self._check_pedestrians()
         if self.robots.margin > 0:
             x0, x1, y0, y1 = dom.bounds
             if 2 * self.robots.margin >= min(x1 - x0, y1 - y0):
                 raise ParameterError(
                     "robots.margin", self.robots.margin, "less than half the domain's width and height"
                 )
+
+    def _check_pedestrians(self) -> None:
+        """The JuPedSim backend's cross-field checks: whole sub-steps, bodies that fit."""
+        p = self.pedestrians
+        if p.backend != "jupedsim":
+            return
+        k = self.dt / p.time_step
+        if round(k) < 1 or abs(k - round(k)) > 1e-9 * k:
+            raise ParameterError(
+                "pedestrians.time_step", p.time_step, f"a step that divides dt = {self.dt:g} a whole number of times"
+            )
+        cover = self.crowd.n * math.pi * p.radius**2 / self.domain.area
+        if cover > 0.5:
+            raise ParameterError(
+                "pedestrians.radius",
+                p.radius,
+                f"a body radius whose {self.crowd.n} bodies cover at most half of the room "
+                f"(they would cover {cover:.0%} of its area {self.domain.area:g})",
+            )
 
     # ------------------------------------------------------------------ derived
     @property
@@ -545,9 +633,70 @@ def paper_scenario(seed: int = 0) -> Scenario:
     )
 
 
+# the Unity study's room (metres) and the time unit that makes the kernel's peak speed a
+# walking speed: paper-unity is the paper scenario under x -> L x, t -> T t (docs/scenarios.md)
+UNITY_LENGTH = 150.0
+UNITY_TIME = 25.0
+
+
+def paper_unity_scenario(seed: int = 0) -> Scenario:
+    """The paper's Unity study (Section V-B): 150 × 150 m, 200 humans, 16 robots, 30 m view.
+
+    Every parameter of :func:`paper_scenario` is carried over by the similarity
+    ``x -> L x``, ``t -> T t`` with ``L = 150 m`` and ``T = 25 s`` (so the kernel's peak
+    speed ``c`` becomes 1.2 m/s): lengths scale by ``L``, speeds by ``L/T``, diffusions and
+    ``α`` by ``L²/T``, rates by ``1/T``, densities by ``1/L²``, with one exception: the
+    crowd's diffusion is a pedestrian's ``σ = 0.5 m²/s``, not the similar 13.5 m²/s (a
+    random displacement of 5 m per second is not walking; JuPedSim bodies have no such
+    noise, and a controller that assumes it concentrates them).  The Unity study's own
+    assumptions are added on top: a human follows the signs only within 30 m of a robot
+    and otherwise walks randomly (1.0 m/s, heading persistence ``1/D_r`` = 20 s), and the
+    crowd may be run as JuPedSim bodies (``pedestrians.backend = "jupedsim"``).  The
+    reasons for each value, and how the outcome depends on them, are in
+    ``docs/scenarios.md``.
+    """
+    base = paper_scenario(seed)
+    L, T = UNITY_LENGTH, UNITY_TIME
+    c = base.controller
+    return Scenario(
+        name="paper-unity",
+        seed=seed,
+        dt=base.dt * T,
+        t_final=base.t_final * T,
+        record_every=base.record_every,
+        domain=Domain.box(L, L),
+        grid=GridSpec(base.grid.cells),
+        crowd=CrowdSpec(n=200, initial="uniform", sigma=0.5),
+        robots=RobotSpec(
+            n=16,
+            layout="grid",
+            headings="random",
+            u_max=base.robots.u_max * L / T,
+            omega_max=base.robots.omega_max / T,
+        ),
+        kernel=KernelSpec(c=base.kernel.c * L / T, eta=base.kernel.eta * L * L),
+        interaction=InteractionSpec(kind="none"),
+        target=TargetSpec(center=(L, L), std=base.target.std * L),
+        density=DensitySpec(bandwidth=base.density.bandwidth * L, boundary="reflect"),
+        controller=ControllerSpec(
+            alpha=c.alpha * L * L / T,
+            alpha_schedule=c.alpha_schedule,
+            rho_floor=c.rho_floor / (L * L),
+            k_u=c.k_u / T,
+            k_omega=c.k_omega / T,
+            beta_gamma=c.beta_gamma,
+            dvd_dt=c.dvd_dt,
+        ),
+        view=ViewSpec(radius=30.0, walk_speed=1.0, turning_rate=0.05),
+        pedestrians=PedestrianSpec(
+            backend="point-mass", model="collision-free-speed", radius=0.2, max_speed=1.34, time_step=0.05
+        ),
+    )
+
+
 def builtin_scenarios() -> dict[str, Any]:
     """Names of the built-in scenarios and their factories."""
-    return {"paper": paper_scenario}
+    return {"paper": paper_scenario, "paper-unity": paper_unity_scenario}
 
 
 def load_scenario(spec: str | Path, seed: int | None = None) -> Scenario:

@@ -5,7 +5,10 @@ One step (``dt``) of :class:`ClosedLoop`:
 1. ρ̂ = KDE of the humans' positions on the grid (paper, Section IV-A);
 2. the robots' kernels on the grid faces; ``v_r`` (eq. (3));
 3. controller: ``v_d`` (eq. (6)), ``ṽ``, ``b_i``, ``g_i``, ``A``, inputs ``(u_i, ω_i)`` (eq. (8));
-4. humans: one Euler–Maruyama step of eq. (1) with drift ``v_r + u_W + v_a`` at each human;
+4. humans: one Euler–Maruyama step of eq. (1) with drift ``v_r + u_W + v_a`` at each human
+   (with a finite view radius, ``v_r`` only where a robot is in view, a random walk
+   elsewhere: :mod:`meanfield.local_view`); with the JuPedSim backend the drift is each
+   body's desired velocity instead (:mod:`meanfield.pedestrian_crowd`);
 5. robots: one Euler step of eq. (2), saturated at the speed limits, kept in Ω.
 
 :func:`run` returns a :class:`SimulationResult` holding an xarray Dataset of the recorded
@@ -39,9 +42,11 @@ from meanfield.errors import ParameterError, SimulationDiverged
 from meanfield.grid import Grid
 from meanfield.interaction import InteractionField
 from meanfield.kernels import GaussianKernel, GaussianPotential, NavigationKernel
+from meanfield.local_view import LocalView
 from meanfield.metrics import (
     fraction_in_disk,
     gaussian_target,
+    max_body_overlap,
     target_region_radius,
     wasserstein2_to_grid_density,
 )
@@ -57,6 +62,7 @@ __all__ = [
     "disturbance_for",
     "initial_crowd",
     "initial_density",
+    "initial_humans",
 ]
 
 Disturbance = Callable[[np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]
@@ -111,6 +117,18 @@ def initial_crowd(scenario: Scenario, n: int, rng: np.random.Generator) -> np.nd
         p = rng.normal(loc=c.initial_center, scale=c.initial_std, size=(2 * (n - len(out)) + 8, 2))
         out = np.vstack([out, p[scenario.domain.contains(p[:, 0], p[:, 1])]])
     return out[:n].copy()
+
+
+def initial_humans(scenario: Scenario, rng: np.random.Generator) -> np.ndarray:
+    """The initial crowd of the scenario's backend: points from :func:`initial_crowd`, or for
+    JuPedSim non-overlapping bodies from the same law (:func:`~meanfield.pedestrian_crowd.place_bodies`)."""
+    if scenario.pedestrians.backend == "point-mass":
+        return initial_crowd(scenario, scenario.crowd.n, rng)
+    from meanfield.pedestrian_crowd import place_bodies
+
+    return place_bodies(
+        lambda k: initial_crowd(scenario, k, rng), scenario.crowd.n, scenario.pedestrians.radius, scenario.domain
+    )
 
 
 def initial_density(scenario: Scenario, grid: Grid) -> np.ndarray:
@@ -240,9 +258,20 @@ class ClosedLoop:
         self.kde = KernelDensityEstimator(self.grid, bw, sc.density.boundary, sc.density.method)
         sigma = sc.crowd.sigma if sigma is None else sigma
         self.disturbance = disturbance if disturbance is not None else disturbance_for(sc)
-        # initial states: humans first, then robot headings, from the one seeded generator
-        humans = initial_crowd(sc, sc.crowd.n, self.rng)
-        self.crowd = Crowd(humans, sc.domain, sigma, self.rng)
+        # initial states: humans first, then robot headings, then the walkers' headings,
+        # all from the one seeded generator
+        humans = initial_humans(sc, self.rng)
+        ped = sc.pedestrians
+        if ped.backend == "jupedsim":
+            from meanfield.jupedsim_api import load_jupedsim
+            from meanfield.pedestrian_crowd import PedestrianCrowd
+
+            load_jupedsim()  # refuse early, with the install command, when JuPedSim is missing
+            self.crowd: Crowd | PedestrianCrowd = PedestrianCrowd(
+                humans, sc.domain, ped.radius, ped.max_speed, ped.time_step, ped.model, sc.seed
+            )
+        else:
+            self.crowd = Crowd(humans, sc.domain, sigma, self.rng)
         self.robot_region = _robot_region(sc.domain, sc.robots.margin)
         if sc.robots.layout == "grid":
             rpos = robot_layout(sc.domain, sc.robots.n, sc.robots.margin)
@@ -256,6 +285,9 @@ class ClosedLoop:
             heads = np.asarray(sc.robots.headings, float)
         self.robots = RobotTeam(rpos, heads, sc.robots.u_max, sc.robots.omega_max)
         self.robots.check_inside(sc.domain)
+        clearance = ped.radius if ped.backend == "jupedsim" else 0.0
+        v = sc.view
+        self.view = LocalView(self.crowd.n, v.radius, v.walk_speed, v.turning_rate, sc.domain, self.rng, clearance)
         self.overrides = sorted(
             name
             for name, value in (
@@ -301,8 +333,13 @@ class ClosedLoop:
 
     # ------------------------------------------------------------------ one step
     def human_drift(self, positions: np.ndarray) -> np.ndarray:
-        """``u_W(X_j) + v_r(X_j, t) + v_a(X_j, t)`` at every human (paper, eq. (1))."""
+        """``u_W(X_j) + v_r(X_j, t) + v_a(X_j, t)`` at every human (paper, eq. (1)).
+
+        With a finite view radius, ``v_r`` is replaced by the random walk for the humans who
+        see no robot (:meth:`LocalView.gate`).
+        """
         drift = navigation_velocity(self.kernel, self.robots.positions, self.robots.headings, positions)
+        self.view.gate(drift, positions, self.robots.positions, self.scenario.dt)
         if self.interaction is not None:
             drift += self.interaction.at_points(positions)
         if self.disturbance is not None:
@@ -333,6 +370,7 @@ class ClosedLoop:
             )
         u, w = saturate_inputs(state.u, state.omega, self.robots.u_max, self.robots.omega_max)
         self.crowd.step(drift, self.t, dt)
+        self.view.advance(dt)
         self.robots.advance(u, w, dt, self.robot_region)
         self.t = (self.step_index + 1) * dt
         self.step_index += 1
@@ -444,6 +482,10 @@ class ClosedLoop:
             "shortfall_max": _finite_max(dataset["shortfall"].values),
             "shortfall_applied_mean": _finite_mean(dataset["shortfall_applied"].values),
             "python_overrides": self.overrides,
+            "backend": sc.pedestrians.backend,
+            "view_radius": sc.view.radius,
+            "seen_fraction_final": float(self.view.seen.mean()),
+            **self._body_summary(dataset),
             "V2_initial": rec.first_V2,
             "V2_final": float(dataset["V2"].values[-1]) if dataset.sizes["time"] else None,
             "A_final": float(self.last_state.A) if self.last_state is not None else None,
@@ -455,6 +497,22 @@ class ClosedLoop:
             "scenario": sc.to_dict(),
         }
         return SimulationResult(sc, dataset, summary, self.kernel)
+
+
+    def _body_summary(self, dataset: Any) -> dict[str, Any]:
+        """JuPedSim runs: the bodies' radius, model and deepest overlap over the recorded frames."""
+        ped = self.scenario.pedestrians
+        if ped.backend != "jupedsim":
+            return {}
+        depth, frame = max_body_overlap(dataset["human_x"].values, dataset["human_y"].values, ped.radius)
+        return {
+            "pedestrian_model": ped.model,
+            "jupedsim_version": self.crowd.adapter.version,
+            "body_radius": ped.radius,
+            "body_overlap_max": depth,
+            "body_overlap_max_relative": depth / (2.0 * ped.radius),
+            "body_overlap_time": float(dataset["time"].values[frame]) if frame >= 0 else None,
+        }
 
 
 def _finite_mean(x: np.ndarray) -> float | None:
@@ -497,6 +555,7 @@ class _Recorder:
         "saturated",
         "robots_at_limit",
         "shortfall_applied",
+        "seen_fraction",
     )
 
     def __post_init__(self) -> None:
@@ -546,6 +605,7 @@ class _Recorder:
         f["human_y"].append(loop.crowd.positions[:, 1].copy())
         f["density"].append(loop.density.copy())
         f["fraction_in_target"].append(frac)
+        f["seen_fraction"].append(float(loop.view.seen.mean()))
         for key in ("robot_speed", "robot_turn_rate"):
             f[key].append(np.full(n, np.nan))
         for key in ("V1", "V2", "rho_error_l2", "v_error_l2", "A", "shortfall", "dissipation"):
@@ -569,6 +629,7 @@ class _Recorder:
             except (FloatingPointError, ValueError):
                 pass
         stack = np.asarray
+        ped = loop.scenario.pedestrians
         ds = xr.Dataset(
             data_vars={
                 "robot_x": (("time", "robot"), stack(f["robot_x"])),
@@ -591,6 +652,7 @@ class _Recorder:
                 "saturated": ("time", stack(f["saturated"], np.int8)),
                 "robots_at_limit": ("time", stack(f["robots_at_limit"], np.int16)),
                 "shortfall_applied": ("time", stack(f["shortfall_applied"], float)),
+                "seen_fraction": ("time", stack(f["seen_fraction"], float)),
             },
             coords={
                 "time": stack(f["time"], float),
@@ -608,12 +670,17 @@ class _Recorder:
                 "target_radius": loop.target_radius,
                 "V1_definition": "V1 = integral of rho_tilde^2 (no factor 1/2)",
                 "V2_definition": "V2 = integral of rho_tilde^2/2 + |v_tilde|^2/2",
+                "backend": loop.scenario.pedestrians.backend,
+                "body_radius": ped.radius if ped.backend == "jupedsim" else 0.0,
             },
         )
         ds["robot_speed"].attrs["description"] = "applied (saturated) speed |u_i| during the step from this frame"
         ds["shortfall"].attrs["description"] = "A minus what the strategy's (unclipped) extra inputs cancel"
         ds["shortfall_applied"].attrs["description"] = (
             "A minus what the applied (saturated) inputs cancel: dV2/dt = -diss - sum k_u|b|^2 - sum k_w g^2 + this"
+        )
+        ds["seen_fraction"].attrs["description"] = (
+            "fraction of humans with a robot within the view radius (1 without gating); recorded at the frame's step"
         )
         ds["robots_at_limit"].attrs["description"] = (
             "robots whose commanded input reached a speed or turn-rate limit in the step from this frame"

@@ -1,0 +1,161 @@
+"""The humans' local view: follow the signs only when a robot is near, else walk randomly.
+
+The paper's Unity study (Section V-B) drops the assumption of eq. (1) that every human
+feels every robot: a human follows the navigation field ``v_r`` (eq. (3)) only while a
+robot is within its view radius ``R``, and walks randomly otherwise.  This module is that
+behaviour, shared by both crowd backends (the point-mass SDE and the JuPedSim bodies), so
+that the effect of view gating can be separated from the effect of bodies.
+
+The random walk is the persistent (active Brownian) walk of speed ``s`` whose heading
+diffuses with rate ``D_r`` (the scenario's ``view.turning_rate``, rad²/s)::
+
+    dθ_j = sqrt(2 D_r) dW_j,      walking velocity  s (cos θ_j, sin θ_j),
+
+so ``E[cos(θ(t) − θ(0))] = exp(−D_r t)``: the heading persists for ``1/D_r`` seconds and
+the walk's mean squared displacement grows like ``2 s² t / D_r`` at long times.  A walker
+whose next step would leave Ω turns as if reflected by the wall.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from meanfield.domain import Domain
+from meanfield.errors import ParameterError
+
+__all__ = ["LocalView", "robots_in_view"]
+
+
+def robots_in_view(humans: np.ndarray, robots: np.ndarray, radius: float) -> np.ndarray:
+    """Boolean mask, shape (N,): which humans have some robot within ``radius``.
+
+    Parameters
+    ----------
+    humans : ndarray, shape (N, 2)
+    robots : ndarray, shape (n, 2)
+    radius : float
+        View radius ``R > 0``; ``inf`` means every human sees the robots.
+    """
+    if math.isinf(radius):
+        return np.ones(len(humans), dtype=bool)
+    seen = np.zeros(len(humans), dtype=bool)
+    r2 = radius * radius
+    for rx, ry in robots:  # n is small: n passes over N beat one (N, n) temporary
+        dx = humans[:, 0] - rx
+        dy = humans[:, 1] - ry
+        seen |= dx * dx + dy * dy <= r2
+    return seen
+
+
+class LocalView:
+    """View gating and the persistent random walk of the humans who see no robot.
+
+    Parameters
+    ----------
+    n : int
+        Number of humans.
+    radius : float or None
+        View radius ``R > 0`` (metres of the scenario); ``None``: no gating.
+    walk_speed : float
+        Speed ``s >= 0`` of the random walk.
+    turning_rate : float
+        Heading diffusion ``D_r >= 0`` (rad²/s).
+    domain : Domain
+        Ω, whose walls turn the walkers.
+    rng : numpy.random.Generator
+        Source of the initial headings (uniform) and of the heading increments.
+    clearance : float
+        Extra distance to the wall at which a walker turns (a body's radius).
+    """
+
+    def __init__(
+        self,
+        n: int,
+        radius: float | None,
+        walk_speed: float,
+        turning_rate: float,
+        domain: Domain,
+        rng: np.random.Generator,
+        clearance: float = 0.0,
+    ):
+        if radius is not None and not radius > 0:
+            raise ParameterError("view.radius", radius, 'a view radius > 0, or "none" (no gating)')
+        if not walk_speed >= 0:
+            raise ParameterError("view.walk_speed", walk_speed, "a speed >= 0")
+        if not turning_rate >= 0:
+            raise ParameterError("view.turning_rate", turning_rate, "a rate >= 0 (rad²/s)")
+        self.radius = math.inf if radius is None else float(radius)
+        self.walk_speed = float(walk_speed)
+        self.turning_rate = float(turning_rate)
+        self.domain = domain
+        self.rng = rng
+        self.clearance = float(clearance)
+        self.headings = rng.uniform(0.0, 2 * math.pi, n) if self.gated else np.zeros(n)
+        self.seen = np.ones(n, dtype=bool)
+
+    @property
+    def gated(self) -> bool:
+        """True when the view radius is finite (the Unity study's behaviour)."""
+        return not math.isinf(self.radius)
+
+    def advance(self, dt: float) -> None:
+        """One Euler–Maruyama step of the heading diffusion ``dθ = sqrt(2 D_r) dW``."""
+        if self.gated and self.turning_rate > 0:
+            self.headings += math.sqrt(2.0 * self.turning_rate * dt) * self.rng.standard_normal(len(self.headings))
+
+    def walk_velocity(self, positions: np.ndarray, dt: float, which: np.ndarray | None = None) -> np.ndarray:
+        """Walking velocity at ``positions`` (rows ``which`` of the crowd), turned away from walls.
+
+        A heading whose step of length ``s dt + clearance`` would leave Ω is replaced by
+        the direction to that step's mirror image in the wall (a specular turn).
+
+        Parameters
+        ----------
+        positions : ndarray, shape (M, 2)
+            Positions of the humans ``which`` (all N when ``which`` is None).
+        dt : float
+        which : ndarray of int, optional
+            Their indices in the crowd (their headings).
+        """
+        idx = np.arange(len(self.headings)) if which is None else np.asarray(which)
+        theta = self.headings[idx]
+        e = np.column_stack([np.cos(theta), np.sin(theta)])
+        reach = self.walk_speed * dt + self.clearance
+        if reach > 0 and len(idx):
+            ahead = positions + reach * e
+            out = ~self.domain.contains(ahead[:, 0], ahead[:, 1])
+            if out.any():
+                d = self.domain.reflect(ahead[out].copy()) - positions[out]
+                norm = np.hypot(d[:, 0], d[:, 1])
+                ok = norm > 0
+                rows = np.flatnonzero(out)[ok]
+                e[rows] = d[ok] / norm[ok, None]
+                self.headings[idx[rows]] = np.arctan2(d[ok, 1], d[ok, 0])
+        return self.walk_speed * e
+
+    def gate(self, v_r: np.ndarray, positions: np.ndarray, robots: np.ndarray, dt: float) -> np.ndarray:
+        """Replace, in place, the navigation velocity of every human who sees no robot by its walk.
+
+        Parameters
+        ----------
+        v_r : ndarray, shape (N, 2)
+            The navigation velocity (eq. (3)) at each human.
+        positions : ndarray, shape (N, 2)
+        robots : ndarray, shape (n, 2)
+        dt : float
+            The control period (the walkers' look-ahead).
+
+        Returns
+        -------
+        ndarray
+            ``v_r``, with the walkers' rows replaced; :attr:`seen` holds who sees a robot.
+        """
+        if not self.gated:
+            return v_r
+        self.seen = robots_in_view(positions, robots, self.radius)
+        walkers = np.flatnonzero(~self.seen)
+        if len(walkers):
+            v_r[walkers] = self.walk_velocity(positions[walkers], dt, walkers)
+        return v_r
