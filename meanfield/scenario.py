@@ -648,7 +648,10 @@ def paper_unity_scenario(seed: int = 0) -> Scenario:
     ``α`` by ``L²/T``, rates by ``1/T``, densities by ``1/L²``, with one exception: the
     crowd's diffusion is a pedestrian's ``σ = 0.5 m²/s``, not the similar 13.5 m²/s (a
     random displacement of 5 m per second is not walking; JuPedSim bodies have no such
-    noise, and a controller that assumes it concentrates them).  The Unity study's own
+    noise, and a controller that assumes it concentrates them).  The crowd, the density
+    estimate and the Step-I law (``v_d``, ``ṽ``) are then exactly similar to the paper
+    scenario's; the robot law is not, because ``V₂`` adds ``∫ρ̃²`` (scaling as ``1/L²``) to
+    ``∫|ṽ|²`` (scaling as ``L⁴/T²``), so its inputs depend on the unit of length.  The Unity study's own
     assumptions are added on top: a human follows the signs only within 30 m of a robot
     and otherwise walks randomly (1.0 m/s, heading persistence ``1/D_r`` = 20 s), and the
     crowd may be run as JuPedSim bodies (``pedestrians.backend = "jupedsim"``).  The
