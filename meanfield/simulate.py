@@ -286,6 +286,9 @@ class ClosedLoop:
         self.robots = RobotTeam(rpos, heads, sc.robots.u_max, sc.robots.omega_max)
         self.robots.check_inside(sc.domain)
         clearance = ped.radius if ped.backend == "jupedsim" else 0.0
+        self.bodies = clearance  # body radius of the JuPedSim backend; 0: point masses
+        self.max_body_overlap = 0.0
+        self.max_body_overlap_time: float | None = None
         v = sc.view
         self.view = LocalView(self.crowd.n, v.radius, v.walk_speed, v.turning_rate, sc.domain, self.rng, clearance)
         self.overrides = sorted(
@@ -371,6 +374,10 @@ class ClosedLoop:
         u, w = saturate_inputs(state.u, state.omega, self.robots.u_max, self.robots.omega_max)
         self.crowd.step(drift, self.t, dt)
         self.view.advance(dt)
+        if self.bodies:
+            depth, _ = max_body_overlap(self.crowd.positions[:, 0], self.crowd.positions[:, 1], self.bodies)
+            if depth > self.max_body_overlap:
+                self.max_body_overlap, self.max_body_overlap_time = depth, (self.step_index + 1) * dt
         self.robots.advance(u, w, dt, self.robot_region)
         self.t = (self.step_index + 1) * dt
         self.step_index += 1
@@ -500,18 +507,28 @@ class ClosedLoop:
 
 
     def _body_summary(self, dataset: Any) -> dict[str, Any]:
-        """JuPedSim runs: the bodies' radius, model and deepest overlap over the recorded frames."""
+        """JuPedSim runs: the bodies' radius, model and deepest overlap.
+
+        ``body_overlap_max`` is over every control step (tracked by :meth:`step`),
+        ``body_overlap_max_recorded`` over the recorded frames of ``timeseries.nc`` (what
+        anyone can re-check from the saved trajectories with
+        :func:`~meanfield.metrics.max_body_overlap`).
+        """
         ped = self.scenario.pedestrians
         if ped.backend != "jupedsim":
             return {}
         depth, frame = max_body_overlap(dataset["human_x"].values, dataset["human_y"].values, ped.radius)
+        worst = max(self.max_body_overlap, depth)
         return {
             "pedestrian_model": ped.model,
             "jupedsim_version": self.crowd.adapter.version,
             "body_radius": ped.radius,
-            "body_overlap_max": depth,
-            "body_overlap_max_relative": depth / (2.0 * ped.radius),
-            "body_overlap_time": float(dataset["time"].values[frame]) if frame >= 0 else None,
+            "body_overlap_max": worst,
+            "body_overlap_max_relative": worst / (2.0 * ped.radius),
+            "body_overlap_time": self.max_body_overlap_time if worst > depth else (
+                float(dataset["time"].values[frame]) if frame >= 0 else None
+            ),
+            "body_overlap_max_recorded": depth,
         }
 
 
