@@ -17,6 +17,7 @@ Tested with JuPedSim 1.4.2.  Install (see the README for why ``--no-deps``)::
 from __future__ import annotations
 
 import importlib
+import itertools
 from typing import Any
 
 import numpy as np
@@ -114,8 +115,7 @@ class JuPedSimAdapter:
         self._journey = self.sim.add_journey(jps.JourneyDescription([stage]))
         self._handles: list[Any] = []
         self._states: list[Any] = []
-        self._target_attr = "target"
-        self._speed_attr = "desired_speed"
+        self._speeds = np.empty(0)
 
     # ------------------------------------------------------------------ agents
     def add_agents(self, positions: np.ndarray, radius: float, desired_speed: float) -> None:
@@ -131,9 +131,15 @@ class JuPedSimAdapter:
         native = self.sim._obj  # the bound C++ simulation: its agent handles skip the Python wrappers
         self._handles = [native.agent(i) for i in ids]
         self._states = [h.model for h in self._handles]
-        first = self._handles[0]
-        self._target_attr = _first_attribute(first, ("final_target", "target"), "the direct-steering target")
-        self._speed_attr = _first_attribute(self._states[0], ("desired_speed", "v0"), "the desired speed")
+        # the renamed attributes, resolved once; their bound setters and getter are called
+        # directly in the per-step loops (no attribute look-up per agent)
+        agent_type, state_type = type(self._handles[0]), type(self._states[0])
+        target = _first_attribute(agent_type, ("final_target", "target"), "the direct-steering target")
+        speed = _first_attribute(state_type, ("desired_speed", "v0"), "the desired speed")
+        self._set_target = getattr(agent_type, target).fset
+        self._set_speed = getattr(state_type, speed).fset
+        self._get_position = agent_type.position.fget
+        self._speeds = np.full(len(self._handles), float(desired_speed))
 
     def _agent_parameters(self, position: tuple[float, float], radius: float, speed: float) -> Any:
         common = {"position": position, "journey_id": self._journey, "stage_id": self._stage}
@@ -149,18 +155,26 @@ class JuPedSimAdapter:
 
     # ------------------------------------------------------------------ steering
     def steer(self, targets: np.ndarray, speeds: np.ndarray) -> None:
-        """Set every agent's target point (N, 2), inside the walkable area, and desired speed (N,)."""
-        attr, sattr = self._target_attr, self._speed_attr
-        for h, s, xy, v in zip(self._handles, self._states, targets.tolist(), speeds.tolist(), strict=True):
-            setattr(h, attr, xy)
-            setattr(s, sattr, v)
+        """Set every agent's target point (N, 2), inside the walkable area, and desired speed (N,).
+
+        Only the speeds that changed since the last call cross into JuPedSim.
+        """
+        if len(targets) != len(self._handles) or len(speeds) != len(self._handles):
+            raise ValueError(f"steer: {len(self._handles)} targets and speeds expected")
+        list(map(self._set_target, self._handles, targets.tolist()))
+        changed = np.flatnonzero(speeds != self._speeds)
+        if len(changed):
+            states = self._states
+            list(map(self._set_speed, [states[i] for i in changed], speeds[changed].tolist()))
+            self._speeds[changed] = speeds[changed]
 
     def positions(self, out: np.ndarray | None = None) -> np.ndarray:
         """Agent positions, shape (N, 2), in the order they were added (written into ``out``)."""
-        pos = [h.position for h in self._handles]
+        n = len(self._handles)
+        flat = np.fromiter(itertools.chain.from_iterable(map(self._get_position, self._handles)), float, 2 * n)
         if out is None:
-            return np.array(pos, float)
-        out[:] = pos
+            return flat.reshape(n, 2)
+        out[:] = flat.reshape(n, 2)
         return out
 
     def iterate(self, count: int = 1) -> None:
