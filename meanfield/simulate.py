@@ -505,7 +505,6 @@ class ClosedLoop:
         }
         return SimulationResult(sc, dataset, summary, self.kernel)
 
-
     def _body_summary(self, dataset: Any) -> dict[str, Any]:
         """JuPedSim runs: the bodies' radius, model and deepest overlap.
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +15,7 @@ from meanfield import SimulationDiverged, paper_scenario
 from meanfield.scenario import RobotSpec
 from verification import agents as agents_mod
 from verification import mean_field as mean_field_mod
-from verification.agents import agents_verdict, check_agents, check_pedestrians
+from verification.agents import agents_verdict, check_agents, check_pedestrians, pedestrians_verdict
 from verification.mean_field import check_mean_field, mean_field_verdict
 from verification.result import CheckResult
 from verification.robot_count import EPS_FRACTIONS, check_robot_count, robot_count_verdict
@@ -195,15 +196,53 @@ def test_check_agents_reports_a_diverged_run(tiny, tmp_path, monkeypatch):
 
 
 # ---------------------------------------------------------------------- pedestrians
-def test_pedestrians_is_inconclusive_with_a_reason(tiny, tmp_path):
-    res = check_pedestrians(tiny, tmp_path, quick=True)
+def test_pedestrians_rule():
+    done = ["completed"] * 3
+    assert pedestrians_verdict([0.9, 0.8, 0.2], done, [0.0, 0.004, 0.01]) == ("holds", 0.8, 0.01)
+    assert pedestrians_verdict([0.9, 0.79, 0.5], done, [0.0, 0.0, 0.0]) == ("fails", 0.79, 0.0)  # median fraction < 0.8
+    verdict, med, worst_overlap = pedestrians_verdict([0.9, 0.9, 0.9], done, [0.0, 0.02, 0.0])
+    assert (verdict, med, worst_overlap) == ("fails", 0.9, 0.02)  # bodies overlap by 2 % of a diameter
+    assert pedestrians_verdict([0.9, 0.9, 0.9], done, [0.0, None, 0.0]) == ("fails", 0.9, math.inf)  # unknown
+    assert pedestrians_verdict([], [], [])[0] == "inconclusive"
+    assert pedestrians_verdict([0.9], ["completed", "completed"], [0.0])[0] == "inconclusive"
+
+
+def test_pedestrians_rule_fails_on_a_diverged_run():
+    # the median of the fractions would pass, but one run did not complete
+    verdict, med, worst_overlap = pedestrians_verdict([0.95, 0.95, 0.95], ["completed", "diverged", "completed"],
+                                                      [0.0, None, 0.0])
+    assert (verdict, med, worst_overlap) == ("fails", 0.95, 0.0)
+
+
+def test_pedestrians_without_jupedsim_is_inconclusive_with_the_install_command(tiny, tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "jupedsim", None)  # import jupedsim now raises ImportError
+    res = check_pedestrians(tiny, tmp_path, quick=True, workers=1)
     _assert_contract(res, "pedestrians", tmp_path)
     assert res.verdict == "inconclusive"
-    assert "pedestrian backend" in res.reason and res.figures == []
+    assert "pip install" in res.reason and "JuPedSim" in res.reason
+    assert res.figures == [] and res.cases == []
+    assert "paper_unity_scenario" in res.measured["settings"]["scenario"]
 
 
-def test_pedestrians_with_a_backend_is_still_inconclusive(tiny, tmp_path, monkeypatch):
-    monkeypatch.setattr(agents_mod, "pedestrian_backends", lambda: ("jupedsim",))
-    monkeypatch.setattr(agents_mod.importlib.util, "find_spec", lambda name: object())
-    res = check_pedestrians(tiny, tmp_path)
-    assert res.verdict == "inconclusive" and "not wired" in res.reason
+def test_check_pedestrians_end_to_end_on_a_short_horizon(tiny, tmp_path, monkeypatch):
+    pytest.importorskip("jupedsim", reason="JuPedSim not installed (see README: the pedestrians extra)")
+    real = agents_mod.paper_unity_scenario
+    monkeypatch.setattr(agents_mod, "paper_unity_scenario", lambda seed=0: real(seed).replace(t_final=25.0))
+    res = check_pedestrians(tiny, tmp_path, quick=True, workers=1)  # the tiny scenario is ignored
+    d = _assert_contract(res, "pedestrians", tmp_path)
+    assert res.verdict in ("holds", "fails")  # 25 s is too short to judge the claim: not asserted
+    assert res.figures == ["figures/pedestrians_fraction_in_target.png"]
+    assert [(c["run"], c["seed"], c["role"]) for c in d["cases"]] == [
+        ("JuPedSim bodies, 30 m view", s, "judged") for s in (0, 1, 2)
+    ]
+    settings = res.measured["settings"]
+    assert (settings["t_final_s"], settings["humans"], settings["robots"], settings["view_radius_m"]) == (
+        25.0, 200, 16, 30.0)
+    assert settings["jupedsim_version"]
+    for c in d["cases"]:
+        assert c["status"] == "completed" and c["time_final"] == pytest.approx(25.0)
+        assert 0.0 <= c["fraction_in_target"] <= 1.0 and c["body_overlap_max_relative"] is not None
+    verdict, med, worst_overlap = pedestrians_verdict(
+        res.measured["fraction_in_target"], res.measured["status"], [c["body_overlap_max_relative"] for c in d["cases"]]
+    )
+    assert (res.verdict, res.measured["median_fraction_in_target"]) == (verdict, pytest.approx(med))

@@ -9,13 +9,15 @@ several seeds and asks for both: most humans in the target region, and a density
 that has decreased.
 
 Section V, second study (Unity): humans with bodies and a limited view radius follow a
-robot only when they see one.  That needs a pedestrian backend (JuPedSim in this
-toolkit's design), which this version does not have: :func:`check_pedestrians` says so.
+robot only when they see one, "and eventually they are also directed to the target
+location".  :func:`check_pedestrians` runs the paper's Unity study
+(:func:`meanfield.scenario.paper_unity_scenario`, whatever the verified scenario) with the
+humans as JuPedSim bodies and asks for most humans in the target region with no bodies
+overlapping; point-mass runs with and without the view radius are reported for comparison.
 """
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import time
 from pathlib import Path
@@ -25,7 +27,7 @@ import numpy as np
 
 from analysis.parallel import map_jobs
 from meanfield.errors import ParameterError, SimulationDiverged
-from meanfield.scenario import Scenario
+from meanfield.scenario import Scenario, paper_unity_scenario
 from verification.result import CheckResult
 
 __all__ = [
@@ -36,7 +38,7 @@ __all__ = [
     "agents_verdict",
     "check_agents",
     "check_pedestrians",
-    "pedestrian_backends",
+    "pedestrians_verdict",
 ]
 
 KEY = "agents"
@@ -273,20 +275,144 @@ PEDESTRIANS_CLAIM = (
     "radius (150 m × 150 m map) \"eventually ... are also directed to the target location\", so the algorithm "
     "is robust to scenarios that are not precisely modeled."
 )
-NOT_AVAILABLE = (
-    "the pedestrian backend (JuPedSim, the paper's Unity study) is not available in this version of the toolkit"
+PEDESTRIANS_FRACTION_THRESHOLD = 0.8
+OVERLAP_THRESHOLD = 0.01  # deepest body overlap, as a fraction of a body's diameter
+PEDESTRIANS_QUICK_SEEDS: tuple[int, ...] = (0, 1, 2)
+PEDESTRIANS_FULL_SEEDS: tuple[int, ...] = tuple(range(5))
+
+# variant -> (label, pedestrians.backend, view gating); the first is judged, the others are reported (full mode)
+VARIANTS: dict[str, tuple[str, str, bool]] = {
+    "jupedsim": ("JuPedSim bodies, 30 m view", "jupedsim", True),
+    "point-mass": ("point mass, 30 m view", "point-mass", True),
+    "point-mass-no-view": ("point mass, no view gating", "point-mass", False),
+}
+
+PEDESTRIANS_CRITERION = (
+    "always on the paper's Unity study (meanfield.scenario.paper_unity_scenario: 150 × 150 m, 200 humans, "
+    "16 robots, 30 m view radius, target at the corner (150, 150), t_final 1000 s), whatever the verified "
+    "scenario, with the humans as JuPedSim bodies (collision-free speed model, radius 0.2 m); holds when, over "
+    f"seeds, the median fraction of humans in the target region at t_final is ≥ {PEDESTRIANS_FRACTION_THRESHOLD} "
+    "AND every run completed (a diverged run fails the check) AND the deepest overlap of two bodies over all runs "
+    f"and recorded frames is ≤ {OVERLAP_THRESHOLD:g} of a body diameter (the collision-free model should keep "
+    "bodies apart); fails otherwise; inconclusive when JuPedSim is not installed. The full variant also runs "
+    "point-mass humans with and without the view radius on the same seeds: reported, not judged"
 )
-NOT_WIRED = "a pedestrian backend is installed but not wired into verification yet"
 
 
-def pedestrian_backends() -> tuple[str, ...]:
-    """Installed pedestrian backends (plugin kind ``"backend"``), or ``()`` if that kind is unknown."""
-    from meanfield import plugins
+def pedestrians_verdict(
+    fractions: list[float | None],
+    statuses: list[str],
+    overlaps: list[float | None],
+    fraction_threshold: float = PEDESTRIANS_FRACTION_THRESHOLD,
+    overlap_threshold: float = OVERLAP_THRESHOLD,
+) -> tuple[str, float, float]:
+    """The decision rule of :func:`check_pedestrians` (the JuPedSim runs only).
 
-    try:
-        return tuple(plugins.available("backend"))
-    except (ValueError, KeyError):  # ParameterError (an unknown plugin kind) is a ValueError
-        return ()
+    Parameters
+    ----------
+    fractions : list of float
+        Fraction of humans in the target region at ``t_final``, per seed; a run that did
+        not complete counts as 0.
+    statuses : list of str
+        Run status per seed; anything but ``"completed"`` (a diverged run) fails the check.
+    overlaps : list of float or None
+        ``body_overlap_max_relative`` per seed (deepest overlap / body diameter); None or
+        NaN for a completed run counts as +inf (not shown to be collision-free).
+    fraction_threshold, overlap_threshold : float
+        Success needs ``median fraction >= fraction_threshold``, every run completed and
+        ``max overlap <= overlap_threshold``.
+
+    Returns
+    -------
+    verdict : {"holds", "fails", "inconclusive"}
+        ``"inconclusive"`` only when there is no seed or the lists differ in length.
+    median_fraction, worst_overlap : float
+        The median judged and the deepest relative overlap over the runs.
+    """
+    if not statuses or not (len(fractions) == len(statuses) == len(overlaps)):
+        return "inconclusive", math.nan, math.nan
+    fr, ov = [], []
+    for f, s, o in zip(fractions, statuses, overlaps, strict=True):
+        done = s == "completed"
+        fr.append(float(f) if done and f is not None and math.isfinite(float(f)) else 0.0)
+        if o is not None and math.isfinite(float(o)):
+            ov.append(float(o))
+        elif done:
+            ov.append(math.inf)
+    med_f = float(np.median(fr))
+    worst_o = max(ov) if ov else math.nan
+    ok = med_f >= fraction_threshold and all(s == "completed" for s in statuses) and worst_o <= overlap_threshold
+    return ("holds" if ok else "fails"), med_f, worst_o
+
+
+def unity_scenario(seed: int, variant: str) -> Scenario:
+    """The paper's Unity study for ``seed``, with the crowd backend and view gating of ``variant``."""
+    _, backend, gated = VARIANTS[variant]
+    values: dict[str, Any] = {"pedestrians.backend": backend}
+    if not gated:
+        values["view.radius"] = "none"
+    return paper_unity_scenario(seed).with_values(values)
+
+
+def _run_unity(job: tuple[str, dict[str, Any]]) -> dict[str, Any]:
+    """One Unity-study closed loop (module level: runs in a worker process)."""
+    from meanfield.simulate import ClosedLoop
+
+    variant, d = job
+    res = ClosedLoop(Scenario.from_dict(d)).run(progress=False)
+    s, ds = res.summary, res.dataset
+    return {
+        "variant": variant,
+        "seed": s["seed"],
+        "status": s["status"],
+        "message": s["message"],
+        "fraction_in_target": s["fraction_in_target"],
+        "time_to_90": s["time_to_90"],
+        "l2_error_ratio": s["l2_error_ratio"],
+        "seen_fraction_final": s["seen_fraction_final"],
+        "body_overlap_max": s.get("body_overlap_max"),
+        "body_overlap_max_relative": s.get("body_overlap_max_relative"),
+        "time_final": s["time_final"],
+        "wall_seconds": s["wall_seconds"],
+        "time": ds["time"].values,
+        "fraction_series": ds["fraction_in_target"].values,
+        "seen_series": ds["seen_fraction"].values,
+    }
+
+
+def _plot_unity(runs: list[dict[str, Any]], path: Path) -> None:
+    from matplotlib.figure import Figure
+
+    from analysis.figures import save_figure
+
+    styles = {"jupedsim": "-", "point-mass": "--", "point-mass-no-view": ":"}
+    seeds = sorted({r["seed"] for r in runs})
+    fig = Figure(figsize=(10.0, 3.8))
+    ax, bx = fig.subplots(1, 2)
+    for r in runs:
+        color = f"C{seeds.index(r['seed']) % 10}"
+        label = f"{VARIANTS[r['variant']][0]}, seed {r['seed']}"
+        ax.plot(r["time"], r["fraction_series"], styles[r["variant"]], color=color, lw=1.0, label=label)
+        if r["variant"] == "jupedsim":
+            bx.plot(r["time"], r["seen_series"], "-", color=color, lw=1.0, label=f"seed {r['seed']}")
+    ax.axhline(PEDESTRIANS_FRACTION_THRESHOLD, color="k", ls=":", lw=0.8)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("fraction of humans in the target region")
+    ax.set_ylim(-0.02, 1.02)
+    ax.set_title("Unity study: humans guided to the target", fontsize=10)
+    ax.legend(fontsize=5.5, ncol=1 + (len(runs) > 5))
+    bx.set_xlabel("time (s)")
+    bx.set_ylabel("fraction of humans who see a robot")
+    bx.set_ylim(-0.02, 1.02)
+    bx.set_title("JuPedSim runs: humans within 30 m of a robot", fontsize=10)
+    bx.legend(fontsize=6)
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
+def _median(values: list[float | None]) -> float:
+    v = [float(x) for x in values if x is not None and math.isfinite(float(x))]
+    return float(np.median(v)) if v else math.nan
 
 
 def check_pedestrians(
@@ -297,41 +423,162 @@ def check_pedestrians(
     progress: bool = False,
     workers: int | None = None,
 ) -> CheckResult:
-    """The Unity study of Section V (view radius, bodies): inconclusive in this version.
+    """Check the Unity study of Section V: humans with bodies and a 30 m view reach the target.
 
     Paper, Section V: "In the Unity simulation, the humans are guided only when they see
     a robot near them and eventually they are also directed to the target location,
     which suggests that the evacuation algorithm is robust to scenarios that are not
-    precisely modeled."  Checking it needs a pedestrian simulator with bodies and local
-    views (JuPedSim in this toolkit's design).  No such backend exists in this version;
-    if one is found (plugin kind ``"backend"`` and the ``jupedsim`` package) it is not
-    wired into the check yet.  Either way the verdict is ``"inconclusive"``.
+    precisely modeled."
+
+    The claim is about the paper's Unity study, so the check **does not use the
+    ``scenario`` argument's parameters**: it always runs
+    :func:`meanfield.scenario.paper_unity_scenario` (150 × 150 m, 200 humans, 16 robots,
+    30 m view radius, t_final 1000 s) with ``pedestrians.backend = "jupedsim"``, over
+    several seeds (``measured["settings"]`` says so).  Decision rule
+    (:func:`pedestrians_verdict`): median fraction in the target region at t_final ≥ 0.8,
+    every run completed, and the deepest body overlap ≤ 1 % of a diameter.  The full
+    variant also runs point-mass humans with and without the view radius on the same
+    seeds, reported but not judged.  Without JuPedSim the verdict is ``"inconclusive"``
+    with the install command.
 
     Parameters
     ----------
     scenario : Scenario
-        Unused.
+        Not used (see above); the runner has already refused a non-convex domain.
     out_dir : Path
-        Unused (no figure).
-    quick, progress : bool
-        Unused.
+        The report's directory; the figure goes to ``out_dir / "figures"``.
+    quick : bool
+        JuPedSim seeds 0, 1, 2 only; otherwise seeds 0–4 and the point-mass comparisons.
+    progress : bool
+        Show a progress bar over the runs.
     workers : int, optional
-        Unused.
+        Worker processes (default: the cores; 1: this process).
 
     Returns
     -------
     CheckResult
-        Key ``"pedestrians"``, verdict ``"inconclusive"`` with the reason.
+        Key ``"pedestrians"``; one case per run (the point-mass ones marked ``"comparison"``).
     """
+    from meanfield.jupedsim_api import JuPedSimUnavailable, jupedsim_version, load_jupedsim
+
+    del scenario  # the claim is about the paper's Unity study, not the verified scenario
     start = time.perf_counter()
-    backends = pedestrian_backends()
-    installed = importlib.util.find_spec("jupedsim") is not None
-    reason = NOT_WIRED if (installed and backends) else NOT_AVAILABLE
-    return CheckResult.inconclusive(
+    out_dir = Path(out_dir)
+    seeds = PEDESTRIANS_QUICK_SEEDS if quick else PEDESTRIANS_FULL_SEEDS
+    variants = ["jupedsim"] if quick else list(VARIANTS)
+    ref = unity_scenario(seeds[0], "jupedsim")
+    settings = {
+        "scenario": f"{ref.name} (meanfield.scenario.paper_unity_scenario), independent of the verified scenario",
+        "seeds": list(seeds),
+        "judged": VARIANTS["jupedsim"][0],
+        "comparisons": [VARIANTS[v][0] for v in variants[1:]],
+        "domain_m": [ref.domain.bounds[1] - ref.domain.bounds[0], ref.domain.bounds[3] - ref.domain.bounds[2]],
+        "humans": ref.crowd.n,
+        "robots": ref.robots.n,
+        "view_radius_m": ref.view.radius,
+        "target_center": list(ref.target.center),
+        "t_final_s": ref.t_final,
+        "dt_s": ref.dt,
+        "pedestrian_model": ref.pedestrians.model,
+        "body_radius_m": ref.pedestrians.radius,
+        "jupedsim_version": jupedsim_version(),
+    }
+    try:
+        load_jupedsim()
+    except JuPedSimUnavailable as exc:
+        reason = f"JuPedSim, the pedestrian backend of the Unity study, is not installed: {exc}"
+        return CheckResult.inconclusive(PEDESTRIANS_KEY, PEDESTRIANS_CLAIM, reason, criterion=PEDESTRIANS_CRITERION,
+                                        measured={"settings": settings}, seconds=time.perf_counter() - start)
+    jobs = [(v, unity_scenario(s, v).to_dict()) for v in variants for s in seeds]
+    try:
+        runs = map_jobs(_run_unity, jobs, workers, "pedestrians (runs)", progress)
+    except (ParameterError, SimulationDiverged) as exc:
+        reason = f"the Unity study's closed loop cannot be run: {exc}"
+        return CheckResult.inconclusive(PEDESTRIANS_KEY, PEDESTRIANS_CLAIM, reason, criterion=PEDESTRIANS_CRITERION,
+                                        measured={"settings": settings}, seconds=time.perf_counter() - start)
+    judged = [r for r in runs if r["variant"] == "jupedsim"]
+    fractions = [r["fraction_in_target"] for r in judged]
+    statuses = [r["status"] for r in judged]
+    overlaps = [r["body_overlap_max_relative"] for r in judged]
+    verdict, med_f, worst_o = pedestrians_verdict(fractions, statuses, overlaps)
+    failed = [r["seed"] for r in judged if r["status"] != "completed"]
+
+    (out_dir / "figures").mkdir(parents=True, exist_ok=True)
+    rel = f"figures/{PEDESTRIANS_KEY}_fraction_in_target.png"
+    _plot_unity(runs, out_dir / rel)
+
+    cases = []
+    for r in runs:
+        role = "judged" if r["variant"] == "jupedsim" else "comparison"
+        if role == "comparison":
+            case_verdict = "not judged"
+        else:
+            case_verdict = pedestrians_verdict([r["fraction_in_target"]], [r["status"]],
+                                               [r["body_overlap_max_relative"]])[0]
+        cases.append({
+            "run": VARIANTS[r["variant"]][0],
+            "role": role,
+            "seed": r["seed"],
+            "status": r["status"],
+            "message": r["message"],
+            "fraction_in_target": r["fraction_in_target"],
+            "time_to_90": r["time_to_90"],
+            "l2_error_ratio": r["l2_error_ratio"],
+            "seen_fraction_final": r["seen_fraction_final"],
+            "body_overlap_max_relative": r["body_overlap_max_relative"],
+            "time_final": r["time_final"],
+            "wall_seconds": r["wall_seconds"],
+            "verdict": case_verdict,
+        })
+    comparison = {
+        VARIANTS[v][0]: {
+            "median_fraction_in_target": _median([r["fraction_in_target"] for r in runs if r["variant"] == v]),
+            "fraction_in_target": [r["fraction_in_target"] for r in runs if r["variant"] == v],
+            "time_to_90": [r["time_to_90"] for r in runs if r["variant"] == v],
+        }
+        for v in variants[1:]
+    }
+    measured: dict[str, Any] = {
+        "settings": settings,
+        "median_fraction_in_target": med_f,
+        "fraction_in_target": fractions,
+        "time_to_90": [r["time_to_90"] for r in judged],
+        "seen_fraction_final": [r["seen_fraction_final"] for r in judged],
+        "body_overlap_max_relative_worst": worst_o,
+        "body_overlap_max_m": [r["body_overlap_max"] for r in judged],
+        "status": statuses,
+        "diverged_seeds": failed,
+    }
+    if comparison:
+        measured["comparison"] = comparison
+    summary = (
+        f"JuPedSim bodies, 30 m view: median fraction in target {med_f:.3g} (≥ {PEDESTRIANS_FRACTION_THRESHOLD}), "
+        f"deepest body overlap {worst_o:.3g} of a diameter (≤ {OVERLAP_THRESHOLD:g}) over seeds {list(seeds)}"
+        + (f"; diverged seeds {failed}" if failed else "")
+        + "".join(f"; {k}: median {c['median_fraction_in_target']:.3g}" for k, c in comparison.items())
+    )
+    reasons = []
+    if verdict == "fails":
+        if med_f < PEDESTRIANS_FRACTION_THRESHOLD:
+            reasons.append(f"median fraction in target {med_f:.3g} < {PEDESTRIANS_FRACTION_THRESHOLD}")
+        if not worst_o <= OVERLAP_THRESHOLD:
+            reasons.append(f"bodies overlap by {worst_o:.3g} of a diameter > {OVERLAP_THRESHOLD:g}")
+        if failed:
+            reasons.append(f"runs of seeds {failed} did not complete")
+    return CheckResult(
         PEDESTRIANS_KEY,
         PEDESTRIANS_CLAIM,
-        reason,
-        measured={"jupedsim_installed": installed, "backends": list(backends)},
-        criterion="needs a pedestrian backend with bodies and view radii; without one the check cannot decide",
+        verdict,  # type: ignore[arg-type]
+        summary=summary,
+        measured=measured,
+        bound={
+            "median_fraction_in_target_min": PEDESTRIANS_FRACTION_THRESHOLD,
+            "body_overlap_max_relative_max": OVERLAP_THRESHOLD,
+            "runs_completed": "all",
+        },
+        reason="; ".join(reasons),
+        criterion=PEDESTRIANS_CRITERION,
+        cases=cases,
+        figures=[rel],
         seconds=time.perf_counter() - start,
     )
