@@ -293,7 +293,7 @@ PEDESTRIANS_CRITERION = (
     "scenario, with the humans as JuPedSim bodies (collision-free speed model, radius 0.2 m); holds when, over "
     f"seeds, the median fraction of humans in the target region at t_final is ≥ {PEDESTRIANS_FRACTION_THRESHOLD} "
     "AND every run completed (a diverged run fails the check) AND the deepest overlap of two bodies over all runs "
-    f"and recorded frames is ≤ {OVERLAP_THRESHOLD:g} of a body diameter (the collision-free model should keep "
+    f"and control steps is ≤ {OVERLAP_THRESHOLD:g} of a body diameter (the collision-free model should keep "
     "bodies apart); fails otherwise; inconclusive when JuPedSim is not installed. The full variant also runs "
     "point-mass humans with and without the view radius on the same seeds: reported, not judged"
 )
