@@ -142,13 +142,20 @@ class GridSpec:
 
 @dataclass
 class CrowdSpec:
-    """Humans: count ``n >= 1``, initial distribution, diffusion ``σ >= 0``."""
+    """Humans: count ``n >= 1``, initial distribution, diffusion ``σ >= 0``.
+
+    ``field_evaluation`` is how ``v_r`` reaches the humans: ``"exact"`` (eq. (3) at each
+    human, O(N n)), ``"sampled"`` (on a lattice twice as fine as the grid, interpolated
+    bilinearly, O(N + n M): :mod:`meanfield.sampled_field`) or ``"auto"`` (sampled when
+    ``N n > 2·10⁶``).
+    """
 
     n: int = 200
     initial: str = "uniform"
     initial_center: tuple[float, float] = (0.5, 0.5)
     initial_std: float = 0.1
     sigma: float = 0.015
+    field_evaluation: str = "auto"
 
     def __post_init__(self) -> None:
         self.n = _int("crowd.n", self.n, 1)
@@ -156,6 +163,7 @@ class CrowdSpec:
         self.initial_center = _point("crowd.initial_center", self.initial_center)
         self.initial_std = _num("crowd.initial_std", self.initial_std, lo=0.0, lo_open=True)
         self.sigma = _num("crowd.sigma", self.sigma, lo=0.0)
+        self.field_evaluation = _choice("crowd.field_evaluation", self.field_evaluation, ("auto", "exact", "sampled"))
 
 
 @dataclass

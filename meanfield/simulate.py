@@ -51,6 +51,7 @@ from meanfield.metrics import (
     wasserstein2_to_grid_density,
 )
 from meanfield.robots import NavigationField, RobotTeam, navigation_velocity, saturate_inputs
+from meanfield.sampled_field import SampledNavigationField
 from meanfield.scenario import Scenario
 
 __all__ = [
@@ -66,6 +67,9 @@ __all__ = [
 ]
 
 Disturbance = Callable[[np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]
+
+# crowd.field_evaluation = "auto" samples v_r on a lattice above this many human-robot pairs
+SAMPLED_FIELD_ABOVE = 2_000_000
 
 
 def robot_layout(domain: Domain, n: int, margin: float = 0.0) -> np.ndarray:
@@ -291,6 +295,16 @@ class ClosedLoop:
         self.max_body_overlap_time: float | None = None
         v = sc.view
         self.view = LocalView(self.crowd.n, v.radius, v.walk_speed, v.turning_rate, sc.domain, self.rng, clearance)
+        # v_r at the humans: exactly (O(N n)), or sampled on a lattice and interpolated
+        mode = sc.crowd.field_evaluation
+        if mode == "auto":
+            mode = "sampled" if self.crowd.n * self.robots.n > SAMPLED_FIELD_ABOVE else "exact"
+        self.field_evaluation = mode
+        self.sampled_field = None
+        if mode == "sampled":
+            nx, ny = sc.grid.cells
+            self.sampled_field = SampledNavigationField(self.kernel, sc.domain.bounds, (2 * nx + 1, 2 * ny + 1))
+        self._drift: np.ndarray | None = None
         self.overrides = sorted(
             name
             for name, value in (
@@ -339,9 +353,16 @@ class ClosedLoop:
         """``u_W(X_j) + v_r(X_j, t) + v_a(X_j, t)`` at every human (paper, eq. (1)).
 
         With a finite view radius, ``v_r`` is replaced by the random walk for the humans who
-        see no robot (:meth:`LocalView.gate`).
+        see no robot (:meth:`LocalView.gate`).  With a sampled field (large crowds) the
+        returned array is reused, and overwritten, by the next call.
         """
-        drift = navigation_velocity(self.kernel, self.robots.positions, self.robots.headings, positions)
+        if self.sampled_field is not None:
+            self.sampled_field.update(self.robots.positions, self.robots.headings)
+            if self._drift is None or len(self._drift) != len(positions):
+                self._drift = np.empty((len(positions), 2))
+            drift = self.sampled_field.at_points(positions, out=self._drift)
+        else:
+            drift = navigation_velocity(self.kernel, self.robots.positions, self.robots.headings, positions)
         self.view.gate(drift, positions, self.robots.positions, self.scenario.dt)
         if self.interaction is not None:
             drift += self.interaction.at_points(positions)
@@ -490,6 +511,8 @@ class ClosedLoop:
             "shortfall_applied_mean": _finite_mean(dataset["shortfall_applied"].values),
             "python_overrides": self.overrides,
             "backend": sc.pedestrians.backend,
+            "field_evaluation": self.field_evaluation,
+            "field_error_bound_final": self._field_error_bound(),
             "view_radius": sc.view.radius,
             "seen_fraction_final": float(self.view.seen.mean()),
             **self._body_summary(dataset),
@@ -504,6 +527,13 @@ class ClosedLoop:
             "scenario": sc.to_dict(),
         }
         return SimulationResult(sc, dataset, summary, self.kernel)
+
+    def _field_error_bound(self) -> float | None:
+        """Interpolation error bound of the sampled ``v_r`` at the final robots (None: exact)."""
+        if self.sampled_field is None:
+            return None
+        self.sampled_field.update(self.robots.positions, self.robots.headings)
+        return self.sampled_field.error_bound()
 
     def _body_summary(self, dataset: Any) -> dict[str, Any]:
         """JuPedSim runs: the bodies' radius, model and deepest overlap.
