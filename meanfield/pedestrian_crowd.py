@@ -153,7 +153,6 @@ class PedestrianCrowd:
         self.adapter = JuPedSimAdapter(domain.to_shapely(resolution=256), model, time_step, seed)
         self.adapter.add_agents(positions, radius, max_speed)
         self.positions = self.adapter.positions()
-        self.sigma = 0.0  # the SDE's noise is not applied to bodies (module docstring)
 
     @property
     def n(self) -> int:

@@ -267,10 +267,9 @@ class ClosedLoop:
         humans = initial_humans(sc, self.rng)
         ped = sc.pedestrians
         if ped.backend == "jupedsim":
-            from meanfield.jupedsim_api import load_jupedsim
             from meanfield.pedestrian_crowd import PedestrianCrowd
 
-            load_jupedsim()  # refuse early, with the install command, when JuPedSim is missing
+            # without JuPedSim, its adapter refuses here with the install command
             self.crowd: Crowd | PedestrianCrowd = PedestrianCrowd(
                 humans, sc.domain, ped.radius, ped.max_speed, ped.time_step, ped.model, sc.seed
             )
@@ -289,12 +288,14 @@ class ClosedLoop:
             heads = np.asarray(sc.robots.headings, float)
         self.robots = RobotTeam(rpos, heads, sc.robots.u_max, sc.robots.omega_max)
         self.robots.check_inside(sc.domain)
-        clearance = ped.radius if ped.backend == "jupedsim" else 0.0
-        self.bodies = clearance  # body radius of the JuPedSim backend; 0: point masses
-        self.max_body_overlap = 0.0
-        self.max_body_overlap_time: float | None = None
+        self.body_radius = ped.radius if ped.backend == "jupedsim" else 0.0  # 0: point masses
+        # deepest overlap of two bodies so far, over every control step (from the start)
+        self.max_body_overlap, self.max_body_overlap_time = 0.0, None
+        self._track_body_overlap(0.0)
         v = sc.view
-        self.view = LocalView(self.crowd.n, v.radius, v.walk_speed, v.turning_rate, sc.domain, self.rng, clearance)
+        self.view = LocalView(
+            self.crowd.n, v.radius, v.walk_speed, v.turning_rate, sc.domain, self.rng, self.body_radius
+        )
         # v_r at the humans: exactly (O(N n)), or sampled on a lattice and interpolated
         mode = sc.crowd.field_evaluation
         if mode == "auto":
@@ -395,10 +396,7 @@ class ClosedLoop:
         u, w = saturate_inputs(state.u, state.omega, self.robots.u_max, self.robots.omega_max)
         self.crowd.step(drift, self.t, dt)
         self.view.advance(dt)
-        if self.bodies:
-            depth, _ = max_body_overlap(self.crowd.positions[:, 0], self.crowd.positions[:, 1], self.bodies)
-            if depth > self.max_body_overlap:
-                self.max_body_overlap, self.max_body_overlap_time = depth, (self.step_index + 1) * dt
+        self._track_body_overlap((self.step_index + 1) * dt)
         self.robots.advance(u, w, dt, self.robot_region)
         self.t = (self.step_index + 1) * dt
         self.step_index += 1
@@ -515,7 +513,7 @@ class ClosedLoop:
             "field_error_bound_final": self._field_error_bound(),
             "view_radius": sc.view.radius,
             "seen_fraction_final": float(self.view.seen.mean()),
-            **self._body_summary(dataset),
+            **self._body_summary(),
             "V2_initial": rec.first_V2,
             "V2_final": float(dataset["V2"].values[-1]) if dataset.sizes["time"] else None,
             "A_final": float(self.last_state.A) if self.last_state is not None else None,
@@ -535,29 +533,30 @@ class ClosedLoop:
         self.sampled_field.update(self.robots.positions, self.robots.headings)
         return self.sampled_field.error_bound()
 
-    def _body_summary(self, dataset: Any) -> dict[str, Any]:
-        """JuPedSim runs: the bodies' radius, model and deepest overlap.
+    def _track_body_overlap(self, t: float) -> None:
+        """Record the deepest overlap of the bodies at time ``t`` (JuPedSim backend only)."""
+        if self.body_radius:
+            pos = self.crowd.positions
+            depth, _ = max_body_overlap(pos[:, 0], pos[:, 1], self.body_radius)
+            if depth > self.max_body_overlap:
+                self.max_body_overlap, self.max_body_overlap_time = depth, t
 
-        ``body_overlap_max`` is over every control step (tracked by :meth:`step`),
-        ``body_overlap_max_recorded`` over the recorded frames of ``timeseries.nc`` (what
-        anyone can re-check from the saved trajectories with
-        :func:`~meanfield.metrics.max_body_overlap`).
+    def _body_summary(self) -> dict[str, Any]:
+        """JuPedSim runs: the bodies' radius, model and deepest overlap over every control step.
+
+        The recorded frames of ``timeseries.nc`` are a subset of those steps; anyone can
+        re-check them with :func:`~meanfield.metrics.max_body_overlap`.
         """
         ped = self.scenario.pedestrians
         if ped.backend != "jupedsim":
             return {}
-        depth, frame = max_body_overlap(dataset["human_x"].values, dataset["human_y"].values, ped.radius)
-        worst = max(self.max_body_overlap, depth)
         return {
             "pedestrian_model": ped.model,
             "jupedsim_version": self.crowd.adapter.version,
             "body_radius": ped.radius,
-            "body_overlap_max": worst,
-            "body_overlap_max_relative": worst / (2.0 * ped.radius),
-            "body_overlap_time": self.max_body_overlap_time if worst > depth else (
-                float(dataset["time"].values[frame]) if frame >= 0 else None
-            ),
-            "body_overlap_max_recorded": depth,
+            "body_overlap_max": self.max_body_overlap,
+            "body_overlap_max_relative": self.max_body_overlap / (2.0 * ped.radius),
+            "body_overlap_time": self.max_body_overlap_time,
         }
 
 

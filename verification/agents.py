@@ -104,29 +104,28 @@ def agents_verdict(
     return ("holds" if ok else "fails"), med_f, med_r
 
 
-def _run_seed(job: tuple[dict[str, Any], int]) -> dict[str, Any]:
-    """One closed-loop run (module level: runs in a worker process)."""
+# summary keys and time series ({record key: dataset variable}) every run record carries
+_RUN_KEYS = ("seed", "status", "message", "fraction_in_target", "l2_error_ratio", "time_to_90", "time_final",
+             "wall_seconds")
+_RUN_SERIES = {"time": "time", "fraction_series": "fraction_in_target"}
+
+
+def _run_record(scenario: Scenario, keys: tuple[str, ...] = (), series: dict[str, str] | None = None) -> dict:
+    """Run one closed loop and keep the common summary keys and series, plus ``keys`` and ``series``."""
     from meanfield.simulate import ClosedLoop
 
+    res = ClosedLoop(scenario).run(progress=False)
+    s, ds = res.summary, res.dataset
+    record = {k: s.get(k) for k in _RUN_KEYS + keys}
+    record.update({k: ds[v].values for k, v in {**_RUN_SERIES, **(series or {})}.items()})
+    return record
+
+
+def _run_seed(job: tuple[dict[str, Any], int]) -> dict[str, Any]:
+    """One closed-loop run (module level: runs in a worker process)."""
     d, seed = job
     sc = Scenario.from_dict(d).replace(seed=seed)
-    res = ClosedLoop(sc).run(progress=False)
-    s, ds = res.summary, res.dataset
-    return {
-        "seed": seed,
-        "status": s["status"],
-        "message": s["message"],
-        "fraction_in_target": s["fraction_in_target"],
-        "l2_error_ratio": s["l2_error_ratio"],
-        "l2_error_initial": s["l2_error_initial"],
-        "l2_error_final": s["l2_error_final"],
-        "time_to_90": s["time_to_90"],
-        "time_final": s["time_final"],
-        "wall_seconds": s["wall_seconds"],
-        "time": ds["time"].values,
-        "fraction_series": ds["fraction_in_target"].values,
-        "error_series": ds["rho_error_l2"].values,
-    }
+    return _run_record(sc, ("l2_error_initial", "l2_error_final"), {"error_series": "rho_error_l2"})
 
 
 def _plot(runs: list[dict[str, Any]], path: Path) -> None:
@@ -356,28 +355,9 @@ def unity_scenario(seed: int, variant: str) -> Scenario:
 
 def _run_unity(job: tuple[str, dict[str, Any]]) -> dict[str, Any]:
     """One Unity-study closed loop (module level: runs in a worker process)."""
-    from meanfield.simulate import ClosedLoop
-
     variant, d = job
-    res = ClosedLoop(Scenario.from_dict(d)).run(progress=False)
-    s, ds = res.summary, res.dataset
-    return {
-        "variant": variant,
-        "seed": s["seed"],
-        "status": s["status"],
-        "message": s["message"],
-        "fraction_in_target": s["fraction_in_target"],
-        "time_to_90": s["time_to_90"],
-        "l2_error_ratio": s["l2_error_ratio"],
-        "seen_fraction_final": s["seen_fraction_final"],
-        "body_overlap_max": s.get("body_overlap_max"),
-        "body_overlap_max_relative": s.get("body_overlap_max_relative"),
-        "time_final": s["time_final"],
-        "wall_seconds": s["wall_seconds"],
-        "time": ds["time"].values,
-        "fraction_series": ds["fraction_in_target"].values,
-        "seen_series": ds["seen_fraction"].values,
-    }
+    keys = ("seen_fraction_final", "body_overlap_max", "body_overlap_max_relative")
+    return {"variant": variant, **_run_record(Scenario.from_dict(d), keys, {"seen_series": "seen_fraction"})}
 
 
 def _plot_unity(runs: list[dict[str, Any]], path: Path) -> None:
