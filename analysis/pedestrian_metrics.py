@@ -396,6 +396,13 @@ def pedestrian_metrics(
     seconds: dict[str, float] = {}
     t0 = time.perf_counter()
     ds = load_run(run_dir)
+    n_recorded, total = int(ds.sizes["human"]), int(ds.attrs.get("humans_total", ds.sizes["human"]))
+    if n_recorded != total:
+        raise ParameterError(
+            "run_dir",
+            f"{run_dir} recorded {n_recorded} of {total} humans",
+            'a run that recorded every human (record_humans = "all" or >= crowd.n)',
+        )
     sc = _scenario(ds)
     traj_path = out / "trajectories.txt"
     traj = load_pedpy_trajectories(ds, traj_path)

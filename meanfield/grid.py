@@ -54,18 +54,38 @@ def linear_binning(
     (points beyond the outer centres go to the nearest edge).  Cost O(N).
     """
     mx, my = shape
-    s = np.clip((points[:, 0] - origin[0]) / spacing[0] - 0.5, 0.0, mx - 1.0)
-    t = np.clip((points[:, 1] - origin[1]) / spacing[1] - 0.5, 0.0, my - 1.0)
-    i = np.minimum(s.astype(np.intp), mx - 2)
-    j = np.minimum(t.astype(np.intp), my - 2)
-    fs = s - i
-    ft = t - j
-    out = np.zeros(mx * my)
-    base = i * my + j
-    np.add.at(out, base, weight * (1 - fs) * (1 - ft))
-    np.add.at(out, base + my, weight * fs * (1 - ft))
-    np.add.at(out, base + 1, weight * (1 - fs) * ft)
-    np.add.at(out, base + my + 1, weight * fs * ft)
+    # in-place arithmetic on a few N-sized arrays; np.bincount scatters ~10× faster than np.add.at
+    s = points[:, 0] - origin[0]
+    s *= 1.0 / spacing[0]
+    s -= 0.5
+    np.clip(s, 0.0, mx - 1.0, out=s)
+    t = points[:, 1] - origin[1]
+    t *= 1.0 / spacing[1]
+    t -= 0.5
+    np.clip(t, 0.0, my - 1.0, out=t)
+    i = s.astype(np.intp)
+    np.minimum(i, mx - 2, out=i)
+    j = t.astype(np.intp)
+    np.minimum(j, my - 2, out=j)
+    s -= i  # fs
+    t -= j  # ft
+    base = i
+    base *= my
+    base += j
+    w11 = s * t
+    s -= w11  # fs (1 - ft)
+    t -= w11  # (1 - fs) ft
+    w00 = 1.0 - w11
+    w00 -= s
+    w00 -= t  # (1 - fs)(1 - ft)
+    if weight != 1.0:
+        for w in (w00, s, t, w11):
+            w *= weight
+    n = mx * my
+    out = np.bincount(base, w00, n)
+    out[my:] += np.bincount(base, s, n)[: n - my]
+    out[1:] += np.bincount(base, t, n)[: n - 1]
+    out[my + 1 :] += np.bincount(base, w11, n)[: n - my - 1]
     return out.reshape(mx, my)
 
 

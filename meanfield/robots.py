@@ -122,12 +122,25 @@ def navigation_velocity(
 ) -> np.ndarray:
     """``v_r(x) = Σ_i K̄(x - R_i) e(θ_i)`` at ``points`` (N, 2) (paper, eq. (3)); shape (N, 2).
 
-    Cost O(N n); for very large crowds evaluate on a grid and interpolate.
+    Cost O(N n), evaluated in blocks of points so that temporaries hold at most
+    ``_EXACT_BLOCK`` robot-point pairs whatever N is; for very large crowds sample the
+    field on a lattice instead (:class:`~meanfield.sampled_field.SampledNavigationField`).
     """
-    dx = points[None, :, 0] - positions[:, None, 0]
-    dy = points[None, :, 1] - positions[:, None, 1]
-    k = kernel.magnitude(dx, dy)  # (n, N)
-    return np.stack([np.cos(headings) @ k, np.sin(headings) @ k], axis=1)
+    n = len(positions)
+    cos, sin = np.cos(headings), np.sin(headings)
+    rx, ry = positions[:, 0][:, None], positions[:, 1][:, None]
+    out = np.empty((len(points), 2), dtype=np.result_type(points, positions, headings, float))
+    step = max(1, _EXACT_BLOCK // max(n, 1))
+    for a in range(0, len(points), step):
+        block = points[a : a + step]
+        k = kernel.magnitude(block[None, :, 0] - rx, block[None, :, 1] - ry)  # (n, block)
+        out[a : a + step, 0] = cos @ k
+        out[a : a + step, 1] = sin @ k
+    return out
+
+
+_EXACT_BLOCK = 1 << 20
+"""Robot-point pairs per block of :func:`navigation_velocity` (8 MB per temporary)."""
 
 
 class NavigationField:

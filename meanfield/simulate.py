@@ -48,6 +48,7 @@ from meanfield.metrics import (
     gaussian_target,
     max_body_overlap,
     target_region_radius,
+    w2_block_size,
     wasserstein2_to_grid_density,
 )
 from meanfield.robots import NavigationField, RobotTeam, navigation_velocity, saturate_inputs
@@ -64,6 +65,7 @@ __all__ = [
     "initial_crowd",
     "initial_density",
     "initial_humans",
+    "recorded_humans",
 ]
 
 Disturbance = Callable[[np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]
@@ -497,6 +499,7 @@ class ClosedLoop:
             "w2_to_target_final": wasserstein2_to_grid_density(
                 self.crowd.positions, self.grid, self.target, seed=sc.seed
             ),
+            "w2_coarsening_bound": self._w2_coarsening_bound(),
             "time_to_90": t90,
             "max_robot_speed": self.max_robot_speed,
             "speed_limit": None if math.isinf(self.robots.u_max) else self.robots.u_max,
@@ -525,6 +528,11 @@ class ClosedLoop:
             "scenario": sc.to_dict(),
         }
         return SimulationResult(sc, dataset, summary, self.kernel)
+
+    def _w2_coarsening_bound(self) -> float:
+        """How far merging cells for the W₂ solve can move it (0: every cell kept)."""
+        b = w2_block_size(self.grid)
+        return 0.0 if b == 1 else b * math.hypot(self.grid.dx, self.grid.dy)
 
     def _field_error_bound(self) -> float | None:
         """Interpolation error bound of the sampled ``v_r`` at the final robots (None: exact)."""
@@ -570,6 +578,18 @@ def _finite_max(x: np.ndarray) -> float | None:
     return float(x.max()) if x.size else None
 
 
+def recorded_humans(n: int, record_humans: int | str) -> np.ndarray:
+    """Indices of the humans whose positions a run records: all, or ``record_humans`` spaced ones.
+
+    The humans are exchangeable (drawn i.i.d. from the initial law), so evenly spaced
+    indices are a sample of the crowd; the density, the fraction in the target and every
+    summary figure still use all ``n``.
+    """
+    if record_humans == "all" or record_humans >= n:
+        return np.arange(n)
+    return np.unique(np.linspace(0, n - 1, int(record_humans)).round().astype(np.intp))
+
+
 @dataclass
 class _Recorder:
     """Collects frames; control quantities are those computed at the frame's state."""
@@ -578,6 +598,7 @@ class _Recorder:
     frames: dict[str, list] = field(default_factory=lambda: {k: [] for k in _Recorder.KEYS})
     last_recorded_step: int = -1
     first_V2: float | None = None
+    humans: np.ndarray = field(init=False, repr=False)
 
     KEYS = (
         "time",
@@ -604,6 +625,7 @@ class _Recorder:
     )
 
     def __post_init__(self) -> None:
+        self.humans = recorded_humans(self.loop.crowd.n, self.loop.scenario.record_humans)
         self.record_state(fraction_in_disk(self.loop.crowd.positions, self.loop.target_center, self.loop.target_radius))
 
     def _lyapunov_values(self, state: ControlState) -> dict[str, float]:
@@ -646,8 +668,8 @@ class _Recorder:
         f["robot_x"].append(loop.robots.positions[:, 0].copy())
         f["robot_y"].append(loop.robots.positions[:, 1].copy())
         f["robot_heading"].append(loop.robots.headings.copy())
-        f["human_x"].append(loop.crowd.positions[:, 0].copy())
-        f["human_y"].append(loop.crowd.positions[:, 1].copy())
+        f["human_x"].append(loop.crowd.positions[self.humans, 0])
+        f["human_y"].append(loop.crowd.positions[self.humans, 1])
         f["density"].append(loop.density.copy())
         f["fraction_in_target"].append(frac)
         f["seen_fraction"].append(float(loop.view.seen.mean()))
@@ -704,7 +726,7 @@ class _Recorder:
                 "x": g.x,
                 "y": g.y,
                 "robot": np.arange(loop.robots.n),
-                "human": np.arange(loop.crowd.n),
+                "human": self.humans,
             },
             attrs={
                 "title": "meanfield closed-loop run (Zheng et al., robot-assisted crowd evacuation)",
@@ -717,7 +739,12 @@ class _Recorder:
                 "V2_definition": "V2 = integral of rho_tilde^2/2 + |v_tilde|^2/2",
                 "backend": loop.scenario.pedestrians.backend,
                 "body_radius": ped.radius if ped.backend == "jupedsim" else 0.0,
+                "humans_total": loop.crowd.n,
+                "humans_recorded": len(self.humans),
             },
+        )
+        ds["human"].attrs["description"] = (
+            "index of the human in the crowd (a spaced subset when record_humans < humans_total)"
         )
         ds["robot_speed"].attrs["description"] = "applied (saturated) speed |u_i| during the step from this frame"
         ds["shortfall"].attrs["description"] = "A minus what the strategy's (unclipped) extra inputs cancel"

@@ -282,3 +282,24 @@ def test_summation_by_parts_on_finer_cut_cells(domain, rng):
     lhs = g.inner(f, g.divergence(F))
     rhs = -g.face_inner(g.gradient(f), F)
     assert abs(lhs - rhs) <= 1e-13 * g.inner(np.abs(f), np.abs(g.divergence(F)))
+
+
+def test_linear_binning_keeps_mass_and_mean_position_exactly(rng):
+    """Cloud-in-cell weights are bilinear: each point's weights sum to ``weight`` and their
+    centre of mass is the point itself (for points between the outer centres)."""
+    from meanfield.grid import linear_binning
+
+    origin, spacing, shape = (-0.3, 0.2), (0.05, 0.08), (17, 11)
+    lo = np.array(origin) + 0.5 * np.array(spacing)
+    hi = np.array(origin) + (np.array(shape) - 0.5) * np.array(spacing)
+    pts = rng.uniform(lo, hi, size=(5000, 2))
+    counts = linear_binning(pts, origin, spacing, shape, weight=0.25)
+    cx = origin[0] + (np.arange(shape[0]) + 0.5) * spacing[0]
+    cy = origin[1] + (np.arange(shape[1]) + 0.5) * spacing[1]
+    assert counts.sum() == pytest.approx(0.25 * len(pts), rel=1e-13)
+    assert (counts * cx[:, None]).sum() == pytest.approx(0.25 * pts[:, 0].sum(), rel=1e-12)
+    assert (counts * cy[None, :]).sum() == pytest.approx(0.25 * pts[:, 1].sum(), rel=1e-12)
+    # one point on a lattice centre lands there whole; one beyond the edge goes to the edge
+    one = linear_binning(np.array([[cx[3], cy[4]], [10.0, -10.0]]), origin, spacing, shape)
+    assert one[3, 4] == pytest.approx(1.0) and one[-1, 0] == pytest.approx(1.0)
+    assert one.sum() == pytest.approx(2.0)

@@ -75,3 +75,25 @@ def test_w2_two_cells_closed_form():
     pts = np.tile([g.x[2], g.y[2]], (4, 1))
     d = g.x[6] - g.x[2]
     assert wasserstein2_to_grid_density(pts, g, dens) == pytest.approx(d / math.sqrt(2), rel=1e-10)
+
+
+def test_w2_coarsened_grid_keeps_point_masses_exact_and_smooth_densities_within_the_bound(rng):
+    """Merging b × b cells puts each block's mass at its centre of mass: a single occupied
+    cell per block is not moved at all, and a smooth density moves by at most one block
+    diagonal (the documented bound)."""
+    from meanfield.metrics import w2_block_size
+
+    g = Grid(Domain.box(1.0, 1.0), (40, 40))
+    assert w2_block_size(g, 1600) == 1 and w2_block_size(g, 100) == 4 and w2_block_size(g, 99) == 5
+    dens = np.zeros(g.shape)
+    dens[2, 2] = dens[26, 2] = 1.0
+    pts = np.tile([g.x[2], g.y[2]], (4, 1))
+    d = g.x[26] - g.x[2]
+    assert wasserstein2_to_grid_density(pts, g, dens, max_cells=100) == pytest.approx(d / math.sqrt(2), rel=1e-10)
+    X, Y = g.centers
+    smooth = np.exp(-((X - 0.4) ** 2 + (Y - 0.6) ** 2) / 0.05)
+    pts = rng.normal([0.5, 0.5], 0.15, size=(400, 2))
+    fine = wasserstein2_to_grid_density(pts, g, smooth)
+    coarse = wasserstein2_to_grid_density(pts, g, smooth, max_cells=100)
+    assert fine != coarse
+    assert abs(fine - coarse) <= 4 * math.hypot(g.dx, g.dy)

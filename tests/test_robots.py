@@ -20,7 +20,10 @@ def _setup(rng, domain=None, n=4):
     return grid, GaussianKernel(0.5, 0.05), R, th
 
 
-def test_navigation_velocity_is_the_sum_over_robots(rng):
+@pytest.mark.parametrize("block", [None, 7])
+def test_navigation_velocity_is_the_sum_over_robots(rng, monkeypatch, block):
+    if block is not None:  # blocks of 7 // 3 = 2 points: the blocked evaluation gives the same sum
+        monkeypatch.setattr("meanfield.robots._EXACT_BLOCK", block)
     k = GaussianKernel(0.8, 0.1)
     R = rng.uniform(size=(3, 2))
     th = rng.uniform(0, 2 * np.pi, 3)

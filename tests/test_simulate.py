@@ -153,3 +153,33 @@ def test_blow_up_stops_with_status_diverged():
     # the last frame is the last good state
     np.testing.assert_array_equal(ds["human_x"].values[-1], loop.crowd.positions[:, 0])
     assert np.isfinite(s["l2_error_final"]) and np.isfinite(s["w2_to_target_final"])
+
+
+def test_record_humans_keeps_a_spaced_subset_and_every_figure_uses_the_whole_crowd(result):
+    from meanfield.simulate import recorded_humans
+
+    sub = ClosedLoop(_short().replace(record_humans=50)).run(progress=False)
+    ds, full = sub.dataset, result.dataset
+    n = result.scenario.crowd.n
+    idx = ds["human"].values
+    assert len(idx) == 50 and idx[0] == 0 and idx[-1] == n - 1 and np.all(np.diff(idx) > 0)
+    assert ds.attrs["humans_recorded"] == 50 and ds.attrs["humans_total"] == n
+    # the same seed gives the same crowd: the subset is those humans' recorded positions
+    np.testing.assert_array_equal(ds["human_x"].values, full["human_x"].values[:, idx])
+    np.testing.assert_array_equal(ds["density"].values, full["density"].values)
+    np.testing.assert_array_equal(ds["fraction_in_target"].values, full["fraction_in_target"].values)
+    assert sub.summary["fraction_in_target"] == result.summary["fraction_in_target"]
+    assert full.attrs["humans_recorded"] == n  # default 10 000 keeps everyone here
+    np.testing.assert_array_equal(recorded_humans(7, "all"), np.arange(7))
+    np.testing.assert_array_equal(recorded_humans(7, 100), np.arange(7))
+    assert len(recorded_humans(10**6, 0)) == 0
+    np.testing.assert_array_equal(recorded_humans(10, 4), [0, 3, 6, 9])
+
+
+@pytest.mark.parametrize("bad", [-1, 2.5, "some", True])
+def test_record_humans_bad_value_refused(bad):
+    from meanfield import ParameterError
+
+    with pytest.raises(ParameterError) as info:
+        paper_scenario().replace(record_humans=bad)
+    assert info.value.name == "record_humans"

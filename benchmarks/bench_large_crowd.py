@@ -1,0 +1,160 @@
+"""A million-person crowd in closed loop on one core, against the exact evaluation in the same run.
+
+Run:  python benchmarks/bench_large_crowd.py [--quick] [--steps 100] [--json FILE]
+
+The built-in ``stadium`` scenario: the paper's closed loop with N = 10⁶ humans, n = 64
+robots, a 128² grid (``meanfield run stadium``).
+
+* **Ours**: ``ClosedLoop(stadium).run()`` for ``--steps`` steps, *all included*: KDE
+  (binning + convolution), the controller on the grid, ``v_r`` sampled on a lattice and
+  interpolated to every human, the Euler–Maruyama step, the robots, recording a frame every
+  10 steps (10 000 humans' positions, the density), then building the dataset and the
+  summary (W₂ included).  Figures: steps per second and µs per human per step over the
+  whole call, the loop's own rate (``summary["steps_per_second"]``), and the peak resident
+  memory of the process, which does nothing else (``ru_maxrss``).
+* **Anchor**: the same loop with ``crowd.field_evaluation = "exact"`` (eq. (3) summed over
+  the 64 robots at each human, O(N n)), a few steps with ``ClosedLoop.step``, in its own
+  process.
+
+Goals (issue 7): ≥ 4 steps per second (≤ 0.25 µs per human-step) all included, peak
+memory ≤ 1.5 GB.  Each measurement runs in a fresh child process so that its peak memory
+is its own.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")  # one core
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import platform  # noqa: E402
+import resource  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+GOAL_STEPS_PER_SECOND = 4.0
+GOAL_PEAK_MB = 1536.0
+
+
+def _peak_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # kB on Linux
+
+
+def child(mode: str, steps: int) -> dict:
+    """One measurement (run in a fresh process by :func:`measure`)."""
+    from meanfield import ClosedLoop
+    from meanfield.scenario import stadium_scenario
+
+    sc = stadium_scenario(seed=0)
+    n = sc.crowd.n
+    if mode == "ours":
+        sc = sc.replace(t_final=steps * sc.dt)
+        t0 = time.perf_counter()
+        loop = ClosedLoop(sc)
+        t1 = time.perf_counter()
+        result = loop.run(progress=False)
+        wall = time.perf_counter() - t1
+        s = result.summary
+        assert s["status"] == "completed" and s["steps"] == steps, s["status"]
+        return {
+            "steps": steps,
+            "build_seconds": t1 - t0,
+            "run_seconds": wall,
+            "steps_per_second": steps / wall,
+            "us_per_human_step": wall / steps / n * 1e6,
+            "loop_steps_per_second": s["steps_per_second"],
+            "field_evaluation": s["field_evaluation"],
+            "field_error_bound_final": s["field_error_bound_final"],
+            "frames_recorded": int(result.dataset.sizes["time"]),
+            "humans_recorded": int(result.dataset.sizes["human"]),
+            "peak_mb": _peak_mb(),
+        }
+    sc = sc.with_values({"crowd.field_evaluation": "exact"})
+    loop = ClosedLoop(sc)
+    loop.step()  # warm
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        loop.step()
+    wall = time.perf_counter() - t0
+    return {
+        "steps": steps,
+        "steps_per_second": steps / wall,
+        "us_per_human_step": wall / steps / n * 1e6,
+        "peak_mb": _peak_mb(),
+    }
+
+
+def measure(mode: str, steps: int) -> dict:
+    out = subprocess.run(
+        [sys.executable, __file__, "--child", mode, "--steps", str(steps)],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def machine() -> str:
+    return (
+        f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores (1 used), "
+        f"Python {platform.python_version()}, numpy {np.__version__}"
+    )
+
+
+def run(quick: bool = False, steps: int = 100) -> dict:
+    """Both measurements; returns the JSON-ready record."""
+    ours_steps = 20 if quick else steps
+    anchor_steps = 2 if quick else 5
+    ours = measure("ours", ours_steps)
+    anchor = measure("anchor", anchor_steps)
+    ok = ours["steps_per_second"] >= GOAL_STEPS_PER_SECOND and ours["peak_mb"] <= GOAL_PEAK_MB
+    return {
+        "benchmark": "closed loop, stadium scenario (N=1e6 humans, n=64 robots, 128x128 grid), one core",
+        "machine": machine(),
+        "command": "python benchmarks/bench_large_crowd.py" + (" --quick" if quick else f" --steps {steps}"),
+        "results": [
+            {
+                "name": "closed_loop_1e6_humans",
+                "what": "ClosedLoop(stadium).run(): every step, recording, dataset and summary",
+                "ours": "v_r sampled on a lattice + binned KDE",
+                "ours_steps_per_second": ours["steps_per_second"],
+                "ours_us_per_human_step": ours["us_per_human_step"],
+                "anchor": "the same loop with v_r summed exactly at each human (ClosedLoop.step)",
+                "anchor_steps_per_second": anchor["steps_per_second"],
+                "anchor_us_per_human_step": anchor["us_per_human_step"],
+                "ratio_anchor_over_ours": anchor["us_per_human_step"] / ours["us_per_human_step"],
+                "goal": f">= {GOAL_STEPS_PER_SECOND:g} steps/s all included, peak <= {GOAL_PEAK_MB:g} MB",
+                "pass": ok,
+                "ours_detail": ours,
+                "anchor_detail": anchor,
+            }
+        ],
+        "verdict": "PASS" if ok else "FAIL",
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--steps", type=int, default=100)
+    ap.add_argument("--json", default=None)
+    ap.add_argument("--child", choices=("ours", "anchor"), default=None, help=argparse.SUPPRESS)
+    a = ap.parse_args()
+    if a.child:
+        print(json.dumps(child(a.child, a.steps)))
+        return
+    out = run(a.quick, a.steps)
+    print(json.dumps(out, indent=2))
+    if a.json:
+        with open(a.json, "w") as fh:
+            json.dump(out, fh, indent=2)
+
+
+if __name__ == "__main__":
+    main()
