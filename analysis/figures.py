@@ -9,10 +9,11 @@ import numpy as np
 
 from analysis.limits import LimitsStudy
 from analysis.robot_count import RobotCountStudy
+from analysis.robot_count_sweep import RobotCountSweep
 from meanfield.domain import Domain
 from meanfield.grid import Grid
 
-__all__ = ["plot_poincare_mode", "plot_robot_count", "plot_limits", "save_figure"]
+__all__ = ["plot_poincare_mode", "plot_robot_count", "plot_robot_count_sweep", "plot_limits", "save_figure"]
 
 
 def _pyplot():
@@ -73,6 +74,79 @@ def plot_robot_count(study: RobotCountStudy, coverage: dict[float, int], c: floa
     ax.set_ylim(-0.02, 1.02)
     ax.legend(fontsize=7, loc="lower right")
     ax.set_title("Robot count: coverage estimate against closed-loop runs", fontsize=10)
+    return fig
+
+
+def _edges(values: np.ndarray, log: bool) -> np.ndarray:
+    """Cell edges around sorted centres (geometric midpoints on a log axis)."""
+    v = np.log(values) if log else np.asarray(values, float)
+    if len(v) == 1:
+        e = np.array([v[0] - 0.5, v[0] + 0.5]) if not log else np.array([v[0] - 0.35, v[0] + 0.35])
+    else:
+        mid = 0.5 * (v[1:] + v[:-1])
+        e = np.concatenate([[v[0] - (mid[0] - v[0])], mid, [v[-1] + (v[-1] - mid[-1])]])
+    return np.exp(e) if log else e
+
+
+def plot_robot_count_sweep(study: RobotCountSweep):
+    """Median fraction in target and median time to 90 % over robot count × kernel range η,
+    with the coverage estimates ``n_cov(η)`` drawn over them (:mod:`analysis.robot_count_sweep`).
+
+    Cells where half the seeds or more never reached 90 % are hatched grey ("never");
+    white circles mark the smallest count whose median fraction meets the threshold.
+    """
+    plt = _pyplot()
+    from matplotlib.colors import ListedColormap
+
+    counts = np.array(study.counts)
+    etas = np.array(study.etas)
+    ci, ei = np.argsort(counts), np.argsort(etas)
+    counts, etas = counts[ci], etas[ei]
+    frac = study.fraction[np.ix_(ci, ei)]
+    t90 = study.time_to_90[np.ix_(ci, ei)]
+    xe, ye = _edges(etas, log=True), _edges(counts, log=False)
+    fig, axes = plt.subplots(1, 2, figsize=(12.0, 4.6), constrained_layout=True)
+    panels = (
+        (axes[0], frac, "viridis", (0.0, 1.0), "median fraction in target at t_final"),
+        (axes[1], np.where(np.isinf(t90), np.nan, t90), "magma_r", (0.0, study.t_final), "median time to 90 % (s)"),
+    )
+    for ax, values, cmap, (lo, hi), label in panels:
+        ax.set_facecolor("0.85")
+        if ax is axes[1]:
+            never = np.where(np.isinf(t90), 1.0, np.nan)
+            ax.pcolormesh(xe, ye, never, cmap=ListedColormap(["0.75"]), hatch="//", shading="flat")
+        mesh = ax.pcolormesh(xe, ye, values, cmap=cmap, vmin=lo, vmax=hi, shading="flat")
+        fig.colorbar(mesh, ax=ax, label=label)
+        for i, n in enumerate(counts):
+            for j, eta in enumerate(etas):
+                v = frac[i, j] if ax is axes[0] else t90[i, j]
+                text = "never" if np.isinf(v) else ("" if np.isnan(v) else f"{v:.2f}" if ax is axes[0] else f"{v:.0f}")
+                ax.text(eta, n, text, ha="center", va="center", fontsize=6.5,
+                        color="w" if (ax is axes[0] and v < 0.6) or (ax is axes[1] and np.isfinite(v) and v > 0.6 * hi)
+                        else "k")
+        styles = ("-", "--", ":")
+        for k, (f, ns) in enumerate(sorted(study.coverage.items(), reverse=True)):
+            n_cov = np.array(ns)[ei]
+            ax.plot(etas, np.minimum(n_cov, ye[-1]), styles[k % 3], color="C3", lw=1.4, marker="^",
+                    ms=4, label=f"coverage estimate, ε = {f:g}·c")
+        best = [(eta, study.minimum[float(eta)]) for eta in etas if study.minimum.get(float(eta)) is not None]
+        if best:
+            ax.plot(*zip(*best, strict=True), "o", mfc="none", mec="w", ms=11, mew=1.6,
+                    label=f"smallest n with median ≥ {study.threshold:g}")
+        ax.set_xscale("log")
+        ax.set_xticks(etas)
+        ax.set_xticklabels([f"{e:g}" for e in etas])
+        ax.minorticks_off()
+        ax.set_yticks(counts)
+        ax.set_xlim(xe[0], xe[-1])
+        ax.set_ylim(ye[0], ye[-1])
+        ax.set_xlabel("kernel range η")
+        ax.set_ylabel("robots n")
+    axes[0].legend(fontsize=7, loc="upper right", framealpha=0.85)
+    fig.suptitle(
+        f"Robot count × kernel range: medians over {len(study.seeds)} seeds (coverage estimates beyond the "
+        "top row are drawn at its edge)", fontsize=10
+    )
     return fig
 
 

@@ -399,6 +399,34 @@ _SECTIONS: dict[str, type] = {
     "pedestrians": PedestrianSpec,
 }
 
+_TOP_LEVEL = ("name", "seed", "dt", "t_final", "record_every", "record_humans")
+
+
+def resolve_key(key: str) -> str:
+    """The dotted scenario key a short name stands for (``--set`` accepts either).
+
+    A dotted key or a top-level field is returned as it is; a section with a count
+    (``robots``, ``crowd``) stands for its ``n``; a field name found in exactly one section
+    (``eta``, ``sigma``, ``u_max``) stands for that section's field.
+
+    Raises
+    ------
+    ParameterError
+        For a name in no section, or in several (the message lists the dotted keys).
+    """
+    if not isinstance(key, str) or not key:
+        raise ParameterError("key", key, "a scenario field name")
+    if "." in key or key in _TOP_LEVEL or key == "domain":
+        return key
+    if key in _SECTIONS and "n" in {f.name for f in fields(_SECTIONS[key])}:
+        return f"{key}.n"
+    found = [f"{sec}.{key}" for sec, cls in _SECTIONS.items() if key in {f.name for f in fields(cls)}]
+    if len(found) == 1:
+        return found[0]
+    if found:
+        raise ParameterError(key, key, f"a dotted key, one of {', '.join(found)}")
+    raise ParameterError(key, key, "an existing scenario field (a dotted key such as robots.n or kernel.eta)")
+
 
 @dataclass
 class Scenario:
@@ -514,10 +542,13 @@ class Scenario:
     def with_values(self, assignments: dict[str, Any]) -> Scenario:
         """A copy with dotted fields set, e.g. ``{"kernel.eta": 0.02, "robots.n": 9}``.
 
-        Keys under ``controller.options.`` may be new (the controller plugin checks them).
+        Short names are read by :func:`resolve_key` (``{"eta": 0.02, "robots": 9}`` is the
+        same).  Keys under ``controller.options.`` may be new (the controller plugin checks
+        them).
         """
         d = self.to_dict()
-        for key, value in assignments.items():
+        for short, value in assignments.items():
+            key = resolve_key(short)
             parts = key.split(".")
             node = d
             for depth, p in enumerate(parts[:-1]):
@@ -565,12 +596,11 @@ class Scenario:
         """Build and validate from a nested dict; unknown keys raise :class:`ParameterError`."""
         if not isinstance(d, dict):
             raise ParameterError("scenario", type(d).__name__, "a table of fields")
-        top = {"name", "seed", "dt", "t_final", "record_every", "record_humans", "domain", *_SECTIONS}
+        top = {*_TOP_LEVEL, "domain", *_SECTIONS}
         unknown = set(d) - top
         if unknown:
             raise ParameterError(sorted(unknown)[0], d[sorted(unknown)[0]], f"a known key: one of {sorted(top)}")
-        scalars = ("name", "seed", "dt", "t_final", "record_every", "record_humans")
-        kwargs: dict[str, Any] = {k: d[k] for k in scalars if k in d}
+        kwargs: dict[str, Any] = {k: d[k] for k in _TOP_LEVEL if k in d}
         if "domain" in d:
             if not isinstance(d["domain"], dict):
                 raise ParameterError("domain", d["domain"], "a table")

@@ -104,6 +104,9 @@ def _split_outside_brackets(text: str) -> list[str]:
 def parse_values(items: Sequence[str]) -> dict[str, list]:
     """``["robots.n=4,9", "kernel.eta=0.01,0.02"]`` as ``{"robots.n": [4, 9], "kernel.eta": [0.01, 0.02]}``.
 
+    Short names are resolved to dotted keys (:func:`meanfield.scenario.resolve_key`):
+    ``robots=4,9`` is ``robots.n=4,9``, ``eta=0.01`` is ``kernel.eta=0.01``.
+
     Each value is read like :func:`meanfield.cli.parse_set` reads one (TOML, else a string);
     values are split on commas outside brackets and quotes, so ``grid.cells=[12,12],[24,24]``
     gives two lists.
@@ -114,12 +117,14 @@ def parse_values(items: Sequence[str]) -> dict[str, list]:
         For an item without ``=``, a key given twice, or an empty value.
     """
     from meanfield.cli import parse_set
+    from meanfield.scenario import resolve_key
 
     out: dict[str, list] = {}
     for item in items:
         if "=" not in item:
             raise ParameterError("--set", item, "KEY=V1,V2,... with a dotted scenario key, e.g. robots.n=4,9,16")
         key, raw = (s.strip() for s in item.split("=", 1))
+        key = resolve_key(key)  # robots -> robots.n, eta -> kernel.eta
         if key in out:
             raise ParameterError("--set", item, f"each key once (give all values of {key} in one --set)")
         raws = _split_outside_brackets(raw)

@@ -26,6 +26,23 @@ def test_robots_in_view_is_the_disk_of_the_view_radius():
     assert robots_in_view(humans, robots, math.inf).all()
 
 
+@pytest.mark.parametrize("radius", [0.003, 0.04, 0.3, 5.0])
+def test_cell_classification_equals_the_pairwise_test(radius):
+    """Large crowds skip the pairs in whole-seen and whole-unseen cells: same mask, exactly,
+    including humans placed on the view circles and on the cells' edges."""
+    from meanfield.local_view import _in_view_direct
+
+    rng = np.random.default_rng(11)
+    robots = rng.uniform(0.0, 1.0, (40, 2))
+    humans = rng.uniform(0.0, 1.0, (30_000, 2))
+    angle = rng.uniform(0, 2 * np.pi, 400)
+    circle = robots[np.arange(400) % 40]
+    on_circle = circle + radius * np.column_stack([np.cos(angle), np.sin(angle)])
+    humans = np.vstack([humans, on_circle, np.array([[0.0, 0.0], [1.0, 1.0], [0.5, 0.5]])])
+    assert len(humans) * len(robots) > 200_000  # the classified path, not the fallback
+    np.testing.assert_array_equal(robots_in_view(humans, robots, radius), _in_view_direct(humans, robots, radius))
+
+
 def test_heading_correlation_decays_as_exp_minus_turning_rate_t():
     # E[cos(θ(t) − θ(0))] = exp(−D_r t) exactly for dθ = sqrt(2 D_r) dW (Gaussian increments)
     n, d_r, dt, steps = 40_000, 0.25, 0.1, 40

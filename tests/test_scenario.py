@@ -118,3 +118,19 @@ BAD_TOML = [
 @pytest.mark.parametrize(("text", "name"), BAD_TOML)
 def test_bad_toml_refused_naming_the_field(text, name):
     assert _err(lambda: Scenario.from_toml(text)).name == name
+
+
+def test_short_keys_resolve_to_dotted_fields():
+    from meanfield.scenario import resolve_key
+
+    assert resolve_key("robots") == "robots.n" and resolve_key("crowd") == "crowd.n"
+    assert resolve_key("eta") == "kernel.eta" and resolve_key("u_max") == "robots.u_max"
+    assert resolve_key("t_final") == "t_final" and resolve_key("kernel.c") == "kernel.c"
+    sc = paper_scenario().with_values({"robots": 9, "eta": 0.02})
+    assert sc.robots.n == 9 and sc.kernel.eta == 0.02
+    with pytest.raises(ParameterError) as info:
+        resolve_key("radius")  # [view] and [pedestrians] both have one
+    assert "view.radius" in str(info.value) and "pedestrians.radius" in str(info.value)
+    with pytest.raises(ParameterError) as info:
+        paper_scenario().with_values({"robotz": 3})
+    assert info.value.name == "robotz"
