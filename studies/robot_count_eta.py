@@ -83,7 +83,8 @@ def main(argv: list[str] | None = None) -> int:
     print("Median fraction in the target region at t_final:\n")
     print(_table(study, study.fraction, lambda v: "–" if math.isnan(v) else f"{v:.3f}"))
     print("\nMedian time to 90 % (s):\n")
-    print(_table(study, study.time_to_90, lambda v: "never" if math.isinf(v) else ("–" if math.isnan(v) else f"{v:.1f}")))
+    t90 = study.time_to_90
+    print(_table(study, t90, lambda v: "never" if math.isinf(v) else ("–" if math.isnan(v) else f"{v:.1f}")))
     print("\nSmallest count with median fraction ≥", study.threshold, ":",
           ", ".join(f"η = {e:g}: {n}" for e, n in study.minimum.items()))
     print(f"\nfigure: {fig_path}")
