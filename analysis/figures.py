@@ -92,7 +92,7 @@ def plot_robot_count_sweep(study: RobotCountSweep):
     """Median fraction in target and median time to 90 % over robot count × kernel range η,
     with the coverage estimates ``n_cov(η)`` drawn over them (:mod:`analysis.robot_count_sweep`).
 
-    Cells where half the seeds or more never reached 90 % are hatched grey ("never");
+    Cells where half the seeds or more never reached 90 % are grey and read "never";
     white circles mark the smallest count whose median fraction meets the threshold.
     """
     plt = _pyplot()
@@ -114,7 +114,7 @@ def plot_robot_count_sweep(study: RobotCountSweep):
         ax.set_facecolor("0.85")
         if ax is axes[1]:
             never = np.where(np.isinf(t90), 1.0, np.nan)
-            ax.pcolormesh(xe, ye, never, cmap=ListedColormap(["0.75"]), hatch="//", shading="flat")
+            ax.pcolormesh(xe, ye, never, cmap=ListedColormap(["0.75"]), shading="flat")
         mesh = ax.pcolormesh(xe, ye, values, cmap=cmap, vmin=lo, vmax=hi, shading="flat")
         fig.colorbar(mesh, ax=ax, label=label)
         for i, n in enumerate(counts):
@@ -142,7 +142,13 @@ def plot_robot_count_sweep(study: RobotCountSweep):
         ax.set_ylim(ye[0], ye[-1])
         ax.set_xlabel("kernel range η")
         ax.set_ylabel("robots n")
-    axes[0].legend(fontsize=7, loc="upper right", framealpha=0.85)
+    handles, labels = axes[0].get_legend_handles_labels()
+    from matplotlib.lines import Line2D
+
+    # the white circles would not show on the white legend: a black-edged stand-in
+    handles = [Line2D([], [], marker="o", mfc="none", mec="k", ls="none", ms=9) if lab.startswith("smallest") else h
+               for h, lab in zip(handles, labels, strict=True)]
+    fig.legend(handles, labels, loc="outside lower center", ncol=len(labels), fontsize=8, frameon=False)
     fig.suptitle(
         f"Robot count × kernel range: medians over {len(study.seeds)} seeds (coverage estimates beyond the "
         "top row are drawn at its edge)", fontsize=10

@@ -11,7 +11,7 @@ robots, a 128² grid (``meanfield run stadium``).
   10 steps (10 000 humans' positions, the density), then building the dataset and the
   summary (W₂ included).  Figures: steps per second and µs per human per step over the
   whole call, the loop's own rate (``summary["steps_per_second"]``), and the peak resident
-  memory of the process, which does nothing else (``ru_maxrss``).
+  memory of the process, which does nothing else (``VmHWM``).
 * **Anchor**: the same loop with ``crowd.field_evaluation = "exact"`` (eq. (3) summed over
   the 64 robots at each human, O(N n)), a few steps with ``ClosedLoop.step``, in its own
   process.
@@ -43,6 +43,17 @@ GOAL_PEAK_MB = 1536.0
 
 
 def _peak_mb() -> float:
+    """Peak resident memory of this process alone, in MB.
+
+    ``VmHWM`` from ``/proc/self/status`` is reset by ``exec``; ``ru_maxrss`` is not (a child
+    started by a large process inherits its parent's peak), so it is only the fallback.
+    """
+    try:
+        for line in open("/proc/self/status"):
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024.0  # kB
+    except OSError:
+        pass
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # kB on Linux
 
 

@@ -54,7 +54,8 @@ class Crowd:
         self.domain = domain
         self.sigma = sigma
         self.rng = rng
-        self._noise = np.empty_like(positions)
+        self._noise = np.empty_like(positions)  # work arrays, reused every step
+        self._scaled = np.empty_like(positions)
 
     @property
     def n(self) -> int:
@@ -64,6 +65,8 @@ class Crowd:
     def step(self, drift: np.ndarray, t: float, dt: float) -> None:
         """One Euler–Maruyama step of eq. (1) with drift (N, 2), then reflect at the walls."""
         x = self.positions
+        if self._noise.shape != x.shape:  # positions replaced by an array of another size
+            self._noise, self._scaled = np.empty_like(x), np.empty_like(x)
         self.rng.standard_normal(out=self._noise)
         if callable(self.sigma):
             s = np.asarray(self.sigma(x[:, 0], x[:, 1], t), float)
@@ -72,6 +75,8 @@ class Crowd:
             amp = np.sqrt(2.0 * s * dt)[:, None]
         else:
             amp = math.sqrt(2.0 * self.sigma * dt)
-        x += dt * drift
-        x += amp * self._noise
+        np.multiply(drift, dt, out=self._scaled)
+        x += self._scaled
+        np.multiply(self._noise, amp, out=self._noise)
+        x += self._noise
         self.domain.reflect(x)

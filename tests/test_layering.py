@@ -1,4 +1,4 @@
-"""Package layering (verification → analysis → meanfield, never back) and the plugin mechanism."""
+"""Package layering (benchmarks → verification → analysis → meanfield, never back) and the plugin mechanism."""
 
 from __future__ import annotations
 
@@ -11,7 +11,12 @@ from meanfield import ParameterError, plugins
 from meanfield.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
-ABOVE = {"meanfield": {"analysis", "verification"}, "analysis": {"verification"}}
+# benchmarks (the `meanfield bench` suite) sits on top: it imports the three packages, none imports it
+ABOVE = {
+    "meanfield": {"analysis", "verification", "benchmarks"},
+    "analysis": {"verification", "benchmarks"},
+    "verification": {"benchmarks"},
+}
 
 
 def _imported_packages(path: Path) -> set[str]:
