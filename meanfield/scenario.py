@@ -402,12 +402,14 @@ _SECTIONS: dict[str, type] = {
 _TOP_LEVEL = ("name", "seed", "dt", "t_final", "record_every", "record_humans")
 
 
-def resolve_key(key: str) -> str:
+def resolve_key(key: str, value: Any = None) -> str:
     """The dotted scenario key a short name stands for (``--set`` accepts either).
 
     A dotted key or a top-level field is returned as it is; a section with a count
     (``robots``, ``crowd``) stands for its ``n``; a field name found in exactly one section
     (``eta``, ``sigma``, ``u_max``) stands for that section's field.
+
+    ``value`` is only quoted in the error.
 
     Raises
     ------
@@ -416,6 +418,7 @@ def resolve_key(key: str) -> str:
     """
     if not isinstance(key, str) or not key:
         raise ParameterError("key", key, "a scenario field name")
+    shown = key if value is None else value
     if "." in key or key in _TOP_LEVEL or key == "domain":
         return key
     if key in _SECTIONS and "n" in {f.name for f in fields(_SECTIONS[key])}:
@@ -424,8 +427,8 @@ def resolve_key(key: str) -> str:
     if len(found) == 1:
         return found[0]
     if found:
-        raise ParameterError(key, key, f"a dotted key, one of {', '.join(found)}")
-    raise ParameterError(key, key, "an existing scenario field (a dotted key such as robots.n or kernel.eta)")
+        raise ParameterError(key, shown, f"a dotted key, one of {', '.join(found)}")
+    raise ParameterError(key, shown, "an existing scenario field (a dotted key such as robots.n or kernel.eta)")
 
 
 @dataclass
@@ -548,7 +551,7 @@ class Scenario:
         """
         d = self.to_dict()
         for short, value in assignments.items():
-            key = resolve_key(short)
+            key = resolve_key(short, value)
             parts = key.split(".")
             node = d
             for depth, p in enumerate(parts[:-1]):

@@ -36,6 +36,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import logging
 import math
 import os
 import re
@@ -213,10 +214,27 @@ def _connect(scheduler: str | None, workers: int | None, timeout: float):
         raise ParameterError("scheduler", scheduler, f"dask.distributed installed ({exc})") from None
 
     if scheduler is None:
+        import signal
+        import threading
+
         n = workers or os.cpu_count() or 1
-        cluster = LocalCluster(
-            n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None, scheduler_port=0
-        )
+        # the worker processes start with Ctrl-C ignored (an ignored signal stays ignored
+        # across exec): Ctrl-C reaches this process alone, which records the runs so far
+        # and closes the cluster, instead of every worker printing a KeyboardInterrupt
+        main = threading.current_thread() is threading.main_thread()
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+        try:
+            cluster = LocalCluster(
+                n_workers=n,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                scheduler_port=0,
+                silence_logs=logging.ERROR,  # not the warnings of tasks cancelled by a Ctrl-C
+            )
+        finally:
+            if main:
+                signal.signal(signal.SIGINT, previous)
         return Client(cluster), cluster
     if not re.fullmatch(r"[a-z]+://[^\s/]+:\d+", scheduler):
         raise ParameterError("--scheduler", scheduler, "a Dask scheduler address, e.g. tcp://127.0.0.1:8786")
@@ -392,14 +410,17 @@ def run_sweep(
                     pending_exc = exc
                 try:
                     client.cancel(list(futures))
-                except Exception:  # a cluster already going down with the Ctrl-C
+                except BaseException:  # a cluster already going down, or a second Ctrl-C
                     pass
     finally:
         bar.close()
-        if client is not None:
-            client.close()
-        if cluster is not None:
-            cluster.close()
+        # a second Ctrl-C while closing must not lose the runs so far: they are written below
+        for closing in (client, cluster):
+            if closing is not None:
+                try:
+                    closing.close()
+                except BaseException:
+                    state = "interrupted"
 
     # ---- the dataset
     import xarray as xr
