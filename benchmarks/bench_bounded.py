@@ -24,14 +24,13 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")  # one core
 
 import argparse  # noqa: E402
-import json  # noqa: E402
-import platform  # noqa: E402
 import time  # noqa: E402
 
 import cvxpy as cp  # noqa: E402
 import numpy as np  # noqa: E402
 
 from analysis.bounded import BoundedBetaGamma, achievable_range  # noqa: E402
+from benchmarks.reporting import emit, machine_line  # noqa: E402
 from meanfield import ClosedLoop, paper_scenario  # noqa: E402
 
 N, K_U, K_W, U_MAX, W_MAX = 16, 10.0, 10.0, 0.2, 3.0
@@ -156,13 +155,9 @@ def main() -> None:
         "benchmark": "bounded beta/gamma program (cvxpy DPP + Clarabel), n = 16",
         **resolve_times(a.solves),
         **closed_loop(a.steps, a.repeats),
-        "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-        f"Python {platform.python_version()}, numpy {np.__version__}, cvxpy {cp.__version__}",
+        "machine": machine_line(f"cvxpy {cp.__version__}"),
     }
-    print(json.dumps(out, indent=2))
-    if a.json:
-        with open(a.json, "w") as fh:
-            json.dump(out, fh, indent=2)
+    emit(out, a.json)
 
 
 if __name__ == "__main__":

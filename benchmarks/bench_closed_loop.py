@@ -17,13 +17,12 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")  # one core
 
 import argparse  # noqa: E402
-import json  # noqa: E402
-import platform  # noqa: E402
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 from scipy.stats import gaussian_kde  # noqa: E402
 
+from benchmarks.reporting import emit, machine_line  # noqa: E402
 from meanfield import ClosedLoop, paper_scenario  # noqa: E402
 
 
@@ -70,13 +69,9 @@ def main() -> None:
         "anchor_calls_per_second": anchor,
         "ratio_ours_over_anchor": ours / anchor,
         "goal_steps_per_second": 2000,
-        "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-        f"Python {platform.python_version()}, numpy {np.__version__}",
+        "machine": machine_line(),
     }
-    print(json.dumps(out, indent=2))
-    if a.json:
-        with open(a.json, "w") as fh:
-            json.dump(out, fh, indent=2)
+    emit(out, a.json)
 
 
 if __name__ == "__main__":

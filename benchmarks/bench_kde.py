@@ -28,13 +28,12 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")  # one core
 
 import argparse  # noqa: E402
-import json  # noqa: E402
-import platform  # noqa: E402
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 from scipy.stats import gaussian_kde  # noqa: E402
 
+from benchmarks.reporting import emit, machine_line  # noqa: E402
 from meanfield import Domain, Grid, KernelDensityEstimator, silverman_bandwidth  # noqa: E402
 
 CELLS = 256
@@ -57,13 +56,6 @@ def best_time(fn, repeats: int) -> tuple[float, np.ndarray]:
         out = fn()
         best = min(best, time.perf_counter() - t0)
     return best, out
-
-
-def machine() -> str:
-    return (
-        f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores (1 used), "
-        f"Python {platform.python_version()}, numpy {np.__version__}"
-    )
 
 
 def speed_against_gaussian_kde(n: int, repeats: int, anchor_repeats: int) -> dict:
@@ -129,7 +121,7 @@ def run(quick: bool = False, repeats: int = 5) -> dict:
     ]
     return {
         "benchmark": "KDE: binned estimator vs scipy gaussian_kde (N=1e4) and vs exact summation (N=1e6)",
-        "machine": machine(),
+        "machine": machine_line(),
         "results": results,
         "verdict": "PASS" if all(r["pass"] for r in results) else "FAIL",
     }
@@ -142,10 +134,7 @@ def main() -> None:
     ap.add_argument("--json", default=None)
     a = ap.parse_args()
     out = run(a.quick, a.repeats)
-    print(json.dumps(out, indent=2))
-    if a.json:
-        with open(a.json, "w") as fh:
-            json.dump(out, fh, indent=2)
+    emit(out, a.json)
 
 
 if __name__ == "__main__":

@@ -30,13 +30,12 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import json  # noqa: E402
-import platform  # noqa: E402
 import resource  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 
-import numpy as np  # noqa: E402
+from benchmarks.reporting import emit, machine_line  # noqa: E402
 
 GOAL_STEPS_PER_SECOND = 4.0
 GOAL_PEAK_MB = 1536.0
@@ -111,13 +110,6 @@ def measure(mode: str, steps: int) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def machine() -> str:
-    return (
-        f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores (1 used), "
-        f"Python {platform.python_version()}, numpy {np.__version__}"
-    )
-
-
 def run(quick: bool = False, steps: int = 100) -> dict:
     """Both measurements; returns the JSON-ready record."""
     ours_steps = 20 if quick else steps
@@ -127,7 +119,7 @@ def run(quick: bool = False, steps: int = 100) -> dict:
     ok = ours["steps_per_second"] >= GOAL_STEPS_PER_SECOND and ours["peak_mb"] <= GOAL_PEAK_MB
     return {
         "benchmark": "closed loop, stadium scenario (N=1e6 humans, n=64 robots, 128x128 grid), one core",
-        "machine": machine(),
+        "machine": machine_line(),
         "command": "python benchmarks/bench_large_crowd.py" + (" --quick" if quick else f" --steps {steps}"),
         "results": [
             {
@@ -161,10 +153,7 @@ def main() -> None:
         print(json.dumps(child(a.child, a.steps)))
         return
     out = run(a.quick, a.steps)
-    print(json.dumps(out, indent=2))
-    if a.json:
-        with open(a.json, "w") as fh:
-            json.dump(out, fh, indent=2)
+    emit(out, a.json)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,32 @@
+"""What every benchmark script prints: the machine line and the JSON record (stdout and ``--json``)."""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+from typing import Any
+
+import numpy as np
+
+__all__ = ["machine_line", "emit"]
+
+
+def machine_line(extra: str = "") -> str:
+    """``"x86_64, 2 cores (1 used), Python 3.11.7, numpy 2.4.6"`` (+ ``extra``)."""
+    line = (
+        f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores (1 used), "
+        f"Python {platform.python_version()}, numpy {np.__version__}"
+    )
+    return f"{line}, {extra}" if extra else line
+
+
+def emit(record: dict[str, Any], path: str | None) -> None:
+    """Print the record as JSON and, if ``path`` is given, write it there atomically."""
+    print(json.dumps(record, indent=2))
+    if path:
+        from pathlib import Path
+
+        from meanfield.io import atomic_write_json
+
+        atomic_write_json(Path(path), record)
