@@ -16,8 +16,8 @@ Two evaluation methods give the same estimate:
   folded in, as in ``"separable"``; fastest up to grids of a few hundred cells a side)
   or one FFT (O(G log G), for finer grids; it reads the fine value at the centre for odd
   ``r`` and interpolates between the four nearest ones for even ``r``);
-  ``convolution="auto"`` picks the cheaper by an operation count.  The binning error is second order in the fine bin size δ:
-  at most ``(δx² + δy²)/(4h²)`` of the kernel's peak ``1/(2πh²)``;
+  ``convolution="auto"`` picks the cheaper by an operation count.  The binning error is
+  second order in the fine bin size δ: at most ``(δx² + δy²)/(4h²)`` of the kernel's peak ``1/(2πh²)``;
   ``oversample="auto"`` takes the smallest ``r`` with ``δ <= 0.15 h`` (capped at 8),
   which keeps it below about 3e-4 of the density's peak on smooth crowds.
 
