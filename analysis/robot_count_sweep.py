@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -61,6 +61,8 @@ class RobotCountSweep:
         ``{ε/c: [n_cov(η) for η in etas]}``.
     t_final : float
         The runs' horizon.
+    c : float
+        The kernel peak (ε levels are fractions of it).
     """
 
     counts: list[int]
@@ -74,7 +76,7 @@ class RobotCountSweep:
     minimum: dict[float, int | None]
     coverage: dict[float, list[int]]
     t_final: float
-    c: float = field(default=float("nan"))
+    c: float
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready (``inf`` as the string "never")."""

@@ -37,13 +37,13 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")  # one core
 
 import argparse  # noqa: E402
-import json  # noqa: E402
 import platform  # noqa: E402
 import time  # noqa: E402
 
 import jupedsim as jps  # noqa: E402
 import numpy as np  # noqa: E402
 
+from benchmarks.reporting import write_files  # noqa: E402
 from meanfield import Domain  # noqa: E402
 from meanfield.pedestrian_crowd import PedestrianCrowd, place_bodies  # noqa: E402
 
@@ -161,17 +161,9 @@ def one_repeat(positions: np.ndarray, domain: Domain, velocities: list[np.ndarra
     }
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="N = 200 and 2,000 only, fewer steps")
-    ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--json", default=None, help="write the figures as JSON")
-    ap.add_argument("--out", default=None, help="write the printed report as text")
-    a = ap.parse_args()
-    plan = QUICK_STEPS if a.quick else FULL_STEPS
+def measure(plan: dict[int, int], repeats: int) -> tuple[list[dict], list[dict]]:
+    """Best of ``repeats`` for each ``{N: steps}`` of ``plan``: the per-N results and every run."""
     domain = Domain.box(SIDE, SIDE)
-    load_before = os.getloadavg()
-
     setup = {}
     for n, steps in plan.items():
         rng = np.random.default_rng(n)
@@ -180,7 +172,7 @@ def main() -> None:
 
     best: dict[int, dict] = {n: {"anchor": np.inf, "ours": np.inf, **dict.fromkeys(PIECES, np.inf)} for n in plan}
     runs = []
-    for r in range(a.repeats):
+    for r in range(repeats):
         for n, steps in plan.items():
             positions, velocities = setup[n]
             run = one_repeat(positions, domain, velocities, steps, seed=n + 2)
@@ -213,6 +205,19 @@ def main() -> None:
                 "pass": bool(overhead <= TARGET_OVERHEAD_US),
             }
         )
+    return results, runs
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="N = 200 and 2,000 only, fewer steps")
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--json", default=None, help="write the figures as JSON")
+    ap.add_argument("--out", default=None, help="write the printed report as text")
+    a = ap.parse_args()
+    plan = QUICK_STEPS if a.quick else FULL_STEPS
+    load_before = os.getloadavg()
+    results, runs = measure(plan, a.repeats)
     verdict = "PASS" if all(x["pass"] for x in results) else "FAIL"
     out = {
         "benchmark": f"PedestrianCrowd (JuPedSim backend, steered every step) vs JuPedSim alone, {SIDE:g}x{SIDE:g} m "
@@ -265,12 +270,7 @@ def main() -> None:
     lines.append(f"verdict: {verdict}")
     report = "\n".join(lines)
     print(report)
-    if a.json:
-        with open(a.json, "w") as fh:
-            json.dump(out, fh, indent=2)
-    if a.out:
-        with open(a.out, "w") as fh:
-            fh.write(report + "\n")
+    write_files(out, a.json, report, a.out)
 
 
 if __name__ == "__main__":

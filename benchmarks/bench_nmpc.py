@@ -38,6 +38,7 @@ import time  # noqa: E402
 import casadi  # noqa: E402
 import numpy as np  # noqa: E402
 
+from benchmarks.reporting import write_files  # noqa: E402
 from meanfield import ClosedLoop, paper_scenario  # noqa: E402
 from meanfield.cli import parse_set  # noqa: E402
 
@@ -132,12 +133,7 @@ def main() -> None:
     ]
     report = "\n".join(lines)
     print(report)
-    if a.json:
-        with open(a.json, "w") as fh:
-            json.dump(out, fh, indent=2)
-    if a.out:
-        with open(a.out, "w") as fh:
-            fh.write(report + "\n")
+    write_files(out, a.json, report, a.out)
 
 
 if __name__ == "__main__":

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["machine_line", "emit"]
+__all__ = ["machine_line", "emit", "write_files"]
 
 
 def machine_line(extra: str = "") -> str:
@@ -24,9 +24,18 @@ def machine_line(extra: str = "") -> str:
 def emit(record: dict[str, Any], path: str | None) -> None:
     """Print the record as JSON and, if ``path`` is given, write it there atomically."""
     print(json.dumps(record, indent=2))
-    if path:
-        from pathlib import Path
+    write_files(record, path)
 
-        from meanfield.io import atomic_write_json
 
-        atomic_write_json(Path(path), record)
+def write_files(
+    record: dict[str, Any], json_path: str | None, report: str = "", report_path: str | None = None
+) -> None:
+    """Write the record as JSON and the printed report as text, each atomically, where a path is given."""
+    from pathlib import Path
+
+    from meanfield.io import atomic_write_json, atomic_write_text
+
+    if json_path:
+        atomic_write_json(Path(json_path), record)
+    if report_path:
+        atomic_write_text(Path(report_path), report + "\n")

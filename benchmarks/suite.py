@@ -329,55 +329,27 @@ def _jupedsim(quick: bool) -> list[dict[str, Any]]:
 
         note = f"jupedsim not available ({why}); install: {INSTALL_HINT}"
         return [skipped("jupedsim", "jupedsim vs JuPedSim alone", what, ours_label, anchor_label, note)]
-    import numpy as np
-
-    from meanfield import Domain
-    from meanfield.pedestrian_crowd import place_bodies
-
     jb = _bench("bench_jupedsim")
-    domain = Domain.box(jb.SIDE, jb.SIDE)
-    setup = {}
-    for n, steps in plan.items():  # as bench_jupedsim.main
-        rng = np.random.default_rng(n)
-        positions = place_bodies(lambda k, rng=rng: domain.sample_uniform(k, rng), n, jb.RADIUS, domain)
-        setup[n] = (positions, jb.velocity_fields(n, steps + 1, seed=n + 1))
-    best = {n: {"anchor_s": math.inf, "ours_s": math.inf} for n in plan}
-    for _ in range(s["repeats"]):
-        for n, steps in plan.items():
-            positions, velocities = setup[n]
-            run = jb.one_repeat(positions, domain, velocities, steps, seed=n + 2)
-            for key in ("anchor_s", "ours_s"):
-                best[n][key] = min(best[n][key], run[key])
-    records = []
-    for n, steps in plan.items():
-        b = best[n]
-        overhead = (b["ours_s"] - b["anchor_s"]) / n * 1e6
-        target = jb.TARGET_OVERHEAD_US
-        records.append(
-            measured(
-                "jupedsim",
-                f"jupedsim N={n} vs JuPedSim alone",
-                f"{what}, N={n}, {steps} steps",
-                ours_label,
-                anchor_label,
-                1.0 / b["ours_s"],
-                1.0 / b["anchor_s"],
-                "steps/s",
-                faster="higher",
-                goal=f"adapter overhead <= {target:g} µs per agent-step",
-                passed=overhead <= target,
-                note=f"overhead {overhead:.2f} µs per agent-step",
-                detail={
-                    "n": n,
-                    "steps": steps,
-                    "repeats": s["repeats"],
-                    "ours_us_per_agent_step": b["ours_s"] / n * 1e6,
-                    "anchor_us_per_agent_step": b["anchor_s"] / n * 1e6,
-                    "overhead_us_per_agent_step": overhead,
-                },
-            )
+    results, _ = jb.measure(plan, s["repeats"])
+    target = jb.TARGET_OVERHEAD_US
+    return [
+        measured(
+            "jupedsim",
+            f"jupedsim N={x['n']} vs JuPedSim alone",
+            f"{what}, N={x['n']}, {x['steps']} steps",
+            ours_label,
+            anchor_label,
+            x["ours_steps_per_second"],
+            x["anchor_steps_per_second"],
+            "steps/s",
+            faster="higher",
+            goal=f"adapter overhead <= {target:g} µs per agent-step",
+            passed=x["pass"],
+            note=f"overhead {x['overhead_us_per_agent_step']:.2f} µs per agent-step",
+            detail={"repeats": s["repeats"], **x},
         )
-    return records
+        for x in results
+    ]
 
 
 def _large_crowd(quick: bool) -> list[dict[str, Any]]:

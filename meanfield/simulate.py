@@ -587,7 +587,8 @@ def recorded_humans(n: int, record_humans: int | str) -> np.ndarray:
     """
     if record_humans == "all" or record_humans >= n:
         return np.arange(n)
-    return np.unique(np.linspace(0, n - 1, int(record_humans)).round().astype(np.intp))
+    # spacing (n - 1)/(k - 1) > 1 for k < n: the rounded indices are distinct and increasing
+    return np.linspace(0, n - 1, int(record_humans)).round().astype(np.intp)
 
 
 @dataclass
