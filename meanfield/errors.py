@@ -58,3 +58,20 @@ def limit_or_inf(name: str, value: Any) -> float:
     if math.isnan(value) or value <= 0:
         raise ParameterError(name, value, "a number > 0, or None/inf for no limit")
     return value
+
+
+def check_sigma(name: str, sigma: Any) -> Any:
+    """The crowd's diffusion σ (eq. (1)): a callable ``σ(x, y, t)`` as it is, or a finite float ``>= 0``.
+
+    The one validation of σ in the toolkit (crowd, controller, Fokker–Planck solver); the
+    type is :data:`meanfield.interfaces.SigmaLike`.  Raises :class:`ParameterError` naming ``name``.
+    """
+    if callable(sigma):
+        return sigma
+    try:
+        s = float(sigma)
+    except (TypeError, ValueError):
+        raise ParameterError(name, sigma, "a finite number >= 0, or a callable σ(x, y, t)") from None
+    if not math.isfinite(s) or s < 0:
+        raise ParameterError(name, sigma, "a finite number >= 0, or a callable σ(x, y, t)")
+    return s

@@ -1,63 +1,235 @@
-"""Extension points: β/γ strategies, controllers and CLI commands found by entry point.
+"""The registry: every interchangeable part of the closed loop, chosen by name.
 
-``meanfield`` never imports the packages built on it (``analysis``, ``verification``).
-They extend it the way pytest plugins extend pytest: by declaring entry points in their
-distribution's metadata, which ``meanfield`` discovers at run time.  The groups:
+A scenario names its parts (``domain.kind``, ``pedestrians.backend``, ``controller.kind``,
+``controller.beta_gamma``); :func:`meanfield.assembly.assemble` looks each name up here.
+Names come from three places, one registration line each:
 
-``meanfield.beta_gamma``
-    ``name = "module:factory"`` with ``factory(scenario) -> BetaGammaStrategy``;
-    selectable as ``controller.beta_gamma = name`` in a scenario.
-``meanfield.controllers``
-    ``name = "module:factory"`` with ``factory(loop) -> controller``, where ``loop`` is
-    the :class:`~meanfield.simulate.ClosedLoop` being built and ``controller`` has the
-    methods ``robot_inputs(rho, field, t, dt) -> ControlState`` and ``reset()`` of
-    :class:`~meanfield.control.BacksteppingController`; selectable as
-    ``controller.kind = name``.
-``meanfield.commands``
-    ``name = "module:register"`` with ``register(subparsers) -> handler``: adds the
-    sub-command's parser and returns ``handler(args) -> int`` (the exit status).
+* this toolkit's own parts, listed in :data:`BUILTIN` as ``"module:attribute"`` references
+  (imported only when used, so naming a part costs no import);
+* installed packages, by entry point in their distribution's metadata, the way pytest
+  plugins extend pytest (``meanfield`` never imports ``analysis`` or ``verification``;
+  they register here through ``pyproject.toml``);
+* a user's own module, with :func:`register` (e.g. ``register("controller", "parked",
+  ParkedRobots.from_parts)``), imported before the scenario is validated, for instance
+  through the scenario's top-level ``plugins = ["my_module"]`` list.
 
-This toolkit's own entry points are declared in ``pyproject.toml``.
+A name registered twice is refused, naming both origins.
+
+The kinds and what a factory of each kind receives and returns (docs page *Architecture*):
+
+``region`` (entry-point group ``meanfield.regions``)
+    ``factory(**table) -> Region``, ``table`` being the scenario's ``[domain]`` table
+    without ``kind``.
+``crowd`` (``meanfield.crowds``)
+    ``factory(context: CrowdContext) -> Crowd`` (:mod:`meanfield.interfaces`).
+``controller`` (``meanfield.controllers``)
+    ``factory(parts: ControllerParts) -> Controller``.
+``beta_gamma`` (``meanfield.beta_gamma``)
+    ``factory(scenario) -> BetaGammaStrategy``.
+``command`` (``meanfield.commands``)
+    ``register(subparsers) -> handler``: adds a sub-command; ``handler(args) -> int``.
 """
 
 from __future__ import annotations
 
-from importlib.metadata import EntryPoint, entry_points
+import importlib
+from dataclasses import dataclass
+from importlib.metadata import entry_points
 from typing import Any
 
 from meanfield.errors import ParameterError
 
-__all__ = ["GROUPS", "available", "load"]
+__all__ = ["BUILTIN", "GROUPS", "available", "load", "origin", "register", "unregister"]
 
 GROUPS = {
-    "beta_gamma": "meanfield.beta_gamma",
+    "region": "meanfield.regions",
+    "crowd": "meanfield.crowds",
     "controller": "meanfield.controllers",
+    "beta_gamma": "meanfield.beta_gamma",
     "command": "meanfield.commands",
 }
 """Plugin kinds and their entry-point groups."""
 
+BUILTIN: dict[str, dict[str, str]] = {
+    "region": {
+        "box": "meanfield.domain:Domain.box",
+        "disk": "meanfield.domain:Domain.disk",
+        "polygon": "meanfield.domain:Domain.polygon",
+    },
+    "crowd": {
+        "point-mass": "meanfield.crowd:PointMassCrowd.from_context",
+        "jupedsim": "meanfield.pedestrian_crowd:PedestrianCrowd.from_context",
+        "fokker-planck": "meanfield.density_crowd:DensityCrowd.from_context",
+    },
+    "controller": {
+        "backstepping": "meanfield.control:BacksteppingController.from_parts",
+    },
+    "beta_gamma": {
+        "min-norm": "meanfield.control:MinimumNormBetaGamma.from_scenario",
+    },
+    "command": {},
+}
+"""This toolkit's own parts: ``{kind: {name: "module:attribute"}}``."""
 
-def _entry_points(kind: str) -> dict[str, EntryPoint]:
+
+@dataclass(frozen=True)
+class _Entry:
+    name: str
+    origin: str  # where the name was registered, for messages
+    target: Any  # a "module:attribute" reference, an entry point, or the object itself
+
+    def load(self) -> Any:
+        t = self.target
+        if isinstance(t, str):
+            module, _, attr = t.partition(":")
+            obj: Any = importlib.import_module(module)
+            for part in attr.split("."):
+                obj = getattr(obj, part)
+            return obj
+        if hasattr(t, "load") and hasattr(t, "group"):  # an importlib.metadata.EntryPoint
+            return t.load()
+        return t
+
+
+_registered: dict[str, dict[str, _Entry]] = {kind: {} for kind in GROUPS}
+
+
+def _check_kind(kind: str) -> None:
     if kind not in GROUPS:
         raise ParameterError("kind", kind, " or ".join(map(repr, GROUPS)))
-    return {ep.name: ep for ep in entry_points(group=GROUPS[kind])}
 
 
-def available(kind: str) -> tuple[str, ...]:
-    """Names of the installed plugins of one kind (``"beta_gamma"``, ``"controller"``, ``"command"``)."""
-    return tuple(sorted(_entry_points(kind)))
+def _describe(obj: Any) -> str:
+    module = getattr(obj, "__module__", None) or "?"
+    return f"{module}:{getattr(obj, '__qualname__', type(obj).__name__)}"
 
 
-def load(kind: str, name: str) -> Any:
-    """The object a plugin's entry point names (a factory or a registration function).
+def _entries(kind: str) -> dict[str, _Entry]:
+    """Every registered name of one kind; a name that two origins claim is refused."""
+    _check_kind(kind)
+    out: dict[str, _Entry] = {}
+
+    def add(entry: _Entry) -> None:
+        if entry.name in out:
+            first = out[entry.name]
+            raise ParameterError(
+                f"{kind} plugin {entry.name!r}",
+                f"registered twice: by {first.origin} and by {entry.origin}",
+                "one registration per name (rename or uninstall one of them)",
+            )
+        out[entry.name] = entry
+
+    for name, ref in BUILTIN[kind].items():
+        add(_Entry(name, f"meanfield (built-in {ref})", ref))
+    for ep in entry_points(group=GROUPS[kind]):
+        dist = getattr(getattr(ep, "dist", None), "name", None) or "an installed package"
+        add(_Entry(ep.name, f"entry point {ep.value} of {dist}", ep))
+    for entry in _registered[kind].values():
+        add(entry)
+    return out
+
+
+def register(kind: str, name: str, factory: Any, origin: str | None = None) -> Any:
+    """Register ``factory`` under ``name`` (one line in the module that defines it).
+
+    Parameters
+    ----------
+    kind : {"region", "crowd", "controller", "beta_gamma", "command"}
+    name : str
+        The name a scenario uses (``controller.kind = name``, ...).
+    factory : callable
+        See the module docstring for each kind's signature.
+    origin : str, optional
+        Where the registration comes from (default: the factory's module and name).
+
+    Returns
+    -------
+    factory, so that ``register`` can be used in an assignment or a decorator helper.
 
     Raises
     ------
     ParameterError
-        If no installed plugin of that kind has this name.
+        If the name is taken (built in, by an entry point, or registered before), naming both origins.
     """
-    eps = _entry_points(kind)
-    if name not in eps:
-        names = ", ".join(sorted(eps)) or "none installed"
-        raise ParameterError(kind, name, f"an installed {kind} plugin ({names})")
-    return eps[name].load()
+    _check_kind(kind)
+    if not isinstance(name, str) or not name:
+        raise ParameterError("name", name, "a non-empty string")
+    entry = _Entry(name, origin or _describe(factory), factory)
+    existing = _entries(kind).get(name)
+    if existing is not None:
+        raise ParameterError(
+            f"{kind} plugin {name!r}",
+            f"registered twice: by {existing.origin} and by {entry.origin}",
+            "one registration per name (rename or unregister one of them)",
+        )
+    _registered[kind][name] = entry
+    return factory
+
+
+def unregister(kind: str, name: str) -> None:
+    """Remove a name added by :func:`register` (built-ins and entry points stay)."""
+    _check_kind(kind)
+    _registered[kind].pop(name, None)
+
+
+def available(kind: str) -> tuple[str, ...]:
+    """Names registered for one kind (``"region"``, ``"crowd"``, ``"controller"``, ...), sorted."""
+    return tuple(sorted(_entries(kind)))
+
+
+def origin(kind: str, name: str) -> str:
+    """Where ``name`` of ``kind`` was registered (for messages and ``meanfield`` diagnostics)."""
+    return _get(kind, name).origin
+
+
+def _get(kind: str, name: str) -> _Entry:
+    entries = _entries(kind)
+    if name not in entries:
+        names = ", ".join(map(repr, sorted(entries))) or "none installed"
+        raise ParameterError(kind, name, f"a registered {kind} ({names})")
+    return entries[name]
+
+
+def load(kind: str, name: str) -> Any:
+    """The factory registered as ``name`` of ``kind``.
+
+    Raises
+    ------
+    ParameterError
+        If no part of that kind has this name (the message lists those that do).
+    """
+    return _get(kind, name).load()
+
+
+def import_plugin_modules(modules: list[str] | tuple[str, ...], field: str = "plugins") -> None:
+    """Import user modules (dotted names, or paths to ``.py`` files) that call :func:`register`.
+
+    Importing a module twice is harmless: Python keeps the first import.
+    """
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    for spec in modules:
+        if not isinstance(spec, str) or not spec:
+            raise ParameterError(field, spec, "module names or paths to .py files")
+        if spec.endswith(".py"):
+            path = Path(spec).resolve()
+            name = f"meanfield_plugin_{path.stem}_{abs(hash(str(path))):x}"
+            if name in sys.modules:
+                continue
+            if not path.is_file():
+                raise ParameterError(field, spec, "an existing .py file or an importable module")
+            mod_spec = importlib.util.spec_from_file_location(name, path)
+            module = importlib.util.module_from_spec(mod_spec)
+            sys.modules[name] = module
+            try:
+                mod_spec.loader.exec_module(module)
+            except BaseException:
+                del sys.modules[name]
+                raise
+        else:
+            try:
+                importlib.import_module(spec)
+            except ImportError as exc:
+                raise ParameterError(field, spec, f"an importable module ({exc})") from None
