@@ -13,7 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-__all__ = ["atomic_write_text", "atomic_write_json", "atomic_write_with"]
+__all__ = ["atomic_write_text", "atomic_write_json", "atomic_write_with", "save_figure"]
 
 
 def atomic_write_with(path: Path, writer: Callable[[Path], None]) -> Path:
@@ -60,3 +60,20 @@ def _json_default(obj: Any) -> Any:
 def atomic_write_json(path: Path, data: Any) -> Path:
     """Write ``data`` as indented JSON atomically (numpy scalars and arrays allowed)."""
     return atomic_write_text(Path(path), json.dumps(data, indent=2, default=_json_default) + "\n")
+
+
+def save_figure(fig: Any, path: str | Path, *, dpi: int = 110, close: bool = True, **kwargs: Any) -> Path:
+    """Save a matplotlib figure atomically (the one figure writer of the toolkit).
+
+    The format follows ``path``'s suffix (PNG by default); ``kwargs`` go to
+    :meth:`matplotlib.figure.Figure.savefig` (e.g. ``bbox_inches="tight"``).  The figure is
+    closed afterwards unless ``close=False``, so that scripts and sweeps do not pile up figures.
+    """
+    path = Path(path)
+    fmt = kwargs.pop("format", path.suffix.lstrip(".") or "png")
+    out = atomic_write_with(path, lambda p: fig.savefig(p, dpi=dpi, format=fmt, **kwargs))
+    if close:
+        import matplotlib.pyplot as plt
+
+        plt.close(fig)
+    return out
