@@ -39,7 +39,6 @@ import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as sla
 from scipy.sparse.csgraph import connected_components
-from scipy.special import jnp_zeros
 
 from meanfield.domain import Domain
 from meanfield.errors import ParameterError
@@ -342,11 +341,9 @@ def exact_neumann_eigenvalue(domain: Domain | Grid) -> float | None:
         The workspace (a grid's domain is used).
     """
     dom = _check_domain(domain)
-    if dom.kind == "box":
-        x0, x1, y0, y1 = dom.bounds
-        return math.pi**2 / max(x1 - x0, y1 - y0) ** 2
-    if dom.kind == "disk":
-        return float(jnp_zeros(1, 1)[0] / dom.radius) ** 2
+    closed_form = dom.neumann_eigenvalue()  # the shape's own: rectangle, disk
+    if closed_form is not None:
+        return closed_form
     v = dom.vertices
     scale = dom.diameter
     sides = np.hypot(*(np.roll(v, -1, axis=0) - v).T)

@@ -82,21 +82,8 @@ class CoverageLayout:
 
 def _cells_meeting(domain: Domain, cols: int, rows: int) -> np.ndarray:
     """Mask (cols, rows) of the lattice cells of Ω's bounding box that meet Ω."""
-    if domain.kind == "box":
-        return np.ones((cols, rows), bool)
     x0, x1, y0, y1 = domain.bounds
-    xe = np.linspace(x0, x1, cols + 1)
-    ye = np.linspace(y0, y1, rows + 1)
-    XL, YL = np.meshgrid(xe[:-1], ye[:-1], indexing="ij")
-    if domain.kind == "disk":  # the cell's nearest point to the centre lies in the open disk
-        cx, cy = domain.center
-        dx = np.clip(cx, XL, XL + (x1 - x0) / cols) - cx
-        dy = np.clip(cy, YL, YL + (y1 - y0) / rows) - cy
-        return dx * dx + dy * dy < domain.radius**2
-    import shapely
-
-    boxes = shapely.box(XL, YL, XL + (x1 - x0) / cols, YL + (y1 - y0) / rows)
-    return shapely.area(shapely.intersection(boxes, domain.to_shapely())) > 0
+    return domain.cells_meeting(np.linspace(x0, x1, cols + 1), np.linspace(y0, y1, rows + 1))
 
 
 def coverage_layout(domain: Domain, radius: float, max_robots: int = 100_000) -> CoverageLayout:

@@ -117,7 +117,7 @@ class KernelDensityEstimator:
             oversample = int(oversample)
         if convolution not in ("auto", "matrix", "fft"):
             raise ParameterError("density.convolution", convolution, "'auto', 'matrix' or 'fft'")
-        if boundary == "reflect" and grid.domain.kind != "box":
+        if boundary == "reflect" and not grid.is_box:  # mirror images need straight axis-aligned walls
             boundary = "renormalize"
         self.grid = grid
         self.bandwidth = bandwidth

@@ -1,13 +1,17 @@
-"""The workspace Ω: a convex, bounded region of the plane.
+"""The workspace Ω: the toolkit's :class:`~meanfield.interfaces.Region` implementation.
 
 The paper (Section III) assumes Ω ⊂ R² convex and bounded with a Lipschitz boundary.
-Three shapes are supported: an axis-aligned rectangle (``Domain.box``), a disk
-(``Domain.disk``) and a convex polygon (``Domain.polygon``).  A polygon that is not
-convex is refused, because the paper's Poincaré and Lyapunov arguments rely on it.
+Three shapes are registered (:mod:`meanfield.plugins`, kind ``region``): an axis-aligned
+rectangle (``Domain.box``), a disk (``Domain.disk``) and a convex polygon
+(``Domain.polygon``).  A polygon that is not convex is refused for now: reflection and
+the Fokker–Planck walls of non-convex plans come with the floor-plan work.
 
-The domain knows how to test membership, reflect a point that stepped outside back in
-(the reflecting walls of the human SDE, eq. (1)), and project a point onto Ω (robots
-are kept inside Ω).
+The domain tests membership, reflects a point that stepped outside back in (the
+reflecting walls of the human SDE, eq. (1)), projects a point onto Ω (robots are kept
+inside Ω), samples it, cuts grid cells (:mod:`meanfield.cut_cells`), and splits its
+boundary into walls and exits (:meth:`Domain.boundary_parts`).  Every question about
+the shape is answered here: box and disk in closed form, the polygon by its edges; no
+other module asks which shape Ω is.
 """
 
 from __future__ import annotations
@@ -19,8 +23,11 @@ from typing import Any, Literal
 import numpy as np
 
 from meanfield.errors import ParameterError
+from meanfield.interfaces import BoundaryPart
 
 __all__ = ["Domain"]
+
+Segment = tuple[tuple[float, float], tuple[float, float]]
 
 DomainKind = Literal["box", "disk", "polygon"]
 
@@ -49,16 +56,22 @@ class Domain:
         Centre of the disk, or the centroid of the vertices.
     radius : float
         Radius of the disk; 0 for polygons.
+    exits : tuple of segments
+        Parts of the boundary that are exits (doors), each ``((x0, y0), (x1, y1))`` on ∂Ω;
+        the rest of ∂Ω is wall.  Empty by default (the paper's closed room).
     """
 
     kind: DomainKind
     vertices: np.ndarray = field(repr=False)
     center: tuple[float, float]
     radius: float = 0.0
+    exits: tuple[Segment, ...] = ()
 
     # ------------------------------------------------------------------ builders
     @classmethod
-    def box(cls, width: float = 1.0, height: float = 1.0, origin: tuple[float, float] = (0.0, 0.0)) -> Domain:
+    def box(
+        cls, width: float = 1.0, height: float = 1.0, origin: tuple[float, float] = (0.0, 0.0), exits: Any = ()
+    ) -> Domain:
         """Axis-aligned rectangle ``[x0, x0 + width] × [y0, y0 + height]``.
 
         Parameters
@@ -67,6 +80,8 @@ class Domain:
             Side lengths, both > 0.
         origin : (float, float)
             Lower-left corner.
+        exits : list of segments, optional
+            Boundary segments that are exits (:meth:`with_exits`).
         """
         width = _finite("width", width)
         height = _finite("height", height)
@@ -77,20 +92,22 @@ class Domain:
         x0 = _finite("origin[0]", origin[0])
         y0 = _finite("origin[1]", origin[1])
         v = np.array([[x0, y0], [x0 + width, y0], [x0 + width, y0 + height], [x0, y0 + height]], float)
-        return cls("box", v, (x0 + width / 2, y0 + height / 2), 0.0)
+        return cls("box", v, (x0 + width / 2, y0 + height / 2), 0.0)._exits(exits)
 
     @classmethod
-    def disk(cls, radius: float = 1.0, center: tuple[float, float] = (0.0, 0.0)) -> Domain:
-        """Disk of the given radius (> 0) around ``center``."""
+    def disk(cls, radius: float = 1.0, center: tuple[float, float] = (0.0, 0.0), exits: Any = ()) -> Domain:
+        """Disk of the given radius (> 0) around ``center`` (``exits``: see :meth:`with_exits`)."""
         radius = _finite("radius", radius)
         if radius <= 0:
             raise ParameterError("radius", radius, "a number > 0")
         c = (_finite("center[0]", center[0]), _finite("center[1]", center[1]))
-        return cls("disk", np.zeros((0, 2)), c, radius)
+        return cls("disk", np.zeros((0, 2)), c, radius)._exits(exits)
 
     @classmethod
-    def polygon(cls, vertices: Any) -> Domain:
+    def polygon(cls, vertices: Any, exits: Any = ()) -> Domain:
         """Convex polygon through ``vertices`` (either orientation, no repeated end point).
+
+        ``exits``: boundary segments that are exits (:meth:`with_exits`).
 
         Raises
         ------
@@ -127,7 +144,10 @@ class Domain:
         if abs(abs(turn.sum()) - 2 * np.pi) > 1e-6:
             raise ParameterError("vertices", "a self-intersecting polygon", "a simple convex polygon")
         c = v.mean(axis=0)
-        return cls("polygon", v, (float(c[0]), float(c[1])), 0.0)
+        return cls("polygon", v, (float(c[0]), float(c[1])), 0.0)._exits(exits)
+
+    def _exits(self, exits: Any) -> Domain:
+        return self.with_exits(exits) if exits is not None and len(exits) else self
 
     # ------------------------------------------------------------------ geometry
     @property
@@ -290,22 +310,179 @@ class Domain:
             return shapely.Point(self.center).buffer(self.radius, quad_segs=max(resolution // 4, 8))
         return shapely.Polygon(self.vertices)
 
+    # ------------------------------------------------------------------ the Region interface
+    def cut_cells(
+        self, x_edges: np.ndarray, y_edges: np.ndarray, dx: float, dy: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Volume fractions ``(nx, ny)`` and face apertures of the lattice ``x_edges × y_edges``.
+
+        The box's cells are all whole; the disk's are exact in closed form; the polygon's
+        are clipped with shapely where its wall crosses them (:mod:`meanfield.cut_cells`).
+        ``dx``, ``dy`` are the lattice spacings.
+        """
+        from meanfield.cut_cells import convex_polygon_cut_cells, disk_cut_cells
+
+        nx, ny = len(x_edges) - 1, len(y_edges) - 1
+        if self.kind == "box":
+            return np.ones((nx, ny)), np.ones((nx - 1, ny)), np.ones((nx, ny - 1))
+        if self.kind == "disk":
+            return disk_cut_cells(self.center, self.radius, x_edges, y_edges, dx, dy)
+        _, normal, offset = self._edges()
+        return convex_polygon_cut_cells(normal, offset, self.to_shapely(), x_edges, y_edges, dx, dy)
+
+    def cells_meeting(self, x_edges: np.ndarray, y_edges: np.ndarray) -> np.ndarray:
+        """Mask ``(nx, ny)`` of the lattice cells whose interior meets Ω."""
+        if self.kind == "box":
+            return np.ones((len(x_edges) - 1, len(y_edges) - 1), bool)
+        XL, YL = np.meshgrid(x_edges[:-1], y_edges[:-1], indexing="ij")
+        XR, YR = np.meshgrid(x_edges[1:], y_edges[1:], indexing="ij")
+        if self.kind == "disk":  # the cell's nearest point to the centre lies in the open disk
+            cx, cy = self.center
+            dx = np.clip(cx, XL, XR) - cx
+            dy = np.clip(cy, YL, YR) - cy
+            return dx * dx + dy * dy < self.radius**2
+        import shapely
+
+        boxes = shapely.box(XL, YL, XR, YR)
+        return shapely.area(shapely.intersection(boxes, self.to_shapely())) > 0
+
+    def robot_region(self, margin: float) -> Domain:
+        """Where robots may stand: Ω inset by ``margin`` (Ω itself for ``margin <= 0``).
+
+        Raises
+        ------
+        ParameterError
+            For a polygon with ``margin > 0`` (named ``robots.margin``), or a margin that
+            leaves no room.
+        """
+        if margin <= 0:
+            return self
+        if self.kind == "box":
+            x0, x1, y0, y1 = self.bounds
+            if x1 - x0 <= 2 * margin or y1 - y0 <= 2 * margin:
+                raise ParameterError("robots.margin", margin, f"less than half the box's sides ({self.bounds})")
+            return Domain.box(x1 - x0 - 2 * margin, y1 - y0 - 2 * margin, (x0 + margin, y0 + margin))
+        if self.kind == "disk":
+            if margin >= self.radius:
+                raise ParameterError("robots.margin", margin, f"less than the disk's radius {self.radius}")
+            return Domain.disk(self.radius - margin, self.center)
+        raise ParameterError("robots.margin", margin, "0 for a polygon domain (a margin needs a box or a disk)")
+
+    def lattice(self, n: int) -> np.ndarray:
+        """``n`` points of Ω on a regular lattice (the paper's 4×4 robots for n = 16).
+
+        A box gets a cell-centred ``cols × rows`` lattice (``cols = ceil(sqrt(n))``), the last
+        row centred if it is partial; other shapes get the smallest square lattice over the
+        bounding box with at least ``n`` points inside Ω, of which ``n`` evenly spaced ones.
+        """
+        x0, x1, y0, y1 = self.bounds
+        if self.kind == "box":
+            cols = math.ceil(math.sqrt(n))
+            rows = math.ceil(n / cols)
+            pts = []
+            for r in range(rows):
+                k = min(cols, n - r * cols)
+                y = y0 + (r + 0.5) * (y1 - y0) / rows
+                for c in range(k):
+                    pts.append((x0 + (c + 0.5 + (cols - k) / 2) * (x1 - x0) / cols, y))
+            return np.array(pts, float)
+        m = math.ceil(math.sqrt(n))
+        while True:
+            xs = x0 + (np.arange(m) + 0.5) * (x1 - x0) / m
+            ys = y0 + (np.arange(m) + 0.5) * (y1 - y0) / m
+            X, Y = np.meshgrid(xs, ys, indexing="ij")
+            inside = self.contains(X, Y)
+            if inside.sum() >= n:
+                cand = np.column_stack([X[inside], Y[inside]])
+                idx = np.round(np.linspace(0, len(cand) - 1, n)).astype(int)
+                return cand[idx]
+            m += 1
+
+    def boundary_parts(self) -> tuple[BoundaryPart, ...]:
+        """∂Ω as walls and exits: each exit segment, and the walls between them.
+
+        The disk's boundary is the polyline of :meth:`to_shapely` (4096 vertices).
+        """
+        import shapely
+
+        ring = self.to_shapely().exterior
+        if not self.exits:
+            return (BoundaryPart("wall", np.asarray(ring.coords)),)
+        doors = shapely.MultiLineString([list(e) for e in self.exits])
+        walls = shapely.line_merge(ring.difference(doors.buffer(1e-9 * self.diameter)))
+        parts = [BoundaryPart("exit", np.asarray(e, float)) for e in self.exits]
+        for line in getattr(walls, "geoms", [walls]):
+            if not line.is_empty:
+                parts.append(BoundaryPart("wall", np.asarray(line.coords)))
+        return tuple(parts)
+
+    def with_exits(self, exits: Any) -> Domain:
+        """The same shape with boundary segments ``[((x0, y0), (x1, y1)), ...]`` tagged as exits.
+
+        Raises
+        ------
+        ParameterError
+            (named ``domain.exits``) if a segment is degenerate or does not lie on ∂Ω.
+        """
+        import shapely
+
+        segs: list[Segment] = []
+        ring = self.to_shapely().exterior
+        tol = 1e-9 * self.diameter + (2 * math.pi * self.radius / 4096 if self.kind == "disk" else 0.0)
+        for k, e in enumerate(exits):
+            try:
+                (ax_, ay_), (bx, by) = e
+                seg = ((float(ax_), float(ay_)), (float(bx), float(by)))
+            except (TypeError, ValueError):
+                raise ParameterError(f"domain.exits[{k}]", e, "a segment [[x0, y0], [x1, y1]]") from None
+            if not all(map(math.isfinite, (*seg[0], *seg[1]))) or seg[0] == seg[1]:
+                raise ParameterError(f"domain.exits[{k}]", e, "two distinct finite end points")
+            if shapely.LineString(seg).hausdorff_distance(ring) > tol and not ring.buffer(tol).covers(
+                shapely.LineString(seg)
+            ):
+                raise ParameterError(f"domain.exits[{k}]", e, "a segment on the boundary of Ω")
+            segs.append(seg)
+        return Domain(self.kind, self.vertices, self.center, self.radius, tuple(segs))
+
+    def neumann_eigenvalue(self) -> float | None:
+        """μ₂, the first non-zero Neumann eigenvalue of −Δ on Ω, where it has a closed form.
+
+        Rectangle: ``π² / max(width, height)²``; disk: ``(j'₁,₁ / R)²`` (``j'₁,₁ ≈ 1.8412``, the
+        first zero of J₁'); None for a polygon (see :func:`analysis.poincare.exact_neumann_eigenvalue`).
+        """
+        if self.kind == "box":
+            x0, x1, y0, y1 = self.bounds
+            return math.pi**2 / max(x1 - x0, y1 - y0) ** 2
+        if self.kind == "disk":
+            from scipy.special import jnp_zeros
+
+            return float(jnp_zeros(1, 1)[0] / self.radius) ** 2
+        return None
+
     # ------------------------------------------------------------------ serialisation
     def to_dict(self) -> dict[str, Any]:
         """Plain-data description (for TOML)."""
         if self.kind == "box":
             x0, x1, y0, y1 = self.bounds
-            return {"kind": "box", "width": x1 - x0, "height": y1 - y0, "origin": [x0, y0]}
-        if self.kind == "disk":
-            return {"kind": "disk", "radius": self.radius, "center": list(self.center)}
-        return {"kind": "polygon", "vertices": self.vertices.tolist()}
+            d: dict[str, Any] = {"kind": "box", "width": x1 - x0, "height": y1 - y0, "origin": [x0, y0]}
+        elif self.kind == "disk":
+            d = {"kind": "disk", "radius": self.radius, "center": list(self.center)}
+        else:
+            d = {"kind": "polygon", "vertices": self.vertices.tolist()}
+        if self.exits:
+            d["exits"] = [[list(a), list(b)] for a, b in self.exits]
+        return d
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Domain:
         """Inverse of :meth:`to_dict`; unknown keys are refused."""
         d = dict(d)
         kind = d.pop("kind", "box")
-        allowed = {"box": {"width", "height", "origin"}, "disk": {"radius", "center"}, "polygon": {"vertices"}}
+        allowed = {
+            "box": {"width", "height", "origin", "exits"},
+            "disk": {"radius", "center", "exits"},
+            "polygon": {"vertices", "exits"},
+        }
         if kind not in allowed:
             raise ParameterError("domain.kind", kind, "one of 'box', 'disk', 'polygon'")
         unknown = set(d) - allowed[kind]
@@ -313,12 +490,12 @@ class Domain:
             raise ParameterError("domain", f"unknown key(s) {sorted(unknown)}", f"keys {sorted(allowed[kind])}")
         try:
             if kind == "box":
-                return cls.box(d.get("width", 1.0), d.get("height", 1.0), tuple(d.get("origin", (0, 0))))
+                return cls.box(d.get("width", 1.0), d.get("height", 1.0), tuple(d.get("origin", (0, 0))), d.get("exits"))
             if kind == "disk":
-                return cls.disk(d.get("radius", 1.0), tuple(d.get("center", (0, 0))))
+                return cls.disk(d.get("radius", 1.0), tuple(d.get("center", (0, 0))), d.get("exits"))
             if "vertices" not in d:
                 raise ParameterError("vertices", None, "a list of [x, y] vertices")
-            return cls.polygon(d["vertices"])
+            return cls.polygon(d["vertices"], d.get("exits"))
         except ParameterError as exc:
             raise ParameterError(f"domain.{exc.name}", exc.value, exc.allowed) from None
         except (TypeError, ValueError) as exc:

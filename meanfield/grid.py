@@ -31,8 +31,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from meanfield.domain import Domain
+from meanfield.cut_cells import SLIVER
 from meanfield.errors import ParameterError
+from meanfield.interfaces import Region
 
 __all__ = ["Grid", "FaceField", "linear_binning"]
 
@@ -89,145 +90,13 @@ def linear_binning(
     return out.reshape(mx, my)
 
 
-# ---------------------------------------------------------------------- cut-cell geometry
-_SLIVER = 1e-12
-"""Volume fractions below this are clipping round-off (a vertex grazing a cell), not volume."""
-
-
-def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
-
-
-def _chord_parameters(p: np.ndarray, q: np.ndarray, r: float) -> tuple[np.ndarray, np.ndarray]:
-    """Parameters ``0 <= s1 <= s2 <= 1`` of the part of segment ``p→q`` inside the disk ``|x| <= r``."""
-    d = q - p
-    a = (d * d).sum(-1)
-    b = (p * d).sum(-1)
-    c = (p * p).sum(-1) - r * r
-    disc = b * b - a * c
-    root = np.sqrt(np.maximum(disc, 0.0))
-    hit = disc > 0
-    s1 = np.clip(np.where(hit, (-b - root) / a, 0.0), 0.0, 1.0)
-    s2 = np.clip(np.where(hit, (-b + root) / a, 0.0), 0.0, 1.0)
-    return s1, s2
-
-
-def _disk_wedge_area(p: np.ndarray, q: np.ndarray, r: float) -> np.ndarray:
-    """Signed area of (triangle 0, p, q) ∩ (disk of radius ``r`` about 0).
-
-    The part of ``p→q`` inside the disk contributes a triangle, the parts outside a
-    circular sector; summed over the edges of a counter-clockwise polygon this is the
-    exact area of polygon ∩ disk.
-    """
-    s1, s2 = _chord_parameters(p, q, r)
-    d = q - p
-    a = p + s1[..., None] * d
-    b = p + s2[..., None] * d
-
-    def angle(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-        return np.arctan2(_cross(u, v), (u * v).sum(-1))
-
-    return 0.5 * r * r * (angle(p, a) + angle(b, q)) + 0.5 * _cross(a, b)
-
-
-def _interval_near_far(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Smallest and largest ``|t|`` over ``t ∈ [lo, hi]``."""
-    near = np.where((lo <= 0) & (hi >= 0), 0.0, np.minimum(np.abs(lo), np.abs(hi)))
-    return near, np.maximum(np.abs(lo), np.abs(hi))
-
-
-def _disk_apertures(c: np.ndarray, lo: np.ndarray, hi: np.ndarray, length: float, r: float) -> np.ndarray:
-    """Fraction of the segments ``{c} × [lo, hi]`` (``c`` across, ``t`` along) inside ``c² + t² <= r²``.
-
-    ``c`` broadcasts against ``lo`` and ``hi``.  Whole segments give exactly 1, and
-    segments that miss the disk exactly 0, with the same tests as the cells.
-    """
-    near, far = _interval_near_far(lo, hi)
-    half = np.sqrt(np.maximum((r - np.abs(c)) * (r + np.abs(c)), 0.0))  # half-chord at c
-    inside = np.clip((np.minimum(hi, half) - np.maximum(lo, -half)) / length, 0.0, 1.0)
-    inside = np.where(c * c + far * far <= r * r, 1.0, inside)
-    return np.where(c * c + near * near >= r * r, 0.0, inside)
-
-
-def _disk_cut_cells(
-    domain: Domain, xe: np.ndarray, ye: np.ndarray, dx: float, dy: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Volume fractions and apertures of the true circle, in closed form.
-
-    Cells whose farthest point is in the disk are whole (1), cells whose nearest point
-    is not are empty (0); only the cells the circle crosses get the exact area of
-    square ∩ disk (:func:`_disk_wedge_area` over their four edges).  Apertures are the
-    exact chord lengths.
-    """
-    cx, cy = domain.center
-    r = domain.radius
-    x = xe - cx  # edges relative to the centre
-    y = ye - cy
-    near_x, far_x = _interval_near_far(x[:-1], x[1:])
-    near_y, far_y = _interval_near_far(y[:-1], y[1:])
-    whole = far_x[:, None] ** 2 + far_y[None, :] ** 2 <= r * r
-    cut = ~whole & (near_x[:, None] ** 2 + near_y[None, :] ** 2 < r * r)
-    frac = whole.astype(float)
-    i, j = np.nonzero(cut)
-    corners = [np.stack([x[i + a], y[j + b]], -1) for a, b in ((0, 0), (1, 0), (1, 1), (0, 1))]  # CCW
-    area = sum(_disk_wedge_area(corners[m], corners[(m + 1) % 4], r) for m in range(4))
-    frac[cut] = np.clip(area / (dx * dy), 0.0, 1.0)
-    ax = _disk_apertures(x[1:-1, None], y[None, :-1], y[None, 1:], dy, r)  # x-faces: x = const
-    ay = _disk_apertures(y[None, 1:-1], x[:-1, None], x[1:, None], dx, r)  # y-faces: y = const
-    return frac, ax, ay
-
-
-def _polygon_cut_cells(
-    domain: Domain, xe: np.ndarray, ye: np.ndarray, dx: float, dy: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Volume fractions and apertures of a convex polygon: shapely on the crossed cells only.
-
-    A cell (or face) whose corners are all inside every edge line is whole (1); one whose
-    corners are all beyond one edge line is empty (0).  Only the others, those the wall
-    crosses, are clipped with shapely, exactly as a clip of every cell would do.
-    """
-    import shapely
-
-    _, normal, offset = domain._edges()
-    poly = domain.to_shapely()
-
-    def classify(points: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
-        """(all points inside Ω, all points beyond one edge line) for each element."""
-        dist = [normal[:, 0] * px[..., None] + normal[:, 1] * py[..., None] - offset for px, py in points]
-        inside = np.logical_and.reduce([np.all(d <= 0, axis=-1) for d in dist])
-        outside = np.any(np.logical_and.reduce([d >= 0 for d in dist]), axis=-1)
-        return inside, outside
-
-    XL, YL = np.meshgrid(xe[:-1], ye[:-1], indexing="ij")
-    XR, YR = XL + dx, YL + dy
-    whole, empty = classify([(XL, YL), (XR, YL), (XR, YR), (XL, YR)])
-    frac = whole.astype(float)
-    cut = ~whole & ~empty
-    boxes = shapely.box(XL[cut], YL[cut], XR[cut], YR[cut])
-    frac[cut] = np.clip(shapely.area(shapely.intersection(boxes, poly)) / (dx * dy), 0.0, 1.0)
-
-    def aperture(xa: np.ndarray, ya: np.ndarray, xb: np.ndarray, yb: np.ndarray, length: float) -> np.ndarray:
-        inside, outside = classify([(xa, ya), (xb, yb)])
-        out = inside.astype(float)
-        part = ~inside & ~outside
-        ends = np.stack([np.stack([xa[part], ya[part]], -1), np.stack([xb[part], yb[part]], -1)], axis=1)
-        out[part] = np.clip(shapely.length(shapely.intersection(shapely.linestrings(ends), poly)) / length, 0.0, 1.0)
-        return out
-
-    XF, YF = np.meshgrid(xe[1:-1], ye[:-1], indexing="ij")  # x-faces: vertical segments
-    ax = aperture(XF, YF, XF, YF + dy, dy)
-    XF, YF = np.meshgrid(xe[:-1], ye[1:-1], indexing="ij")  # y-faces: horizontal segments
-    ay = aperture(XF, YF, XF + dx, YF, dx)
-    return frac, ax, ay
-
-
 @dataclass(eq=False)
 class Grid:
     """Uniform Cartesian grid over the bounding box of ``domain``.
 
     Parameters
     ----------
-    domain : Domain
+    domain : Region
         The workspace Ω.
     cells : (int, int)
         Number of cells ``(nx, ny)`` along x and y, each >= 2.
@@ -243,7 +112,7 @@ class Grid:
     1.0
     """
 
-    domain: Domain
+    domain: Region
     cells: tuple[int, int] = (30, 30)
     cut_cells: bool = True
     x: np.ndarray = field(init=False, repr=False)
@@ -272,7 +141,8 @@ class Grid:
         self.active = frac > 0
         self.weight_x = ax * self.dy * self.dx
         self.weight_y = ay * self.dx * self.dy
-        self.is_box = self.domain.kind == "box"
+        # Ω fills the bounding box: every cell whole, every face open (the fast paths of a rectangle)
+        self.is_box = bool(self.active.all() and (frac == 1).all() and (ax == 1).all() and (ay == 1).all())
         # face-flux factors used by the divergence: aperture * face length / volume
         with np.errstate(divide="ignore", invalid="ignore"):
             inv_v = np.where(self.active, 1.0 / np.where(self.active, self.volume, 1.0), 0.0)
@@ -283,8 +153,6 @@ class Grid:
     # ------------------------------------------------------------------ geometry
     def _fractions(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         nx, ny = self.cells
-        if self.domain.kind == "box":
-            return np.ones((nx, ny)), np.ones((nx - 1, ny)), np.ones((nx, ny - 1))
         if not self.cut_cells:
             X, Y = np.meshgrid(self.x, self.y, indexing="ij")
             inside = self.domain.contains(X, Y)
@@ -295,11 +163,10 @@ class Grid:
         x0, _, y0, _ = self.domain.bounds
         xe = x0 + np.arange(nx + 1) * self.dx  # cell edges; xe[1:-1] == self.x_faces
         ye = y0 + np.arange(ny + 1) * self.dy
-        if self.domain.kind == "disk":
-            frac, ax, ay = _disk_cut_cells(self.domain, xe, ye, self.dx, self.dy)
-        else:
-            frac, ax, ay = _polygon_cut_cells(self.domain, xe, ye, self.dx, self.dy)
-        frac[frac < _SLIVER] = 0.0  # clipping slivers (a vertex grazing a cell): round-off, not volume
+        frac, ax, ay = self.domain.cut_cells(xe, ye, self.dx, self.dy)
+        if frac.all() and ax.all() and ay.all():  # Ω fills its bounding box (a rectangle)
+            return frac, ax, ay
+        frac = np.where(frac < SLIVER, 0.0, frac)  # clipping slivers (a vertex grazing a cell): round-off
         # a face is open only if both neighbours hold volume
         act = frac > 0
         ax = np.where(act[1:, :] & act[:-1, :], ax, 0.0)
