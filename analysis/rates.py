@@ -28,7 +28,8 @@ from meanfield.errors import ParameterError, positive_number
 from meanfield.grid import Grid
 from meanfield.metrics import gaussian_target
 from meanfield.scenario import Scenario
-from meanfield.simulate import SimulationResult, alpha_schedule_for, disturbance_for
+from meanfield.assembly import alpha_schedule_for, disturbance_for
+from meanfield.result import SimulationResult
 
 __all__ = ["decay_rate", "iss_gain", "mass_quantile_level", "GainReport", "gains_for_scenario", "gains_from_run"]
 

@@ -38,7 +38,9 @@ from meanfield.kernels import (
 from meanfield.metrics import fraction_in_disk, gaussian_target, target_region_radius
 from meanfield.robots import NavigationField, RobotTeam, navigation_velocity
 from meanfield.scenario import Scenario, load_scenario, paper_scenario
-from meanfield.simulate import ClosedLoop, SimulationResult, run
+from meanfield.loop import ClosedLoop
+from meanfield.result import SimulationResult
+from meanfield.runner import run
 
 __version__ = "0.1.0"
 

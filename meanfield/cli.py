@@ -64,9 +64,10 @@ def _build_parser() -> argparse.ArgumentParser:
     add_scenario_arguments(r)
     r.add_argument(
         "--backend",
-        choices=("point-mass", "jupedsim"),
+        choices=plugins.available("crowd"),
         default=None,
-        help="crowd backend (overrides pedestrians.backend): point-mass SDE humans, or JuPedSim bodies",
+        help="crowd (overrides pedestrians.backend): a registered crowd, e.g. point-mass (SDE humans), "
+        "jupedsim (bodies), fokker-planck (the mean-field density)",
     )
     r.add_argument("--quiet", action="store_true", help="no progress bar, no summary printout")
     r.add_argument("--animate", action="store_true", help="also write animation.gif")
@@ -126,20 +127,28 @@ def scenario_from_args(args: argparse.Namespace):
     backend = getattr(args, "backend", None)
     if backend is not None:
         sc = sc.with_values({"pedestrians.backend": backend})
-    if sc.pedestrians.backend == "jupedsim":
-        from meanfield.jupedsim_api import load_jupedsim
-
-        load_jupedsim()
     return sc
 
 
+def run_artifacts(figures: bool = True, animate: bool = False) -> list:
+    """The files drawn beside a run's data: its figures (:mod:`meanfield.plotting`) and animation."""
+    from meanfield import plotting
+
+    out = []
+    if figures:
+        out.append(plotting.save_run_figures)
+    if animate:
+        out.append(lambda result, folder: {"animation": plotting.save_animation(result, folder / "animation.gif")})
+    return out
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
-    from meanfield.simulate import ClosedLoop
+    from meanfield.loop import ClosedLoop
 
     sc = scenario_from_args(args)
     loop = ClosedLoop(sc)
     result = loop.run(progress=not args.quiet)
-    result.save(args.out, figures=not args.no_figures, animate=args.animate)
+    result.save(args.out, artifacts=run_artifacts(figures=not args.no_figures, animate=args.animate))
     s = result.summary
     if not args.quiet:
         keys = (

@@ -24,17 +24,17 @@ difference of successive ``v_d``.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Literal, Protocol
 
 import numpy as np
 
-from meanfield.errors import ParameterError, positive_number
+from meanfield.errors import ParameterError, check_sigma, positive_number
 from meanfield.fokker_planck import FokkerPlanck
 from meanfield.grid import FaceField, Grid
 from meanfield.interaction import InteractionField
+from meanfield.interfaces import Command, ControllerParts, Observation, SigmaLike
 from meanfield.robots import NavigationField
 
 DVD_DT_OPTIONS = ("model", "fokker-planck", "finite-difference")
@@ -151,6 +151,11 @@ class MinimumNormBetaGamma:
 
     name = "min-norm"
 
+    @classmethod
+    def from_scenario(cls, scenario: Any) -> MinimumNormBetaGamma:
+        """Registry factory (kind ``beta_gamma``, name ``min-norm``): needs nothing of the scenario."""
+        return cls()
+
     def __call__(self, b: np.ndarray, g: np.ndarray, A: float) -> ExtraInputs:
         Z = (b * b).sum() + (g * g).sum()
         if Z == 0:
@@ -213,6 +218,21 @@ class ControlState:
     omega: np.ndarray
     shortfall: float
     dissipation: float  # ∫ α |∇ρ̃|²
+    k_u: Any = 0.0  # the gains the law was evaluated with (scalar or per robot)
+    k_omega: Any = 0.0
+
+    def applied_shortfall(self, u: np.ndarray, omega: np.ndarray) -> float:
+        """``A − (Σ b_i·δu_i − Σ g_i δω_i)`` for the inputs actually applied (after saturation).
+
+        With ``δu_i = u_i − k_u b_i`` and ``δω_i = ω_i + k_ω g_i``, so that
+        ``dV₂/dt = −∫α|∇ρ̃|² − Σ k_u|b_i|² − Σ k_ω g_i² + applied shortfall`` (eq. (8)):
+        the part of ``A`` the robots did not cancel, whatever the controller, strategy or clipping.
+        """
+        k_u = np.asarray(self.k_u, float)
+        k_u = k_u[:, None] if k_u.ndim else k_u
+        du = u - k_u * self.b
+        dw = omega + np.asarray(self.k_omega, float) * self.g
+        return float(self.A - ((self.b * du).sum() - (self.g * dw).sum()))
 
 
 @dataclass
@@ -227,9 +247,6 @@ class _Prepared:
     gs: FaceField
     q: FaceField
     uw: FaceField | None
-
-
-SigmaLike = float | Callable[[np.ndarray, np.ndarray, float], np.ndarray]
 
 
 class BacksteppingController:
@@ -263,22 +280,18 @@ class BacksteppingController:
         target: np.ndarray,
         sigma: SigmaLike,
         alpha: AlphaSchedule,
-        k_u: float | np.ndarray = 1.0,
-        k_omega: float | np.ndarray = 1.0,
+        k_u: float | np.ndarray = 10.0,
+        k_omega: float | np.ndarray = 10.0,
         strategy: BetaGammaStrategy | None = None,
         interaction: InteractionField | None = None,
-        dvd_dt: Literal["model", "fokker-planck", "finite-difference"] = "model",
+        dvd_dt: Literal["model", "fokker-planck", "finite-difference"] = "finite-difference",
     ):
         self.grid = grid
         target = np.asarray(target, float)
         if target.shape != grid.shape:
             raise ParameterError("target", target.shape, f"an array of grid.shape {grid.shape}")
         self.target = target
-        if not callable(sigma):
-            sigma = float(sigma)
-            if not math.isfinite(sigma) or sigma < 0:
-                raise ParameterError("sigma", sigma, "a finite number >= 0, or a callable")
-        self.sigma = sigma
+        self.sigma = check_sigma("sigma", sigma)
         self.alpha = alpha
         for name, k in (("k_u", k_u), ("k_omega", k_omega)):
             arr = np.asarray(k, float)
@@ -294,6 +307,31 @@ class BacksteppingController:
         self._fokker_planck = FokkerPlanck(grid, sigma, interaction=interaction) if dvd_dt == "fokker-planck" else None
         self._previous_vd: tuple[float, FaceField] | None = None
         self._target_gradient = grid.gradient(self.target)
+
+    @classmethod
+    def from_parts(cls, parts: ControllerParts) -> BacksteppingController:
+        """Registry factory (kind ``controller``, name ``backstepping``): the paper's law from parts."""
+        if parts.options:
+            raise ParameterError(
+                "controller.options", sorted(parts.options), "no options for controller.kind = 'backstepping'"
+            )
+        return cls(
+            parts.grid,
+            parts.target,
+            parts.sigma,
+            parts.alpha,
+            parts.k_u,
+            parts.k_omega,
+            parts.beta_gamma,
+            parts.interaction,
+            parts.dvd_dt,
+        )
+
+    def act(self, observation: Observation) -> Command:
+        """The :class:`~meanfield.interfaces.Controller` interface: :meth:`robot_inputs` at the observation."""
+        o = observation
+        state = self.robot_inputs(o.density, o.field, o.t, o.dt)
+        return Command(state.u, state.omega, state)
 
     # ------------------------------------------------------------------ pieces
     def sigma_on_cells(self, t: float):
@@ -432,6 +470,8 @@ class BacksteppingController:
             omega=-self.k_omega * gg + extra.domega,
             shortfall=extra.shortfall,
             dissipation=self._dissipation(p),
+            k_u=self.k_u,
+            k_omega=self.k_omega,
         )
 
     def reset(self) -> None:

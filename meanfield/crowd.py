@@ -11,16 +11,14 @@ interaction); this module owns the positions, the noise and the walls.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
-from meanfield.domain import Domain
-from meanfield.errors import ParameterError
+from meanfield.errors import ParameterError, check_sigma
+from meanfield.interfaces import Region, SigmaLike
 
 __all__ = ["Crowd"]
-
-SigmaLike = float | Callable[[np.ndarray, np.ndarray, float], np.ndarray]
 
 
 class Crowd:
@@ -30,7 +28,7 @@ class Crowd:
     ----------
     positions : ndarray, shape (N, 2)
         Initial positions, inside Ω.
-    domain : Domain
+    domain : Region
         Ω; the walls reflect.
     sigma : float or callable
         Diffusion ``σ >= 0`` or ``σ(x, y, t)``; the noise is ``sqrt(2σ) dB``.
@@ -38,7 +36,9 @@ class Crowd:
         Source of the Brownian increments.
     """
 
-    def __init__(self, positions: np.ndarray, domain: Domain, sigma: SigmaLike, rng: np.random.Generator):
+    body_radius = 0.0  # point masses
+
+    def __init__(self, positions: np.ndarray, domain: Region, sigma: SigmaLike, rng: np.random.Generator):
         positions = np.array(positions, dtype=float)
         if positions.ndim != 2 or positions.shape[1] != 2 or len(positions) < 1:
             raise ParameterError("crowd.positions", positions.shape, "an array of shape (N, 2), N >= 1")
@@ -46,10 +46,7 @@ class Crowd:
             raise ParameterError("crowd.positions", "non-finite values", "finite positions")
         if not domain.contains(positions[:, 0], positions[:, 1], tol=1e-12).all():
             raise ParameterError("crowd.positions", "points outside Ω", "every human inside the domain")
-        if not callable(sigma):
-            sigma = float(sigma)
-            if not math.isfinite(sigma) or sigma < 0:
-                raise ParameterError("crowd.sigma", sigma, "a finite number >= 0, or a callable")
+        sigma = check_sigma("crowd.sigma", sigma)
         self.positions = positions
         self.domain = domain
         self.sigma = sigma
@@ -80,3 +77,7 @@ class Crowd:
         np.multiply(self._noise, amp, out=self._noise)
         x += self._noise
         self.domain.reflect(x)
+
+    def summary(self) -> dict[str, Any]:
+        """No figures of its own (the agent crowd reports the rest)."""
+        return {}

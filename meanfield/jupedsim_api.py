@@ -24,7 +24,15 @@ import numpy as np
 
 from meanfield.errors import ParameterError
 
-__all__ = ["JuPedSimAdapter", "JuPedSimUnavailable", "INSTALL_HINT", "jupedsim_version", "load_jupedsim", "MODELS"]
+__all__ = [
+    "JuPedSimAdapter",
+    "JuPedSimUnavailable",
+    "INSTALL_HINT",
+    "jupedsim_version",
+    "load_jupedsim",
+    "MODELS",
+    "PEDESTRIAN_MODELS",
+]
 
 INSTALL_HINT = (
     'pip install "meanfield-crowd[pedestrians]" && pip install --no-deps "jupedsim==1.4.2" '
@@ -45,6 +53,9 @@ MODELS: dict[str, tuple[str, str]] = {
     "social-force": ("SocialForceModel", "SocialForceModelAgentParameters"),
     "warp-driver": ("WarpDriverModel", "WarpDriverModelAgentParameters"),
 }
+
+PEDESTRIAN_MODELS: tuple[str, ...] = tuple(MODELS)
+"""The operational models ``pedestrians.model`` may name (the keys of :data:`MODELS`)."""
 
 
 class JuPedSimUnavailable(ParameterError):

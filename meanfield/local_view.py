@@ -134,8 +134,25 @@ class LocalView:
         self.domain = domain
         self.rng = rng
         self.clearance = float(clearance)
-        self.headings = rng.uniform(0.0, 2 * math.pi, n) if self.gated else np.zeros(n)
+        self._n = int(n)
+        self._headings: np.ndarray | None = None  # drawn at the first step (see headings)
         self.seen = np.ones(n, dtype=bool)
+
+    @property
+    def headings(self) -> np.ndarray:
+        """The walkers' headings θ_j (rad), uniform at the start.
+
+        Drawn from the run's generator at the first use (the first :meth:`gate`), so that a
+        crowd can be built before the robots while the draws keep the order of the model:
+        humans, robots' headings, walkers' headings, then the steps' noise.
+        """
+        if self._headings is None:
+            self._headings = self.rng.uniform(0.0, 2 * math.pi, self._n) if self.gated else np.zeros(self._n)
+        return self._headings
+
+    @headings.setter
+    def headings(self, value: np.ndarray) -> None:
+        self._headings = np.asarray(value, float)
 
     @property
     def gated(self) -> bool:
@@ -196,6 +213,7 @@ class LocalView:
         """
         if not self.gated:
             return v_r
+        self.headings  # noqa: B018 -- the walkers' initial headings are drawn here, at the first step
         self.seen = robots_in_view(positions, robots, self.radius)
         walkers = np.flatnonzero(~self.seen)
         if len(walkers):

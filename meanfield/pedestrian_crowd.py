@@ -17,14 +17,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
-from meanfield.domain import Domain
+from meanfield.agent_crowd import AgentCrowd, initial_positions
 from meanfield.errors import ParameterError
+from meanfield.interfaces import CrowdContext
+from meanfield.interfaces import Region as Domain
 from meanfield.jupedsim_api import JuPedSimAdapter
+from meanfield.metrics import max_body_overlap
 
-__all__ = ["PedestrianCrowd", "place_bodies"]
+__all__ = ["PedestrianCrowd", "place_bodies", "jupedsim_crowd"]
 
 
 def place_bodies(
@@ -153,6 +157,37 @@ class PedestrianCrowd:
         self.adapter = JuPedSimAdapter(domain.to_shapely(resolution=256), model, time_step, seed)
         self.adapter.add_agents(positions, radius, max_speed)
         self.positions = self.adapter.positions()
+        self.model = model
+        # deepest overlap of two bodies so far, over every control step (from the start)
+        self.max_body_overlap, self.max_body_overlap_time = 0.0, None
+        self.track_body_overlap(0.0)
+
+    @property
+    def body_radius(self) -> float:
+        """The bodies' radius (the walkers keep it from the walls)."""
+        return self.radius
+
+    def track_body_overlap(self, t: float) -> None:
+        """Record the deepest overlap of the bodies at time ``t``."""
+        pos = self.positions
+        depth, _ = max_body_overlap(pos[:, 0], pos[:, 1], self.radius)
+        if depth > self.max_body_overlap:
+            self.max_body_overlap, self.max_body_overlap_time = depth, t
+
+    def summary(self) -> dict[str, Any]:
+        """The bodies' radius, model and deepest overlap over every control step.
+
+        The recorded frames of ``timeseries.nc`` are a subset of those steps; anyone can
+        re-check them with :func:`~meanfield.metrics.max_body_overlap`.
+        """
+        return {
+            "pedestrian_model": self.model,
+            "jupedsim_version": self.adapter.version,
+            "body_radius": self.radius,
+            "body_overlap_max": self.max_body_overlap,
+            "body_overlap_max_relative": self.max_body_overlap / (2.0 * self.radius),
+            "body_overlap_time": self.max_body_overlap_time,
+        }
 
     @property
     def n(self) -> int:
@@ -190,3 +225,17 @@ class PedestrianCrowd:
         self.adapter.steer(targets, speeds)
         self.adapter.iterate(int(round(dt / self.time_step)))
         self.adapter.positions(out=self.positions)
+        self.track_body_overlap(t + dt)
+
+
+def jupedsim_crowd(ctx: CrowdContext) -> AgentCrowd:
+    """Registry factory (kind ``crowd``, name ``jupedsim``): the scenario's humans as JuPedSim bodies.
+
+    The initial bodies come from the scenario's initial law without overlap
+    (:func:`place_bodies`); without JuPedSim, its adapter refuses here with the install command.
+    """
+    sc = ctx.scenario
+    ped = sc.pedestrians
+    humans = place_bodies(lambda k: initial_positions(sc, k, ctx.rng), sc.crowd.n, ped.radius, sc.domain)
+    engine = PedestrianCrowd(humans, sc.domain, ped.radius, ped.max_speed, ped.time_step, ped.model, sc.seed)
+    return AgentCrowd.from_context(engine, ctx)

@@ -22,7 +22,7 @@ from meanfield.io import atomic_write_with  # noqa: E402
 from meanfield.robots import navigation_velocity  # noqa: E402
 
 if TYPE_CHECKING:
-    from meanfield.simulate import SimulationResult
+    from meanfield.result import SimulationResult
 
 __all__ = ["plot_target_and_error", "plot_snapshots", "save_run_figures", "save_animation"]
 

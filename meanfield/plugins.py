@@ -57,8 +57,8 @@ BUILTIN: dict[str, dict[str, str]] = {
         "polygon": "meanfield.domain:Domain.polygon",
     },
     "crowd": {
-        "point-mass": "meanfield.crowd:PointMassCrowd.from_context",
-        "jupedsim": "meanfield.pedestrian_crowd:PedestrianCrowd.from_context",
+        "point-mass": "meanfield.agent_crowd:point_mass_crowd",
+        "jupedsim": "meanfield.pedestrian_crowd:jupedsim_crowd",
         "fokker-planck": "meanfield.density_crowd:DensityCrowd.from_context",
     },
     "controller": {

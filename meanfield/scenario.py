@@ -1,9 +1,11 @@
 """Scenarios: every parameter of a closed-loop run, validated, round-tripping to TOML.
 
-A :class:`Scenario` is a tree of small dataclasses, one per TOML table::
+A :class:`Scenario` is a tree of small dataclasses, one per TOML table
+(:mod:`meanfield.scenario_sections`, re-exported here)::
 
     name, seed, dt, t_final, record_every, record_humans
-    [domain]      kind = "box" | "disk" | "polygon" and its sizes
+    plugins       modules that register parts (imported before anything else is read)
+    [domain]      kind (a registered region: "box" | "disk" | "polygon" | ...) and its sizes
     [grid]        cells = [nx, ny]
     [crowd]       n, initial ("uniform" | "gaussian"), initial_center, initial_std, sigma
     [robots]      n, layout ("grid" | "random" | "explicit"), positions, headings, u_max, omega_max, margin
@@ -15,29 +17,54 @@ A :class:`Scenario` is a tree of small dataclasses, one per TOML table::
     [controller]  alpha, alpha_schedule, rho_floor, k_u, k_omega, beta_gamma, dvd_dt, kind
     [controller.options]  options of a controller plugin (e.g. the NMPC horizon)
     [view]        radius ("none" | > 0), walk_speed, turning_rate   (local view, Unity study)
-    [pedestrians] backend ("point-mass" | "jupedsim"), model, radius, max_speed, time_step
+    [pedestrians] backend (a registered crowd: "point-mass" | "jupedsim" | ...), model, radius,
+                  max_speed, time_step
 
 Every field is checked when the scenario is built (or read); a bad value raises
-:class:`~meanfield.errors.ParameterError` naming the field and the allowed range, and an
-unknown TOML key is refused.  The built-in ``paper`` scenario (:func:`paper_scenario`)
-reproduces the paper's MATLAB study; the values the paper does not give are chosen and
-justified in ``docs/scenarios.md``.
+:class:`~meanfield.errors.ParameterError` naming the field and the allowed range
+(:mod:`meanfield.validation`), and an unknown TOML key is refused.  Names of parts
+(``domain.kind``, ``controller.kind``, ``controller.beta_gamma``, ``pedestrians.backend``)
+must be registered in :mod:`meanfield.plugins`.
+
+The built-in scenarios are TOML files shipped with the package (``meanfield/scenarios/``),
+each with a header saying its units and where its values come from.  ``paper``
+(:func:`paper_scenario`) reproduces the paper's MATLAB study; the values the paper does
+not give are chosen and justified in ``docs/scenarios.md``.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import tomllib
+from collections.abc import Callable
 from dataclasses import dataclass, field, fields
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from meanfield import plugins as registry
 from meanfield.domain import Domain
 from meanfield.errors import ParameterError
-from meanfield.plugins import available
+from meanfield.scenario_sections import (
+    PEDESTRIAN_MODELS,
+    ControllerSpec,
+    CrowdSpec,
+    DensitySpec,
+    DisturbanceSpec,
+    GridSpec,
+    InteractionSpec,
+    KernelSpec,
+    PedestrianSpec,
+    RobotSpec,
+    TargetSpec,
+    ViewSpec,
+)
+from meanfield.scenario_sections import SECTIONS as _SECTIONS
+from meanfield.validation import integer, module_list, num, region_from_table
 
 __all__ = [
     "Scenario",
@@ -55,351 +82,13 @@ __all__ = [
     "PEDESTRIAN_MODELS",
     "paper_scenario",
     "paper_unity_scenario",
+    "stadium_scenario",
     "builtin_scenarios",
     "load_scenario",
+    "resolve_key",
 ]
 
-
-# ---------------------------------------------------------------------- checks
-def _num(
-    name: str,
-    value: Any,
-    *,
-    lo: float | None = None,
-    lo_open: bool = False,
-    hi: float | None = None,
-    allowed: str | None = None,
-) -> float:
-    desc = allowed or _range_text(lo, lo_open, hi)
-    if isinstance(value, bool):
-        raise ParameterError(name, value, desc)
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(name, value, desc) from None
-    if not math.isfinite(x):
-        raise ParameterError(name, value, desc)
-    if lo is not None and (x < lo or (lo_open and x == lo)):
-        raise ParameterError(name, value, desc)
-    if hi is not None and x > hi:
-        raise ParameterError(name, value, desc)
-    return x
-
-
-def _range_text(lo, lo_open, hi) -> str:
-    if lo is None and hi is None:
-        return "a finite number"
-    if hi is None:
-        return f"a finite number {'>' if lo_open else '>='} {lo:g}"
-    return f"a number in [{lo:g}, {hi:g}]"
-
-
-def _int(name: str, value: Any, lo: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        if isinstance(value, float) and value.is_integer():
-            value = int(value)
-        else:
-            raise ParameterError(name, value, f"an integer >= {lo}")
-    if value < lo:
-        raise ParameterError(name, value, f"an integer >= {lo}")
-    return int(value)
-
-
-def _choice(name: str, value: Any, options: tuple[str, ...]) -> str:
-    if value not in options:
-        raise ParameterError(name, value, "one of " + ", ".join(repr(o) for o in options))
-    return value
-
-
-def _point(name: str, value: Any) -> tuple[float, float]:
-    try:
-        a, b = value
-    except (TypeError, ValueError):
-        raise ParameterError(name, value, "a pair [x, y] of finite numbers") from None
-    return (_num(f"{name}[0]", a), _num(f"{name}[1]", b))
-
-
-def _optional_limit(name: str, value: Any, what: str = 'a number > 0, or "none" for no limit') -> float | None:
-    if value is None or (isinstance(value, str) and value == "none"):
-        return None
-    return _num(name, value, lo=0.0, lo_open=True, allowed=what)
-
-
-# ---------------------------------------------------------------------- sections
-@dataclass
-class GridSpec:
-    """Finite-volume grid: ``cells = (nx, ny)``, each >= 2."""
-
-    cells: tuple[int, int] = (30, 30)
-
-    def __post_init__(self) -> None:
-        try:
-            nx, ny = self.cells
-        except (TypeError, ValueError):
-            raise ParameterError("grid.cells", self.cells, "a pair of integers >= 2") from None
-        self.cells = (_int("grid.cells[0]", nx, 2), _int("grid.cells[1]", ny, 2))
-
-
-@dataclass
-class CrowdSpec:
-    """Humans: count ``n >= 1``, initial distribution, diffusion ``σ >= 0``.
-
-    ``field_evaluation`` is how ``v_r`` reaches the humans: ``"exact"`` (eq. (3) at each
-    human, O(N n)), ``"sampled"`` (on a lattice twice as fine as the grid, interpolated
-    bilinearly, O(N + n M): :mod:`meanfield.sampled_field`) or ``"auto"`` (sampled when
-    ``N n > 2·10⁶``).
-    """
-
-    n: int = 200
-    initial: str = "uniform"
-    initial_center: tuple[float, float] = (0.5, 0.5)
-    initial_std: float = 0.1
-    sigma: float = 0.015
-    field_evaluation: str = "auto"
-
-    def __post_init__(self) -> None:
-        self.n = _int("crowd.n", self.n, 1)
-        self.initial = _choice("crowd.initial", self.initial, ("uniform", "gaussian"))
-        self.initial_center = _point("crowd.initial_center", self.initial_center)
-        self.initial_std = _num("crowd.initial_std", self.initial_std, lo=0.0, lo_open=True)
-        self.sigma = _num("crowd.sigma", self.sigma, lo=0.0)
-        self.field_evaluation = _choice("crowd.field_evaluation", self.field_evaluation, ("auto", "exact", "sampled"))
-
-
-@dataclass
-class RobotSpec:
-    """Robots: count, initial layout and headings, speed limits, wall margin.
-
-    ``layout = "grid"`` puts the robots on a regular lattice (the paper's 4×4),
-    ``"random"`` draws them uniformly, ``"explicit"`` takes ``positions``.
-    ``headings`` is ``"random"`` (uniform on [0, 2π), as in the paper) or a list.
-    ``margin`` keeps robots at least that far inside the bounding walls of a box
-    (a robot is a body; it cannot stand in a wall).
-    """
-
-    n: int = 16
-    layout: str = "grid"
-    positions: list[list[float]] | None = None
-    headings: str | list[float] = "random"
-    u_max: float | None = None
-    omega_max: float | None = None
-    margin: float = 0.0
-
-    def __post_init__(self) -> None:
-        self.n = _int("robots.n", self.n, 1)
-        self.layout = _choice("robots.layout", self.layout, ("grid", "random", "explicit"))
-        if self.layout == "explicit":
-            if self.positions is None:
-                raise ParameterError("robots.positions", None, "a list of n [x, y] pairs when layout = 'explicit'")
-            pos = np.asarray(self.positions, dtype=float) if _all_numbers(self.positions) else None
-            if pos is None or pos.shape != (self.n, 2) or not np.all(np.isfinite(pos)):
-                raise ParameterError("robots.positions", self.positions, f"{self.n} finite [x, y] pairs")
-            self.positions = pos.tolist()
-        elif self.positions is not None:
-            raise ParameterError("robots.positions", "given", "no positions unless layout = 'explicit'")
-        if isinstance(self.headings, str):
-            _choice("robots.headings", self.headings, ("random",))
-        else:
-            h = np.asarray(self.headings, dtype=float) if _all_numbers(self.headings) else None
-            if h is None or h.shape != (self.n,) or not np.all(np.isfinite(h)):
-                raise ParameterError("robots.headings", self.headings, f"'random' or {self.n} finite angles")
-            self.headings = h.tolist()
-        self.u_max = _optional_limit("robots.u_max", self.u_max)
-        self.omega_max = _optional_limit("robots.omega_max", self.omega_max)
-        self.margin = _num("robots.margin", self.margin, lo=0.0)
-
-
-def _all_numbers(x: Any) -> bool:
-    try:
-        arr = np.asarray(x, dtype=float)
-    except (TypeError, ValueError):
-        return False
-    return arr.dtype.kind == "f"
-
-
-@dataclass
-class KernelSpec:
-    """Navigation kernel ``K̄(ξ) = c exp(-|ξ|²/η)``: ``c > 0``, ``η > 0``."""
-
-    c: float = 0.2
-    eta: float = 0.05
-
-    def __post_init__(self) -> None:
-        self.c = _num("kernel.c", self.c, lo=0.0, lo_open=True)
-        self.eta = _num("kernel.eta", self.eta, lo=0.0, lo_open=True)
-
-
-@dataclass
-class InteractionSpec:
-    """Interaction potential W: ``"none"`` or ``"gaussian"`` (``s exp(-|z|²/ℓ²)``, ``s > 0`` repels)."""
-
-    kind: str = "none"
-    strength: float = 0.0
-    length: float = 0.1
-
-    def __post_init__(self) -> None:
-        self.kind = _choice("interaction.kind", self.kind, ("none", "gaussian"))
-        self.strength = _num("interaction.strength", self.strength)
-        self.length = _num("interaction.length", self.length, lo=0.0, lo_open=True)
-        if self.kind == "gaussian" and self.strength == 0:
-            raise ParameterError("interaction.strength", 0.0, "a non-zero number when kind = 'gaussian'")
-
-
-@dataclass
-class DisturbanceSpec:
-    """Bounded disturbance v_a: ``"none"``, ``"constant"`` (``velocity``) or ``"swirl"``
-    (rotation about the domain centre with speed ``strength`` at unit distance)."""
-
-    kind: str = "none"
-    velocity: tuple[float, float] = (0.0, 0.0)
-    strength: float = 0.0
-
-    def __post_init__(self) -> None:
-        self.kind = _choice("disturbance.kind", self.kind, ("none", "constant", "swirl"))
-        self.velocity = _point("disturbance.velocity", self.velocity)
-        self.strength = _num("disturbance.strength", self.strength)
-
-
-@dataclass
-class TargetSpec:
-    """Target density: Gaussian with ``center`` and ``std > 0``, restricted to Ω, unit mass."""
-
-    center: tuple[float, float] = (1.0, 1.0)
-    std: float = 0.15
-
-    def __post_init__(self) -> None:
-        self.center = _point("target.center", self.center)
-        self.std = _num("target.std", self.std, lo=0.0, lo_open=True)
-
-
-@dataclass
-class DensitySpec:
-    """KDE: ``bandwidth`` h > 0 or ``"silverman"``; wall ``boundary``; evaluation ``method``."""
-
-    bandwidth: float | str = 0.08
-    boundary: str = "reflect"
-    method: str = "auto"
-
-    def __post_init__(self) -> None:
-        if isinstance(self.bandwidth, str):
-            _choice("density.bandwidth", self.bandwidth, ("silverman",))
-        else:
-            self.bandwidth = _num(
-                "density.bandwidth", self.bandwidth, lo=0.0, lo_open=True, allowed='a number > 0, or "silverman"'
-            )
-        self.boundary = _choice("density.boundary", self.boundary, ("reflect", "renormalize", "none"))
-        self.method = _choice("density.method", self.method, ("auto", "separable", "binned"))
-
-
-@dataclass
-class ControllerSpec:
-    """Controller gains and options (paper, eqs. (6) and (8)).
-
-    ``beta_gamma`` is ``"min-norm"`` (DESIGN.md §2) or an installed strategy plugin, such
-    as ``"bounded"`` (the speed-limited program of :mod:`analysis.bounded`).  ``kind`` is
-    ``"backstepping"`` (the paper's law) or an installed controller plugin, such as
-    ``"nmpc"`` (:mod:`analysis.nmpc`); ``options`` is passed to that plugin, which
-    validates it.  See :mod:`meanfield.plugins`.
-    """
-
-    alpha: float = 0.2
-    alpha_schedule: str = "saturating"
-    rho_floor: float = 2.0
-    k_u: float = 10.0
-    k_omega: float = 10.0
-    beta_gamma: str = "min-norm"
-    dvd_dt: str = "finite-difference"
-    kind: str = "backstepping"
-    options: dict[str, Any] = field(default_factory=dict)
-
-    def __post_init__(self) -> None:
-        self.alpha = _num("controller.alpha", self.alpha, lo=0.0, lo_open=True)
-        self.alpha_schedule = _choice("controller.alpha_schedule", self.alpha_schedule, ("constant", "saturating"))
-        self.rho_floor = _num("controller.rho_floor", self.rho_floor, lo=0.0, lo_open=True)
-        self.k_u = _num("controller.k_u", self.k_u, lo=0.0)
-        self.k_omega = _num("controller.k_omega", self.k_omega, lo=0.0)
-        self.beta_gamma = _choice("controller.beta_gamma", self.beta_gamma, ("min-norm", *available("beta_gamma")))
-        self.dvd_dt = _choice("controller.dvd_dt", self.dvd_dt, ("model", "fokker-planck", "finite-difference"))
-        self.kind = _choice("controller.kind", self.kind, ("backstepping", *available("controller")))
-        if not isinstance(self.options, dict):
-            raise ParameterError("controller.options", self.options, "a table of options for the controller kind")
-        self.options = dict(self.options)
-
-
-@dataclass
-class ViewSpec:
-    """The humans' local view (the paper's Unity study, Section V-B).
-
-    A human follows the navigation field ``v_r`` (eq. (3)) only while some robot is within
-    ``radius`` of it; otherwise it walks a persistent random walk at ``walk_speed`` whose
-    heading diffuses with ``turning_rate`` (rad²/s, so the heading decorrelates as
-    ``exp(-turning_rate t)``; see :mod:`meanfield.local_view`).  ``radius = "none"`` (the
-    default) is the paper's model (eq. (1)): every human feels every robot.
-    """
-
-    radius: float | None = None
-    walk_speed: float = 0.0
-    turning_rate: float = 0.0
-
-    def __post_init__(self) -> None:
-        self.radius = _optional_limit("view.radius", self.radius, what='a view radius > 0, or "none" (no gating)')
-        self.walk_speed = _num("view.walk_speed", self.walk_speed, lo=0.0)
-        self.turning_rate = _num("view.turning_rate", self.turning_rate, lo=0.0)
-
-
-# the JuPedSim operational models the pedestrian backend can use (meanfield.jupedsim_api)
-PEDESTRIAN_MODELS = (
-    "collision-free-speed",
-    "collision-free-speed-v2",
-    "collision-free-speed-v3",
-    "anticipation-velocity",
-    "generalized-centrifugal-force",
-    "social-force",
-    "warp-driver",
-)
-
-
-@dataclass
-class PedestrianSpec:
-    """The crowd backend: ``"point-mass"`` (the SDE of eq. (1), :mod:`meanfield.crowd`) or
-    ``"jupedsim"`` (bodies of ``radius`` metres moved by a JuPedSim operational ``model``,
-    :mod:`meanfield.pedestrian_crowd`).
-
-    With ``"jupedsim"``, each control period ``dt`` every human gets a desired velocity
-    (``v_r`` or its random walk) whose speed is capped at ``max_speed``; JuPedSim advances
-    in steps of ``time_step`` (``dt`` must be a whole number of them).  ``radius``,
-    ``max_speed``, ``time_step`` and ``model`` are ignored by the point-mass backend.
-    """
-
-    backend: str = "point-mass"
-    model: str = "collision-free-speed"
-    radius: float = 0.2
-    max_speed: float = 1.34
-    time_step: float = 0.01
-
-    def __post_init__(self) -> None:
-        self.backend = _choice("pedestrians.backend", self.backend, ("point-mass", "jupedsim"))
-        self.model = _choice("pedestrians.model", self.model, PEDESTRIAN_MODELS)
-        self.radius = _num("pedestrians.radius", self.radius, lo=0.0, lo_open=True)
-        self.max_speed = _num("pedestrians.max_speed", self.max_speed, lo=0.0, lo_open=True)
-        self.time_step = _num("pedestrians.time_step", self.time_step, lo=0.0, lo_open=True)
-
-
-_SECTIONS: dict[str, type] = {
-    "grid": GridSpec,
-    "crowd": CrowdSpec,
-    "robots": RobotSpec,
-    "kernel": KernelSpec,
-    "interaction": InteractionSpec,
-    "disturbance": DisturbanceSpec,
-    "target": TargetSpec,
-    "density": DensitySpec,
-    "controller": ControllerSpec,
-    "view": ViewSpec,
-    "pedestrians": PedestrianSpec,
-}
-
-_TOP_LEVEL = ("name", "seed", "dt", "t_final", "record_every", "record_humans")
+_TOP_LEVEL = ("name", "seed", "dt", "t_final", "record_every", "record_humans", "plugins")
 
 
 def resolve_key(key: str, value: Any = None) -> str:
@@ -437,6 +126,10 @@ class Scenario:
 
     Cross-field checks run on construction: explicit robot positions and the initial
     crowd centre must lie in Ω, the target must put mass in Ω, ``dt < t_final``.
+
+    ``plugins`` lists modules (dotted names or paths to ``.py`` files) that register parts
+    in :mod:`meanfield.plugins`; :meth:`from_dict` imports them before it validates any
+    section, so the scenario may name the parts they register.
     """
 
     name: str = "custom"
@@ -457,20 +150,23 @@ class Scenario:
     controller: ControllerSpec = field(default_factory=ControllerSpec)
     view: ViewSpec = field(default_factory=ViewSpec)
     pedestrians: PedestrianSpec = field(default_factory=PedestrianSpec)
+    plugins: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
+        self.plugins = module_list("plugins", self.plugins)
+        registry.import_plugin_modules(self.plugins, field="plugins")
         if not isinstance(self.name, str) or not self.name:
             raise ParameterError("name", self.name, "a non-empty string")
-        self.seed = _int("seed", self.seed, 0)
-        self.dt = _num("dt", self.dt, lo=0.0, lo_open=True)
-        self.t_final = _num("t_final", self.t_final, lo=0.0, lo_open=True)
+        self.seed = integer("seed", self.seed, 0)
+        self.dt = num("dt", self.dt, lo=0.0, lo_open=True)
+        self.t_final = num("t_final", self.t_final, lo=0.0, lo_open=True)
         if self.dt > self.t_final:
             raise ParameterError("dt", self.dt, f"a step <= t_final = {self.t_final}")
-        self.record_every = _int("record_every", self.record_every, 1)
+        self.record_every = integer("record_every", self.record_every, 1)
         if self.record_humans != "all":
             if isinstance(self.record_humans, str):
                 raise ParameterError("record_humans", self.record_humans, 'an integer >= 0, or "all"')
-            self.record_humans = _int("record_humans", self.record_humans, 0)
+            self.record_humans = integer("record_humans", self.record_humans, 0)
         if not isinstance(self.domain, Domain):
             raise ParameterError("domain", self.domain, "a Domain")
         for key, cls in _SECTIONS.items():
@@ -550,6 +246,7 @@ class Scenario:
         them).
         """
         d = self.to_dict()
+        d.setdefault("plugins", [])  # omitted from to_dict when empty, settable all the same
         for short, value in assignments.items():
             key = resolve_key(short, value)
             parts = key.split(".")
@@ -568,7 +265,7 @@ class Scenario:
 
     # ------------------------------------------------------------------ TOML
     def to_dict(self) -> dict[str, Any]:
-        """Plain nested dict (TOML-ready: no None values, tuples as lists)."""
+        """Plain nested dict (TOML-ready: no None values, tuples as lists; no ``plugins`` when empty)."""
         out: dict[str, Any] = {
             "name": self.name,
             "seed": self.seed,
@@ -576,8 +273,10 @@ class Scenario:
             "t_final": self.t_final,
             "record_every": self.record_every,
             "record_humans": self.record_humans,
-            "domain": self.domain.to_dict(),
         }
+        if self.plugins:
+            out["plugins"] = list(self.plugins)
+        out["domain"] = self.domain.to_dict()
         for key in _SECTIONS:
             sec = {}
             for f in fields(getattr(self, key)):
@@ -596,18 +295,22 @@ class Scenario:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Scenario:
-        """Build and validate from a nested dict; unknown keys raise :class:`ParameterError`."""
+        """Build and validate from a nested dict; unknown keys raise :class:`ParameterError`.
+
+        The modules listed in ``plugins`` are imported first; the ``[domain]`` table is
+        read by :func:`meanfield.validation.region_from_table`.
+        """
         if not isinstance(d, dict):
             raise ParameterError("scenario", type(d).__name__, "a table of fields")
         top = {*_TOP_LEVEL, "domain", *_SECTIONS}
         unknown = set(d) - top
         if unknown:
             raise ParameterError(sorted(unknown)[0], d[sorted(unknown)[0]], f"a known key: one of {sorted(top)}")
+        # first the user's modules, so that the sections may name the parts they register
+        registry.import_plugin_modules(module_list("plugins", d.get("plugins")), field="plugins")
         kwargs: dict[str, Any] = {k: d[k] for k in _TOP_LEVEL if k in d}
         if "domain" in d:
-            if not isinstance(d["domain"], dict):
-                raise ParameterError("domain", d["domain"], "a table")
-            kwargs["domain"] = Domain.from_dict(d["domain"])
+            kwargs["domain"] = region_from_table(d["domain"])
         for key, sec_cls in _SECTIONS.items():
             if key not in d:
                 continue
@@ -649,36 +352,22 @@ class Scenario:
 
 
 # ---------------------------------------------------------------------- built-ins
+def _builtin(name: str, seed: int = 0) -> Scenario:
+    """The built-in scenario ``meanfield/scenarios/<name>.toml``, with ``seed``."""
+    text = (resources.files("meanfield") / "scenarios" / f"{name}.toml").read_text(encoding="utf-8")
+    d = tomllib.loads(text)
+    d["seed"] = seed
+    return Scenario.from_dict(d)
+
+
 def paper_scenario(seed: int = 0) -> Scenario:
     """The paper's MATLAB study (Section V): 200 humans, 16 robots, unit square, 30×30 grid.
 
-    Values the paper leaves open (c, η, σ, α, gains, h, speed limits, T, target width)
-    are chosen in ``docs/scenarios.md``, where the reasons and the measured outcome are.
+    Read from ``meanfield/scenarios/paper.toml``.  Values the paper leaves open (c, η, σ,
+    α, gains, h, speed limits, T, target width) are chosen in ``docs/scenarios.md``, where
+    the reasons and the measured outcome are.
     """
-    return Scenario(
-        name="paper",
-        seed=seed,
-        dt=0.01,
-        t_final=40.0,
-        record_every=10,
-        domain=Domain.box(1.0, 1.0),
-        grid=GridSpec((30, 30)),
-        crowd=CrowdSpec(n=200, initial="uniform", sigma=0.015),
-        robots=RobotSpec(n=16, layout="grid", headings="random", u_max=0.2, omega_max=3.0),
-        kernel=KernelSpec(c=0.2, eta=0.05),
-        interaction=InteractionSpec(kind="none"),
-        target=TargetSpec(center=(1.0, 1.0), std=0.15),
-        density=DensitySpec(bandwidth=0.08, boundary="reflect"),
-        controller=ControllerSpec(
-            alpha=0.2,
-            alpha_schedule="saturating",
-            rho_floor=2.0,
-            k_u=10.0,
-            k_omega=10.0,
-            beta_gamma="min-norm",
-            dvd_dt="finite-difference",
-        ),
-    )
+    return _builtin("paper", seed)
 
 
 # the Unity study's room (metres) and the time unit that makes the kernel's peak speed a
@@ -690,59 +379,24 @@ UNITY_TIME = 25.0
 def paper_unity_scenario(seed: int = 0) -> Scenario:
     """The paper's Unity study (Section V-B): 150 × 150 m, 200 humans, 16 robots, 30 m view.
 
-    Every parameter of :func:`paper_scenario` is carried over by the similarity
-    ``x -> L x``, ``t -> T t`` with ``L = 150 m`` and ``T = 25 s`` (so the kernel's peak
-    speed ``c`` becomes 1.2 m/s): lengths scale by ``L``, speeds by ``L/T``, diffusions and
-    ``α`` by ``L²/T``, rates by ``1/T``, densities by ``1/L²``, with one exception: the
-    crowd's diffusion is a pedestrian's ``σ = 0.5 m²/s``, not the similar 13.5 m²/s (a
-    random displacement of 5 m per second is not walking; JuPedSim bodies have no such
-    noise, and a controller that assumes it concentrates them).  The crowd, the density
-    estimate and the Step-I law (``v_d``, ``ṽ``) are then exactly similar to the paper
-    scenario's; the robot law is not, because ``V₂`` adds ``∫ρ̃²`` (scaling as ``1/L²``) to
-    ``∫|ṽ|²`` (scaling as ``L⁴/T²``), so its inputs depend on the unit of length.  The Unity study's own
-    assumptions are added on top: a human follows the signs only within 30 m of a robot
-    and otherwise walks randomly (1.0 m/s, heading persistence ``1/D_r`` = 20 s), and the
-    crowd may be run as JuPedSim bodies (``pedestrians.backend = "jupedsim"``).  The
-    reasons for each value, and how the outcome depends on them, are in
-    ``docs/scenarios.md``.
+    Read from ``meanfield/scenarios/paper-unity.toml``.  Every parameter of
+    :func:`paper_scenario` is carried over by the similarity ``x -> L x``, ``t -> T t``
+    with ``L = 150 m`` and ``T = 25 s`` (:data:`UNITY_LENGTH`, :data:`UNITY_TIME`; so the
+    kernel's peak speed ``c`` becomes 1.2 m/s): lengths scale by ``L``, speeds by ``L/T``,
+    diffusions and ``α`` by ``L²/T``, rates by ``1/T``, densities by ``1/L²``, with one
+    exception: the crowd's diffusion is a pedestrian's ``σ = 0.5 m²/s``, not the similar
+    13.5 m²/s (a random displacement of 5 m per second is not walking; JuPedSim bodies
+    have no such noise, and a controller that assumes it concentrates them).  The crowd,
+    the density estimate and the Step-I law (``v_d``, ``ṽ``) are then exactly similar to
+    the paper scenario's; the robot law is not, because ``V₂`` adds ``∫ρ̃²`` (scaling as
+    ``1/L²``) to ``∫|ṽ|²`` (scaling as ``L⁴/T²``), so its inputs depend on the unit of
+    length.  The Unity study's own assumptions are added on top: a human follows the
+    signs only within 30 m of a robot and otherwise walks randomly (1.0 m/s, heading
+    persistence ``1/D_r`` = 20 s), and the crowd may be run as JuPedSim bodies
+    (``pedestrians.backend = "jupedsim"``).  The reasons for each value, and how the
+    outcome depends on them, are in ``docs/scenarios.md``.
     """
-    base = paper_scenario(seed)
-    L, T = UNITY_LENGTH, UNITY_TIME
-    c = base.controller
-    return Scenario(
-        name="paper-unity",
-        seed=seed,
-        dt=base.dt * T,
-        t_final=base.t_final * T,
-        record_every=base.record_every,
-        domain=Domain.box(L, L),
-        grid=GridSpec(base.grid.cells),
-        crowd=CrowdSpec(n=200, initial="uniform", sigma=0.5),
-        robots=RobotSpec(
-            n=16,
-            layout="grid",
-            headings="random",
-            u_max=base.robots.u_max * L / T,
-            omega_max=base.robots.omega_max / T,
-        ),
-        kernel=KernelSpec(c=base.kernel.c * L / T, eta=base.kernel.eta * L * L),
-        interaction=InteractionSpec(kind="none"),
-        target=TargetSpec(center=(L, L), std=base.target.std * L),
-        density=DensitySpec(bandwidth=base.density.bandwidth * L, boundary="reflect"),
-        controller=ControllerSpec(
-            alpha=c.alpha * L * L / T,
-            alpha_schedule=c.alpha_schedule,
-            rho_floor=c.rho_floor / (L * L),
-            k_u=c.k_u / T,
-            k_omega=c.k_omega / T,
-            beta_gamma=c.beta_gamma,
-            dvd_dt=c.dvd_dt,
-        ),
-        view=ViewSpec(radius=30.0, walk_speed=1.0, turning_rate=0.05),
-        pedestrians=PedestrianSpec(
-            backend="point-mass", model="collision-free-speed", radius=0.2, max_speed=1.34, time_step=0.05
-        ),
-    )
+    return _builtin("paper-unity", seed)
 
 
 STADIUM_CROWD = 1_000_000
@@ -752,27 +406,29 @@ STADIUM_CROWD = 1_000_000
 def stadium_scenario(seed: int = 0) -> Scenario:
     """The ``paper`` scenario with a stadium's crowd: 10⁶ humans, 64 robots, 128×128 grid.
 
-    Everything else is ``paper``'s, except the KDE bandwidth (0.03: about four cells of
-    the finer grid, where ``paper``'s 0.08 is 2.4 of its cells) and that the positions of
-    10 000 evenly spaced humans are recorded rather than all (``record_humans``).  The
-    navigation field is sampled on a lattice (``crowd.field_evaluation = "auto"``
-    chooses it above 2·10⁶ human-robot pairs) and the KDE bins the crowd: a closed-loop
-    step costs O(N + G log G) (docs/scale.md).
+    Read from ``meanfield/scenarios/stadium.toml``.  Everything else is ``paper``'s,
+    except the KDE bandwidth (0.03: about four cells of the finer grid, where ``paper``'s
+    0.08 is 2.4 of its cells) and that the positions of 10 000 evenly spaced humans are
+    recorded rather than all (``record_humans``).  The navigation field is sampled on a
+    lattice (``crowd.field_evaluation = "auto"`` chooses it above 2·10⁶ human-robot pairs)
+    and the KDE bins the crowd: a closed-loop step costs O(N + G log G) (docs/scale.md).
     """
-    base = paper_scenario(seed)
-    return base.replace(
-        name="stadium",
-        grid=GridSpec((128, 128)),
-        crowd=dataclasses.replace(base.crowd, n=STADIUM_CROWD),
-        robots=dataclasses.replace(base.robots, n=64),
-        density=DensitySpec(bandwidth=0.03, boundary="reflect"),
-        record_humans=10_000,
-    )
+    return _builtin("stadium", seed)
+
+
+_FACTORIES: dict[str, Callable[..., Scenario]] = {
+    "paper": paper_scenario,
+    "paper-unity": paper_unity_scenario,
+    "stadium": stadium_scenario,
+}
 
 
 def builtin_scenarios() -> dict[str, Any]:
-    """Names of the built-in scenarios and their factories."""
-    return {"paper": paper_scenario, "paper-unity": paper_unity_scenario, "stadium": stadium_scenario}
+    """Names of the built-in scenarios (the TOML files in ``meanfield/scenarios/``) and their
+    factories ``factory(seed=0) -> Scenario``."""
+    folder = resources.files("meanfield") / "scenarios"
+    names = sorted(p.name[: -len(".toml")] for p in folder.iterdir() if p.name.endswith(".toml"))
+    return {name: _FACTORIES.get(name) or functools.partial(_builtin, name) for name in names}
 
 
 def load_scenario(spec: str | Path, seed: int | None = None) -> Scenario:

@@ -4,7 +4,10 @@ A sweep runs the closed loop (:class:`meanfield.simulate.ClosedLoop`) for every
 combination of the swept scenario values × seeds, one Dask task per run, on a local
 cluster (worker processes, one thread each) or on an existing Dask cluster named by
 its scheduler's address.  Each run's summary is gathered into an :class:`xarray.Dataset`
-with one dimension per swept key plus ``seed``, written to ``OUT/sweep.nc``.
+with one dimension per swept key plus ``seed``, written to ``OUT/sweep.nc``.  This module
+runs the sweep on Dask and registers the command (docs/cli.md, "``meanfield sweep``");
+what the sweep runs and gathers (parsing, the runs, resume records, the dataset) is
+:mod:`meanfield.sweep_plan` (its parsers, :func:`run_key` and constants are re-exported here).
 
 Layout of the output directory::
 
@@ -34,21 +37,26 @@ writes to ``OUT``.
 from __future__ import annotations
 
 import argparse
-import hashlib
-import json
 import logging
-import math
 import os
 import re
 import time
 from collections.abc import Callable, Sequence
-from itertools import product
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from meanfield.errors import ParameterError
+from meanfield.sweep_plan import (
+    CACHED_STATUSES,
+    SUMMARY_KEYS,
+    check_sweep,
+    expand_sweep,
+    finished_runs,
+    gather_dataset,
+    parse_seeds,
+    parse_values,
+    run_key,
+)
 
 __all__ = [
     "run_sweep",
@@ -61,126 +69,8 @@ __all__ = [
     "CONNECT_TIMEOUT",
 ]
 
-#: Numeric summary keys gathered into the dataset (``None`` becomes NaN).
-SUMMARY_KEYS: tuple[str, ...] = (
-    "fraction_in_target",
-    "time_to_90",
-    "l2_error_ratio",
-    "l2_error_final",
-    "w2_to_target_final",
-    "max_robot_speed",
-    "wall_seconds",
-    "steps",
-)
-#: Statuses of a run that are reused on resume (the others are run again).
-CACHED_STATUSES: tuple[str, ...] = ("completed", "diverged")
 #: Seconds to wait for an external scheduler before refusing its address.
 CONNECT_TIMEOUT: float = 10.0
-_NOT_RUN = "not run"
-
-
-# ---------------------------------------------------------------------- parsing
-def _split_outside_brackets(text: str) -> list[str]:
-    """Split on commas that are not inside ``[]``, ``{}`` or quotes."""
-    parts, depth, quote, cur = [], 0, "", []
-    for ch in text:
-        if quote:
-            if ch == quote:
-                quote = ""
-        elif ch in "\"'":
-            quote = ch
-        elif ch in "[{":
-            depth += 1
-        elif ch in "]}":
-            depth -= 1
-        elif ch == "," and depth == 0:
-            parts.append("".join(cur))
-            cur = []
-            continue
-        cur.append(ch)
-    parts.append("".join(cur))
-    return [p.strip() for p in parts]
-
-
-def parse_values(items: Sequence[str]) -> dict[str, list]:
-    """``["robots.n=4,9", "kernel.eta=0.01,0.02"]`` as ``{"robots.n": [4, 9], "kernel.eta": [0.01, 0.02]}``.
-
-    Short names are resolved to dotted keys (:func:`meanfield.scenario.resolve_key`):
-    ``robots=4,9`` is ``robots.n=4,9``, ``eta=0.01`` is ``kernel.eta=0.01``.
-
-    Each value is read like :func:`meanfield.cli.parse_set` reads one (TOML, else a string);
-    values are split on commas outside brackets and quotes, so ``grid.cells=[12,12],[24,24]``
-    gives two lists.
-
-    Raises
-    ------
-    ParameterError
-        For an item without ``=``, a key given twice, or an empty value.
-    """
-    from meanfield.cli import parse_set
-    from meanfield.scenario import resolve_key
-
-    out: dict[str, list] = {}
-    for item in items:
-        if "=" not in item:
-            raise ParameterError("--set", item, "KEY=V1,V2,... with a dotted scenario key, e.g. robots.n=4,9,16")
-        key, raw = (s.strip() for s in item.split("=", 1))
-        key = resolve_key(key)  # robots -> robots.n, eta -> kernel.eta
-        if key in out:
-            raise ParameterError("--set", item, f"each key once (give all values of {key} in one --set)")
-        raws = _split_outside_brackets(raw)
-        if not raw.strip() or any(not r for r in raws):
-            raise ParameterError(key, raw, "a comma-separated list of non-empty values")
-        out[key] = [parse_set([f"{key}={r}"])[key] for r in raws]
-    return out
-
-
-def parse_seeds(text: str) -> list[int]:
-    """``"10"`` as seeds 0..9; ``"3-5"`` as 3, 4, 5; ``"1,4,7"`` as those seeds."""
-    from meanfield.cli import int_list
-
-    t = text.strip()
-    seeds = list(range(int(t))) if t.isdigit() else list(int_list("--seeds", t, ranges=True))
-    if not seeds:
-        raise ParameterError("--seeds", text, "at least one seed (an empty sweep runs nothing)")
-    return seeds
-
-
-# ---------------------------------------------------------------------- keys and coordinates
-def _slug(value: Any) -> str:
-    text = value if isinstance(value, str) else json.dumps(value, separators=(",", ":"))
-    return re.sub(r"[^A-Za-z0-9.+-]+", "_", text).strip("_")[:24] or "_"
-
-
-def run_key(values: dict[str, Any], seed: int, scenario_dict: dict[str, Any]) -> str:
-    """Stable file name of one run: a readable slug of its values and seed + a hash of its scenario.
-
-    Parameters
-    ----------
-    values : dict
-        The swept key → value of this run.
-    seed : int
-        Its seed.
-    scenario_dict : dict
-        ``Scenario.to_dict()`` of the run (values and seed applied); the hash covers all of
-        it, so a changed base scenario never reuses a run.
-    """
-    blob = json.dumps(scenario_dict, sort_keys=True, default=str, separators=(",", ":"))
-    digest = hashlib.sha256(blob.encode()).hexdigest()[:16]
-    slug = "_".join(f"{k.split('.')[-1]}={_slug(v)}" for k, v in values.items())[:100]
-    return f"{slug + '_' if slug else ''}seed={seed}_{digest}"
-
-
-def _coordinate(key: str, values: list) -> np.ndarray:
-    """Values as a coordinate: numbers stay numbers, anything else becomes its text."""
-    numeric = all(isinstance(v, int | float) and not isinstance(v, bool) for v in values)
-    if numeric:
-        arr = np.asarray(values, dtype=float if any(isinstance(v, float) for v in values) else np.int64)
-    else:
-        arr = np.asarray([v if isinstance(v, str) else json.dumps(v) for v in values], dtype=object)
-    if len(set(arr.tolist())) != len(arr):
-        raise ParameterError(key, values, "distinct values (each value once)")
-    return arr
 
 
 # ---------------------------------------------------------------------- worker side
@@ -306,67 +196,17 @@ def run_sweep(
         value, an invalid seed or worker count, an unreachable scheduler.
     """
     from meanfield.io import atomic_write_json, atomic_write_with
-    from meanfield.scenario import Scenario, load_scenario
 
     # ---- validation: nothing is created or run before all of it passes
-    base = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
-    if not isinstance(sets, dict):
-        raise ParameterError("sets", sets, "a dict of dotted scenario key -> list of values")
-    sets = {str(k): list(v) if isinstance(v, list | tuple) else [v] for k, v in sets.items()}
-    for key, values in sets.items():
-        if key == "seed":
-            raise ParameterError("--set", "seed", "seeds given with --seeds (seeds=...), not as a swept key")
-        if not values:
-            raise ParameterError(key, values, "at least one value (an empty sweep runs nothing)")
-    if isinstance(seeds, int | np.integer) and not isinstance(seeds, bool):
-        if seeds < 1:
-            raise ParameterError("--seeds", seeds, "at least one seed (an empty sweep runs nothing)")
-        seed_list = list(range(int(seeds)))
-    else:
-        seed_list = list(seeds)
-        if not seed_list:
-            raise ParameterError("--seeds", seed_list, "at least one seed (an empty sweep runs nothing)")
-        if not all(isinstance(s, int | np.integer) and not isinstance(s, bool) and s >= 0 for s in seed_list):
-            raise ParameterError("--seeds", seed_list, "integers >= 0")
-        seed_list = [int(s) for s in seed_list]
-    if len(set(seed_list)) != len(seed_list):
-        raise ParameterError("--seeds", seed_list, "distinct seeds")
+    base, sets, seed_list = check_sweep(scenario, sets, seeds)
     if workers is not None and (not isinstance(workers, int) or workers < 1):
         raise ParameterError("--workers", workers, "an integer >= 1")
-    coords = {key: _coordinate(key, values) for key, values in sets.items()}
-    keys = list(sets)
-
-    runs: list[dict[str, Any]] = []  # index, values, seed, key, toml
-    for idx in product(*(range(len(sets[k])) for k in keys)):
-        values = {k: sets[k][i] for k, i in zip(keys, idx, strict=True)}
-        try:
-            sc = base.with_values(values) if values else base
-        except ParameterError as exc:
-            if exc.name in values:
-                raise
-            combo = ", ".join(f"{k}={v!r}" for k, v in values.items())
-            raise ParameterError(exc.name, exc.value, f"{exc.allowed} (in the sweep combination {combo})") from None
-        for j, seed in enumerate(seed_list):
-            run_sc = sc.replace(seed=seed)
-            d = run_sc.to_dict()
-            runs.append(
-                {"index": (*idx, j), "values": values, "seed": seed, "key": run_key(values, seed, d),
-                 "toml": run_sc.to_toml()}
-            )
+    plan = expand_sweep(base, sets, seed_list)
 
     out = Path(out_dir)
     runs_dir = out / "runs"
-    records: dict[str, dict[str, Any]] = {}
-    if runs_dir.is_dir():
-        for r in runs:
-            path = runs_dir / f"{r['key']}.json"
-            try:
-                rec = json.loads(path.read_text())
-            except (OSError, ValueError):
-                continue
-            if rec.get("summary", {}).get("status") in CACHED_STATUSES:
-                records[r["key"]] = rec
-    todo = [r for r in runs if r["key"] not in records]
+    records = finished_runs(plan, runs_dir)
+    todo = [r for r in plan.runs if r["key"] not in records]
     reused = len(records)
 
     client = cluster = None
@@ -380,7 +220,7 @@ def run_sweep(
     executed = 0
     state = "completed"
     pending_exc: BaseException | None = None
-    bar = tqdm(total=len(runs), initial=reused, disable=not progress, desc="meanfield sweep", unit="run")
+    bar = tqdm(total=len(plan.runs), initial=reused, disable=not progress, desc="meanfield sweep", unit="run")
     try:
         if todo:
             from distributed import as_completed
@@ -423,40 +263,8 @@ def run_sweep(
                     state = "interrupted"
 
     # ---- the dataset
-    import xarray as xr
-
-    shape = tuple(len(sets[k]) for k in keys) + (len(seed_list),)
-    data = {name: np.full(shape, np.nan) for name in SUMMARY_KEYS}
-    status = np.full(shape, _NOT_RUN, dtype=object)
-    message = np.full(shape, "", dtype=object)
-    for r in runs:
-        rec = records.get(r["key"])
-        if rec is None:
-            continue
-        s = rec["summary"]
-        for name in SUMMARY_KEYS:
-            v = s.get(name)
-            data[name][r["index"]] = float(v) if isinstance(v, int | float) and not isinstance(v, bool) else math.nan
-        status[r["index"]] = str(s.get("status", "error"))
-        message[r["index"]] = str(s.get("message") or "")
-    if state != "interrupted" and any(st != "completed" for st in status.flat):
-        state = "incomplete"
-    dims = (*keys, "seed")
-    ds = xr.Dataset(
-        {name: (dims, arr) for name, arr in data.items()} | {"status": (dims, status), "message": (dims, message)},
-        coords={**{k: (k, coords[k]) for k in keys}, "seed": ("seed", np.asarray(seed_list, dtype=np.int64))},
-        attrs={
-            "title": f"meanfield sweep of {base.name}",
-            "scenario": base.to_toml(),
-            "sweep": json.dumps(
-                {"sets": sets, "seeds": seed_list, "scheduler": scheduler or "local", "workers": workers},
-                default=str,
-            ),
-            "status": state,
-            "runs_total": len(runs),
-            "runs_reused": reused,
-            "runs_executed": executed,
-        },
+    ds = gather_dataset(
+        plan, records, state=state, scheduler=scheduler, workers=workers, reused=reused, executed=executed
     )
     atomic_write_with(out / "sweep.nc", lambda p: ds.to_netcdf(p, engine="h5netcdf"))
     if pending_exc is not None:

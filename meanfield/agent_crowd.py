@@ -1,0 +1,207 @@
+"""The crowd as agents under the robots' signs: the drift of eq. (1) and the density the robots see.
+
+An :class:`AgentCrowd` implements :class:`~meanfield.interfaces.Crowd` for any *engine* that
+moves agents given their velocities: the point-mass SDE (:class:`~meanfield.crowd.Crowd`,
+registered as ``point-mass``) or JuPedSim's bodies
+(:class:`~meanfield.pedestrian_crowd.PedestrianCrowd`, ``jupedsim``).  What the humans feel
+is the same for both (paper, eq. (1))::
+
+    u_W(X_j) + v_r(X_j, t) + v_a(X_j, t)
+
+with ``v_r`` (eq. (3)) evaluated exactly or sampled on a lattice (large crowds,
+:mod:`meanfield.sampled_field`), replaced by a random walk for the humans who see no robot
+(:mod:`meanfield.local_view`).  The robots observe the crowd through a Gaussian KDE on the
+grid (paper, Section IV-A; :mod:`meanfield.density`).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol
+
+import numpy as np
+
+from meanfield.crowd import Crowd
+from meanfield.density import KernelDensityEstimator
+from meanfield.errors import SimulationDiverged
+from meanfield.interaction import InteractionField
+from meanfield.interfaces import CrowdContext, Disturbance, Region
+from meanfield.kernels import NavigationKernel
+from meanfield.local_view import LocalView
+from meanfield.metrics import fraction_in_disk
+from meanfield.robots import RobotTeam, navigation_velocity
+from meanfield.sampled_field import SampledNavigationField
+
+__all__ = ["AgentEngine", "AgentCrowd", "initial_positions", "point_mass_crowd", "SAMPLED_FIELD_ABOVE"]
+
+SAMPLED_FIELD_ABOVE = 2_000_000
+"""``crowd.field_evaluation = "auto"`` samples ``v_r`` on a lattice above this many human-robot pairs."""
+
+
+class AgentEngine(Protocol):
+    """Moves agents given each one's velocity (the SDE step, or JuPedSim's bodies)."""
+
+    positions: np.ndarray
+    body_radius: float
+
+    def step(self, drift: np.ndarray, t: float, dt: float) -> None: ...
+
+    def summary(self) -> dict[str, Any]: ...
+
+
+def initial_positions(scenario: Any, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` initial positions from the scenario's crowd law (uniform on Ω, or a normal law
+    restricted to Ω by rejection), drawn from ``rng``."""
+    c = scenario.crowd
+    if c.initial == "uniform":
+        return scenario.domain.sample_uniform(n, rng)
+    out = np.empty((0, 2))
+    while len(out) < n:
+        p = rng.normal(loc=c.initial_center, scale=c.initial_std, size=(2 * (n - len(out)) + 8, 2))
+        out = np.vstack([out, p[scenario.domain.contains(p[:, 0], p[:, 1])]])
+    return out[:n].copy()
+
+
+class AgentCrowd:
+    """Agents that follow the robots' signs (the :class:`~meanfield.interfaces.Crowd` of agents).
+
+    Parameters
+    ----------
+    engine : AgentEngine
+        Owns the positions and moves them.
+    kernel : NavigationKernel
+        The robots' navigation kernel (eq. (3)).
+    kde : KernelDensityEstimator
+        How the robots estimate the density on the grid.
+    view : LocalView
+        Who sees a robot (everyone without a view radius).
+    interaction : InteractionField, optional
+        ``u_W`` at the agents.
+    disturbance : callable, optional
+        ``v_a(x, y, t)``.
+    field_evaluation : {"exact", "sampled"}
+        ``v_r`` at the agents exactly (O(Nn)) or sampled on a lattice over Ω's bounding box.
+    domain : Region
+        Ω (its bounding box carries the sampled lattice).
+    sample_cells : (int, int)
+        The grid's cells; the sampled lattice has ``2 nx + 1 × 2 ny + 1`` nodes.
+    """
+
+    def __init__(
+        self,
+        engine: AgentEngine,
+        kernel: NavigationKernel,
+        kde: KernelDensityEstimator,
+        view: LocalView,
+        interaction: InteractionField | None = None,
+        disturbance: Disturbance | None = None,
+        field_evaluation: str = "exact",
+        domain: Region | None = None,
+        sample_cells: tuple[int, int] = (30, 30),
+    ):
+        self.engine = engine
+        self.kernel = kernel
+        self.kde = kde
+        self.view = view
+        self.interaction = interaction
+        self.disturbance = disturbance
+        self.field_evaluation = field_evaluation
+        self.sampled_field = None
+        if field_evaluation == "sampled":
+            nx, ny = sample_cells
+            self.sampled_field = SampledNavigationField(kernel, domain.bounds, (2 * nx + 1, 2 * ny + 1))
+        self._drift: np.ndarray | None = None
+
+    @property
+    def positions(self) -> np.ndarray:
+        return self.engine.positions
+
+    @property
+    def n(self) -> int:
+        return len(self.engine.positions)
+
+    @property
+    def body_radius(self) -> float:
+        """The agents' body radius (0 for point masses)."""
+        return self.engine.body_radius
+
+    def seen_fraction(self) -> float:
+        """Fraction of the agents with a robot in view at the last step (1 without a view radius)."""
+        return float(self.view.seen.mean())
+
+    def drift(self, robots: RobotTeam, t: float, dt: float) -> np.ndarray:
+        """``u_W(X_j) + v_r(X_j, t) + v_a(X_j, t)`` at every agent (paper, eq. (1)).
+
+        With a finite view radius, ``v_r`` is replaced by the random walk for the humans who
+        see no robot (:meth:`LocalView.gate`).  With a sampled field (large crowds) the
+        returned array is reused, and overwritten, by the next call.
+        """
+        positions = self.positions
+        if self.sampled_field is not None:
+            self.sampled_field.update(robots.positions, robots.headings)
+            if self._drift is None or len(self._drift) != len(positions):
+                self._drift = np.empty((len(positions), 2))
+            drift = self.sampled_field.at_points(positions, out=self._drift)
+        else:
+            drift = navigation_velocity(self.kernel, robots.positions, robots.headings, positions)
+        self.view.gate(drift, positions, robots.positions, dt)
+        if self.interaction is not None:
+            drift += self.interaction.at_points(positions)
+        if self.disturbance is not None:
+            ax, ay = self.disturbance(positions[:, 0], positions[:, 1], t)
+            drift[:, 0] += ax
+            drift[:, 1] += ay
+        return drift
+
+    def advance(self, robots: RobotTeam, t: float, dt: float) -> None:
+        """One step of the agents under the robots' signs; the drift must be finite."""
+        drift = self.drift(robots, t, dt)
+        if not np.isfinite(drift).all():
+            raise SimulationDiverged(f"non-finite human drift at t = {t:.4g}; the crowd is kept at the last good step")
+        self.engine.step(drift, t, dt)
+        self.view.advance(dt)
+
+    def density(self) -> np.ndarray:
+        """The robots' KDE of the agents on the grid."""
+        return self.kde(self.positions)
+
+    def fraction_in_disk(self, center: tuple[float, float], radius: float) -> float:
+        return fraction_in_disk(self.positions, center, radius)
+
+    def field_error_bound(self, robots: RobotTeam) -> float | None:
+        """Interpolation error bound of the sampled ``v_r`` at the robots' states (None: exact)."""
+        if self.sampled_field is None:
+            return None
+        self.sampled_field.update(robots.positions, robots.headings)
+        return self.sampled_field.error_bound()
+
+    def summary(self) -> dict[str, Any]:
+        """``field_evaluation``, the view's ``seen_fraction_final`` and the engine's own figures."""
+        return {
+            "field_evaluation": self.field_evaluation,
+            "seen_fraction_final": self.seen_fraction(),
+            **self.engine.summary(),
+        }
+
+    @classmethod
+    def from_context(cls, engine: AgentEngine, ctx: CrowdContext) -> AgentCrowd:
+        """Build the agent crowd of ``ctx.scenario`` around an engine (the registered factories use this)."""
+        sc = ctx.scenario
+        bw = None if sc.density.bandwidth == "silverman" else sc.density.bandwidth
+        kde = KernelDensityEstimator(ctx.grid, bw, sc.density.boundary, sc.density.method)
+        v = sc.view
+        n = len(engine.positions)
+        view = LocalView(n, v.radius, v.walk_speed, v.turning_rate, sc.domain, ctx.rng, engine.body_radius)
+        mode = sc.crowd.field_evaluation
+        if mode == "auto":
+            mode = "sampled" if n * sc.robots.n > SAMPLED_FIELD_ABOVE else "exact"
+        return cls(
+            engine, ctx.kernel, kde, view, ctx.interaction, ctx.disturbance, mode, sc.domain, sc.grid.cells
+        )
+
+
+def point_mass_crowd(ctx: CrowdContext) -> AgentCrowd:
+    """Registry factory (kind ``crowd``, name ``point-mass``): the SDE of eq. (1) with reflecting walls."""
+    sc = ctx.scenario
+    humans = initial_positions(sc, sc.crowd.n, ctx.rng)
+    return AgentCrowd.from_context(Crowd(humans, sc.domain, ctx.sigma, ctx.rng), ctx)
+

@@ -1,0 +1,224 @@
+"""One assembly step: a :class:`~meanfield.scenario.Scenario` becomes the parts of the closed loop.
+
+Each part is chosen by name from the registry (:mod:`meanfield.plugins`) and built from
+the parts before it, never from the loop that will hold it:
+
+1. Ω (the scenario's region), the grid, the navigation kernel, the target density ``ρ_*``;
+2. the crowd (``pedestrians.backend``): it draws its initial state from the run's generator;
+3. the robots (``robots.layout``, random headings from the same generator);
+4. the controller (``controller.kind``) from :class:`~meanfield.interfaces.ControllerParts`.
+
+The generator's draws keep this order (humans, robots, then the walkers' headings and the
+steps' noise), so a seed gives the same run whatever the parts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from meanfield import plugins
+from meanfield.control import BetaGammaStrategy, ConstantAlpha, SaturatingAlpha
+from meanfield.errors import ParameterError
+from meanfield.grid import Grid
+from meanfield.interaction import InteractionField
+from meanfield.interfaces import (
+    Controller,
+    ControllerParts,
+    Crowd,
+    CrowdContext,
+    Disturbance,
+    Region,
+    SigmaLike,
+)
+from meanfield.kernels import GaussianKernel, GaussianPotential, NavigationKernel
+from meanfield.metrics import gaussian_target, target_region_radius
+from meanfield.robots import RobotTeam
+from meanfield.scenario import Scenario
+
+__all__ = ["Parts", "assemble", "alpha_schedule_for", "disturbance_for", "initial_robots"]
+
+
+@dataclass
+class Parts:
+    """The closed loop's parts, built once from a scenario by :func:`assemble`.
+
+    Attributes
+    ----------
+    scenario : Scenario
+    region : Region
+        Ω.
+    grid : Grid
+    kernel : NavigationKernel
+    target : ndarray
+        ``ρ_*`` on the grid.
+    target_center : (float, float)
+    target_radius : float
+        Radius of the target region (the disk holding 90 % of ``ρ_*``).
+    sigma : SigmaLike
+    disturbance : Disturbance or None
+    interaction : InteractionField or None
+    crowd : Crowd
+    robots : RobotTeam
+    robot_region : Region
+    controller : Controller
+    overrides : list of str
+        The Python-only overrides used (``sigma``, ``disturbance``, ``beta_gamma``, ``kernel``, ...).
+    """
+
+    scenario: Scenario
+    region: Region
+    grid: Grid
+    kernel: NavigationKernel
+    target: np.ndarray
+    target_center: tuple[float, float]
+    target_radius: float
+    sigma: SigmaLike
+    disturbance: Disturbance | None
+    interaction: InteractionField | None
+    crowd: Crowd
+    robots: RobotTeam
+    robot_region: Region
+    controller: Controller
+    overrides: list[str] = field(default_factory=list)
+
+    @property
+    def dt(self) -> float:
+        """The control period."""
+        return self.scenario.dt
+
+
+def alpha_schedule_for(scenario: Scenario) -> ConstantAlpha | SaturatingAlpha:
+    """The Step-I gain α(ρ) of ``scenario.controller`` (``"constant"`` or ``"saturating"``)."""
+    c = scenario.controller
+    return ConstantAlpha(c.alpha) if c.alpha_schedule == "constant" else SaturatingAlpha(c.alpha, c.rho_floor)
+
+
+def disturbance_for(scenario: Scenario) -> Disturbance | None:
+    """The scenario's disturbance ``v_a(x, y, t) -> (vx, vy)`` (eq. (1)), or None without one."""
+    d = scenario.disturbance
+    if d.kind == "none":
+        return None
+    if d.kind == "constant":
+        vx, vy = d.velocity
+        return lambda x, y, t: (np.full_like(x, vx), np.full_like(y, vy))
+    cx, cy = scenario.domain.center
+    s = d.strength
+    return lambda x, y, t: (-s * (y - cy), s * (x - cx))
+
+
+def initial_robots(scenario: Scenario, rng: np.random.Generator) -> tuple[RobotTeam, Region]:
+    """The robots' initial states (``robots.layout``, headings) and the region they may stand in."""
+    r = scenario.robots
+    region = scenario.domain.robot_region(r.margin)
+    if r.layout == "grid":
+        positions = region.lattice(r.n)
+    elif r.layout == "random":
+        positions = region.sample_uniform(r.n, rng)
+    else:
+        positions = np.asarray(r.positions, float)
+    headings = rng.uniform(0.0, 2 * np.pi, r.n) if isinstance(r.headings, str) else np.asarray(r.headings, float)
+    robots = RobotTeam(positions, headings, r.u_max, r.omega_max)
+    robots.check_inside(scenario.domain)
+    return robots, region
+
+
+def assemble(
+    scenario: Scenario,
+    *,
+    sigma: SigmaLike | None = None,
+    disturbance: Disturbance | None = None,
+    beta_gamma: BetaGammaStrategy | None = None,
+    kernel: NavigationKernel | None = None,
+    crowd: str | None = None,
+    controller: str | None = None,
+) -> Parts:
+    """Build the parts of ``scenario``'s closed loop.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    sigma : float or callable, optional
+        Overrides ``crowd.sigma``; a callable ``σ(x, y, t)`` is allowed here.
+    disturbance : callable, optional
+        ``v_a(x, y, t) -> (vx, vy)``, overriding ``scenario.disturbance``.
+    beta_gamma : BetaGammaStrategy, optional
+        Overrides ``controller.beta_gamma`` (e.g. a :class:`~meanfield.control.UserBetaGamma`).
+    kernel : NavigationKernel, optional
+        Overrides the scenario's Gaussian kernel.
+    crowd : str, optional
+        A registered crowd name, overriding ``pedestrians.backend`` (e.g. ``"fokker-planck"``
+        for the PDE plant).
+    controller : str, optional
+        A registered controller name, overriding ``controller.kind``.
+    """
+    if not isinstance(scenario, Scenario):
+        raise ParameterError("scenario", type(scenario).__name__, "a Scenario")
+    sc = scenario
+    region = sc.domain
+    if any(part.kind == "exit" for part in region.boundary_parts()):
+        raise ParameterError(
+            "domain.exits",
+            "exits",
+            "none yet: absorbing exits (agents leaving, Dirichlet in the PDE) are not modelled by this version",
+        )
+    rng = np.random.default_rng(sc.seed)
+    grid = Grid(region, sc.grid.cells)
+    kern = kernel if kernel is not None else GaussianKernel(sc.kernel.c, sc.kernel.eta)
+    target = gaussian_target(grid, sc.target.center, sc.target.std)
+    sig = sc.crowd.sigma if sigma is None else sigma
+    dist = disturbance if disturbance is not None else disturbance_for(sc)
+    interaction = None
+    if sc.interaction.kind == "gaussian":
+        interaction = InteractionField(grid, GaussianPotential(sc.interaction.strength, sc.interaction.length))
+    crowd_name = sc.pedestrians.backend if crowd is None else crowd
+    the_crowd = plugins.load("crowd", crowd_name)(CrowdContext(sc, grid, kern, sig, dist, interaction, rng))
+    robots, robot_region = initial_robots(sc, rng)
+    c = sc.controller
+    strategy = beta_gamma if beta_gamma is not None else plugins.load("beta_gamma", c.beta_gamma)(sc)
+    parts = ControllerParts(
+        grid=grid,
+        region=region,
+        robot_region=robot_region,
+        kernel=kern,
+        target=target,
+        target_center=sc.target.center,
+        sigma=sig,
+        interaction=interaction,
+        robots=robots,
+        alpha=alpha_schedule_for(sc),
+        k_u=c.k_u,
+        k_omega=c.k_omega,
+        beta_gamma=strategy,
+        dvd_dt=c.dvd_dt,
+        options=dict(c.options),
+        dt=sc.dt,
+    )
+    the_controller = plugins.load("controller", c.kind if controller is None else controller)(parts)
+    overrides: dict[str, Any] = {
+        "sigma": sigma,
+        "disturbance": disturbance,
+        "beta_gamma": beta_gamma,
+        "kernel": kernel,
+        "crowd": crowd,
+        "controller": controller,
+    }
+    return Parts(
+        scenario=sc,
+        region=region,
+        grid=grid,
+        kernel=kern,
+        target=target,
+        target_center=sc.target.center,
+        target_radius=target_region_radius(region, sc.target.center, sc.target.std),
+        sigma=sig,
+        disturbance=dist,
+        interaction=interaction,
+        crowd=the_crowd,
+        robots=robots,
+        robot_region=robot_region,
+        controller=the_controller,
+        overrides=sorted(k for k, v in overrides.items() if v is not None),
+    )
