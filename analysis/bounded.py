@@ -10,7 +10,8 @@ and (semi-discrete, exactly)
 
 The paper asks ``Σ b_i·δu_i − Σ g_i δω_i = A`` through its β/γ weights, and ignores that a
 real robot has ``‖u_i‖ ≤ u_max`` and ``|ω_i| ≤ ω_max``.  This module chooses the extra
-inputs by the convex program of DESIGN.md §2::
+inputs by the convex program of ``docs/controller.md``, *Choosing β and γ*
+(``#choosing-beta-and-gamma``)::
 
     minimise    Σ‖δu_i‖² + Σ δω_i²                      (least effort)
     subject to  Σ b_i·δu_i − Σ g_i δω_i ≥ A              (V₂ decreases as promised)

@@ -130,7 +130,7 @@ def analyze(
     from analysis.robot_count import coverage_estimate, empirical_robot_count
     from meanfield.grid import Grid
     from meanfield.io import atomic_write_json
-    from meanfield.simulate import ClosedLoop
+    from meanfield.loop import ClosedLoop
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -99,7 +99,7 @@ class LimitsStudy:
 
 
 def _run_one(args: tuple[dict, str, float, int]) -> LimitRun:
-    from meanfield.simulate import ClosedLoop
+    from meanfield.loop import ClosedLoop
 
     d, strategy, u_max, seed = args
     sc = Scenario.from_dict(d).with_values({"robots.u_max": u_max, "controller.beta_gamma": strategy, "seed": seed})

@@ -56,6 +56,7 @@ import numpy as np
 from meanfield.control import BacksteppingController, ControlState
 from meanfield.errors import ParameterError
 from meanfield.grid import Grid
+from meanfield.interfaces import Command, ControllerParts, Observation
 from meanfield.kernels import GaussianKernel, NavigationKernel
 from meanfield.robots import NavigationField, RobotTeam
 
@@ -497,7 +498,7 @@ class NMPCController:
         region: tuple[float, float, float, float] | None = None,
     ):
         self.options = options if isinstance(options, NMPCOptions) else NMPCOptions.from_mapping(options)
-        if grid.domain.kind != "box":
+        if not grid.is_box:
             raise ParameterError("domain", grid.domain.kind, "a box (the NMPC coarse model is a box grid)")
         if callable(sigma):
             raise ParameterError("sigma", "a callable", "a constant σ for the NMPC model")
@@ -766,6 +767,15 @@ class NMPCController:
         k = min(int(math.floor(elapsed / h + 1e-9)), o.horizon - 1)
         return dataclasses.replace(state, u=self.plan.u[k].copy(), omega=self.plan.omega[k].copy(), shortfall=math.nan)
 
+    def act(self, observation: Observation) -> Command:
+        """The :class:`~meanfield.interfaces.Controller` interface: :meth:`robot_inputs` at the observation.
+
+        The command carries the backstepping quantities at the same state (for the records).
+        """
+        o = observation
+        state = self.robot_inputs(o.density, o.field, o.t, o.dt)
+        return Command(state.u, state.omega, state)
+
     def reset(self) -> None:
         """Forget the plan (next call re-solves from zero inputs), the statistics and the
         backstepping diagnostics' memory."""
@@ -798,11 +808,12 @@ class NMPCController:
         }
 
 
-def nmpc_controller_for(loop: Any) -> NMPCController:
-    """Plugin factory (entry point ``nmpc`` of ``meanfield.controllers``): an NMPC for ``loop``.
+def nmpc_controller_for(parts: ControllerParts) -> NMPCController:
+    """Plugin factory (entry point ``nmpc`` of ``meanfield.controllers``): an NMPC from the loop's parts.
 
-    ``loop`` is the :class:`~meanfield.simulate.ClosedLoop` being built; the options come
-    from ``loop.scenario.controller.options`` (see :class:`NMPCOptions`).
+    The options come from ``parts.options`` (``controller.options`` of the scenario; see
+    :class:`NMPCOptions`); the backstepping law it reports beside its plan is built from the
+    same parts (:meth:`~meanfield.control.BacksteppingController.from_parts`).
 
     Raises
     ------
@@ -810,18 +821,19 @@ def nmpc_controller_for(loop: Any) -> NMPCController:
         For a bad option (naming ``controller.options.<key>``), a non-box domain, a
         non-Gaussian kernel, a non-constant σ or an interaction potential (not in the model).
     """
-    options = NMPCOptions.from_mapping(loop.scenario.controller.options)
-    if loop.domain.kind != "box":
-        raise ParameterError("domain", loop.domain.kind, "a box (the NMPC coarse model is a box grid)")
-    if loop.interaction is not None:
-        raise ParameterError("interaction.kind", loop.scenario.interaction.kind, "'none' (not in the NMPC model)")
+    options = NMPCOptions.from_mapping(parts.options)
+    if not parts.grid.is_box:
+        raise ParameterError("domain", parts.region.kind, "a box (the NMPC coarse model is a box grid)")
+    if parts.interaction is not None:
+        raise ParameterError("interaction.kind", "gaussian", "'none' (not in the NMPC model)")
+    backstepping = BacksteppingController.from_parts(dataclasses.replace(parts, options={}))
     return NMPCController(
-        loop.grid,
-        loop.target,
-        loop.kernel,
-        loop.sigma,
-        loop.robots,
-        loop.backstepping,
+        parts.grid,
+        parts.target,
+        parts.kernel,
+        parts.sigma,
+        parts.robots,
+        backstepping,
         options,
-        region=loop.robot_region.bounds,
+        region=parts.robot_region.bounds,
     )

@@ -20,14 +20,17 @@ numbers can be compared with experiments and other simulators:
 4. figures of both (:func:`plot_pedestrian_figures`).
 
 PedPy is imported lazily, inside the functions: the rest of :mod:`analysis` works without
-it.  ``meanfield pedestrians RUN_DIR... --out DIR`` (:func:`register`) runs it all.
+it.  ``meanfield pedestrians RUN_DIR... --out DIR`` (:func:`register`) runs it all
+(``docs/pedestrians.md``).
+
+This module holds the measurements; the figures are drawn by
+:mod:`analysis.pedestrian_figures` and the command lives in :mod:`analysis.pedestrian_cli`,
+both re-exported here (:func:`plot_pedestrian_figures`, :func:`register`).
 """
 
 from __future__ import annotations
 
-import argparse
 import math
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,6 +38,8 @@ from typing import Any
 
 import numpy as np
 
+from analysis.pedestrian_cli import register
+from analysis.pedestrian_figures import plot_pedestrian_figures
 from meanfield.errors import ParameterError
 
 __all__ = [
@@ -461,166 +466,3 @@ def pedestrian_metrics(
     if figures:
         metrics.figures = {k: str(v) for k, v in plot_pedestrian_figures(metrics, out).items()}
     return metrics
-
-
-# ---------------------------------------------------------------------------- figures
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig: Any, path: Path, dpi: float) -> Path:
-    from meanfield.io import atomic_write_with
-
-    plt = _pyplot()
-    atomic_write_with(Path(path), lambda p: fig.savefig(p, dpi=dpi, bbox_inches="tight", format="png"))
-    plt.close(fig)
-    return Path(path)
-
-
-def plot_pedestrian_figures(
-    metrics: PedestrianMetrics, out_dir: str | Path, *, prefix: str = "", dpi: float = 90
-) -> dict[str, Path]:
-    """Draw the two figures of a measured run; return their paths.
-
-    - ``{prefix}n_in_target.png``: ``N(t)/N`` from PedPy beside the toolkit's
-      ``fraction_in_target``, and their difference in humans, the density window shaded;
-    - ``{prefix}density_map.png``: PedPy's classic (and Voronoi) density maps beside the
-      toolkit's KDE density ``N · ρ̂``, mean over the window, on one colour scale (square
-      root), the target region dashed.
-
-    Saved atomically with matplotlib's Agg backend.
-    """
-    plt = _pyplot()
-    from matplotlib.colors import PowerNorm
-
-    out = Path(out_dir)
-    label = f"{metrics.scenario} ({metrics.backend}, seed {metrics.seed})"
-    paths: dict[str, Path] = {}
-
-    fig, (a0, a1) = plt.subplots(
-        2, 1, figsize=(6.4, 4.6), sharex=True, gridspec_kw={"height_ratios": [3, 1]}, constrained_layout=True
-    )
-    t = metrics.times
-    a0.plot(t, metrics.fraction_pedpy, "-", color="C0", lw=1.6, label="PedPy: N(t)/N (classic density × area)")
-    a0.plot(t, metrics.fraction_toolkit, ":", color="C3", lw=1.8, label="toolkit: fraction_in_target")
-    a0.axvspan(*metrics.window, color="0.85", lw=0, label="density-map window")
-    a0.set_ylim(-0.02, 1.02)
-    a0.set_ylabel("fraction in target region")
-    a0.legend(fontsize=7.5, loc="lower right")
-    a0.set_title(f"Humans in the target region: {label}", fontsize=9.5)
-    a1.step(t, metrics.count_difference, where="mid", color="k", lw=1)
-    a1.set_ylabel("toolkit − PedPy\n(humans)", fontsize=8)
-    a1.set_xlabel("time")
-    if metrics.max_fraction_difference == 0:
-        note = "identical on every frame"
-    else:
-        note = f"max |difference| = {metrics.max_fraction_difference:.3g} of N" + (
-            " (all humans between the polygonised disk and the circle, or on a wall)"
-            if metrics.differences_explained
-            else " (NOT explained by the disk polygonisation)"
-        )
-    a1.text(
-        0.01,
-        0.9,
-        note,
-        transform=a1.transAxes,
-        fontsize=7.5,
-        va="top",
-    )
-    paths["n_in_target"] = _save(fig, out / f"{prefix}n_in_target.png", dpi)
-
-    panels = [("PedPy classic", metrics.density_classic)]
-    if metrics.density_voronoi is not None:
-        panels.append((f"PedPy Voronoi ({len(metrics.voronoi_frames)} frames)", metrics.density_voronoi))
-    panels.append(("toolkit KDE, N·ρ̂", metrics.density_toolkit))
-    vmax = max(float(np.max(p)) for _, p in panels) or 1.0
-    norm = PowerNorm(gamma=0.5, vmin=0.0, vmax=vmax)
-    fig, axes = plt.subplots(1, len(panels), figsize=(3.3 * len(panels) + 0.8, 3.5), constrained_layout=True)
-    x0, x1, y0, y1 = metrics.room_bounds
-    im = None
-    for ax, (title, dens) in zip(axes, panels, strict=True):
-        im = ax.pcolormesh(metrics.x_edges, metrics.y_edges, dens.T, cmap="viridis", norm=norm, shading="flat")
-        ax.add_patch(
-            plt.Circle(metrics.target_center, metrics.target_radius, fill=False, ec="w", ls="--", lw=1)
-        )
-        ax.set_xlim(x0, x1)
-        ax.set_ylim(y0, y1)
-        ax.set_aspect("equal")
-        ax.set_title(title, fontsize=9)
-        ax.tick_params(labelsize=7)
-    fig.colorbar(im, ax=axes, shrink=0.85, label="humans per unit area")
-    w0, w1 = metrics.window
-    fig.suptitle(f"Mean density over t ∈ [{w0:g}, {w1:g}]: {label}", fontsize=9.5)
-    paths["density_map"] = _save(fig, out / f"{prefix}density_map.png", dpi)
-    return paths
-
-
-# ------------------------------------------------------------------------------ CLI
-def register(subparsers: Any):
-    """Add ``meanfield pedestrians`` to the ``meanfield`` parser; return its handler."""
-    p = subparsers.add_parser(
-        "pedestrians",
-        help="PedPy measurements of finished runs: N(t) in the target region, density maps (JSON + figures)",
-    )
-    p.add_argument("run_dirs", nargs="+", metavar="RUN_DIR", help="directories written by meanfield run")
-    p.add_argument("--out", required=True, type=Path, help="output directory")
-    p.add_argument(
-        "--window", type=float, default=0.2, help="density maps over the last WINDOW of the run (default 0.2)"
-    )
-    p.add_argument(
-        "--voronoi-frames", type=int, default=12, help="frames of the Voronoi map (0.3-1.2 s each; 0: skip)"
-    )
-    p.add_argument("--quiet", action="store_true", help="no summary printout")
-    return _handle
-
-
-def _labels(run_dirs: list[Path]) -> list[str]:
-    labels, seen = [], {}
-    for d in run_dirs:
-        name = d.resolve().name or "run"
-        k = seen.get(name, 0)
-        seen[name] = k + 1
-        labels.append(name if k == 0 else f"{name}-{k}")
-    return labels
-
-
-def _handle(args: argparse.Namespace) -> int:
-    from meanfield.io import atomic_write_json
-
-    if not 0 < args.window <= 1:
-        raise ParameterError("--window", args.window, "a fraction in (0, 1]")
-    if args.voronoi_frames < 0:
-        raise ParameterError("--voronoi-frames", args.voronoi_frames, "an integer >= 0")
-    try:
-        _pedpy()
-    except ImportError as exc:
-        print(f"meanfield: error: {exc}", file=sys.stderr)
-        return 2
-    run_dirs = [Path(d) for d in args.run_dirs]
-    for d in run_dirs:
-        if not (d / "timeseries.nc").is_file():
-            raise ParameterError("RUN_DIR", str(d), "a directory written by meanfield run (with timeseries.nc)")
-    out = Path(args.out)
-    report: dict[str, Any] = {"runs": {}}
-    ok = True
-    for d, label in zip(run_dirs, _labels(run_dirs), strict=True):
-        m = pedestrian_metrics(d, out / label, window_fraction=args.window, voronoi_frames=args.voronoi_frames)
-        report["runs"][label] = m.to_dict()
-        ok &= m.differences_explained
-        if not args.quiet:
-            print(
-                f"{label}: N(T)/N = {m.fraction_pedpy[-1]:.3f} (PedPy), {m.fraction_toolkit[-1]:.3f} (toolkit); "
-                f"max difference {m.max_fraction_difference:.3g}"
-                f"{'' if m.differences_explained else ' NOT explained by the disk polygonisation'}"
-                + (f"; Voronoi failed: {m.voronoi_error}" if m.voronoi_error else "")
-            )
-    report["differences_explained"] = ok
-    atomic_write_json(out / "pedestrians.json", report)
-    if not args.quiet:
-        print(f"outputs in {out}")
-    return 0 if ok else 1

@@ -24,12 +24,12 @@ from typing import Any
 import numpy as np
 
 from analysis.poincare import neumann_eigenvalue
+from meanfield.assembly import alpha_schedule_for, disturbance_for
 from meanfield.errors import ParameterError, positive_number
 from meanfield.grid import Grid
 from meanfield.metrics import gaussian_target
-from meanfield.scenario import Scenario
-from meanfield.assembly import alpha_schedule_for, disturbance_for
 from meanfield.result import SimulationResult
+from meanfield.scenario import Scenario
 
 __all__ = ["decay_rate", "iss_gain", "mass_quantile_level", "GainReport", "gains_for_scenario", "gains_from_run"]
 

@@ -177,7 +177,7 @@ class RobotCountStudy:
 
 
 def _run_one(args: tuple[dict, int, int]) -> tuple[int, int, dict]:
-    from meanfield.simulate import ClosedLoop
+    from meanfield.loop import ClosedLoop
 
     d, n, seed = args
     sc = Scenario.from_dict(d).with_values({"robots.n": n, "seed": seed})

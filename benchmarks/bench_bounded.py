@@ -25,11 +25,13 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import time  # noqa: E402
+from typing import Any  # noqa: E402
 
 import cvxpy as cp  # noqa: E402
 import numpy as np  # noqa: E402
 
 from analysis.bounded import BoundedBetaGamma, achievable_range  # noqa: E402
+from benchmarks.records import measured, settings  # noqa: E402
 from benchmarks.reporting import emit, machine_line  # noqa: E402
 from meanfield import ClosedLoop, paper_scenario  # noqa: E402
 
@@ -142,6 +144,63 @@ def closed_loop(steps: int, repeats: int) -> dict:
         "bounded_steps_in_closed_form": closed,
         "goal_steps_per_second": 500,
     }
+
+
+def suite_records(quick: bool) -> list[dict[str, Any]]:
+    """The ``bounded`` records of ``meanfield bench`` (``docs/cli.md``): re-solve vs rebuild, closed loop vs min-norm.
+
+    Parameters
+    ----------
+    quick : bool
+        The quick settings of :data:`benchmarks.records.SETTINGS` (else the full ones).
+
+    Returns
+    -------
+    list of dict
+        Two records: :func:`resolve_times`, then :func:`closed_loop`.
+    """
+    s = settings("bounded", quick)
+    rt = resolve_times(s["solves"])
+    cl = closed_loop(s["steps"], s["repeats"])
+    what = f"bounded beta/gamma program, n = {N} robots"
+    goal_ms = rt["goal_resolve_ms_median"]
+    goal_rate = cl["goal_steps_per_second"]
+    return [
+        measured(
+            "bounded",
+            "bounded re-solve vs rebuild",
+            f"{what}: one solve with A reachable (Clarabel runs), median over {s['solves']} instances",
+            "BoundedBetaGamma: cvxpy problem built once with Parameters (DPP), re-solved",
+            "the same program rebuilt from scratch and solved each time",
+            rt["dpp_resolve_ms_median"],
+            rt["anchor_rebuild_and_solve_ms_median"],
+            "ms per solve",
+            faster="lower",
+            goal=f"median <= {goal_ms:g} ms",
+            passed=rt["dpp_resolve_ms_median"] <= goal_ms,
+            note=f"p90 {rt['dpp_resolve_ms_p90']:.2f} ms; exact 1-D dual {rt['exact_dual_ms_median']:.3f} ms",
+            detail={**rt, "solves": s["solves"]},
+        ),
+        measured(
+            "bounded",
+            "bounded closed loop vs min-norm",
+            f"{what}: the paper scenario's closed loop, {s['steps']} steps, best of {s['repeats']}",
+            "closed loop with controller.beta_gamma = 'bounded'",
+            "the same loop with the min-norm strategy",
+            cl["bounded_steps_per_second"],
+            cl["anchor_min_norm_steps_per_second"],
+            "steps/s",
+            faster="higher",
+            goal=f">= {goal_rate:g} steps/s",
+            passed=cl["bounded_steps_per_second"] >= goal_rate,
+            note=(
+                f"Clarabel ran at {cl['bounded_steps_with_clarabel']} of "
+                f"{cl['bounded_steps_with_clarabel'] + cl['bounded_steps_in_closed_form']} steps; with a cone "
+                f"solve every step {cl['bounded_with_a_cone_solve_every_step_steps_per_second']:.0f} steps/s"
+            ),
+            detail={**cl, "steps": s["steps"], "repeats": s["repeats"]},
+        ),
+    ]
 
 
 def main() -> None:

@@ -18,12 +18,16 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import time  # noqa: E402
+from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
 from scipy.stats import gaussian_kde  # noqa: E402
 
+from benchmarks.records import measured, settings  # noqa: E402
 from benchmarks.reporting import emit, machine_line  # noqa: E402
 from meanfield import ClosedLoop, paper_scenario  # noqa: E402
+
+GOAL_STEPS_PER_SECOND = 2000.0  # the goal of the suite's record (main's goal_steps_per_second)
 
 
 def closed_loop_rate(steps: int, repeats: int) -> float:
@@ -52,6 +56,45 @@ def anchor_rate(calls: int, repeats: int) -> float:
             gaussian_kde(pts, bw_method=0.08 / pts.std())(grid)
         best = max(best, calls / (time.perf_counter() - t0))
     return best
+
+
+def suite_records(quick: bool) -> list[dict[str, Any]]:
+    """The ``closed_loop`` record of ``meanfield bench`` (``docs/cli.md``): steps/s against ``gaussian_kde`` calls/s.
+
+    Parameters
+    ----------
+    quick : bool
+        The quick settings of :data:`benchmarks.records.SETTINGS` (else the full ones); the
+        anchor makes ``max(steps // 3, 100)`` calls, as :func:`main` does.
+
+    Returns
+    -------
+    list of dict
+        One record, with the goal :data:`GOAL_STEPS_PER_SECOND`.
+    """
+    s = settings("closed_loop", quick)
+    calls = max(s["steps"] // 3, 100)
+    ours = closed_loop_rate(s["steps"], s["repeats"])
+    anchor = anchor_rate(calls, s["repeats"])
+    goal = GOAL_STEPS_PER_SECOND
+    return [
+        measured(
+            "closed_loop",
+            "closed_loop paper vs gaussian_kde",
+            "paper scenario (N=200, n=16, 30x30, dt=0.01): a whole closed-loop step against the density estimate alone",
+            "ClosedLoop(paper).run(): KDE + controller + SDE + robots + recording, steps/s",
+            "scipy.stats.gaussian_kde, 200 points on the 900 cell centres, calls/s",
+            ours,
+            anchor,
+            "steps/s",
+            anchor_unit="calls/s",
+            faster="higher",
+            goal=f">= {goal:g} steps/s",
+            passed=ours >= goal,
+            note="ours is a whole step, the anchor the KDE alone",
+            detail={"steps": s["steps"], "repeats": s["repeats"], "anchor_calls": calls},
+        )
+    ]
 
 
 def main() -> None:

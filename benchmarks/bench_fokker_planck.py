@@ -34,12 +34,14 @@ import platform  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
+from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import fp_competitors as comp  # noqa: E402
 
+from benchmarks.records import BENCH_INSTALL, import_error, measured, settings, skipped  # noqa: E402
 from meanfield import Domain, FokkerPlanck, GaussianKernel, Grid, NavigationField  # noqa: E402
 
 CACHE = Path(__file__).resolve().parent / ".cache"
@@ -127,6 +129,71 @@ def reference(n_ref: int, dt: float) -> np.ndarray:
     np.save(tmp, out)
     tmp.replace(path)
     return out
+
+
+def suite_records(quick: bool) -> list[dict[str, Any]]:
+    """The ``fokker_planck`` records of ``meanfield bench`` (``docs/cli.md``): ours against py-pde and FiPy.
+
+    Our ADI solve (after one untimed warm-up) against each anchor of ``fp_competitors.py``;
+    an anchor that does not import or run gives a skipped record naming the install command.
+
+    Parameters
+    ----------
+    quick : bool
+        The quick settings of :data:`benchmarks.records.SETTINGS` (64² cells; else 128²).
+
+    Returns
+    -------
+    list of dict
+        One record per anchor: py-pde, then FiPy.
+    """
+    n = settings("fokker_planck", quick)["cells"]
+    what = (
+        f"Fokker–Planck, three Gaussian arrows, sigma={comp.SIGMA:g}, T={comp.T_FINAL:g}, {n}x{n} cells, "
+        "time stepping after set-up, each solver with its own scheme and step"
+    )
+    ours_label = "meanfield FokkerPlanck, ADI, automatic positivity-preserving step"
+    meanfield_solve(n, "adi", None)  # warm-up, as the anchors' first step is set-up
+    ours = meanfield_solve(n, "adi", None)
+    ours_detail = {k: ours[k] for k in ("wall_time", "setup_time", "steps", "min", "mass_drift")}
+    records = []
+    for label, module, runner, scheme in (
+        ("py-pde", "pde", comp.run_pypde, "explicit Euler, numba, one thread, dt ~ h^2/(4 sigma)"),
+        ("FiPy", "fipy", comp.run_fipy, f"implicit Euler, dt = {comp.FIPY_DT:g}"),
+    ):
+        name = f"fokker_planck {n}^2 vs {label}"
+        anchor_label = f"{label}, {scheme}"
+        why = import_error(module)
+        if why is None:
+            res = runner(n)
+            if not res["available"]:
+                why = res["reason"]
+        if why is not None:
+            note = f"{label} not available ({why}); install: {BENCH_INSTALL}"
+            records.append(skipped("fokker_planck", name, what, ours_label, anchor_label, note))
+            continue
+        diff = comp.l2_difference(ours["rho"], res["rho"])
+        anchor_detail = {k: res[k] for k in ("wall_time", "setup_time", "steps", "dt", "solver")}
+        anchor_detail["mass_drift"] = abs(comp.mass(res["rho"]) - 1.0)
+        records.append(
+            measured(
+                "fokker_planck",
+                name,
+                what,
+                ours_label,
+                anchor_label,
+                ours["wall_time"],
+                res["wall_time"],
+                "s per solve",
+                faster="lower",
+                note=(
+                    f"L2 difference {diff:.1e}; steps {ours['steps']} vs {res['steps']}; "
+                    f"set-up {ours['setup_time']:.2g} s vs {res['setup_time']:.2g} s"
+                ),
+                detail={"cells": n, "l2_difference": diff, "ours": ours_detail, "anchor": anchor_detail},
+            )
+        )
+    return records
 
 
 def main(argv=None) -> int:

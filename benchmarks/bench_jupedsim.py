@@ -39,13 +39,17 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import platform  # noqa: E402
 import time  # noqa: E402
+from typing import TYPE_CHECKING, Any  # noqa: E402
 
-import jupedsim as jps  # noqa: E402
 import numpy as np  # noqa: E402
 
+from benchmarks.records import import_error, measured, settings, skipped  # noqa: E402
 from benchmarks.reporting import write_files  # noqa: E402
 from meanfield import Domain  # noqa: E402
 from meanfield.pedestrian_crowd import PedestrianCrowd, place_bodies  # noqa: E402
+
+if TYPE_CHECKING:  # imported where used: the suite's adapter imports this module without JuPedSim
+    import jupedsim as jps
 
 SIDE = 150.0  # room side (m)
 RADIUS = 0.2  # body radius (m)
@@ -77,6 +81,8 @@ def velocity_fields(n: int, steps: int, seed: int) -> list[np.ndarray]:
 
 def build_anchor(positions: np.ndarray, domain: Domain, seed: int) -> jps.Simulation:
     """JuPedSim alone, built as the adapter builds it, with one fixed target per agent set once."""
+    import jupedsim as jps
+
     sim = jps.Simulation(model=jps.CollisionFreeSpeedModel(), geometry=domain.to_shapely(resolution=256), dt=DT)
     stage = sim.add_direct_steering_stage()
     journey = sim.add_journey(jps.JourneyDescription([stage]))
@@ -208,7 +214,58 @@ def measure(plan: dict[int, int], repeats: int) -> tuple[list[dict], list[dict]]
     return results, runs
 
 
+def suite_records(quick: bool) -> list[dict[str, Any]]:
+    """The ``jupedsim`` records of ``meanfield bench`` (``docs/cli.md``): ours against JuPedSim alone.
+
+    Without JuPedSim (it does not import), one skipped record naming the install command,
+    and nothing is measured.
+
+    Parameters
+    ----------
+    quick : bool
+        The quick settings of :data:`benchmarks.records.SETTINGS` (else the full ones).
+
+    Returns
+    -------
+    list of dict
+        One record per number of agents of :func:`measure`, with the goal :data:`TARGET_OVERHEAD_US`.
+    """
+    s = settings("jupedsim", quick)
+    plan = {int(k): int(v) for k, v in s["steps"].items()}
+    what = "PedestrianCrowd.step (JuPedSim backend, every agent steered every step) in a 150x150 m room"
+    ours_label = "meanfield PedestrianCrowd, JuPedSim backend, steps/s"
+    anchor_label = "JuPedSim alone (sim.iterate, one fixed target per agent), steps/s"
+    why = import_error("jupedsim")
+    if why is not None:
+        from meanfield.jupedsim_api import INSTALL_HINT
+
+        note = f"jupedsim not available ({why}); install: {INSTALL_HINT}"
+        return [skipped("jupedsim", "jupedsim vs JuPedSim alone", what, ours_label, anchor_label, note)]
+    results, _ = measure(plan, s["repeats"])
+    target = TARGET_OVERHEAD_US
+    return [
+        measured(
+            "jupedsim",
+            f"jupedsim N={x['n']} vs JuPedSim alone",
+            f"{what}, N={x['n']}, {x['steps']} steps",
+            ours_label,
+            anchor_label,
+            x["ours_steps_per_second"],
+            x["anchor_steps_per_second"],
+            "steps/s",
+            faster="higher",
+            goal=f"adapter overhead <= {target:g} µs per agent-step",
+            passed=x["pass"],
+            note=f"overhead {x['overhead_us_per_agent_step']:.2f} µs per agent-step",
+            detail={"repeats": s["repeats"], **x},
+        )
+        for x in results
+    ]
+
+
 def main() -> None:
+    import jupedsim as jps  # without JuPedSim, the script stops here
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="N = 200 and 2,000 only, fewer steps")
     ap.add_argument("--repeats", type=int, default=3)

@@ -28,11 +28,14 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")  # one core
 
 import argparse  # noqa: E402
+import math  # noqa: E402
 import time  # noqa: E402
+from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
 from scipy.stats import gaussian_kde  # noqa: E402
 
+from benchmarks.records import measured, settings  # noqa: E402
 from benchmarks.reporting import emit, machine_line  # noqa: E402
 from meanfield import Domain, Grid, KernelDensityEstimator, silverman_bandwidth  # noqa: E402
 
@@ -125,6 +128,54 @@ def run(quick: bool = False, repeats: int = 5) -> dict:
         "results": results,
         "verdict": "PASS" if all(r["pass"] for r in results) else "FAIL",
     }
+
+
+def _short_n(n: int) -> str:
+    e = round(math.log10(n))
+    return f"1e{e}" if 10**e == n else str(n)
+
+
+def suite_records(quick: bool) -> list[dict[str, Any]]:
+    """The ``kde`` records of ``meanfield bench`` (``docs/cli.md``): one per measurement of :func:`run`.
+
+    Parameters
+    ----------
+    quick : bool
+        The quick settings of :data:`benchmarks.records.SETTINGS` (else the full ones).
+
+    Returns
+    -------
+    list of dict
+        A record per measurement, N = 10⁴ against ``gaussian_kde`` and N = 10⁶ against the exact sum.
+    """
+    s = settings("kde", quick)
+    out = run(quick=quick, repeats=s["repeats"])
+    records = []
+    for r in out["results"]:
+        n = int(r["name"].split("_")[1])
+        exact = "separable" in r["anchor"]
+        if exact:
+            note = f"max error {r['max_error_over_peak']:.1e} of the peak"
+        else:
+            note = f"max difference {r['max_difference_over_peak']:.1e} of the peak"
+        records.append(
+            measured(
+                "kde",
+                f"kde N={_short_n(n)} vs {'exact sum' if exact else 'gaussian_kde'}",
+                r["what"],
+                r["ours"],
+                r["anchor"],
+                r["ours_seconds"] * 1e3,
+                r["anchor_seconds"] * 1e3,
+                "ms per call",
+                faster="lower",
+                goal=r["goal"],
+                passed=r["pass"],
+                note=note,
+                detail=r,
+            )
+        )
+    return records
 
 
 def main() -> None:

@@ -34,10 +34,12 @@ import json  # noqa: E402
 import platform  # noqa: E402
 import statistics  # noqa: E402
 import time  # noqa: E402
+from typing import Any  # noqa: E402
 
 import casadi  # noqa: E402
 import numpy as np  # noqa: E402
 
+from benchmarks.records import measured, settings  # noqa: E402
 from benchmarks.reporting import write_files  # noqa: E402
 from meanfield import ClosedLoop, paper_scenario  # noqa: E402
 from meanfield.cli import parse_set  # noqa: E402
@@ -72,6 +74,51 @@ def one_run(seed: int, t_final: float, sets: dict) -> dict:
         "ratio_amortised": float(solves.sum() / steps / np.median(bs)),
         "options": {k: v for k, v in vars(c.options).items()},
     }
+
+
+def suite_records(quick: bool) -> list[dict[str, Any]]:
+    """The ``nmpc`` record of ``meanfield bench`` (``docs/cli.md``): NMPC solve against the backstepping law.
+
+    Parameters
+    ----------
+    quick : bool
+        The quick settings of :data:`benchmarks.records.SETTINGS` (else the full ones).
+
+    Returns
+    -------
+    list of dict
+        One record: medians over the repeats of :func:`one_run` (seeds 0, 1, ...).
+    """
+    s = settings("nmpc", quick)
+    runs = [one_run(seed, s["t_final"], {}) for seed in range(s["repeats"])]
+
+    def med(key: str) -> float:
+        return float(statistics.median(r[key] for r in runs))
+
+    statuses: dict[str, int] = {}
+    for r in runs:
+        for k, v in r["ipopt_statuses"].items():
+            statuses[k] = statuses.get(k, 0) + v
+    amortised = med("solve_seconds_per_simulation_step") * 1e3
+    return [
+        measured(
+            "nmpc",
+            "nmpc solve vs backstepping",
+            f"controller compute per control step, paper scenario, T={s['t_final']:g} per repeat, "
+            f"median over {s['repeats']} repeat(s)",
+            "NMPC (analysis.nmpc, CasADi + IPOPT): median solve, one per control period",
+            "backstepping robot_inputs (the paper's law): median call, every step",
+            med("solve_median") * 1e3,
+            med("backstepping_median") * 1e3,
+            "ms per control step",
+            faster="lower",
+            note=(
+                f"amortised over the simulation steps: {amortised:.3g} ms per step; "
+                f"{sum(r['solves'] for r in runs)} solves, IPOPT {statuses}"
+            ),
+            detail={"runs": runs, "t_final": s["t_final"], "repeats": s["repeats"]},
+        )
+    ]
 
 
 def main() -> None:

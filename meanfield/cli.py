@@ -229,7 +229,9 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         seed=args.seed,
         progress=not args.quiet,
     )
-    report.save(args.out, figures=not args.no_figures)
+    from meanfield import plotting
+
+    report.save(args.out, artifacts=[] if args.no_figures else [plotting.save_comparison_figures])
     if not args.quiet:
         for case in report.cases:
             s = case.summary

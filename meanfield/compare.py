@@ -28,16 +28,20 @@ from typing import Any
 
 import numpy as np
 
+from meanfield.agent_crowd import AgentCrowd, initial_positions
+from meanfield.assembly import disturbance_for
 from meanfield.crowd import Crowd
 from meanfield.density import KernelDensityEstimator
+from meanfield.density_crowd import DensityCrowd, initial_density
 from meanfield.errors import ParameterError, SimulationDiverged, positive_number
 from meanfield.fokker_planck import FokkerPlanck
 from meanfield.grid import Grid
 from meanfield.interaction import InteractionField
 from meanfield.kernels import GaussianKernel, GaussianPotential
-from meanfield.robots import NavigationField, navigation_velocity
+from meanfield.local_view import LocalView
+from meanfield.loop import ClosedLoop
+from meanfield.metrics import fit_slope
 from meanfield.scenario import Scenario
-from meanfield.simulate import ClosedLoop, disturbance_for, initial_crowd, initial_density
 
 __all__ = [
     "AgentsPdeComparison",
@@ -48,6 +52,14 @@ __all__ = [
     "record_robot_trajectory",
     "run_comparison",
 ]
+
+
+@dataclass(frozen=True)
+class _RobotStates:
+    """The robots' states at one step of a replayed trajectory (what a crowd reads of them)."""
+
+    positions: np.ndarray
+    headings: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -89,15 +101,6 @@ def record_robot_trajectory(
         loop.step()
         pos[k + 1], head[k + 1] = loop.robots.positions, loop.robots.headings
     return RobotTrajectory(np.arange(steps + 1) * scenario.dt, pos, head)
-
-
-def fit_slope(n: np.ndarray, err: np.ndarray) -> float:
-    """Least-squares slope of ``log err`` against ``log n``."""
-    n = np.asarray(n, float)
-    err = np.asarray(err, float)
-    if len(n) < 2:
-        return math.nan
-    return float(np.polyfit(np.log(n), np.log(err), 1)[0])
 
 
 @dataclass
@@ -200,16 +203,20 @@ def compare_agents_pde(
     field_w = InteractionField(grid, interaction) if interaction is not None else None
     fp = FokkerPlanck(grid, sigma, interaction=field_w, disturbance=disturbance, method=method)
     method = fp.method
-    fp_flipped = None
+    rho0 = initial_density(scenario, grid)
+    # the crowds behind the Crowd interface, under the replayed robots: the PDE, and N agents each
+    pde = DensityCrowd(fp, rho0, kernel)
+    pde_flipped = None
     if interaction is not None:  # the paper's written sign: ∇W * ρ = -u_W[ρ] for even W
         flipped = GaussianPotential(-interaction.strength, interaction.length)
-        fp_flipped = FokkerPlanck(grid, sigma, interaction=flipped, disturbance=disturbance, method=method)
-    rho = initial_density(scenario, grid)
-    rho_flip = rho.copy() if fp_flipped is not None else None
+        fp_flip = FokkerPlanck(grid, sigma, interaction=flipped, disturbance=disturbance, method=method)
+        pde_flipped = DensityCrowd(fp_flip, rho0, kernel)
     crowds = {}
     for n in sizes:
         rng = np.random.default_rng([seed, n])
-        crowds[n] = Crowd(initial_crowd(scenario, n, rng), scenario.domain, sigma, rng)
+        engine = Crowd(initial_positions(scenario, n, rng), scenario.domain, sigma, rng)
+        view = LocalView(n, None, 0.0, 0.0, scenario.domain, rng)  # everyone sees the signs
+        crowds[n] = AgentCrowd(engine, kernel, kde, view, field_w, disturbance)
 
     times: list[float] = []
     pde_frames: list[np.ndarray] = []
@@ -219,10 +226,11 @@ def compare_agents_pde(
     e_flip: list[list[float]] = []
 
     def measure(t: float) -> None:
+        rho = pde.density()
         times.append(t)
         pde_frames.append(rho.copy())
         expected = kde.expected(rho)
-        expected_flip = kde.expected(rho_flip) if rho_flip is not None else None
+        expected_flip = kde.expected(pde_flipped.density()) if pde_flipped is not None else None
         frames, a, b, c = [], [], [], []
         for n in sizes:
             est = kde(crowds[n].positions)
@@ -243,21 +251,9 @@ def compare_agents_pde(
     try:
         for k in range(steps):
             t = k * dt
-            R, th = trajectory.positions[k], trajectory.headings[k]
-            fv = NavigationField(kernel, grid, R, th).velocity()
-            for n in sizes:
-                x = crowds[n].positions
-                drift = navigation_velocity(kernel, R, th, x)
-                if field_w is not None:
-                    drift += field_w.at_points(x)
-                if disturbance is not None:
-                    ax, ay = disturbance(x[:, 0], x[:, 1], t)
-                    drift[:, 0] += ax
-                    drift[:, 1] += ay
-                crowds[n].step(drift, t, dt)
-            rho = fp.solve(rho, t + dt, t0=t, face_velocity=fv)
-            if fp_flipped is not None:
-                rho_flip = fp_flipped.solve(rho_flip, t + dt, t0=t, face_velocity=fv)
+            robots = _RobotStates(trajectory.positions[k], trajectory.headings[k])
+            for crowd in (*crowds.values(), pde, *([pde_flipped] if pde_flipped is not None else [])):
+                crowd.advance(robots, t, dt)
             if (k + 1) % every == 0 or k + 1 == steps:
                 measure((k + 1) * dt)
             bar.update(1)
@@ -276,7 +272,7 @@ def compare_agents_pde(
         "pde_density": (("time", "x", "y"), np.array(pde_frames)),
         "agents_density": (("n_agents", "time", "x", "y"), np.array(agent_frames).transpose(1, 0, 2, 3)),
     }
-    if fp_flipped is not None:
+    if pde_flipped is not None:
         data["error_to_expected_paper_sign"] = (("n_agents", "time"), np.array(e_flip).T)
     label = label or (
         "W = 0" if interaction is None else f"W: strength {interaction.strength}, length {interaction.length}"
@@ -298,12 +294,14 @@ def compare_agents_pde(
         "cells": list(cells),
         "pde_method": method,
         "pde_mass_drift": float(
-            abs(grid.integrate(rho) - grid.integrate(pde_frames[0])) / grid.integrate(pde_frames[0])
+            abs(grid.integrate(pde.density()) - grid.integrate(pde_frames[0])) / grid.integrate(pde_frames[0])
         ),
-        "pde_min": float(rho.min()),
+        "pde_min": float(pde.density().min()),
         "wall_seconds": wall,
     }
-    names = ["error_to_expected", "error_to_pde"] + (["error_to_expected_paper_sign"] if fp_flipped is not None else [])
+    names = ["error_to_expected", "error_to_pde"]
+    if pde_flipped is not None:
+        names.append("error_to_expected_paper_sign")
     for name in names:
         m = result.mean_errors(name)
         summary[f"{name}_mean"] = dict(zip(map(str, sizes), map(float, m), strict=True))
@@ -325,8 +323,9 @@ class ComparisonReport:
         """Per-case summaries, plus the scenario."""
         return {"cases": [c.summary for c in self.cases], "scenario": self.scenario.to_dict()}
 
-    def save(self, out: str | Path, figures: bool = True) -> dict[str, Path]:
-        """Write ``comparison_<k>.nc`` per case, the figures, and ``summary.json`` last."""
+    def save(self, out: str | Path, artifacts: Any = ()) -> dict[str, Path]:
+        """Write ``comparison_<k>.nc`` per case, the ``artifacts`` (e.g.
+        :func:`meanfield.plotting.save_comparison_figures`), and ``summary.json`` last."""
         from meanfield.io import atomic_write_json, atomic_write_text, atomic_write_with
 
         out = Path(out)
@@ -337,10 +336,8 @@ class ComparisonReport:
             atomic_write_with(path, lambda p, ds=case.dataset: ds.to_netcdf(p, engine="h5netcdf"))
             written[f"comparison_{k}"] = path
         written["scenario"] = atomic_write_text(out / "scenario.toml", self.scenario.to_toml())
-        if figures:
-            from meanfield.plotting import save_comparison_figures
-
-            written.update(save_comparison_figures(self, out))
+        for writer in artifacts:
+            written.update(writer(self, out))
         written["summary"] = atomic_write_json(out / "summary.json", self.summary)
         return written
 

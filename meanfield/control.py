@@ -310,11 +310,11 @@ class BacksteppingController:
 
     @classmethod
     def from_parts(cls, parts: ControllerParts) -> BacksteppingController:
-        """Registry factory (kind ``controller``, name ``backstepping``): the paper's law from parts."""
-        if parts.options:
-            raise ParameterError(
-                "controller.options", sorted(parts.options), "no options for controller.kind = 'backstepping'"
-            )
+        """Registry factory (kind ``controller``, name ``backstepping``): the paper's law from parts.
+
+        The law has no ``controller.options`` (they belong to other controllers; a sweep may
+        set them for every kind), so any are ignored here.
+        """
         return cls(
             parts.grid,
             parts.target,

@@ -97,8 +97,17 @@ class DensityCrowd:
         return {"fokker_planck_method": self.fp.method, "mass_final": float(self.grid.integrate(self.rho))}
 
     @classmethod
-    def from_context(cls, ctx: CrowdContext) -> DensityCrowd:
+    def from_context(cls, ctx: CrowdContext, method: str | None = None, substeps: bool = True) -> DensityCrowd:
         """Registry factory (kind ``crowd``, name ``fokker-planck``): eq. (4) from the scenario's
-        initial law, σ, interaction and disturbance, on the loop's grid."""
-        fp = FokkerPlanck(ctx.grid, ctx.sigma, interaction=ctx.interaction, disturbance=ctx.disturbance)
-        return cls(fp, initial_density(ctx.scenario, ctx.grid), ctx.kernel)
+        initial law, σ, interaction and disturbance, on the loop's grid.
+
+        The run's generator advances exactly as the agents' initial draw would
+        (:func:`~meanfield.agent_crowd.initial_positions`), so that a seed gives the same
+        robots, initial headings included, whether the crowd is agents or their density:
+        the two can be compared under the same robots.
+        """
+        from meanfield.agent_crowd import initial_positions
+
+        initial_positions(ctx.scenario, ctx.scenario.crowd.n, ctx.rng)  # the agents' draw, discarded
+        fp = FokkerPlanck(ctx.grid, ctx.sigma, interaction=ctx.interaction, disturbance=ctx.disturbance, method=method)
+        return cls(fp, initial_density(ctx.scenario, ctx.grid), ctx.kernel, substeps=substeps)

@@ -475,31 +475,10 @@ class Domain:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Domain:
-        """Inverse of :meth:`to_dict`; unknown keys are refused."""
-        d = dict(d)
-        kind = d.pop("kind", "box")
-        allowed = {
-            "box": {"width", "height", "origin", "exits"},
-            "disk": {"radius", "center", "exits"},
-            "polygon": {"vertices", "exits"},
-        }
-        if kind not in allowed:
-            raise ParameterError("domain.kind", kind, "one of 'box', 'disk', 'polygon'")
-        unknown = set(d) - allowed[kind]
-        if unknown:
-            raise ParameterError("domain", f"unknown key(s) {sorted(unknown)}", f"keys {sorted(allowed[kind])}")
-        try:
-            if kind == "box":
-                return cls.box(d.get("width", 1.0), d.get("height", 1.0), tuple(d.get("origin", (0, 0))), d.get("exits"))
-            if kind == "disk":
-                return cls.disk(d.get("radius", 1.0), tuple(d.get("center", (0, 0))), d.get("exits"))
-            if "vertices" not in d:
-                raise ParameterError("vertices", None, "a list of [x, y] vertices")
-            return cls.polygon(d["vertices"], d.get("exits"))
-        except ParameterError as exc:
-            raise ParameterError(f"domain.{exc.name}", exc.value, exc.allowed) from None
-        except (TypeError, ValueError) as exc:
-            raise ParameterError("domain", str(exc), f"a valid {kind} description") from None
+        """Inverse of :meth:`to_dict` (the registry's region factories; unknown keys are refused)."""
+        from meanfield.validation import region_from_table
+
+        return region_from_table(d)
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, Domain):

@@ -131,6 +131,7 @@ class ClosedLoop:
         self.t = 0.0
         self.step_index = 0
         self.density: np.ndarray = self.crowd.density()
+        self.last: StepRecord | None = None  # the latest step, as observers saw it
         self._started = False
 
     # the parts, by name (read-only conveniences)
@@ -193,7 +194,7 @@ class ClosedLoop:
         self.density = self.crowd.density()
         if not np.isfinite(self.density).all():
             raise SimulationDiverged(f"non-finite density at t = {self.t:.4g}", self.step_index)
-        record = StepRecord(k, observation, command, u, w, self.robots)
+        record = self.last = StepRecord(k, observation, command, u, w, self.robots)
         for obs in self.observers:
             obs.step(self, record)
         return record

@@ -21,6 +21,7 @@ __all__ = [
     "gaussian_target",
     "target_region_radius",
     "fraction_in_disk",
+    "fit_slope",
     "wasserstein2_to_grid_density",
     "w2_block_size",
     "max_body_overlap",
@@ -145,3 +146,12 @@ def max_body_overlap(x: np.ndarray, y: np.ndarray, radius: float) -> tuple[float
             if depth > worst:
                 worst, where = depth, k
     return worst, where
+
+
+def fit_slope(n: np.ndarray, err: np.ndarray) -> float:
+    """Least-squares slope of ``log err`` against ``log n`` (NaN with fewer than two points)."""
+    n = np.asarray(n, float)
+    err = np.asarray(err, float)
+    if len(n) < 2:
+        return math.nan
+    return float(np.polyfit(np.log(n), np.log(err), 1)[0])

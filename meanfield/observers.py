@@ -216,7 +216,8 @@ class Recorder:
             "robot_speed": (("time", "robot"), stack(f["robot_speed"])),
             "robot_turn_rate": (("time", "robot"), stack(f["robot_turn_rate"])),
         }
-        coords: dict[str, Any] = {"time": stack(f["time"], float), "x": g.x, "y": g.y, "robot": np.arange(loop.robots.n)}
+        coords: dict[str, Any] = {"time": stack(f["time"], float), "x": g.x, "y": g.y}
+        coords["robot"] = np.arange(loop.robots.n)
         if self.humans is not None:
             data["human_x"] = (("time", "human"), stack(f["human_x"]))
             data["human_y"] = (("time", "human"), stack(f["human_y"]))

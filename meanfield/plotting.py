@@ -164,7 +164,7 @@ def save_animation(result: SimulationResult, path: Path, max_frames: int = 150, 
 
 def plot_comparison_errors(report):
     """Log–log error against ``N`` per case, with fitted slopes and an ``N^(-1/2)`` guide."""
-    from meanfield.compare import fit_slope
+    from meanfield.metrics import fit_slope
 
     cases = report.cases
     fig, axes = plt.subplots(1, len(cases), figsize=(5.2 * len(cases), 4.4), constrained_layout=True, squeeze=False)

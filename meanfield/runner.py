@@ -91,7 +91,6 @@ def run_loop(
     crowd = loop.crowd
     final_err = loop.grid.norm(loop.density - p.target)
     steps = max(loop.step_index, 1)
-    positions = crowd.positions
     summary: dict[str, Any] = {
         "status": status,
         "message": message,
@@ -100,9 +99,7 @@ def run_loop(
         "l2_error_initial": rho_err0,
         "l2_error_final": final_err,
         "l2_error_ratio": final_err / rho_err0 if rho_err0 > 0 else None,
-        "w2_to_target_final": (
-            wasserstein2_to_grid_density(positions, loop.grid, p.target, seed=sc.seed) if positions is not None else None
-        ),
+        "w2_to_target_final": _w2_to_target(loop),
         "w2_coarsening_bound": _w2_coarsening_bound(loop),
         "time_to_90": target.time_to_level,
         "max_robot_speed": inputs.max_speed,
@@ -138,6 +135,14 @@ def _last_A(recorder: Recorder) -> float | None:
     """``A`` of the last step's control (None before any step or without the law's quantities)."""
     state = recorder.last_state
     return float(state.A) if state is not None else None
+
+
+def _w2_to_target(loop: ClosedLoop) -> float | None:
+    """W₂ from the agents to the target density (None for a crowd without positions)."""
+    positions = loop.crowd.positions
+    if positions is None:
+        return None
+    return wasserstein2_to_grid_density(positions, loop.grid, loop.target, seed=loop.scenario.seed)
 
 
 def _w2_coarsening_bound(loop: ClosedLoop) -> float:

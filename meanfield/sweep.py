@@ -1,6 +1,6 @@
 """Parameter sweeps on Dask: ``meanfield sweep`` and :func:`run_sweep`.
 
-A sweep runs the closed loop (:class:`meanfield.simulate.ClosedLoop`) for every
+A sweep runs the closed loop (:class:`meanfield.loop.ClosedLoop`) for every
 combination of the swept scenario values × seeds, one Dask task per run, on a local
 cluster (worker processes, one thread each) or on an existing Dask cluster named by
 its scheduler's address.  Each run's summary is gathered into an :class:`xarray.Dataset`
@@ -80,8 +80,8 @@ def _run_one(scenario_toml: str) -> dict[str, Any]:
 
     start = time.perf_counter()
     try:
+        from meanfield.loop import ClosedLoop
         from meanfield.scenario import Scenario
-        from meanfield.simulate import ClosedLoop
 
         summary = dict(ClosedLoop(Scenario.from_toml(scenario_toml)).run(progress=False).summary)
         summary.pop("scenario", None)

@@ -60,15 +60,15 @@ SNAPSHOT_TIMES = (0.0, 2.0, 10.0, 40.0)
 
 
 class _Timed:
-    """Wraps a controller and records the wall time of each ``robot_inputs`` call."""
+    """Wraps a controller and records the wall time of each ``act`` call."""
 
     def __init__(self, inner):
         self.inner = inner
         self.seconds: list[float] = []
 
-    def robot_inputs(self, rho, field, t=0.0, dt=None):
+    def act(self, observation):
         t0 = time.perf_counter()
-        out = self.inner.robot_inputs(rho, field, t, dt)
+        out = self.inner.act(observation)
         self.seconds.append(time.perf_counter() - t0)
         return out
 
@@ -82,7 +82,7 @@ def _percentiles(x) -> dict[str, float]:
 
 
 def _one(job: tuple[int, str, dict, float | None]) -> dict:
-    from meanfield.simulate import ClosedLoop
+    from meanfield.loop import ClosedLoop
 
     seed, kind, sets, t_final = job
     sc = paper_scenario(seed=seed)

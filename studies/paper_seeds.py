@@ -27,7 +27,7 @@ EXTRA = ("backend", "seen_fraction_final", "body_overlap_max")
 
 
 def _one(args: tuple[int, dict]) -> dict:
-    from meanfield.simulate import ClosedLoop
+    from meanfield.loop import ClosedLoop
 
     name, seed, sets = args
     sc = builtin_scenarios()[name](seed=seed)

@@ -274,15 +274,15 @@ def test_closed_loop_with_bounded_strategy_never_commands_beyond_the_limits():
     commanded, reported, applied = [], [], []
 
     def record(lp):
-        commanded.append(lp.last_state.u.copy())
-        reported.append(lp.last_state.shortfall)
-        applied.append(lp.last_shortfall_applied)
+        commanded.append(lp.last.command.state.u.copy())
+        reported.append(lp.last.command.state.shortfall)
+        applied.append(lp.last.shortfall_applied)
 
-    loop.run(progress=False, callback=record)
+    summary = loop.run(progress=False, callback=record).summary
     speeds = np.hypot(*np.concatenate(commanded).T)
     assert speeds.max() <= 0.1  # the commands themselves, before any saturation
-    assert loop.saturated_steps == 0
-    assert loop.binding_steps > 0  # the paper scenario is limit-bound
+    assert summary["saturated_fraction"] == 0
+    assert summary["limits_binding_fraction"] > 0  # the paper scenario is limit-bound
     # nothing clipped: the shortfall the strategy reports is the one the robots apply
     assert len(applied) == sc.steps and max(reported) > 0
     np.testing.assert_allclose(applied, reported, rtol=1e-9)

@@ -10,7 +10,7 @@ import pytest
 from meanfield import Domain, ParameterError, Scenario, paper_scenario
 from meanfield.local_view import LocalView, robots_in_view
 from meanfield.scenario import paper_unity_scenario
-from meanfield.simulate import ClosedLoop
+from meanfield.loop import ClosedLoop
 
 
 def _err(call) -> ParameterError:
@@ -130,7 +130,7 @@ def test_paper_unity_carries_the_paper_scenario_by_similarity_up_to_the_robot_la
     a, b = ClosedLoop(base), ClosedLoop(unity)
     np.testing.assert_allclose(b.crowd.positions / L, a.crowd.positions, rtol=0, atol=1e-14)
     np.testing.assert_allclose(b.density * L * L, a.density, rtol=1e-10, atol=1e-12)
-    sa, sb = a.control(), b.control()
+    sa, sb = a.controller.act(a.observe()).state, b.controller.act(b.observe()).state
     for k in (0, 1):  # x and y faces
         for field in ("v_d", "v_tilde"):
             fa, fb = getattr(sa, field)[k], getattr(sb, field)[k]
@@ -145,8 +145,8 @@ def test_point_mass_gating_changes_only_the_walkers():
     sc = paper_unity_scenario(seed=2).replace(t_final=2.5).with_values({"view.radius": 12.0})
     loop = ClosedLoop(sc)
     x0 = loop.crowd.positions.copy()
-    drift = loop.human_drift(x0)
-    seen = loop.view.seen
+    drift = loop.crowd.drift(loop.robots, loop.t, loop.dt)
+    seen = loop.crowd.view.seen
     assert 0 < seen.sum() < len(seen)  # a 12 m view on the 37.5 m robot lattice leaves gaps
     np.testing.assert_allclose(np.hypot(*drift[~seen].T), sc.view.walk_speed, rtol=1e-12)
     result = loop.run(progress=False)

@@ -215,7 +215,7 @@ def test_inputs_respect_the_limits_every_step(small_loop):
     seen = []
 
     def check(lp):
-        s = lp.last_state
+        s = lp.last.command.state
         assert np.all(np.hypot(s.u[:, 0], s.u[:, 1]) <= u_max * (1 + 1e-6))
         assert np.all(np.abs(s.omega) <= w_max)
         assert math.isnan(s.shortfall) and np.isfinite(s.A)  # diagnostics from backstepping
@@ -249,9 +249,9 @@ def test_plan_improves_its_predicted_cost_over_zero_input(small_loop):
     plan must beat standing still, and turn the signs towards the target."""
     lp = small_loop
     c = NMPCController(
-        lp.grid, lp.target, lp.kernel, lp.sigma, lp.robots, lp.backstepping, {"horizon": 3, "cells": 6, "step": 0.5}
+        lp.grid, lp.target, lp.kernel, lp.parts.sigma, lp.robots, lp.controller.backstepping, {"horizon": 3, "cells": 6, "step": 0.5}
     )
-    rho_c = c.restrict(lp.kde(lp.crowd.positions))
+    rho_c = c.restrict(lp.crowd.density())
     pos, heads = lp.robots.positions.copy(), lp.robots.headings.copy()
     plan = c.solve(rho_c, pos, heads)
     assert plan.success, plan.status

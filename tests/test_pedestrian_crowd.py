@@ -63,7 +63,7 @@ jps = pytest.importorskip("jupedsim", reason="JuPedSim not installed (see README
 
 from meanfield.jupedsim_api import JuPedSimAdapter  # noqa: E402
 from meanfield.pedestrian_crowd import PedestrianCrowd  # noqa: E402
-from meanfield.simulate import ClosedLoop  # noqa: E402
+from meanfield.loop import ClosedLoop  # noqa: E402
 
 
 def test_a_free_agent_walks_straight_at_its_desired_speed():

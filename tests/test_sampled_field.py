@@ -9,7 +9,7 @@ from meanfield import ParameterError, paper_scenario
 from meanfield.kernels import CustomKernel, GaussianKernel
 from meanfield.robots import navigation_velocity
 from meanfield.sampled_field import SampledNavigationField
-from meanfield.simulate import ClosedLoop
+from meanfield.loop import ClosedLoop
 
 
 def test_bilinear_functions_are_reproduced_exactly():
@@ -76,7 +76,7 @@ def test_closed_loop_with_sampled_field_is_statistically_the_exact_one():
         res = loop.run(progress=False)
         errors[key] = res.summary["l2_error_final"]
         assert res.summary["field_evaluation"] == key[0]
-    assert runs[("sampled", 4)][0].sampled_field.error_bound() < 0.02 * base.kernel.c
+    assert runs[("sampled", 4)][0].crowd.sampled_field.error_bound() < 0.02 * base.kernel.c
     same_seed = abs(errors[("exact", 4)] - errors[("sampled", 4)])
     other_seed = abs(errors[("exact", 4)] - errors[("exact", 5)])
     assert same_seed < 0.5 * other_seed

@@ -134,3 +134,152 @@ def test_short_keys_resolve_to_dotted_fields():
     with pytest.raises(ParameterError) as info:
         paper_scenario().with_values({"robotz": 3})
     assert info.value.name == "robotz"
+
+
+# ---------------------------------------------------------------------- built-ins from TOML
+def test_builtins_are_toml_package_data():
+    from importlib import resources
+
+    from meanfield.scenario import builtin_scenarios
+
+    folder = resources.files("meanfield") / "scenarios"
+    assert list(builtin_scenarios()) == ["paper", "paper-unity", "stadium"]
+    for name in builtin_scenarios():
+        assert (folder / f"{name}.toml").is_file()
+        assert load_scenario(name).name == name
+
+
+def test_paper_builtin_has_the_values_of_the_paper_study():
+    sc = paper_scenario(seed=7)
+    assert sc.seed == 7 and sc.name == "paper"
+    assert sc.crowd.n == 200 and sc.robots.n == 16 and sc.grid.cells == (30, 30)
+    assert sc.dt == 0.01 and sc.t_final == 40.0 and sc.record_every == 10 and sc.steps == 4000
+    assert sc.domain == Domain.box(1.0, 1.0)
+    assert sc.kernel == KernelSpec(c=0.2, eta=0.05) and sc.crowd.sigma == 0.015
+    assert (sc.robots.layout, sc.robots.headings, sc.robots.u_max, sc.robots.omega_max) == ("grid", "random", 0.2, 3.0)
+    assert sc.target == TargetSpec(center=(1.0, 1.0), std=0.15)
+    assert (sc.density.bandwidth, sc.density.boundary) == (0.08, "reflect")
+    c = sc.controller
+    assert (c.alpha, c.alpha_schedule, c.rho_floor, c.k_u, c.k_omega) == (0.2, "saturating", 2.0, 10.0, 10.0)
+    assert (c.beta_gamma, c.dvd_dt, c.kind) == ("min-norm", "finite-difference", "backstepping")
+    assert sc.plugins == () and "plugins" not in sc.to_toml()
+
+
+def test_paper_unity_builtin_is_paper_under_the_similarity():
+    from meanfield.scenario import UNITY_LENGTH as L
+    from meanfield.scenario import UNITY_TIME as T
+    from meanfield.scenario import ControllerSpec, DensitySpec, PedestrianSpec, ViewSpec, paper_unity_scenario
+
+    base, sc = paper_scenario(3), paper_unity_scenario(3)
+    b = base.controller
+    expected = Scenario(
+        name="paper-unity",
+        seed=3,
+        dt=base.dt * T,
+        t_final=base.t_final * T,
+        domain=Domain.box(L, L),
+        crowd=CrowdSpec(n=200, sigma=0.5),
+        robots=RobotSpec(n=16, u_max=base.robots.u_max * L / T, omega_max=base.robots.omega_max / T),
+        kernel=KernelSpec(c=base.kernel.c * L / T, eta=base.kernel.eta * L * L),
+        target=TargetSpec(center=(L, L), std=base.target.std * L),
+        density=DensitySpec(bandwidth=base.density.bandwidth * L),
+        controller=ControllerSpec(
+            alpha=b.alpha * L * L / T, rho_floor=b.rho_floor / (L * L), k_u=b.k_u / T, k_omega=b.k_omega / T
+        ),
+        view=ViewSpec(radius=30.0, walk_speed=1.0, turning_rate=0.05),
+        pedestrians=PedestrianSpec(time_step=0.05),
+    )
+    assert sc == expected
+    assert sc.to_toml() == expected.to_toml()
+
+
+def test_stadium_builtin_is_paper_with_a_stadium_crowd():
+    import dataclasses
+
+    from meanfield.scenario import STADIUM_CROWD, DensitySpec, GridSpec, stadium_scenario
+
+    base = paper_scenario(2)
+    expected = base.replace(
+        name="stadium",
+        grid=GridSpec((128, 128)),
+        crowd=dataclasses.replace(base.crowd, n=STADIUM_CROWD),
+        robots=dataclasses.replace(base.robots, n=64),
+        density=DensitySpec(bandwidth=0.03, boundary="reflect"),
+        record_humans=10_000,
+    )
+    assert stadium_scenario(2) == expected and load_scenario("stadium", seed=2) == expected
+
+
+# ---------------------------------------------------------------------- names from the registry
+def test_plugin_module_registers_a_controller_the_scenario_names(tmp_path):
+    import json
+
+    from meanfield import plugins
+
+    name = "test-scenario-parked"
+    module = tmp_path / "scenario_plugin_parked.py"
+    module.write_text(
+        f"from meanfield import plugins\nplugins.register('controller', {name!r}, lambda parts: None)\n"
+    )
+    text = f'[controller]\nkind = "{name}"\n'
+    try:
+        assert _err(lambda: Scenario.from_toml(text)).name == "controller.kind"  # not registered yet
+        sc = Scenario.from_toml(f"plugins = [{json.dumps(str(module))}]\n" + text)
+        assert sc.controller.kind == name and sc.plugins == (str(module),)
+        assert name in plugins.available("controller")
+        back = Scenario.from_toml(sc.to_toml())  # written back, imported again (once)
+        assert back == sc and back.to_dict()["plugins"] == [str(module)]
+    finally:
+        plugins.unregister("controller", name)
+
+
+@pytest.mark.parametrize(
+    ("text", "name"),
+    [
+        ('plugins = "not a list"\n', "plugins"),
+        ('plugins = ["meanfield_no_such_plugin_module"]\n', "plugins"),
+        ("plugins = [3]\n", "plugins[0]"),
+        ('[controller]\nkind = "no-such-controller"\n', "controller.kind"),
+        ('[controller]\nbeta_gamma = "no-such-rule"\n', "controller.beta_gamma"),
+        ('[controller]\ndvd_dt = "guess"\n', "controller.dvd_dt"),
+        ('[pedestrians]\nbackend = "no-such-crowd"\n', "pedestrians.backend"),
+        ('[pedestrians]\nmodel = "no-such-model"\n', "pedestrians.model"),
+        ('[domain]\nkind = "polygon"\n', "domain.vertices"),
+        ("[domain]\nwidth = -1.0\n", "domain.width"),
+        ("[domain]\nradius = 1.0\n", "domain"),
+        ("domain = 3\n", "domain"),
+    ],
+)
+def test_registry_names_and_plugins_refused_naming_the_field(text, name):
+    assert _err(lambda: Scenario.from_toml(text)).name == name
+
+
+def test_unknown_region_kind_refused_listing_the_registered_kinds():
+    from meanfield import plugins
+
+    err = _err(lambda: Scenario.from_toml('[domain]\nkind = "hexagon"\n'))
+    assert err.name == "domain.kind" and err.value == "hexagon"
+    for kind in plugins.available("region"):
+        assert repr(kind) in err.allowed
+
+
+def test_region_from_table_passes_the_table_to_the_registered_factory():
+    from meanfield import plugins
+    from meanfield.validation import region_from_table
+
+    assert region_from_table({}) == Domain.box(1.0, 1.0)
+    assert region_from_table({"kind": "disk", "radius": 0.5, "center": [1, 2]}) == Domain.disk(0.5, (1.0, 2.0))
+    plugins.register("region", "test-square", lambda side=1.0: Domain.box(side, side))
+    try:
+        assert region_from_table({"kind": "test-square", "side": 2.0}) == Domain.box(2.0, 2.0)
+        err = _err(lambda: region_from_table({"kind": "test-square", "width": 1.0}))
+        assert err.name == "domain" and "['side']" in err.allowed
+        assert _err(lambda: region_from_table({"kind": "test-square", "side": -1.0})).name == "domain.width"
+    finally:
+        plugins.unregister("region", "test-square")
+
+
+def test_plugins_settable_with_values():
+    sc = paper_scenario()
+    assert sc.with_values({"plugins": []}) == sc
+    assert _err(lambda: sc.with_values({"plugins": ["meanfield_no_such_plugin_module"]})).name == "plugins"

@@ -112,7 +112,9 @@ def test_short_runs_on_other_shapes(domain):
 
 
 def test_save_writes_documented_outputs(result, tmp_path):
-    paths = result.save(tmp_path / "out")
+    from meanfield.plotting import save_run_figures
+
+    paths = result.save(tmp_path / "out", artifacts=[save_run_figures])
     out = tmp_path / "out"
     summary = json.loads((out / "summary.json").read_text())
     assert SUMMARY_KEYS <= set(summary)
@@ -156,7 +158,7 @@ def test_blow_up_stops_with_status_diverged():
 
 
 def test_record_humans_keeps_a_spaced_subset_and_every_figure_uses_the_whole_crowd(result):
-    from meanfield.simulate import recorded_humans
+    from meanfield.observers import recorded_humans
 
     sub = ClosedLoop(_short().replace(record_humans=50)).run(progress=False)
     ds, full = sub.dataset, result.dataset

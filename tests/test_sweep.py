@@ -22,7 +22,7 @@ pytest.importorskip("distributed")
 from meanfield import paper_scenario, plugins  # noqa: E402
 from meanfield.cli import main  # noqa: E402
 from meanfield.errors import ParameterError  # noqa: E402
-from meanfield.simulate import ClosedLoop  # noqa: E402
+from meanfield.loop import ClosedLoop  # noqa: E402
 from meanfield.sweep import parse_seeds, parse_values, run_sweep  # noqa: E402
 
 

@@ -270,65 +270,86 @@ class RobotLoopTrajectory:
     info: dict = field(default_factory=dict)
 
 
-def robot_loop_trajectory(
-    loop: Any, fp: FokkerPlanck, t_final: float, dt: float, record_every: int = 1
-) -> RobotLoopTrajectory:
-    """Close the Fokker–Planck plant with the robot law of ``loop.backstepping`` (eqs. (6), (8)).
+class _LyapunovRates:
+    """Observer of the closed loop on the density: ``V₂`` and its rate against eq. (8)'s claim at each step."""
 
-    The controller sees the exact density (no estimate); robots integrate eq. (2) with
-    the loop's limits (saturated as in :class:`~meanfield.simulate.ClosedLoop`).
+    def __init__(self, record_every: int):
+        self.record_every = record_every
+        self.rows: list[tuple] = []
+
+    def start(self, loop: Any) -> None:
+        pass
+
+    def step(self, loop: Any, record: Any) -> None:
+        if record.index % self.record_every:
+            return
+        g, ctrl, fp = loop.grid, loop.controller, loop.crowd.fp
+        obs, st, u, w = record.observation, record.command.state, record.u, record.omega
+        rho, t = obs.density, obs.t
+        rho_dot = fp.rhs(rho, t, face_velocity=obs.field.velocity())
+        dvr = obs.field.velocity_rate(u, w)
+        dvd = ctrl.virtual_velocity_rate(rho, rho_dot, t)
+        dV2 = g.inner(st.rho_tilde, rho_dot) + g.face_inner(st.v_tilde, (dvr[0] - dvd[0], dvr[1] - dvd[1]))
+        k_u = np.broadcast_to(ctrl.k_u, (loop.robots.n,))
+        k_w = np.broadcast_to(ctrl.k_omega, (loop.robots.n,))
+        action = float((k_u * (st.b**2).sum(1)).sum() + (k_w * st.g**2).sum())
+        short = record.shortfall_applied
+        re, ve = g.norm(st.rho_tilde), g.face_norm(st.v_tilde)
+        self.rows.append(
+            (
+                t,
+                0.5 * re * re + 0.5 * ve * ve,
+                re,
+                ve,
+                dV2,
+                -st.dissipation - action + short,
+                action,
+                st.dissipation,
+                short,
+                float(np.hypot(st.u[:, 0], st.u[:, 1]).max()),
+                record.at_limit,
+            )
+        )
+
+
+def robot_loop_trajectory(scenario: Any, t_final: float, dt: float, record_every: int = 1) -> RobotLoopTrajectory:
+    """The closed loop of the robot law on the Fokker–Planck plant (eqs. (4), (6), (8)), measured.
+
+    :class:`~meanfield.loop.ClosedLoop` runs the scenario's robots and backstepping law on
+    the crowd's density (:class:`~meanfield.density_crowd.DensityCrowd`, the split stepper,
+    one step of ``dt`` per control period); the controller sees the exact density and the
+    robots integrate eq. (2) within their limits.  An observer records ``V₂`` and the
+    semi-discrete ``dV₂/dt`` against the claim of eq. (8) at every ``record_every``-th step.
 
     Parameters
     ----------
-    loop : ClosedLoop
-        Supplies the grid, kernel, controller, robots and robot region (its crowd is unused).
-    fp : FokkerPlanck
-        The plant.
+    scenario : Scenario
+        Its robots, controller gains and limits, σ, interaction, kernel, target and
+        initial law (its ``controller.kind`` is ignored: the paper's law is checked; so is
+        its disturbance: Theorem 3 assumes none).
     t_final, dt : float
+        Horizon and control period.
     record_every : int
     """
-    from meanfield.robots import NavigationField, saturate_inputs
-    from meanfield.simulate import initial_density
+    import dataclasses
 
-    g, ctrl, robots = loop.grid, loop.backstepping, loop.robots
-    rho = initial_density(loop.scenario, g)
-    k_u = np.broadcast_to(ctrl.k_u, (robots.n,))
-    k_w = np.broadcast_to(ctrl.k_omega, (robots.n,))
+    from meanfield.assembly import assemble
+    from meanfield.density_crowd import DensityCrowd
+    from meanfield.errors import SimulationDiverged
+    from meanfield.loop import ClosedLoop
+
+    sc = scenario.replace(dt=dt, t_final=t_final)
+    parts = assemble(sc, crowd="fokker-planck", controller="backstepping")
+    # Theorem 3's plant: no v_a, split stepping, one step per period
+    fp = FokkerPlanck(parts.grid, parts.sigma, method="split", interaction=parts.interaction)
+    crowd = DensityCrowd(fp, parts.crowd.density(), parts.kernel, substeps=False)
+    rates = _LyapunovRates(record_every)
+    loop = ClosedLoop(dataclasses.replace(parts, crowd=crowd), observers=[rates])
     steps = int(round(t_final / dt))
-    rows = []
-    t = 0.0
-    for k in range(steps):
-        field_ = NavigationField(loop.kernel, g, robots.positions, robots.headings)
-        st = ctrl.robot_inputs(rho, field_, t)
-        u, w = saturate_inputs(st.u, st.omega, robots.u_max, robots.omega_max)
-        v_r = field_.velocity()
-        if k % record_every == 0:
-            rho_dot = fp.rhs(rho, t, face_velocity=v_r)
-            dvr = field_.velocity_rate(u, w)
-            dvd = ctrl.virtual_velocity_rate(rho, rho_dot, t)
-            dV2 = g.inner(st.rho_tilde, rho_dot) + g.face_inner(st.v_tilde, (dvr[0] - dvd[0], dvr[1] - dvd[1]))
-            action = float((k_u * (st.b**2).sum(1)).sum() + (k_w * st.g**2).sum())
-            short = loop.applied_shortfall(st, u, w)
-            re, ve = g.norm(st.rho_tilde), g.face_norm(st.v_tilde)
-            rows.append(
-                (
-                    t,
-                    0.5 * re * re + 0.5 * ve * ve,
-                    re,
-                    ve,
-                    dV2,
-                    -st.dissipation - action + short,
-                    action,
-                    st.dissipation,
-                    short,
-                    float(np.hypot(st.u[:, 0], st.u[:, 1]).max()),
-                    int(robots.at_limit(st.u, st.omega).sum()),
-                )
-            )
-        if not (np.isfinite(u).all() and np.isfinite(w).all()):
-            break
-        rho = fp.step(rho, t, dt, face_velocity=v_r)
-        robots.advance(u, w, dt, loop.robot_region)
-        t = (k + 1) * dt
-    cols = [np.array(c, float) for c in zip(*rows, strict=True)]
+    try:
+        for _ in range(steps):
+            loop.step()
+    except SimulationDiverged:
+        pass
+    cols = [np.array(c, float) for c in zip(*rates.rows, strict=True)]
     return RobotLoopTrajectory(*cols, info={"dt": dt, "steps": steps})

@@ -20,10 +20,11 @@ import numpy as np
 
 from analysis.poincare import neumann_eigenvalue
 from analysis.rates import decay_rate
+from meanfield.assembly import assemble
 from meanfield.control import AlphaSchedule, ConstantAlpha
+from meanfield.density_crowd import initial_density
 from meanfield.fokker_planck import FokkerPlanck
 from meanfield.scenario import Scenario
-from meanfield.simulate import ClosedLoop, initial_density
 from verification.plant import Trajectory, fokker_planck_trajectory, model_trajectory
 from verification.result import CheckResult, worst
 
@@ -153,8 +154,8 @@ def check_theorem1(
         Unused (the check is one process and a few seconds).
     """
     start = time.perf_counter()
-    loop = ClosedLoop(scenario)
-    grid, ctrl = loop.grid, loop.backstepping
+    parts = assemble(scenario, crowd="fokker-planck", controller="backstepping")  # the PDE plant's parts
+    grid, ctrl = parts.grid, parts.controller
     mu2 = neumann_eigenvalue(grid)
     rho0 = initial_density(scenario, grid)
     t_final = 1.5 if quick else 4.0

@@ -24,10 +24,11 @@ from typing import Any
 import numpy as np
 
 from analysis.poincare import neumann_eigenvalue
+from meanfield.assembly import assemble, disturbance_for
+from meanfield.density_crowd import initial_density
 from meanfield.fokker_planck import FokkerPlanck
 from meanfield.grid import FaceField, Grid
 from meanfield.scenario import Scenario
-from meanfield.simulate import ClosedLoop, disturbance_for, initial_density
 from verification.plant import Trajectory, fokker_planck_trajectory
 from verification.result import CheckResult, worst
 from verification.theorem1 import alpha_cases, feedback_step
@@ -113,8 +114,8 @@ def check_theorem2(
         Speed of the default ``ṽ``.
     """
     start = time.perf_counter()
-    loop = ClosedLoop(scenario)
-    grid, ctrl = loop.grid, loop.backstepping
+    parts = assemble(scenario, crowd="fokker-planck", controller="backstepping")  # the PDE plant's parts
+    grid, ctrl = parts.grid, parts.controller
     mu2 = neumann_eigenvalue(grid)
     rho0 = initial_density(scenario, grid)
     t_final = 1.5 if quick else 4.0

@@ -9,7 +9,8 @@ robot counts.  The theorem assumes inputs as large as the law asks; so each coun
 * **with the scenario's limits**, reported but not judged (``inconclusive``: the shortfall
   term of eq. (8) is then an input the theorem does not cover).
 
-DESIGN.md §2 explains why exponential convergence need not follow: ``Σk|b_i|² + Σk g_i²``
+The docs page *The paper's slips* (``docs/paper_slips.md#exponentially``) explains why exponential
+convergence need not follow: ``Σk|b_i|² + Σk g_i²``
 can vanish while ``ṽ ≠ 0``.  The check measures the ratio of the two at the end.
 """
 
@@ -21,9 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from meanfield.fokker_planck import FokkerPlanck
 from meanfield.scenario import Scenario
-from meanfield.simulate import ClosedLoop
 from verification.plant import RobotLoopTrajectory, robot_loop_trajectory
 from verification.result import CheckResult, worst
 from verification.theorem1 import fitted_rate
@@ -140,16 +139,12 @@ def check_theorem3(
     for n in counts:
         base = scenario.with_values({"robots.n": n, "controller.dvd_dt": "model", "controller.beta_gamma": "min-norm"})
         free = base.with_values({"robots.u_max": None, "robots.omega_max": None})
-        loop = ClosedLoop(free)
-        fp = FokkerPlanck(loop.grid, loop.backstepping.sigma, method="split", interaction=loop.interaction)
-        tr = robot_loop_trajectory(loop, fp, t_free, UNLIMITED_DT, record_every=1)
+        tr = robot_loop_trajectory(free, t_free, UNLIMITED_DT, record_every=1)
         verdict, figs = lyapunov_verdict(tr)
         cases.append({"case": f"n = {n}, no limits", "robots": n, "verdict": verdict, "dt": UNLIMITED_DT, **figs})
         runs.append((f"n={n}, no limits", tr))
         if has_limits:
-            loop = ClosedLoop(base)
-            fp = FokkerPlanck(loop.grid, loop.backstepping.sigma, method="split", interaction=loop.interaction)
-            tr = robot_loop_trajectory(loop, fp, t_limited, scenario.dt, record_every=1)
+            tr = robot_loop_trajectory(base, t_limited, scenario.dt, record_every=1)
             cases.append(
                 {
                     "case": f"n = {n}, scenario limits",
