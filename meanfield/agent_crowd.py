@@ -156,7 +156,8 @@ class AgentCrowd:
         """One step of the agents under the robots' signs; the drift must be finite."""
         drift = self.drift(robots, t, dt)
         if not np.isfinite(drift).all():
-            raise SimulationDiverged(f"non-finite human drift at t = {t:.4g}; the crowd is kept at the last good step", -1)
+            msg = f"non-finite human drift at t = {t:.4g}; the crowd is kept at the last good step"
+            raise SimulationDiverged(msg, -1)
         self.engine.step(drift, t, dt)
         self.view.advance(dt)
 

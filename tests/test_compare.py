@@ -122,7 +122,9 @@ def test_no_paper_sign_variable_without_interaction(plain):
 def test_run_comparison_save_writes_files(scenario, tmp_path):
     report = run_comparison(scenario, (50, 200), t_final=0.3, cells=(16, 16), record_interval=0.1)
     assert [c.summary["status"] for c in report.cases] == ["completed", "completed"]
-    written = report.save(tmp_path)
+    from meanfield.plotting import save_comparison_figures
+
+    written = report.save(tmp_path, artifacts=[save_comparison_figures])
     assert list(written)[-1] == "summary"
     names = {
         "summary.json",

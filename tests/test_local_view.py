@@ -9,8 +9,8 @@ import pytest
 
 from meanfield import Domain, ParameterError, Scenario, paper_scenario
 from meanfield.local_view import LocalView, robots_in_view
-from meanfield.scenario import paper_unity_scenario
 from meanfield.loop import ClosedLoop
+from meanfield.scenario import paper_unity_scenario
 
 
 def _err(call) -> ParameterError:
@@ -144,7 +144,6 @@ def test_paper_unity_carries_the_paper_scenario_by_similarity_up_to_the_robot_la
 def test_point_mass_gating_changes_only_the_walkers():
     sc = paper_unity_scenario(seed=2).replace(t_final=2.5).with_values({"view.radius": 12.0})
     loop = ClosedLoop(sc)
-    x0 = loop.crowd.positions.copy()
     drift = loop.crowd.drift(loop.robots, loop.t, loop.dt)
     seen = loop.crowd.view.seen
     assert 0 < seen.sum() < len(seen)  # a 12 m view on the 37.5 m robot lattice leaves gaps

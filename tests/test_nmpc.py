@@ -249,7 +249,13 @@ def test_plan_improves_its_predicted_cost_over_zero_input(small_loop):
     plan must beat standing still, and turn the signs towards the target."""
     lp = small_loop
     c = NMPCController(
-        lp.grid, lp.target, lp.kernel, lp.parts.sigma, lp.robots, lp.controller.backstepping, {"horizon": 3, "cells": 6, "step": 0.5}
+        lp.grid,
+        lp.target,
+        lp.kernel,
+        lp.parts.sigma,
+        lp.robots,
+        lp.controller.backstepping,
+        {"horizon": 3, "cells": 6, "step": 0.5},
     )
     rho_c = c.restrict(lp.crowd.density())
     pos, heads = lp.robots.positions.copy(), lp.robots.headings.copy()

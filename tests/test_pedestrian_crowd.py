@@ -62,8 +62,8 @@ def test_missing_jupedsim_is_refused_with_the_install_command(monkeypatch, capsy
 jps = pytest.importorskip("jupedsim", reason="JuPedSim not installed (see README: the pedestrians extra)")
 
 from meanfield.jupedsim_api import JuPedSimAdapter  # noqa: E402
-from meanfield.pedestrian_crowd import PedestrianCrowd  # noqa: E402
 from meanfield.loop import ClosedLoop  # noqa: E402
+from meanfield.pedestrian_crowd import PedestrianCrowd  # noqa: E402
 
 
 def test_a_free_agent_walks_straight_at_its_desired_speed():

@@ -7,9 +7,9 @@ import pytest
 
 from meanfield import ParameterError, paper_scenario
 from meanfield.kernels import CustomKernel, GaussianKernel
+from meanfield.loop import ClosedLoop
 from meanfield.robots import navigation_velocity
 from meanfield.sampled_field import SampledNavigationField
-from meanfield.loop import ClosedLoop
 
 
 def test_bilinear_functions_are_reproduced_exactly():
