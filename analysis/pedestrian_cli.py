@@ -1,7 +1,7 @@
 """``meanfield pedestrians RUN_DIR... --out DIR``: PedPy measurements of finished runs.
 
 The command of :mod:`analysis.pedestrian_metrics` (entry point
-``analysis.pedestrian_metrics:register``, which re-exports :func:`register`): for every run,
+``analysis.pedestrian_cli:register``): for every run,
 :func:`~analysis.pedestrian_metrics.pedestrian_metrics` with its figures in ``DIR/<run>``,
 and one report ``DIR/pedestrians.json`` (``docs/pedestrians.md``, ``docs/cli.md``).  The
 measurements are imported when the command runs, so that registering it costs nothing.

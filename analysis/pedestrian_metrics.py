@@ -20,12 +20,12 @@ numbers can be compared with experiments and other simulators:
 4. figures of both (:func:`plot_pedestrian_figures`).
 
 PedPy is imported lazily, inside the functions: the rest of :mod:`analysis` works without
-it.  ``meanfield pedestrians RUN_DIR... --out DIR`` (:func:`register`) runs it all
+it.  ``meanfield pedestrians RUN_DIR... --out DIR`` (:func:`analysis.pedestrian_cli.register`) runs it all
 (``docs/pedestrians.md``).
 
 This module holds the measurements; the figures are drawn by
 :mod:`analysis.pedestrian_figures` and the command lives in :mod:`analysis.pedestrian_cli`,
-both re-exported here (:func:`plot_pedestrian_figures`, :func:`register`).
+(:func:`plot_pedestrian_figures` is re-exported here).
 """
 
 from __future__ import annotations
@@ -38,7 +38,6 @@ from typing import Any
 
 import numpy as np
 
-from analysis.pedestrian_cli import register
 from analysis.pedestrian_figures import plot_pedestrian_figures
 from meanfield.errors import ParameterError
 
@@ -52,7 +51,6 @@ __all__ = [
     "density_maps",
     "pedestrian_metrics",
     "plot_pedestrian_figures",
-    "register",
 ]
 
 # a grid size a hair above the toolkit's cell, so that PedPy's np.arange(min, max + g, g)

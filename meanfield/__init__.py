@@ -35,11 +35,10 @@ from meanfield.kernels import (
     kernel_jacobian_xi,
     kernel_value,
 )
-from meanfield.loop import ClosedLoop
+from meanfield.loop import ClosedLoop, run
 from meanfield.metrics import fraction_in_disk, gaussian_target, target_region_radius
 from meanfield.result import SimulationResult
 from meanfield.robots import NavigationField, RobotTeam, navigation_velocity
-from meanfield.runner import run
 from meanfield.scenario import Scenario, load_scenario, paper_scenario
 
 __version__ = "0.1.0"

@@ -11,24 +11,32 @@ One step of :class:`ClosedLoop` (``dt``; docs page *Architecture*):
 5. the observers see the step (recording, time to 90 %, input statistics, ...).
 
 The loop holds no recording and computes no summary: observers do
-(:mod:`meanfield.observers`), as py-pde's trackers watch its solvers.
-:func:`meanfield.runner.run` attaches the usual observers and returns a result.
+(:mod:`meanfield.observers`, :mod:`meanfield.summary`), as py-pde's trackers watch its
+solvers.  :meth:`ClosedLoop.run` attaches the standard observers and returns a result;
+:func:`run` assembles a scenario first.
 """
 
 from __future__ import annotations
 
 import math
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any, Protocol
 
 import numpy as np
 
+from meanfield.assembly import Parts, assemble
 from meanfield.errors import ParameterError, SimulationDiverged
 from meanfield.interfaces import Command, Observation
+from meanfield.observers import InputStatistics, Recorder, TargetTracker
+from meanfield.result import SimulationResult
 from meanfield.robots import NavigationField, saturate_inputs
+from meanfield.scenario import Scenario, load_scenario
+from meanfield.summary import run_summary
 
-__all__ = ["ClosedLoop", "Observer", "StepRecord"]
+__all__ = ["ClosedLoop", "Observer", "StepRecord", "run"]
 
 
 @dataclass
@@ -111,9 +119,6 @@ class ClosedLoop:
     """
 
     def __init__(self, parts: Any, *, observers: Any = (), **overrides: Any):
-        from meanfield.assembly import Parts, assemble
-        from meanfield.scenario import Scenario
-
         if isinstance(parts, Scenario):
             parts = assemble(parts, **overrides)
         elif overrides:
@@ -199,8 +204,95 @@ class ClosedLoop:
             obs.step(self, record)
         return record
 
-    def run(self, progress: bool = True, callback: Any = None):
-        """Run to ``t_final`` with the usual observers; see :func:`meanfield.runner.run_loop`."""
-        from meanfield.runner import run_loop
+    def run(self, progress: bool = True, callback: Callable[[ClosedLoop], None] | None = None) -> SimulationResult:
+        """Run to ``t_final`` with the standard observers, recording every ``record_every`` steps.
 
-        return run_loop(self, progress=progress, callback=callback)
+        :class:`~meanfield.observers.TargetTracker`, :class:`~meanfield.observers.InputStatistics`
+        and :class:`~meanfield.observers.Recorder` watch the run; :func:`~meanfield.summary.run_summary`
+        reads them at the end.
+
+        Parameters
+        ----------
+        progress : bool
+            Show a tqdm progress bar.
+        callback : callable, optional
+            Called as ``callback(loop)`` after every step.
+
+        Returns
+        -------
+        SimulationResult
+            With ``summary["status"]`` ``"completed"``, ``"diverged"`` (the message in
+            ``summary["message"]``; frames up to the last good state) or ``"interrupted"``
+            (KeyboardInterrupt; frames so far).
+        """
+        loop = self
+        from tqdm.auto import tqdm
+
+        sc = loop.scenario
+        target, inputs = TargetTracker(0.9), InputStatistics()
+        recorder = Recorder(target)
+        for obs in (target, inputs, recorder):
+            loop.attach(obs)
+        loop.start()
+        p = loop.parts
+        rho_err0 = loop.grid.norm(loop.density - p.target)
+        status, message = "completed", ""
+        first = loop.step_index
+        n_steps = sc.steps - first
+        start = time.perf_counter()
+        bar = tqdm(total=n_steps, disable=not progress, desc=f"meanfield run {sc.name}", unit="step", mininterval=0.5)
+        try:
+            for _ in range(n_steps):
+                loop.step()
+                if recorder.last_recorded_step == loop.step_index:
+                    bar.update(loop.step_index - first - bar.n)
+                if callback is not None:
+                    callback(loop)
+        except SimulationDiverged as exc:
+            status, message = "diverged", str(exc)
+        except KeyboardInterrupt:
+            status, message = "interrupted", f"interrupted at t = {loop.t:.4g}"
+        finally:
+            bar.close()
+            for obs in (target, inputs, recorder):
+                loop.observers.remove(obs)
+        wall = time.perf_counter() - start
+        recorder.finish()
+        dataset = recorder.dataset()
+        summary = run_summary(
+            loop,
+            target,
+            inputs,
+            recorder,
+            dataset,
+            status=status,
+            message=message,
+            rho_err0=rho_err0,
+            wall=wall,
+            steps_run=loop.step_index - first,
+        )
+        return SimulationResult(sc, dataset, summary, p.kernel)
+
+
+def run(
+    scenario: Scenario | str, *, seed: int | None = None, progress: bool = True, **overrides: Any
+) -> SimulationResult:
+    """Assemble a scenario's closed loop and run it.
+
+    Parameters
+    ----------
+    scenario : Scenario or str
+        A scenario, a built-in name (``"paper"``) or a TOML path.
+    seed : int, optional
+        Override the scenario's seed.
+    progress : bool
+        Show a progress bar.
+    **overrides
+        Passed to :func:`~meanfield.assembly.assemble` (``sigma``, ``disturbance``,
+        ``beta_gamma``, ``kernel``, ``crowd``, ``controller``).
+    """
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    if seed is not None:
+        scenario = scenario.replace(seed=seed)
+    return ClosedLoop(scenario, **overrides).run(progress=progress)

@@ -12,12 +12,13 @@ Each has ``start(loop)`` and ``step(loop, record)`` (:class:`meanfield.loop.Obse
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from meanfield.control import ControlState
-from meanfield.loop import ClosedLoop, StepRecord
+if TYPE_CHECKING:  # the loop calls its observers; they never import it
+    from meanfield.control import ControlState
+    from meanfield.loop import ClosedLoop, StepRecord
 
 __all__ = ["TargetTracker", "InputStatistics", "Recorder", "recorded_humans"]
 

@@ -194,7 +194,7 @@ def test_pedestrian_metrics_end_to_end(tmp_path):
 
 def test_command_writes_report_and_refuses_bad_arguments(tmp_path, capsys):
     pytest.importorskip("pedpy")
-    from analysis.pedestrian_metrics import register
+    from analysis.pedestrian_cli import register
 
     x, y = _crowd([1, 3], seed=3)
     run = tmp_path / "run"

@@ -1,28 +1,24 @@
-"""Running a closed loop to the end: the usual observers, a progress bar, interruptions, the summary.
+"""The summary of a closed-loop run: the figures of ``summary.json``, from the loop and its observers.
 
-:func:`run` assembles a scenario and runs it; :func:`run_loop` runs an existing
-:class:`~meanfield.loop.ClosedLoop` with :class:`~meanfield.observers.TargetTracker`,
-:class:`~meanfield.observers.InputStatistics` and :class:`~meanfield.observers.Recorder`
-attached, and returns a :class:`~meanfield.result.SimulationResult`.
+:func:`run_summary` reads the final state of a :class:`~meanfield.loop.ClosedLoop` and the
+standard observers (:mod:`meanfield.observers`); every key is documented on the docs page
+*Command line* (``summary.json``).
 """
 
 from __future__ import annotations
 
 import math
-import time
-from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from meanfield.errors import SimulationDiverged
-from meanfield.loop import ClosedLoop
 from meanfield.metrics import w2_block_size, wasserstein2_to_grid_density
 from meanfield.observers import InputStatistics, Recorder, TargetTracker
-from meanfield.result import SimulationResult
-from meanfield.scenario import Scenario
 
-__all__ = ["run", "run_loop"]
+if TYPE_CHECKING:
+    from meanfield.loop import ClosedLoop
+
+__all__ = ["run_summary"]
 
 
 def _finite_mean(x: np.ndarray) -> float | None:
@@ -35,59 +31,40 @@ def _finite_max(x: np.ndarray) -> float | None:
     return float(x.max()) if x.size else None
 
 
-def run_loop(
-    loop: ClosedLoop, progress: bool = True, callback: Callable[[ClosedLoop], None] | None = None
-) -> SimulationResult:
-    """Run ``loop`` to ``t_final``, recording every ``record_every`` steps.
+def run_summary(
+    loop: ClosedLoop,
+    target: TargetTracker,
+    inputs: InputStatistics,
+    recorder: Recorder,
+    dataset: Any,
+    *,
+    status: str,
+    message: str,
+    rho_err0: float,
+    wall: float,
+    steps_run: int,
+) -> dict[str, Any]:
+    """``summary.json`` of a run: outcome, errors, W₂, time to 90 %, input statistics, the crowd's own figures.
 
     Parameters
     ----------
     loop : ClosedLoop
-    progress : bool
-        Show a tqdm progress bar.
-    callback : callable, optional
-        Called as ``callback(loop)`` after every step.
-
-    Returns
-    -------
-    SimulationResult
-        With ``summary["status"]`` ``"completed"``, ``"diverged"`` (the message in
-        ``summary["message"]``; frames up to the last good state) or ``"interrupted"``
-        (KeyboardInterrupt; frames so far).
+        At its final state.
+    target, inputs, recorder
+        The standard observers, attached for the whole run.
+    dataset : xarray.Dataset
+        ``recorder.dataset()``.
+    status, message : str
+        ``"completed"``, ``"diverged"`` or ``"interrupted"``, and why.
+    rho_err0 : float
+        ``‖ρ̂ − ρ_*‖`` at the start.
+    wall : float
+        Seconds spent stepping.
+    steps_run : int
+        Steps taken in this call (for ``steps_per_second``).
     """
-    from tqdm.auto import tqdm
-
     sc = loop.scenario
-    target, inputs = TargetTracker(0.9), InputStatistics()
-    recorder = Recorder(target)
-    for obs in (target, inputs, recorder):
-        loop.attach(obs)
-    loop.start()
     p = loop.parts
-    rho_err0 = loop.grid.norm(loop.density - p.target)
-    status, message = "completed", ""
-    first = loop.step_index
-    n_steps = sc.steps - first
-    start = time.perf_counter()
-    bar = tqdm(total=n_steps, disable=not progress, desc=f"meanfield run {sc.name}", unit="step", mininterval=0.5)
-    try:
-        for _ in range(n_steps):
-            loop.step()
-            if recorder.last_recorded_step == loop.step_index:
-                bar.update(loop.step_index - first - bar.n)
-            if callback is not None:
-                callback(loop)
-    except SimulationDiverged as exc:
-        status, message = "diverged", str(exc)
-    except KeyboardInterrupt:
-        status, message = "interrupted", f"interrupted at t = {loop.t:.4g}"
-    finally:
-        bar.close()
-        for obs in (target, inputs, recorder):
-            loop.observers.remove(obs)
-    wall = time.perf_counter() - start
-    recorder.finish()
-    dataset = recorder.dataset()
     crowd = loop.crowd
     final_err = loop.grid.norm(loop.density - p.target)
     steps = max(loop.step_index, 1)
@@ -124,11 +101,11 @@ def run_loop(
         "steps": loop.step_index,
         "time_final": loop.t,
         "wall_seconds": wall,
-        "steps_per_second": (loop.step_index - first) / wall if wall > 0 else None,
+        "steps_per_second": steps_run / wall if wall > 0 else None,
         "seed": sc.seed,
         "scenario": sc.to_dict(),
     }
-    return SimulationResult(sc, dataset, summary, p.kernel)
+    return summary
 
 
 def _last_A(recorder: Recorder) -> float | None:
@@ -155,29 +132,3 @@ def _field_error_bound(loop: ClosedLoop) -> float | None:
     """Interpolation error bound of a sampled ``v_r`` at the final robots (None: exact or no agents)."""
     bound = getattr(loop.crowd, "field_error_bound", None)
     return bound(loop.robots) if bound is not None else None
-
-
-def run(
-    scenario: Scenario | str, *, seed: int | None = None, progress: bool = True, **overrides: Any
-) -> SimulationResult:
-    """Assemble a scenario's closed loop and run it.
-
-    Parameters
-    ----------
-    scenario : Scenario or str
-        A scenario, a built-in name (``"paper"``) or a TOML path.
-    seed : int, optional
-        Override the scenario's seed.
-    progress : bool
-        Show a progress bar.
-    **overrides
-        Passed to :func:`~meanfield.assembly.assemble` (``sigma``, ``disturbance``,
-        ``beta_gamma``, ``kernel``, ``crowd``, ``controller``).
-    """
-    from meanfield.scenario import load_scenario
-
-    if not isinstance(scenario, Scenario):
-        scenario = load_scenario(scenario)
-    if seed is not None:
-        scenario = scenario.replace(seed=seed)
-    return run_loop(ClosedLoop(scenario, **overrides), progress=progress)
