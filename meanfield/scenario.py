@@ -431,8 +431,29 @@ def builtin_scenarios() -> dict[str, Any]:
     return {name: _FACTORIES.get(name) or functools.partial(_builtin, name) for name in names}
 
 
+def _read_toml(path: Path) -> dict[str, Any]:
+    try:
+        return tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise ParameterError("scenario file", f"{path}: {exc}", "valid TOML") from None
+
+
+def _plugins_beside(d: dict[str, Any], folder: Path) -> dict[str, Any]:
+    """A scenario file's ``plugins`` with relative ``.py`` paths read from the file's folder."""
+    mods = d.get("plugins")
+    if isinstance(mods, list):
+        d["plugins"] = [
+            str((folder / m).resolve()) if isinstance(m, str) and m.endswith(".py") and not Path(m).is_absolute() else m
+            for m in mods
+        ]
+    return d
+
+
 def load_scenario(spec: str | Path, seed: int | None = None) -> Scenario:
-    """A built-in scenario by name, or a TOML file by path; ``seed`` overrides the file's."""
+    """A built-in scenario by name, or a TOML file by path; ``seed`` overrides the file's.
+
+    In a file, ``plugins`` paths to ``.py`` files are relative to the file's folder.
+    """
     spec = str(spec)
     table = builtin_scenarios()
     if spec in table:
@@ -441,7 +462,7 @@ def load_scenario(spec: str | Path, seed: int | None = None) -> Scenario:
         path = Path(spec)
         if not path.is_file():
             raise ParameterError("scenario", spec, f"a built-in name ({', '.join(table)}) or an existing .toml file")
-        sc = Scenario.from_toml(path.read_text())
+        sc = Scenario.from_dict(_plugins_beside(_read_toml(path), path.parent))
     if seed is not None:
         sc = sc.replace(seed=seed)
     return sc

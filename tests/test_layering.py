@@ -178,18 +178,16 @@ def test_layering_holds_in_the_module_graph():
 
 
 # modules allowed above ~500 lines, and why (the issue "One closed loop" asks to name them)
-LONG_MODULES: dict[str, str] = {
-    "meanfield/domain.py": "the one module that answers every question about the shape of Ω (box, disk, polygon)",
-}
+LONG_MODULES: dict[str, str] = {}
 
 
 def test_no_module_is_over_about_500_lines():
     long = {
         str(p.relative_to(ROOT)): len(p.read_text().splitlines())
-        for pkg in PACKAGES
+        for pkg in (*PACKAGES, "benchmarks")
         for p in (ROOT / pkg).rglob("*.py")
     }
-    over = {k: n for k, n in long.items() if n > 520 and k not in LONG_MODULES}
+    over = {k: n for k, n in long.items() if n > 500 and k not in LONG_MODULES}
     assert over == {}
 
 
