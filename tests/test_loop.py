@@ -1,0 +1,133 @@
+"""The closed loop behind its three interfaces: one step for agents and for the density, parts built once."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from meanfield import BacksteppingController, ClosedLoop, Domain, ParameterError, paper_scenario
+from meanfield.agent_crowd import AgentCrowd
+from meanfield.assembly import assemble
+from meanfield.density_crowd import DensityCrowd
+from meanfield.interfaces import Controller, Crowd, Region
+
+
+def _short(t_final: float = 0.3):
+    return paper_scenario(seed=4).replace(t_final=t_final)
+
+
+def test_the_built_in_parts_implement_the_interfaces():
+    for region in (Domain.box(2, 1), Domain.disk(1.0), Domain.polygon([(0, 0), (1, 0), (0, 1)])):
+        assert isinstance(region, Region)
+    agents = assemble(_short())
+    density = assemble(_short(), crowd="fokker-planck")
+    assert isinstance(agents.crowd, AgentCrowd) and isinstance(agents.crowd, Crowd)
+    assert isinstance(density.crowd, DensityCrowd) and isinstance(density.crowd, Crowd)
+    assert isinstance(agents.controller, BacksteppingController) and isinstance(agents.controller, Controller)
+
+
+def test_a_seed_gives_the_same_robots_for_agents_and_for_their_density():
+    a = assemble(_short(), crowd="point-mass")
+    b = assemble(_short(), crowd="fokker-planck")
+    np.testing.assert_array_equal(a.robots.positions, b.robots.positions)
+    np.testing.assert_array_equal(a.robots.headings, b.robots.headings)
+
+
+def test_the_same_loop_runs_on_the_fokker_planck_crowd_and_keeps_its_mass():
+    loop = ClosedLoop(_short(), crowd="fokker-planck")
+    grid = loop.grid
+    mass0 = grid.integrate(loop.density)
+    result = loop.run(progress=False)
+    s = result.summary
+    assert s["status"] == "completed" and s["steps"] == 30
+    assert abs(s["mass_final"] - mass0) < 1e-12  # zero-flux walls: mass to round-off
+    assert s["w2_to_target_final"] is None  # no agents to transport
+    assert "human_x" not in result.dataset and np.isfinite(result.dataset["V2"].values).all()
+    # the robots observed the density itself: the recorded frame is the solver's state
+    np.testing.assert_array_equal(result.dataset["density"].values[-1], loop.crowd.rho)
+    # the law acted on it: V2 decreased (paper scenario, unsaturated start)
+    assert result.dataset["V2"].values[-1] < result.dataset["V2"].values[0]
+
+
+def test_one_step_is_observe_act_advance():
+    parts = assemble(_short())
+    seen = []
+
+    class Spy:
+        def start(self, loop):
+            seen.append(("start", loop.t))
+
+        def step(self, loop, record):
+            seen.append(("step", record.index, record.observation.t, loop.t))
+
+    loop = ClosedLoop(parts, observers=[Spy()])
+    r0 = loop.robots.positions.copy()
+    rec = loop.step()
+    assert seen == [("start", 0.0), ("step", 0, 0.0, loop.dt)]
+    np.testing.assert_array_equal(rec.observation.field.positions, r0)  # observed before moving
+    np.testing.assert_allclose(loop.robots.positions, r0 + loop.dt * rec.u, atol=1e-15)
+    assert np.all(np.hypot(*rec.u.T) <= loop.robots.u_max * (1 + 1e-12))
+    assert rec.saturated  # the paper's law asks for more than u_max at the start
+
+
+def test_a_controller_that_diverges_leaves_the_state_at_the_last_good_step():
+    parts = assemble(_short())
+
+    class Broken:
+        calls = 0
+
+        def act(self, observation):
+            from meanfield.interfaces import Command
+
+            Broken.calls += 1
+            u = np.zeros((16, 2)) + (np.nan if Broken.calls > 3 else 0.0)
+            return Command(u, np.zeros(16))
+
+        def reset(self):
+            pass
+
+    loop = ClosedLoop(dataclasses.replace(parts, controller=Broken()))
+    s = loop.run(progress=False).summary
+    assert s["status"] == "diverged" and s["steps"] == 3 and "non-finite robot inputs" in s["message"]
+    assert math.isclose(loop.t, 0.03) and np.isfinite(loop.crowd.positions).all()
+
+
+def test_bad_input_names_what_is_wrong():
+    with pytest.raises(ParameterError) as exc:
+        ClosedLoop("paper")  # a name is not a scenario
+    assert exc.value.name == "scenario"
+    with pytest.raises(ParameterError) as exc:
+        ClosedLoop(assemble(_short()), sigma=0.1)
+    assert exc.value.name == "overrides"
+    with pytest.raises(ParameterError) as exc:
+        assemble(_short(), crowd="ghosts")
+    assert exc.value.name == "crowd" and "point-mass" in str(exc.value)
+    with pytest.raises(ParameterError) as exc:
+        assemble(_short(), controller="magic")
+    assert exc.value.name == "controller" and "backstepping" in str(exc.value)
+
+
+def test_exits_are_carried_by_the_region_and_refused_by_the_loop_until_they_have_physics():
+    room = Domain.box(1.0, 1.0, exits=[((1.0, 0.4), (1.0, 0.6))])
+    parts = {p.kind: p.length for p in room.boundary_parts()}
+    assert parts["exit"] == pytest.approx(0.2) and parts["wall"] == pytest.approx(3.8, rel=1e-8)
+    assert Domain.from_dict(room.to_dict()) == room
+    with pytest.raises(ParameterError) as exc:
+        Domain.box(1.0, 1.0, exits=[((0.5, 0.5), (0.6, 0.5))])  # inside, not on the boundary
+    assert exc.value.name == "domain.exits[0]"
+    sc = _short().replace(domain=room)
+    with pytest.raises(ParameterError) as exc:
+        assemble(sc)
+    assert exc.value.name == "domain.exits"
+
+
+def test_the_grid_reads_the_shape_from_the_region():
+    from meanfield import Grid
+
+    assert Grid(Domain.box(2, 1), (8, 4)).is_box
+    assert Grid(Domain.polygon([(0, 0), (2, 0), (2, 1), (0, 1)]), (8, 4)).is_box  # a rectangle is a rectangle
+    disk = Grid(Domain.disk(1.0), (16, 16))
+    assert not disk.is_box and disk.area == pytest.approx(math.pi, rel=1e-12)
