@@ -26,13 +26,10 @@ def _pyplot():
 
 
 def save_figure(fig: Any, path: Path) -> Path:
-    """Save a figure atomically as PNG and close it."""
-    from meanfield.io import atomic_write_with
+    """Save a figure atomically as PNG and close it (:func:`meanfield.io.save_figure` at 130 dpi, tight)."""
+    from meanfield import io
 
-    plt = _pyplot()
-    atomic_write_with(Path(path), lambda p: fig.savefig(p, dpi=130, bbox_inches="tight", format="png"))
-    plt.close(fig)
-    return Path(path)
+    return io.save_figure(fig, path, dpi=130, bbox_inches="tight", format="png")
 
 
 def plot_poincare_mode(domain: Domain, grid: Grid, mode: np.ndarray, mu2: float, bound: float, exact: float | None):

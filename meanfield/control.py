@@ -15,7 +15,8 @@ so that (semi-discrete, exactly)::
 
 The extra inputs ``(δu, δω)`` come from a :class:`BetaGammaStrategy`; the default is
 the minimum-norm choice ``β_il = (b_i^(l))²/Z``, ``γ_i = g_i²/Z``,
-``Z = Σ|b_i|² + Σ g_i²`` (DESIGN.md §2), i.e. ``δu_i = A b_i / Z``, ``δω_i = -A g_i / Z``.
+``Z = Σ|b_i|² + Σ g_i²`` (docs page *The controller*, ``docs/controller.md#choosing-beta-and-gamma``),
+i.e. ``δu_i = A b_i / Z``, ``δω_i = -A g_i / Z``.
 
 ``∂_t v_d`` is either *model-based* (chain rule through ``ρ`` with
 ``∂_t ρ = -∇·((v_r + u_W) ρ - ∇(σρ))``, the Fokker–Planck right-hand side) or a finite
@@ -141,7 +142,9 @@ class BetaGammaStrategy(Protocol):
 
 
 class MinimumNormBetaGamma:
-    """Minimum-norm solution: ``δu_i = A b_i / Z``, ``δω_i = -A g_i / Z`` (DESIGN.md §2).
+    """Minimum-norm solution: ``δu_i = A b_i / Z``, ``δω_i = -A g_i / Z``.
+
+    Derived on the docs page *The controller* (``docs/controller.md#choosing-beta-and-gamma``).
 
     Equivalent to ``β_il = (b_i^(l))²/Z`` and ``γ_i = g_i²/Z`` in the paper's eq. (8):
     non-negative, summing to 1, zero where the integral is zero, and with no division by

@@ -1,6 +1,7 @@
 """Navigation kernels K(ξ, θ) of the robots' signs and interaction potentials W.
 
-Navigation field of one robot (paper, Section III, and DESIGN.md §1)::
+Navigation field of one robot (paper, Section III; docs pages *The model* and *The paper's
+slips*, ``docs/paper_slips.md#kernel-definitions``)::
 
     K(ξ, θ) = K̄(ξ) e(θ),            e(θ) = (cos θ, sin θ)
     K̄(ξ)    = c exp(-|ξ|²/η)         (c: strength, η: range)

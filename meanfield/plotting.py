@@ -18,7 +18,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from meanfield.io import atomic_write_with  # noqa: E402
+from meanfield.io import atomic_write_with, save_figure  # noqa: E402
 from meanfield.robots import navigation_velocity  # noqa: E402
 
 if TYPE_CHECKING:
@@ -99,12 +99,11 @@ def _draw_crowd(ax, result: SimulationResult, k: int):
 
 
 def _outline(ax, result: SimulationResult):
+    """Ω's boundary: walls in black, exits in green (metres for plans)."""
     dom = result.scenario.domain
-    if dom.kind == "disk":
-        ax.add_patch(plt.Circle(dom.center, dom.radius, fill=False, ec="k", lw=1))
-    else:
-        v = np.vstack([dom.vertices, dom.vertices[:1]])
-        ax.plot(v[:, 0], v[:, 1], "k-", lw=1)
+    for part in dom.boundary_parts():
+        style = {"color": "k", "lw": 1} if part.kind == "wall" else {"color": "tab:green", "lw": 3}
+        ax.plot(part.points[:, 0], part.points[:, 1], **style)
     x0, x1, y0, y1 = dom.bounds
     pad = 0.02 * max(x1 - x0, y1 - y0)
     ax.set_xlim(x0 - pad, x1 + pad)
@@ -129,9 +128,7 @@ def plot_snapshots(result: SimulationResult, count: int = 4):
 
 
 def _save(fig, path: Path) -> Path:
-    path = atomic_write_with(path, lambda p: fig.savefig(p, dpi=110))
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=110)
 
 
 def save_run_figures(result: SimulationResult, out_dir: Path) -> dict[str, Path]:

@@ -39,6 +39,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from meanfield.cli import parse_set  # noqa: E402
+from meanfield.io import save_figure  # noqa: E402
 from meanfield.scenario import paper_scenario  # noqa: E402
 
 SUMMARY_KEYS = (
@@ -181,8 +182,7 @@ def _curves(rows: list[dict], key: str, ylabel: str, path: Path, log: bool = Fal
     ax.grid(alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path, dpi=120)
 
 
 def _compute_figure(rows: list[dict], path: Path) -> None:
@@ -206,8 +206,7 @@ def _compute_figure(rows: list[dict], path: Path) -> None:
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path, dpi=120)
 
 
 def _snapshots(rows: list[dict], path: Path) -> None:
@@ -236,8 +235,7 @@ def _snapshots(rows: list[dict], path: Path) -> None:
             ax.set_title(f"{kind}, t = {snap['time']:g}", fontsize=9)
     fig.suptitle(f"paper scenario, seed {seed}: humans (dots), robots and sign headings (arrows), target region")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)
 
 
 def _medians(rows: list[dict], kind: str) -> dict:

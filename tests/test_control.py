@@ -263,3 +263,18 @@ def test_saturating_alpha_bounds_alpha_over_rho(rng):
     c = ConstantAlpha(0.3)
     r = r + 0.1
     np.testing.assert_allclose(c.over_rho(r + 1j * EPS).imag / EPS, c.over_rho_derivative(r), rtol=1e-13)
+
+
+def test_the_law_and_the_scenario_agree_on_every_default():
+    """One set of defaults: a BacksteppingController built without gains is the scenario's law."""
+    import inspect
+
+    from meanfield.scenario import ControllerSpec
+
+    spec = ControllerSpec()
+    params = inspect.signature(BacksteppingController).parameters
+    for name in ("k_u", "k_omega", "dvd_dt"):
+        assert params[name].default == getattr(spec, name), name
+    from meanfield.control import DVD_DT_OPTIONS
+
+    assert spec.dvd_dt in DVD_DT_OPTIONS

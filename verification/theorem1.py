@@ -24,6 +24,7 @@ from meanfield.assembly import assemble
 from meanfield.control import AlphaSchedule, ConstantAlpha
 from meanfield.density_crowd import initial_density
 from meanfield.fokker_planck import FokkerPlanck
+from meanfield.io import save_figure
 from meanfield.scenario import Scenario
 from verification.plant import Trajectory, fokker_planck_trajectory, model_trajectory
 from verification.result import CheckResult, worst
@@ -134,8 +135,7 @@ def _figure(path: Path, series: list[tuple[str, Trajectory, float]]) -> None:
     ax[1].set_title("dissipation identity")
     ax[1].legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)
 
 
 def check_theorem1(

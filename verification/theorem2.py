@@ -28,6 +28,7 @@ from meanfield.assembly import assemble, disturbance_for
 from meanfield.density_crowd import initial_density
 from meanfield.fokker_planck import FokkerPlanck
 from meanfield.grid import FaceField, Grid
+from meanfield.io import save_figure
 from meanfield.scenario import Scenario
 from verification.plant import Trajectory, fokker_planck_trajectory
 from verification.result import CheckResult, worst
@@ -85,8 +86,7 @@ def _figure(path: Path, series: list[tuple[str, Trajectory, np.ndarray]]) -> Non
     ax.set_title("‖ρ̃(t)‖ against β(‖ρ̃₀‖, t) + γ sup‖ṽ + v_a‖")
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)
 
 
 def check_theorem2(

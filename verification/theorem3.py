@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from meanfield.io import save_figure
 from meanfield.scenario import Scenario
 from verification.plant import RobotLoopTrajectory, robot_loop_trajectory
 from verification.result import CheckResult, worst
@@ -103,8 +104,7 @@ def _figure(path: Path, runs: list[tuple[str, RobotLoopTrajectory]]) -> None:
         a.set_xlabel("t")
     ax[0].legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)
 
 
 def check_theorem3(

@@ -52,4 +52,4 @@ for label, k in [("gaussian", GaussianKernel(0.5, 0.03)), ("cauchy", kernel)]:
         f"V2 {s['V2_initial']:.3f} -> {s['V2_final']:.3f}"
     )
     # Save data only: the PNG figures draw the arrows of the scenario's Gaussian kernel.
-    result.save(f"runs/custom_kernel/{label}", figures=False)
+    result.save(f"runs/custom_kernel/{label}")  # data only: timeseries.nc, scenario.toml, summary.json

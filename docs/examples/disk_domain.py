@@ -11,6 +11,7 @@ import sys
 import numpy as np
 
 from meanfield import Domain, Scenario, run
+from meanfield.plotting import save_run_figures
 from meanfield.scenario import ControllerSpec, CrowdSpec, DensitySpec, GridSpec, KernelSpec, RobotSpec, TargetSpec
 
 t_final = float(sys.argv[1]) if len(sys.argv) > 1 else 5.0
@@ -42,5 +43,5 @@ print(
     f"||rho~||: {s['l2_error_initial']:.3f} -> {s['l2_error_final']:.3f}, "
     f"W2 to target {s['w2_to_target_final']:.3f}"
 )
-result.save("runs/round_hall")
+result.save("runs/round_hall", artifacts=[save_run_figures])  # + target_and_error.png, snapshots.png
 sys.exit(0 if s["status"] == "completed" else 1)

@@ -17,6 +17,7 @@ import sys
 import numpy as np
 
 from meanfield import MinimumNormBetaGamma, UserBetaGamma, paper_scenario, run
+from meanfield.plotting import save_run_figures
 
 
 def equal_magnitude(b, g, A):
@@ -50,4 +51,4 @@ for label, strategy in [("min-norm", MinimumNormBetaGamma()), ("equal-magnitude"
         f"max |shortfall| {float(np.nanmax(np.abs(ds['shortfall'].values))):.1e}  "
         f"saturated {s['saturated_fraction']:.0%}"
     )
-    result.save(f"runs/user_beta_gamma/{label}")
+    result.save(f"runs/user_beta_gamma/{label}", artifacts=[save_run_figures])
