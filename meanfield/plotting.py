@@ -89,7 +89,11 @@ def _draw_crowd(ax, result: SimulationResult, k: int):
     ds = result.dataset
     pts, v = _field_arrows(result, k)
     ax.quiver(pts[:, 0], pts[:, 1], v[:, 0], v[:, 1], color="0.55", scale=result.scenario.kernel.c * 12, width=0.004)
-    ax.plot(ds["human_x"].values[k], ds["human_y"].values[k], ".", color="tab:red", ms=3)
+    if "human_x" in ds:  # agents; a density crowd has none (its density is the bottom row)
+        ax.plot(ds["human_x"].values[k], ds["human_y"].values[k], ".", color="tab:red", ms=3)
+    else:
+        rho = ds["density"].values[k].T
+        ax.contour(ds["x"].values, ds["y"].values, rho, levels=5, colors="tab:red", linewidths=0.7)
     rx, ry, th = ds["robot_x"].values[k], ds["robot_y"].values[k], ds["robot_heading"].values[k]
     ax.plot(rx, ry, "o", mfc="none", mec="tab:blue", ms=7, mew=1.5)
     ax.quiver(rx, ry, np.cos(th), np.sin(th), color="tab:blue", scale=18, width=0.006)
@@ -122,7 +126,8 @@ def plot_snapshots(result: SimulationResult, count: int = 4):
         im = axes[1, col].imshow(
             ds["density"].values[k].T, origin="lower", extent=_extent(ds), vmin=0, vmax=vmax, cmap="viridis"
         )
-        axes[1, col].set_title("density estimate ρ̂", fontsize=9)
+        title = "density estimate ρ̂" if "human_x" in ds else "density ρ (Fokker–Planck)"
+        axes[1, col].set_title(title, fontsize=9)
     fig.colorbar(im, ax=axes[1, :].tolist(), shrink=0.8)
     return fig
 
