@@ -116,10 +116,11 @@ class Region(Protocol):
         ...
 
     def cut_cells(
-        self, x_edges: np.ndarray, y_edges: np.ndarray
+        self, x_edges: np.ndarray, y_edges: np.ndarray, dx: float, dy: float
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Cut cells of the lattice ``x_edges × y_edges``: volume fractions ``(nx, ny)`` and the
-        open fractions of the interior x-faces ``(nx-1, ny)`` and y-faces ``(nx, ny-1)``."""
+        """Cut cells of the lattice ``x_edges × y_edges`` (spacings ``dx``, ``dy``): volume
+        fractions ``(nx, ny)`` and the open fractions of the interior x-faces ``(nx-1, ny)``
+        and y-faces ``(nx, ny-1)`` (docs page *Discretisation*)."""
         ...
 
     def cells_meeting(self, x_edges: np.ndarray, y_edges: np.ndarray) -> np.ndarray:
@@ -203,7 +204,7 @@ class Observation:
     t : float
         Time.
     dt : float or None
-        Time since the previous observation (None: the first).
+        The control period (the time to the next observation); None where there is none.
     """
 
     density: np.ndarray
