@@ -91,10 +91,9 @@ def run_summary(
         "python_overrides": p.overrides,
         "backend": sc.pedestrians.backend,
         "controller": sc.controller.kind,
-        "field_evaluation": None,
         "field_error_bound_final": _field_error_bound(loop),
         "view_radius": sc.view.radius,
-        **crowd.summary(),
+        **crowd.summary(),  # the crowd's own figures (agents: field_evaluation, seen_fraction_final, bodies)
         "V2_initial": recorder.first_V2,
         "V2_final": float(dataset["V2"].values[-1]) if dataset.sizes["time"] else None,
         "A_final": _last_A(recorder),
