@@ -10,12 +10,9 @@ target region, PedPy's against the toolkit's, and the density maps side by side
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
-
-if TYPE_CHECKING:
-    from analysis.pedestrian_metrics import PedestrianMetrics
 
 __all__ = ["plot_pedestrian_figures"]
 
@@ -30,9 +27,10 @@ def _pyplot():
 
 
 def plot_pedestrian_figures(
-    metrics: PedestrianMetrics, out_dir: str | Path, *, prefix: str = "", dpi: float = 90
+    metrics: Any, out_dir: str | Path, *, prefix: str = "", dpi: float = 90
 ) -> dict[str, Path]:
-    """Draw the two figures of a measured run; return their paths.
+    """Draw the two figures of a measured run (a :class:`~analysis.pedestrian_metrics.PedestrianMetrics`,
+    which calls this; hence no import of it here); return their paths.
 
     - ``{prefix}n_in_target.png``: ``N(t)/N`` from PedPy beside the toolkit's
       ``fraction_in_target``, and their difference in humans, the density window shaded;

@@ -24,10 +24,11 @@ from meanfield.crowd import Crowd
 from meanfield.density import KernelDensityEstimator
 from meanfield.errors import SimulationDiverged
 from meanfield.interaction import InteractionField
-from meanfield.interfaces import CrowdContext, Disturbance, Region
+from meanfield.interfaces import CrowdContext, Disturbance
 from meanfield.kernels import NavigationKernel
 from meanfield.local_view import LocalView
 from meanfield.metrics import fraction_in_disk
+from meanfield.region import Region
 from meanfield.robots import RobotTeam, navigation_velocity
 from meanfield.sampled_field import SampledNavigationField
 

@@ -27,15 +27,23 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Literal, Protocol
+from typing import Any, Literal
 
 import numpy as np
 
-from meanfield.errors import ParameterError, check_sigma, positive_number
+from meanfield.errors import ParameterError, SigmaLike, check_sigma, positive_number
 from meanfield.fokker_planck import FokkerPlanck
 from meanfield.grid import FaceField, Grid
 from meanfield.interaction import InteractionField
-from meanfield.interfaces import Command, ControllerParts, Observation, SigmaLike
+from meanfield.interfaces import (
+    AlphaSchedule,
+    BetaGammaStrategy,
+    Command,
+    ControllerParts,
+    ControlState,
+    ExtraInputs,
+    Observation,
+)
 from meanfield.robots import NavigationField
 
 DVD_DT_OPTIONS = ("model", "fokker-planck", "finite-difference")
@@ -56,22 +64,6 @@ __all__ = [
 
 
 # ---------------------------------------------------------------------- α schedules
-class AlphaSchedule(Protocol):
-    """The gain α(x, t) > 0 of Step I, given as ``q = α/ρ`` on faces and its ρ-derivative."""
-
-    def over_rho(self, rho_f: np.ndarray) -> np.ndarray:
-        """``α/ρ`` at face densities ``rho_f``."""
-        ...
-
-    def over_rho_derivative(self, rho_f: np.ndarray) -> np.ndarray:
-        """``d(α/ρ)/dρ`` at face densities ``rho_f`` (model-based ∂_t v_d)."""
-        ...
-
-    def alpha(self, rho_f: np.ndarray) -> np.ndarray:
-        """``α`` at face densities ``rho_f``."""
-        ...
-
-
 @dataclass(frozen=True)
 class ConstantAlpha:
     """``α(x, t) = α₀``: the paper's plain gain.  ``|v_d|`` grows like ``1/ρ`` where the crowd is thin."""
@@ -120,27 +112,6 @@ class SaturatingAlpha:
 
 
 # ---------------------------------------------------------------------- β/γ strategies
-@dataclass
-class ExtraInputs:
-    """The robots' extra inputs ``δu`` (n, 2), ``δω`` (n,) and the part of ``A`` left uncancelled.
-
-    ``shortfall = A - (Σ b_i·δu_i - Σ g_i δω_i)``: zero when the strategy meets the
-    paper's condition; otherwise ``dV₂/dt`` carries ``+shortfall`` (an ISS input).
-    """
-
-    du: np.ndarray
-    domega: np.ndarray
-    shortfall: float
-
-
-class BetaGammaStrategy(Protocol):
-    """Chooses ``(δu, δω)`` with ``Σ b_i·δu_i - Σ g_i δω_i = A`` (or reports the shortfall)."""
-
-    def __call__(self, b: np.ndarray, g: np.ndarray, A: float) -> ExtraInputs:
-        """Extra inputs for the integrals ``b`` (n, 2), ``g`` (n,) and ``A``."""
-        ...
-
-
 class MinimumNormBetaGamma:
     """Minimum-norm solution: ``δu_i = A b_i / Z``, ``δω_i = -A g_i / Z``.
 
@@ -207,37 +178,6 @@ class UserBetaGamma:
 
 
 # ---------------------------------------------------------------------- the controller
-@dataclass
-class ControlState:
-    """Everything the controller computed at one instant (for logging and checks)."""
-
-    v_d: FaceField
-    v_tilde: FaceField
-    rho_tilde: np.ndarray
-    b: np.ndarray
-    g: np.ndarray
-    A: float
-    u: np.ndarray
-    omega: np.ndarray
-    shortfall: float
-    dissipation: float  # ∫ α |∇ρ̃|²
-    k_u: Any = 0.0  # the gains the law was evaluated with (scalar or per robot)
-    k_omega: Any = 0.0
-
-    def applied_shortfall(self, u: np.ndarray, omega: np.ndarray) -> float:
-        """``A − (Σ b_i·δu_i − Σ g_i δω_i)`` for the inputs actually applied (after saturation).
-
-        With ``δu_i = u_i − k_u b_i`` and ``δω_i = ω_i + k_ω g_i``, so that
-        ``dV₂/dt = −∫α|∇ρ̃|² − Σ k_u|b_i|² − Σ k_ω g_i² + applied shortfall`` (eq. (8)):
-        the part of ``A`` the robots did not cancel, whatever the controller, strategy or clipping.
-        """
-        k_u = np.asarray(self.k_u, float)
-        k_u = k_u[:, None] if k_u.ndim else k_u
-        du = u - k_u * self.b
-        dw = omega + np.asarray(self.k_omega, float) * self.g
-        return float(self.A - ((self.b * du).sum() - (self.g * dw).sum()))
-
-
 @dataclass
 class _Prepared:
     """Quantities of one density shared by the terms of the law."""

@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from meanfield.errors import ParameterError, check_sigma
-from meanfield.interfaces import Region, SigmaLike
+from meanfield.errors import ParameterError, SigmaLike, check_sigma
+from meanfield.region import Region
 
 __all__ = ["Crowd"]
 

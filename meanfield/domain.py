@@ -23,7 +23,7 @@ from typing import Any, Literal
 import numpy as np
 
 from meanfield.errors import ParameterError
-from meanfield.interfaces import BoundaryPart
+from meanfield.region import BoundaryPart
 
 __all__ = ["Domain"]
 

@@ -1,11 +1,14 @@
-"""Exceptions of the toolkit: bad parameters and numerical blow-ups."""
+"""Exceptions of the toolkit (bad parameters, numerical blow-ups) and the shared checks of a value."""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
-__all__ = ["ParameterError", "SimulationDiverged", "positive_number", "limit_or_inf"]
+import numpy as np
+
+__all__ = ["ParameterError", "SimulationDiverged", "SigmaLike", "check_sigma", "positive_number", "limit_or_inf"]
 
 
 class ParameterError(ValueError):
@@ -60,11 +63,15 @@ def limit_or_inf(name: str, value: Any) -> float:
     return value
 
 
+SigmaLike = float | Callable[[np.ndarray, np.ndarray, float], np.ndarray]
+"""The crowd's diffusion: a constant ``σ >= 0`` or ``σ(x, y, t)`` (noise ``sqrt(2σ) dB``, eq. (1))."""
+
+
 def check_sigma(name: str, sigma: Any) -> Any:
     """The crowd's diffusion σ (eq. (1)): a callable ``σ(x, y, t)`` as it is, or a finite float ``>= 0``.
 
     The one validation of σ in the toolkit (crowd, controller, Fokker–Planck solver); the
-    type is :data:`meanfield.interfaces.SigmaLike`.  Raises :class:`ParameterError` naming ``name``.
+    type is :data:`SigmaLike`.  Raises :class:`ParameterError` naming ``name``.
     """
     if callable(sigma):
         return sigma

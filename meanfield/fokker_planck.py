@@ -38,12 +38,11 @@ from typing import Literal
 import numpy as np
 from scipy import sparse
 
-from meanfield.errors import ParameterError, check_sigma, positive_number
+from meanfield.errors import ParameterError, SigmaLike, check_sigma, positive_number
 from meanfield.fp_stepping import FaceVelocity as FaceVelocity  # re-exported: the type of solve's face_velocity
-from meanfield.fp_stepping import _TimeStepping
+from meanfield.fp_stepping import _Coefficients, _TimeStepping
 from meanfield.grid import FaceField, Grid
 from meanfield.interaction import InteractionField
-from meanfield.interfaces import SigmaLike
 from meanfield.kernels import InteractionPotential
 
 __all__ = ["FokkerPlanck", "scharfetter_gummel", "METHODS"]
@@ -135,36 +134,6 @@ def _check_point_velocity(name: str, value, shape: tuple[int, int]) -> tuple[np.
     if not (np.all(np.isfinite(vx)) and np.all(np.isfinite(vy))):
         raise ParameterError(name, "non-finite values (NaN or inf)", "finite velocities")
     return vx, vy
-
-
-class _Coefficients:
-    """Scharfetter–Gummel face coefficients times face length, and derived bounds."""
-
-    __slots__ = ("lx", "rx", "ly", "ry", "_out_x", "_out_y", "bounds")
-
-    def __init__(self, lx, rx, ly, ry):
-        self.lx, self.rx, self.ly, self.ry = lx, rx, ly, ry
-        self._out_x = None
-        self._out_y = None
-        self.bounds: dict[str, float] = {}
-
-    def reset(self) -> None:
-        """Forget the derived quantities (the arrays were overwritten)."""
-        self._out_x = None
-        self._out_y = None
-        self.bounds = {}
-
-    def outflow(self, shape) -> tuple[np.ndarray, np.ndarray]:
-        """Σ of the outgoing coefficients of each cell, per direction."""
-        if self._out_x is None:
-            ox = np.zeros(shape)
-            ox[:-1, :] += self.lx
-            ox[1:, :] += self.rx
-            oy = np.zeros(shape)
-            oy[:, :-1] += self.ly
-            oy[:, 1:] += self.ry
-            self._out_x, self._out_y = ox, oy
-        return self._out_x, self._out_y
 
 
 class FokkerPlanck(_TimeStepping):

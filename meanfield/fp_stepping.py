@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.linalg import lapack
@@ -47,9 +46,6 @@ from scipy.sparse import linalg as splinalg
 
 from meanfield.errors import ParameterError, positive_number
 from meanfield.grid import FaceField, Grid
-
-if TYPE_CHECKING:  # annotations only: meanfield.fokker_planck imports this module
-    from meanfield.fokker_planck import _Coefficients
 
 __all__ = ["FaceVelocity"]
 
@@ -72,6 +68,36 @@ def _check_face_field(name: str, value, grid: Grid) -> FaceField:
         raise ParameterError(name, "non-finite values (NaN or inf)", "finite face velocities")
     return fx, fy
 
+
+
+class _Coefficients:
+    """Scharfetter–Gummel face coefficients times face length, and derived bounds."""
+
+    __slots__ = ("lx", "rx", "ly", "ry", "_out_x", "_out_y", "bounds")
+
+    def __init__(self, lx, rx, ly, ry):
+        self.lx, self.rx, self.ly, self.ry = lx, rx, ly, ry
+        self._out_x = None
+        self._out_y = None
+        self.bounds: dict[str, float] = {}
+
+    def reset(self) -> None:
+        """Forget the derived quantities (the arrays were overwritten)."""
+        self._out_x = None
+        self._out_y = None
+        self.bounds = {}
+
+    def outflow(self, shape) -> tuple[np.ndarray, np.ndarray]:
+        """Σ of the outgoing coefficients of each cell, per direction."""
+        if self._out_x is None:
+            ox = np.zeros(shape)
+            ox[:-1, :] += self.lx
+            ox[1:, :] += self.rx
+            oy = np.zeros(shape)
+            oy[:, :-1] += self.ly
+            oy[:, 1:] += self.ry
+            self._out_x, self._out_y = ox, oy
+        return self._out_x, self._out_y
 
 class _StepTooLarge(ParameterError):
     """A step above the method's bound; ``bound`` is the bound at the offending stage."""

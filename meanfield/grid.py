@@ -33,7 +33,7 @@ import numpy as np
 
 from meanfield.cut_cells import SLIVER
 from meanfield.errors import ParameterError
-from meanfield.interfaces import Region
+from meanfield.region import Region
 
 __all__ = ["Grid", "FaceField", "linear_binning"]
 

@@ -1,5 +1,10 @@
 """The three interfaces of the closed loop: :class:`Region`, :class:`Crowd`, :class:`Controller`.
 
+:class:`Region` lives in :mod:`meanfield.region` (the geometry at the bottom of the layers
+names it) and is re-exported here; the controller's contracts come with it: the Step-I gain
+(:class:`AlphaSchedule`), the β/γ rule (:class:`BetaGammaStrategy`, :class:`ExtraInputs`)
+and the law's quantities a command may carry (:class:`ControlState`).
+
 One step of :class:`meanfield.loop.ClosedLoop` (docs page *Architecture*)::
 
     observation = Observation(crowd.density(), robots' field, t, dt)   # what the robots know
@@ -17,17 +22,16 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Literal, Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-if TYPE_CHECKING:  # annotations only: these modules import nothing from here
-    from meanfield.control import BetaGammaStrategy, ControlState
-    from meanfield.grid import Grid
-    from meanfield.interaction import InteractionField
-    from meanfield.kernels import NavigationKernel
-    from meanfield.robots import NavigationField, RobotTeam
-    from meanfield.scenario import Scenario
+from meanfield.errors import SigmaLike
+from meanfield.grid import FaceField, Grid
+from meanfield.interaction import InteractionField
+from meanfield.kernels import NavigationKernel
+from meanfield.region import BoundaryPart, Region
+from meanfield.robots import NavigationField, RobotTeam
 
 __all__ = [
     "BoundaryPart",
@@ -36,116 +40,18 @@ __all__ = [
     "Controller",
     "Observation",
     "Command",
+    "ControlState",
+    "AlphaSchedule",
+    "BetaGammaStrategy",
+    "ExtraInputs",
     "CrowdContext",
     "ControllerParts",
     "SigmaLike",
     "Disturbance",
 ]
 
-SigmaLike = float | Callable[[np.ndarray, np.ndarray, float], np.ndarray]
-"""The crowd's diffusion: a constant ``σ >= 0`` or ``σ(x, y, t)`` (noise ``sqrt(2σ) dB``, eq. (1))."""
-
 Disturbance = Callable[[np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]
 """An external velocity ``v_a(x, y, t) -> (vx, vy)`` (eq. (1))."""
-
-
-# ---------------------------------------------------------------------- Region
-@dataclass(frozen=True)
-class BoundaryPart:
-    """One piece of ∂Ω: a polyline tagged ``"wall"`` (zero flux, reflecting) or ``"exit"`` (a door).
-
-    Attributes
-    ----------
-    kind : {"wall", "exit"}
-    points : ndarray, shape (m, 2)
-        The polyline's vertices in order (metres).
-    """
-
-    kind: Literal["wall", "exit"]
-    points: np.ndarray
-
-    @property
-    def length(self) -> float:
-        """Length of the polyline."""
-        d = np.diff(self.points, axis=0)
-        return float(np.hypot(d[:, 0], d[:, 1]).sum())
-
-
-@runtime_checkable
-class Region(Protocol):
-    """The workspace Ω as geometry (:class:`meanfield.domain.Domain` implements it).
-
-    Ω is a bounded polygon, possibly with holes (a disk is an exact curved special case),
-    whose boundary is split into walls and exits.  Box and disk answer every question
-    below in closed form; a general polygon through shapely.
-    """
-
-    @property
-    def kind(self) -> str:
-        """The registered name of the shape (``"box"``, ``"disk"``, ``"polygon"``, ...)."""
-        ...
-
-    @property
-    def bounds(self) -> tuple[float, float, float, float]:
-        """``(xmin, xmax, ymin, ymax)``."""
-        ...
-
-    @property
-    def center(self) -> tuple[float, float]: ...
-
-    @property
-    def area(self) -> float: ...
-
-    @property
-    def diameter(self) -> float: ...
-
-    def contains(self, x: Any, y: Any, tol: float | None = None) -> np.ndarray:
-        """Membership of the closed region, elementwise."""
-        ...
-
-    def reflect(self, points: np.ndarray) -> np.ndarray:
-        """Mirror, in place, the points that left Ω back inside (reflecting walls)."""
-        ...
-
-    def project(self, points: np.ndarray) -> np.ndarray:
-        """Nearest point of Ω, in place, for the points outside."""
-        ...
-
-    def sample_uniform(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        """``n`` points drawn uniformly from Ω."""
-        ...
-
-    def cut_cells(
-        self, x_edges: np.ndarray, y_edges: np.ndarray, dx: float, dy: float
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Cut cells of the lattice ``x_edges × y_edges`` (spacings ``dx``, ``dy``): volume
-        fractions ``(nx, ny)`` and the open fractions of the interior x-faces ``(nx-1, ny)``
-        and y-faces ``(nx, ny-1)`` (docs page *Discretisation*)."""
-        ...
-
-    def cells_meeting(self, x_edges: np.ndarray, y_edges: np.ndarray) -> np.ndarray:
-        """Mask of the lattice cells whose interior meets Ω."""
-        ...
-
-    def robot_region(self, margin: float) -> Region:
-        """Where robots may stand: Ω inset by ``margin`` (Ω itself for 0)."""
-        ...
-
-    def lattice(self, n: int) -> np.ndarray:
-        """``n`` evenly spread points of Ω (the robots' grid layout)."""
-        ...
-
-    def boundary_parts(self) -> tuple[BoundaryPart, ...]:
-        """∂Ω as walls and exits (every hole's boundary is wall)."""
-        ...
-
-    def to_shapely(self) -> Any:
-        """Ω as a shapely polygon (holes as interiors)."""
-        ...
-
-    def to_dict(self) -> dict[str, Any]:
-        """The scenario's ``[domain]`` table: ``{"kind": name, ...}``."""
-        ...
 
 
 # ---------------------------------------------------------------------- Crowd
@@ -190,6 +96,74 @@ class Crowd(Protocol):
 
 
 # ---------------------------------------------------------------------- Controller
+class AlphaSchedule(Protocol):
+    """The gain α(x, t) > 0 of Step I, given as ``q = α/ρ`` on faces and its ρ-derivative."""
+
+    def over_rho(self, rho_f: np.ndarray) -> np.ndarray:
+        """``α/ρ`` at face densities ``rho_f``."""
+        ...
+
+    def over_rho_derivative(self, rho_f: np.ndarray) -> np.ndarray:
+        """``d(α/ρ)/dρ`` at face densities ``rho_f`` (model-based ∂_t v_d)."""
+        ...
+
+    def alpha(self, rho_f: np.ndarray) -> np.ndarray:
+        """``α`` at face densities ``rho_f``."""
+        ...
+
+
+@dataclass
+class ExtraInputs:
+    """The robots' extra inputs ``δu`` (n, 2), ``δω`` (n,) and the part of ``A`` left uncancelled.
+
+    ``shortfall = A - (Σ b_i·δu_i - Σ g_i δω_i)``: zero when the strategy meets the
+    paper's condition; otherwise ``dV₂/dt`` carries ``+shortfall`` (an ISS input).
+    """
+
+    du: np.ndarray
+    domega: np.ndarray
+    shortfall: float
+
+
+class BetaGammaStrategy(Protocol):
+    """Chooses ``(δu, δω)`` with ``Σ b_i·δu_i - Σ g_i δω_i = A`` (or reports the shortfall)."""
+
+    def __call__(self, b: np.ndarray, g: np.ndarray, A: float) -> ExtraInputs:
+        """Extra inputs for the integrals ``b`` (n, 2), ``g`` (n,) and ``A``."""
+        ...
+
+
+@dataclass
+class ControlState:
+    """Everything the controller computed at one instant (for logging and checks)."""
+
+    v_d: FaceField
+    v_tilde: FaceField
+    rho_tilde: np.ndarray
+    b: np.ndarray
+    g: np.ndarray
+    A: float
+    u: np.ndarray
+    omega: np.ndarray
+    shortfall: float
+    dissipation: float  # ∫ α |∇ρ̃|²
+    k_u: Any = 0.0  # the gains the law was evaluated with (scalar or per robot)
+    k_omega: Any = 0.0
+
+    def applied_shortfall(self, u: np.ndarray, omega: np.ndarray) -> float:
+        """``A − (Σ b_i·δu_i − Σ g_i δω_i)`` for the inputs actually applied (after saturation).
+
+        With ``δu_i = u_i − k_u b_i`` and ``δω_i = ω_i + k_ω g_i``, so that
+        ``dV₂/dt = −∫α|∇ρ̃|² − Σ k_u|b_i|² − Σ k_ω g_i² + applied shortfall`` (eq. (8)):
+        the part of ``A`` the robots did not cancel, whatever the controller, strategy or clipping.
+        """
+        k_u = np.asarray(self.k_u, float)
+        k_u = k_u[:, None] if k_u.ndim else k_u
+        du = u - k_u * self.b
+        dw = omega + np.asarray(self.k_omega, float) * self.g
+        return float(self.A - ((self.b * du).sum() - (self.g * dw).sum()))
+
+
 @dataclass(frozen=True)
 class Observation:
     """What the controller knows at one instant.
@@ -265,7 +239,7 @@ class CrowdContext:
         else until the first step (the robots' initial headings come next).
     """
 
-    scenario: Scenario
+    scenario: Any  # a meanfield.scenario.Scenario (the scenario module sits above this one)
     grid: Grid
     kernel: NavigationKernel
     sigma: SigmaLike
@@ -315,7 +289,7 @@ class ControllerParts:
     sigma: SigmaLike
     interaction: InteractionField | None
     robots: RobotTeam
-    alpha: Any
+    alpha: AlphaSchedule
     k_u: float
     k_omega: float
     beta_gamma: BetaGammaStrategy

@@ -18,81 +18,22 @@ solvers.  :meth:`ClosedLoop.run` attaches the standard observers and returns a r
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
-from functools import cached_property
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
 from meanfield.assembly import Parts, assemble
 from meanfield.errors import ParameterError, SimulationDiverged
-from meanfield.interfaces import Command, Observation
-from meanfield.observers import InputStatistics, Recorder, TargetTracker
+from meanfield.interfaces import Observation
+from meanfield.observers import InputStatistics, Observer, Recorder, StepRecord, TargetTracker
 from meanfield.result import SimulationResult
 from meanfield.robots import NavigationField, saturate_inputs
 from meanfield.scenario import Scenario, load_scenario
 from meanfield.summary import run_summary
 
-__all__ = ["ClosedLoop", "Observer", "StepRecord", "run"]
-
-
-@dataclass
-class StepRecord:
-    """What happened in one step, as observers see it.
-
-    Attributes
-    ----------
-    index : int
-        The step's index ``k`` (from ``t_k = k dt`` to ``t_{k+1}``).
-    observation : Observation
-        What the controller saw at ``t_k``.
-    command : Command
-        What it asked for.
-    u, omega : ndarray
-        The inputs applied (within the speed limits).
-    robots : RobotTeam
-        The robots (their limits).
-    """
-
-    index: int
-    observation: Observation
-    command: Command
-    u: np.ndarray
-    omega: np.ndarray
-    robots: Any
-
-    @cached_property
-    def saturated(self) -> bool:
-        """Whether the limits cut the command (some robot's speed or turn rate reduced)."""
-        c = self.command
-        speed = np.hypot(self.u[:, 0], self.u[:, 1])
-        return bool((np.hypot(c.u[:, 0], c.u[:, 1]) > speed).any() or (np.abs(c.omega) > np.abs(self.omega)).any())
-
-    @cached_property
-    def at_limit(self) -> int:
-        """How many robots' commands reached a speed or turn-rate limit."""
-        return int(self.robots.at_limit(self.command.u, self.command.omega).sum())
-
-    @cached_property
-    def shortfall_applied(self) -> float:
-        """The part of ``A`` the applied inputs did not cancel (NaN without the law's quantities)."""
-        state = self.command.state
-        return math.nan if state is None else state.applied_shortfall(self.u, self.omega)
-
-
-class Observer(Protocol):
-    """Watches the loop; never changes it."""
-
-    def start(self, loop: ClosedLoop) -> None:
-        """The initial state (before the first step)."""
-        ...
-
-    def step(self, loop: ClosedLoop, record: StepRecord) -> None:
-        """After each step (the loop holds the new state)."""
-        ...
+__all__ = ["ClosedLoop", "Observer", "StepRecord", "run"]  # Observer, StepRecord: from meanfield.observers
 
 
 class ClosedLoop:

@@ -12,15 +12,102 @@ Each has ``start(loop)`` and ``step(loop, record)`` (:class:`meanfield.loop.Obse
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+import math
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Any, Protocol
 
 import numpy as np
 
-if TYPE_CHECKING:  # the loop calls its observers; they never import it
-    from meanfield.control import ControlState
-    from meanfield.loop import ClosedLoop, StepRecord
+from meanfield.assembly import Parts
+from meanfield.interfaces import Command, ControlState, Crowd, Observation
+from meanfield.robots import RobotTeam
+from meanfield.scenario import Scenario
 
-__all__ = ["TargetTracker", "InputStatistics", "Recorder", "recorded_humans"]
+__all__ = [
+    "LoopView",
+    "Observer",
+    "StepRecord",
+    "TargetTracker",
+    "InputStatistics",
+    "Recorder",
+    "recorded_humans",
+]
+
+
+class LoopView(Protocol):
+    """What an observer reads of the loop (:class:`meanfield.loop.ClosedLoop` has it all)."""
+
+    parts: Parts
+    scenario: Scenario
+    crowd: Crowd
+    robots: RobotTeam
+    controller: Any
+    grid: Any
+    density: np.ndarray
+    t: float
+    step_index: int
+
+    @property
+    def target(self) -> np.ndarray: ...
+
+    def observe(self) -> Observation: ...
+
+
+@dataclass
+class StepRecord:
+    """What happened in one step, as observers see it.
+
+    Attributes
+    ----------
+    index : int
+        The step's index ``k`` (from ``t_k = k dt`` to ``t_{k+1}``).
+    observation : Observation
+        What the controller saw at ``t_k``.
+    command : Command
+        What it asked for.
+    u, omega : ndarray
+        The inputs applied (within the speed limits).
+    robots : RobotTeam
+        The robots (their limits).
+    """
+
+    index: int
+    observation: Observation
+    command: Command
+    u: np.ndarray
+    omega: np.ndarray
+    robots: RobotTeam
+
+    @cached_property
+    def saturated(self) -> bool:
+        """Whether the limits cut the command (some robot's speed or turn rate reduced)."""
+        c = self.command
+        speed = np.hypot(self.u[:, 0], self.u[:, 1])
+        return bool((np.hypot(c.u[:, 0], c.u[:, 1]) > speed).any() or (np.abs(c.omega) > np.abs(self.omega)).any())
+
+    @cached_property
+    def at_limit(self) -> int:
+        """How many robots' commands reached a speed or turn-rate limit."""
+        return int(self.robots.at_limit(self.command.u, self.command.omega).sum())
+
+    @cached_property
+    def shortfall_applied(self) -> float:
+        """The part of ``A`` the applied inputs did not cancel (NaN without the law's quantities)."""
+        state = self.command.state
+        return math.nan if state is None else state.applied_shortfall(self.u, self.omega)
+
+
+class Observer(Protocol):
+    """Watches the loop; never changes it."""
+
+    def start(self, loop: LoopView) -> None:
+        """The initial state (before the first step)."""
+        ...
+
+    def step(self, loop: LoopView, record: StepRecord) -> None:
+        """After each step (the loop holds the new state)."""
+        ...
 
 
 class TargetTracker:
@@ -31,16 +118,16 @@ class TargetTracker:
         self.fraction = float("nan")
         self.time_to_level: float | None = None
 
-    def _measure(self, loop: ClosedLoop) -> None:
+    def _measure(self, loop: LoopView) -> None:
         p = loop.parts
         self.fraction = loop.crowd.fraction_in_disk(p.target_center, p.target_radius)
         if self.time_to_level is None and self.fraction >= self.level:
             self.time_to_level = loop.t
 
-    def start(self, loop: ClosedLoop) -> None:
+    def start(self, loop: LoopView) -> None:
         self._measure(loop)
 
-    def step(self, loop: ClosedLoop, record: StepRecord) -> None:
+    def step(self, loop: LoopView, record: StepRecord) -> None:
         self._measure(loop)
 
 
@@ -54,10 +141,10 @@ class InputStatistics:
         self.binding_steps = 0
         self.steps = 0
 
-    def start(self, loop: ClosedLoop) -> None:
+    def start(self, loop: LoopView) -> None:
         pass
 
-    def step(self, loop: ClosedLoop, record: StepRecord) -> None:
+    def step(self, loop: LoopView, record: StepRecord) -> None:
         u, w = record.u, record.omega
         self.max_speed = max(self.max_speed, float(np.hypot(u[:, 0], u[:, 1]).max()))
         self.max_turn_rate = max(self.max_turn_rate, float(np.abs(w).max()))
@@ -116,15 +203,15 @@ class Recorder:
         self.first_V2: float | None = None
         self.last_state: ControlState | None = None  # the law's quantities at the last step
         self.humans: np.ndarray | None = None
-        self.loop: ClosedLoop | None = None
+        self.loop: LoopView | None = None
 
-    def start(self, loop: ClosedLoop) -> None:
+    def start(self, loop: LoopView) -> None:
         self.loop = loop
         if loop.crowd.positions is not None:
             self.humans = recorded_humans(loop.crowd.n, loop.scenario.record_humans)
         self.record_state()
 
-    def step(self, loop: ClosedLoop, record: StepRecord) -> None:
+    def step(self, loop: LoopView, record: StepRecord) -> None:
         every = loop.scenario.record_every
         self.last_state = record.command.state
         if record.index % every == 0:

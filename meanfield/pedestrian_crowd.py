@@ -24,9 +24,9 @@ import numpy as np
 from meanfield.agent_crowd import AgentCrowd, initial_positions
 from meanfield.errors import ParameterError
 from meanfield.interfaces import CrowdContext
-from meanfield.interfaces import Region as Domain
 from meanfield.jupedsim_api import JuPedSimAdapter
 from meanfield.metrics import max_body_overlap
+from meanfield.region import Region as Domain
 
 __all__ = ["PedestrianCrowd", "place_bodies", "jupedsim_crowd"]
 

@@ -10,7 +10,6 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -19,10 +18,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from meanfield.io import atomic_write_with, save_figure  # noqa: E402
+from meanfield.result import SimulationResult  # noqa: E402
 from meanfield.robots import navigation_velocity  # noqa: E402
-
-if TYPE_CHECKING:
-    from meanfield.result import SimulationResult
 
 __all__ = ["plot_target_and_error", "plot_snapshots", "save_run_figures", "save_animation"]
 

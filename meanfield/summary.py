@@ -8,15 +8,12 @@ standard observers (:mod:`meanfield.observers`); every key is documented on the 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from meanfield.metrics import w2_block_size, wasserstein2_to_grid_density
-from meanfield.observers import InputStatistics, Recorder, TargetTracker
-
-if TYPE_CHECKING:
-    from meanfield.loop import ClosedLoop
+from meanfield.observers import InputStatistics, LoopView, Recorder, TargetTracker
 
 __all__ = ["run_summary"]
 
@@ -32,7 +29,7 @@ def _finite_max(x: np.ndarray) -> float | None:
 
 
 def run_summary(
-    loop: ClosedLoop,
+    loop: LoopView,
     target: TargetTracker,
     inputs: InputStatistics,
     recorder: Recorder,
@@ -48,8 +45,8 @@ def run_summary(
 
     Parameters
     ----------
-    loop : ClosedLoop
-        At its final state.
+    loop : LoopView
+        The loop (:class:`~meanfield.loop.ClosedLoop`) at its final state.
     target, inputs, recorder
         The standard observers, attached for the whole run.
     dataset : xarray.Dataset
@@ -113,7 +110,7 @@ def _last_A(recorder: Recorder) -> float | None:
     return float(state.A) if state is not None else None
 
 
-def _w2_to_target(loop: ClosedLoop) -> float | None:
+def _w2_to_target(loop: LoopView) -> float | None:
     """W₂ from the agents to the target density (None for a crowd without positions)."""
     positions = loop.crowd.positions
     if positions is None:
@@ -121,13 +118,13 @@ def _w2_to_target(loop: ClosedLoop) -> float | None:
     return wasserstein2_to_grid_density(positions, loop.grid, loop.target, seed=loop.scenario.seed)
 
 
-def _w2_coarsening_bound(loop: ClosedLoop) -> float:
+def _w2_coarsening_bound(loop: LoopView) -> float:
     """How far merging cells for the W₂ solve can move it (0: every cell kept)."""
     b = w2_block_size(loop.grid)
     return 0.0 if b == 1 else b * math.hypot(loop.grid.dx, loop.grid.dy)
 
 
-def _field_error_bound(loop: ClosedLoop) -> float | None:
+def _field_error_bound(loop: LoopView) -> float | None:
     """Interpolation error bound of a sampled ``v_r`` at the final robots (None: exact or no agents)."""
     bound = getattr(loop.crowd, "field_error_bound", None)
     return bound(loop.robots) if bound is not None else None

@@ -77,20 +77,9 @@ def _module_name(path: Path) -> str:
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
-def _type_checking_only(tree: ast.AST) -> set[int]:
-    """ids of the nodes under ``if TYPE_CHECKING:`` (annotations only, never imported at run time)."""
-    out: set[int] = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.If):
-            test = node.test
-            name = test.id if isinstance(test, ast.Name) else getattr(test, "attr", None)
-            if name == "TYPE_CHECKING":
-                out |= {id(n) for stmt in node.body for n in ast.walk(stmt)}
-    return out
-
-
 def import_graph() -> dict[str, set[str]]:
-    """Module → the toolkit modules it imports at run time, lazy imports inside functions included.
+    """Module → the toolkit modules it imports: lazy imports inside functions and imports for
+    annotations only (``if TYPE_CHECKING:``) included, so that no arrow runs back, even for a reader.
 
     ``from package import name`` counts as importing ``package.name`` when that is a module, and
     the package's ``__init__`` otherwise; a module's own parent package is not an edge (importing
@@ -100,11 +89,8 @@ def import_graph() -> dict[str, set[str]]:
     graph: dict[str, set[str]] = {}
     for name, path in modules.items():
         tree = ast.parse(path.read_text(), filename=str(path))
-        skip = _type_checking_only(tree)
         deps: set[str] = set()
         for node in ast.walk(tree):
-            if id(node) in skip:
-                continue
             if isinstance(node, ast.Import):
                 targets = [a.name for a in node.names]
             elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:

@@ -25,8 +25,9 @@ import numpy as np
 
 from meanfield import KernelDensityEstimator, plugins
 from meanfield.agent_crowd import initial_positions
-from meanfield.interfaces import CrowdContext, Region
+from meanfield.interfaces import CrowdContext
 from meanfield.metrics import fraction_in_disk
+from meanfield.region import Region
 from meanfield.robots import navigation_velocity
 
 THRESHOLD = 0.1

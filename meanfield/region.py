@@ -1,0 +1,113 @@
+"""The :class:`Region` interface: the workspace Ω as geometry, its boundary as walls and exits.
+
+The first of the closed loop's three interfaces (:mod:`meanfield.interfaces` holds the
+other two); :class:`meanfield.domain.Domain` implements it.  This module imports nothing of
+the toolkit, so that the geometry at the bottom of the layers can name it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Literal, Protocol, runtime_checkable
+
+import numpy as np
+
+__all__ = ["BoundaryPart", "Region"]
+
+
+@dataclass(frozen=True)
+class BoundaryPart:
+    """One piece of ∂Ω: a polyline tagged ``"wall"`` (zero flux, reflecting) or ``"exit"`` (a door).
+
+    Attributes
+    ----------
+    kind : {"wall", "exit"}
+    points : ndarray, shape (m, 2)
+        The polyline's vertices in order (metres).
+    """
+
+    kind: Literal["wall", "exit"]
+    points: np.ndarray
+
+    @property
+    def length(self) -> float:
+        """Length of the polyline."""
+        d = np.diff(self.points, axis=0)
+        return float(np.hypot(d[:, 0], d[:, 1]).sum())
+
+
+@runtime_checkable
+class Region(Protocol):
+    """The workspace Ω as geometry (:class:`meanfield.domain.Domain` implements it).
+
+    Ω is a bounded polygon, possibly with holes (a disk is an exact curved special case),
+    whose boundary is split into walls and exits.  Box and disk answer every question
+    below in closed form; a general polygon through shapely.
+    """
+
+    @property
+    def kind(self) -> str:
+        """The registered name of the shape (``"box"``, ``"disk"``, ``"polygon"``, ...)."""
+        ...
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """``(xmin, xmax, ymin, ymax)``."""
+        ...
+
+    @property
+    def center(self) -> tuple[float, float]: ...
+
+    @property
+    def area(self) -> float: ...
+
+    @property
+    def diameter(self) -> float: ...
+
+    def contains(self, x: Any, y: Any, tol: float | None = None) -> np.ndarray:
+        """Membership of the closed region, elementwise."""
+        ...
+
+    def reflect(self, points: np.ndarray) -> np.ndarray:
+        """Mirror, in place, the points that left Ω back inside (reflecting walls)."""
+        ...
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """Nearest point of Ω, in place, for the points outside."""
+        ...
+
+    def sample_uniform(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        """``n`` points drawn uniformly from Ω."""
+        ...
+
+    def cut_cells(
+        self, x_edges: np.ndarray, y_edges: np.ndarray, dx: float, dy: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Cut cells of the lattice ``x_edges × y_edges`` (spacings ``dx``, ``dy``): volume
+        fractions ``(nx, ny)`` and the open fractions of the interior x-faces ``(nx-1, ny)``
+        and y-faces ``(nx, ny-1)`` (docs page *Discretisation*)."""
+        ...
+
+    def cells_meeting(self, x_edges: np.ndarray, y_edges: np.ndarray) -> np.ndarray:
+        """Mask of the lattice cells whose interior meets Ω."""
+        ...
+
+    def robot_region(self, margin: float) -> Region:
+        """Where robots may stand: Ω inset by ``margin`` (Ω itself for 0)."""
+        ...
+
+    def lattice(self, n: int) -> np.ndarray:
+        """``n`` evenly spread points of Ω (the robots' grid layout)."""
+        ...
+
+    def boundary_parts(self) -> tuple[BoundaryPart, ...]:
+        """∂Ω as walls and exits (every hole's boundary is wall)."""
+        ...
+
+    def to_shapely(self) -> Any:
+        """Ω as a shapely polygon (holes as interiors)."""
+        ...
+
+    def to_dict(self) -> dict[str, Any]:
+        """The scenario's ``[domain]`` table: ``{"kind": name, ...}``."""
+        ...
