@@ -21,6 +21,7 @@ from meanfield import plugins
 from meanfield.errors import ParameterError
 
 __all__ = [
+    "region_keywords",
     "all_numbers",
     "choice",
     "integer",
@@ -280,6 +281,14 @@ def _keywords(factory: Any) -> tuple[set[str], set[str]] | None:
             if p.default is p.empty:
                 required.add(p.name)
     return names, required
+
+
+def region_keywords(kind: Any) -> set[str] | None:
+    """The ``[domain]`` keys (besides ``kind``) a registered region kind takes; None if unknown or any."""
+    if not isinstance(kind, str) or kind not in plugins.available("region"):
+        return None
+    keywords = _keywords(plugins.load("region", kind))
+    return None if keywords is None else keywords[0]
 
 
 def region_from_table(table: dict[str, Any]) -> Any:

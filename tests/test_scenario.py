@@ -283,3 +283,37 @@ def test_plugins_settable_with_values():
     sc = paper_scenario()
     assert sc.with_values({"plugins": []}) == sc
     assert _err(lambda: sc.with_values({"plugins": ["meanfield_no_such_plugin_module"]})).name == "plugins"
+
+
+# ---------------------------------------------------------------------- --set on empty fields (issue 16, item 5)
+def test_set_reaches_a_field_that_is_empty_today():
+    from meanfield import paper_scenario
+
+    base = paper_scenario(seed=0)
+    assert base.view.radius is None  # omitted from the scenario's table
+    assert base.with_values({"view.radius": 0.3}).view.radius == 0.3
+    sc = base.with_values(
+        {"robots.layout": "explicit", "robots.positions": [[0.2, 0.2], [0.8, 0.8]], "robots.n": 2}
+    )
+    assert sc.robots.positions is not None and len(sc.robots.positions) == 2
+
+
+def test_set_switches_the_shape_and_then_takes_its_keys():
+    from meanfield import paper_scenario
+
+    sc = paper_scenario(seed=0).with_values({"domain.kind": "disk", "domain.radius": 0.5, "domain.center": [0.5, 0.5]})
+    assert sc.domain.kind == "disk" and sc.domain.radius == 0.5 and sc.domain.center == (0.5, 0.5)
+    with pytest.raises(ParameterError) as exc:
+        paper_scenario(seed=0).with_values({"domain.radius": 0.5})  # still a box
+    assert exc.value.name == "domain.radius" and "'box' region" in str(exc.value) and "width" in str(exc.value)
+
+
+@pytest.mark.parametrize(
+    ("key", "suggestion"), [("view.radiuss", "view.radius"), ("kernel.etta", "kernel.eta"), ("robot.n", "robots.n")]
+)
+def test_a_misspelt_key_is_refused_with_the_field_it_resembles(key, suggestion):
+    from meanfield import paper_scenario
+
+    with pytest.raises(ParameterError) as exc:
+        paper_scenario(seed=0).with_values({key: 1})
+    assert exc.value.name == key and f"did you mean {suggestion}" in str(exc.value)
