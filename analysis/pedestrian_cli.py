@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from meanfield.cli import output_dir
 from meanfield.errors import ParameterError
 
 __all__ = ["register"]
@@ -26,7 +27,7 @@ def register(subparsers: Any):
         help="PedPy measurements of finished runs: N(t) in the target region, density maps (JSON + figures)",
     )
     p.add_argument("run_dirs", nargs="+", metavar="RUN_DIR", help="directories written by meanfield run")
-    p.add_argument("--out", required=True, type=Path, help="output directory")
+    p.add_argument("--out", required=True, type=output_dir, help="output directory (checked before any work)")
     p.add_argument(
         "--window", type=float, default=0.2, help="density maps over the last WINDOW of the run (default 0.2)"
     )

@@ -68,6 +68,7 @@ from typing import Any  # noqa: E402
 from benchmarks.records import RATIO_MEANING, SETTINGS, failed, format_table  # noqa: E402
 from benchmarks.records import measured as measured  # noqa: E402
 from benchmarks.records import skipped as skipped  # noqa: E402
+from meanfield.cli import output_file
 from meanfield.errors import ParameterError  # noqa: E402
 from meanfield.io import atomic_write_json  # noqa: E402
 
@@ -244,7 +245,9 @@ def _epilog() -> str:
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quick", action="store_true", help="short settings (about 1.5 min on 2 cores; full: about 5)")
-    p.add_argument("--out", required=True, type=Path, help="the JSON file (rewritten after every benchmark)")
+    p.add_argument(
+        "--out", required=True, type=output_file, help="the JSON file (rewritten after every benchmark; checked first)"
+    )
     p.add_argument("--only", default=None, metavar="NAME,...", help=f"a subset of: {', '.join(BENCHMARKS)}")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
 

@@ -18,7 +18,39 @@ from pathlib import Path
 from meanfield import plugins
 from meanfield.errors import ParameterError
 
-__all__ = ["main", "add_scenario_arguments", "scenario_from_args", "parse_set", "int_list", "float_list"]
+__all__ = [
+    "main",
+    "add_scenario_arguments",
+    "scenario_from_args",
+    "parse_set",
+    "int_list",
+    "float_list",
+    "output_dir",
+    "output_file",
+]
+
+
+def output_dir(text: str) -> Path:
+    """argparse type of an ``--out`` folder: checked when the command line is read, before any work.
+
+    A path that is a file, lies under a file or is not writable is refused (exit 2) with the reason.
+    """
+    from meanfield.io import check_output_dir
+
+    try:
+        return check_output_dir(text)
+    except ParameterError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def output_file(text: str) -> Path:
+    """argparse type of an ``--out`` file (a JSON report): not a folder, its folder writable."""
+    from meanfield.io import check_output_file
+
+    try:
+        return check_output_file(text)
+    except ParameterError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def parse_set(values: Sequence[str]) -> dict[str, object]:
@@ -43,7 +75,7 @@ def add_scenario_arguments(parser: argparse.ArgumentParser, seed_help: str = "ra
     Read them back with :func:`scenario_from_args`.  Command plugins use both.
     """
     parser.add_argument("scenario", nargs="?", default="paper", help="built-in name (paper) or a TOML file")
-    parser.add_argument("--out", required=True, type=Path, help="output directory")
+    parser.add_argument("--out", required=True, type=output_dir, help="output directory (checked before any work)")
     parser.add_argument("--seed", type=int, default=None, help=seed_help)
     parser.add_argument(
         "--set",
@@ -255,9 +287,24 @@ def _cmd_scenario(args: argparse.Namespace) -> int:
     return 0
 
 
+def _terminated(signum: int, frame: object) -> None:
+    """SIGTERM (batch schedulers, containers, ``kill``) as Ctrl-C: the run keeps its last good state."""
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``meanfield`` command; returns the exit status."""
+    """Entry point of the ``meanfield`` command; returns the exit status.
+
+    SIGTERM is handled as SIGINT while a command runs: a run stops with ``"status":
+    "interrupted"`` and writes its last good state, as after Ctrl-C.
+    """
+    import signal
+    import threading
+
     args = _build_parser().parse_args(argv)
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGTERM, _terminated)
     try:
         if args.command == "run":
             return _cmd_run(args)
@@ -269,6 +316,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ParameterError as exc:
         print(f"meanfield: error: {exc}", file=sys.stderr)
         return 2
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":  # pragma: no cover

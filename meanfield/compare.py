@@ -325,21 +325,22 @@ class ComparisonReport:
 
     def save(self, out: str | Path, artifacts: Any = ()) -> dict[str, Path]:
         """Write ``comparison_<k>.nc`` per case, the ``artifacts`` (e.g.
-        :func:`meanfield.plotting.save_comparison_figures`), and ``summary.json`` last."""
-        from meanfield.io import atomic_write_json, atomic_write_text, atomic_write_with
+        :func:`meanfield.plotting.save_comparison_figures`), and ``summary.json`` last, listing
+        every file with its SHA-256 (:func:`meanfield.io.write_complete_folder`)."""
+        from meanfield.io import atomic_write_text, atomic_write_with, write_complete_folder
 
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        written: dict[str, Path] = {}
-        for k, case in enumerate(self.cases):
-            path = out / f"comparison_{k}.nc"
-            atomic_write_with(path, lambda p, ds=case.dataset: ds.to_netcdf(p, engine="h5netcdf"))
-            written[f"comparison_{k}"] = path
-        written["scenario"] = atomic_write_text(out / "scenario.toml", self.scenario.to_toml())
-        for writer in artifacts:
-            written.update(writer(self, out))
-        written["summary"] = atomic_write_json(out / "summary.json", self.summary)
-        return written
+        def write_files(folder: Path) -> dict[str, Path]:
+            written: dict[str, Path] = {}
+            for k, case in enumerate(self.cases):
+                path = folder / f"comparison_{k}.nc"
+                atomic_write_with(path, lambda p, ds=case.dataset: ds.to_netcdf(p, engine="h5netcdf"))
+                written[f"comparison_{k}"] = path
+            written["scenario"] = atomic_write_text(folder / "scenario.toml", self.scenario.to_toml())
+            for writer in artifacts:
+                written.update(writer(self, folder))
+            return written
+
+        return write_complete_folder(out, write_files, self.summary)
 
 
 def run_comparison(

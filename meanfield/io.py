@@ -1,11 +1,16 @@
-"""Atomic output: a file is either complete or absent, never half-written.
+"""Atomic output: a file is either complete or absent, never half-written; a folder's
+``summary.json`` describes exactly the run beside it.
 
 Each writer writes to a temporary file in the destination's directory, flushes it to
 disk and renames it over the destination (``os.replace`` is atomic on POSIX).
+:func:`write_complete_folder` writes a run's folder (an earlier run's summary removed
+first, ``summary.json`` last with each file's SHA-256), :func:`check_complete_folder`
+checks one; :func:`check_output_dir` checks an ``--out`` before any work starts.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import tempfile
@@ -13,7 +18,17 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-__all__ = ["atomic_write_text", "atomic_write_json", "atomic_write_with", "save_figure"]
+__all__ = [
+    "atomic_write_text",
+    "atomic_write_json",
+    "atomic_write_with",
+    "save_figure",
+    "check_output_dir",
+    "check_output_file",
+    "write_complete_folder",
+    "check_complete_folder",
+    "sha256_of",
+]
 
 
 def atomic_write_with(path: Path, writer: Callable[[Path], None]) -> Path:
@@ -77,3 +92,112 @@ def save_figure(fig: Any, path: str | Path, *, dpi: int = 110, close: bool = Tru
 
         plt.close(fig)
     return out
+
+
+# ---------------------------------------------------------------------- output folders
+def _nearest_existing(path: Path) -> Path:
+    p = path.absolute()
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    return p
+
+
+def check_output_dir(path: str | Path, name: str = "--out") -> Path:
+    """``path`` as a folder a run can write into, checked before any work starts (nothing is created).
+
+    Raises
+    ------
+    ParameterError
+        Named ``name``: the path is a file, or lies under a file, or the folder (or the
+        nearest existing one above it) is not writable.
+    """
+    from meanfield.errors import ParameterError
+
+    path = Path(path)
+    base = _nearest_existing(path)
+    if base == path.absolute() and not base.is_dir():
+        raise ParameterError(name, str(path), "a folder to write into (this path is a file)")
+    if not base.is_dir():
+        raise ParameterError(name, str(path), f"a folder to write into ({base} is a file, not a folder)")
+    if not os.access(base, os.W_OK | os.X_OK):
+        raise ParameterError(name, str(path), f"a folder to write into ({base} is not writable)")
+    return path
+
+
+def check_output_file(path: str | Path, name: str = "--out") -> Path:
+    """``path`` as a file that can be (re)written, checked before any work starts."""
+    from meanfield.errors import ParameterError
+
+    path = Path(path)
+    if path.is_dir():
+        raise ParameterError(name, str(path), "a file path (this is a folder)")
+    check_output_dir(path.parent, name)
+    return path
+
+
+def sha256_of(path: Path) -> str:
+    """The SHA-256 of a file's bytes (hex)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def write_complete_folder(
+    out: str | Path, write_files: Callable[[Path], dict[str, Path]], summary: dict[str, Any]
+) -> dict[str, Path]:
+    """Write one run into ``out`` so that a ``summary.json`` there always describes what is beside it.
+
+    1. An earlier run's ``summary.json`` is removed first, then the files it listed: from
+       here until step 3 the folder holds no summary, i.e. no complete run.
+    2. ``write_files(out)`` writes this run's files (each atomically) and returns them by name.
+    3. ``summary.json`` is written last, with ``files``: each file's name and SHA-256, so a
+       reader can check that every file beside it belongs to this run
+       (:func:`check_complete_folder`).
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    for tmp in out.glob(".*.part*"):  # temporaries of a write that was killed (atomic_write_with's names)
+        tmp.unlink(missing_ok=True)
+    old = out / "summary.json"
+    if old.exists():
+        try:
+            listed = json.loads(old.read_text()).get("files", {})
+        except (OSError, ValueError, AttributeError):
+            listed = {}
+        old.unlink()
+        for name in listed if isinstance(listed, dict) else ():
+            stale = out / name
+            if stale.parent == out and stale.is_file():
+                stale.unlink()
+    paths = write_files(out)
+    files = {p.name: sha256_of(p) for p in paths.values()}
+    paths["summary"] = atomic_write_json(out / "summary.json", {**summary, "files": files})
+    return paths
+
+
+def check_complete_folder(folder: str | Path) -> list[str]:
+    """What is wrong with a folder written by :func:`write_complete_folder` (an empty list: nothing).
+
+    Checks that ``summary.json`` exists (else the run is incomplete: interrupted while saving,
+    or never finished), and that every file it lists exists with the listed SHA-256.
+    """
+    folder = Path(folder)
+    summary = folder / "summary.json"
+    if not summary.exists():
+        return [f"{folder}: no summary.json (no complete run: interrupted while saving, or never saved)"]
+    try:
+        listed = json.loads(summary.read_text()).get("files")
+    except (OSError, ValueError, AttributeError) as exc:
+        return [f"{summary}: unreadable ({exc})"]
+    if not isinstance(listed, dict):
+        return [f"{summary}: no 'files' list (written before files were checked, or not by meanfield)"]
+    problems = []
+    for name, digest in listed.items():
+        p = folder / name
+        if not p.is_file():
+            problems.append(f"{p}: listed in summary.json but missing")
+        elif sha256_of(p) != digest:
+            problems.append(f"{p}: not the file summary.json lists (another run's, or changed)")
+    return problems

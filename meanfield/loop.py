@@ -31,7 +31,7 @@ from meanfield.observers import InputStatistics, Observer, Recorder, StepRecord,
 from meanfield.result import SimulationResult
 from meanfield.robots import NavigationField, saturate_inputs
 from meanfield.scenario import Scenario, load_scenario
-from meanfield.summary import run_summary
+from meanfield.summary import run_id, run_summary
 
 __all__ = ["ClosedLoop", "Observer", "StepRecord", "run"]  # Observer, StepRecord: from meanfield.observers
 
@@ -212,6 +212,9 @@ class ClosedLoop:
             wall=wall,
             steps_run=loop.step_index - first,
         )
+        rid = run_id(loop, status)
+        summary = {"run_id": rid, **summary}
+        dataset.attrs.update(run_id=rid, status=status, message=message)
         return SimulationResult(sc, dataset, summary, p.kernel)
 
 

@@ -129,16 +129,18 @@ def plot_snapshots(result: SimulationResult, count: int = 4):
     return fig
 
 
-def _save(fig, path: Path) -> Path:
-    return save_figure(fig, path, dpi=110)
+def _save(fig, path: Path, run_id: str | None = None) -> Path:
+    meta = {"Comment": f"meanfield run {run_id}"} if run_id else {}
+    return save_figure(fig, path, dpi=110, metadata=meta)
 
 
 def save_run_figures(result: SimulationResult, out_dir: Path) -> dict[str, Path]:
-    """Write ``target_and_error.png`` and ``snapshots.png`` into ``out_dir``."""
+    """Write ``target_and_error.png`` and ``snapshots.png`` into ``out_dir`` (the run's id in their metadata)."""
     out_dir = Path(out_dir)
+    rid = result.summary.get("run_id")
     return {
-        "target_and_error": _save(plot_target_and_error(result), out_dir / "target_and_error.png"),
-        "snapshots": _save(plot_snapshots(result), out_dir / "snapshots.png"),
+        "target_and_error": _save(plot_target_and_error(result), out_dir / "target_and_error.png", rid),
+        "snapshots": _save(plot_snapshots(result), out_dir / "snapshots.png", rid),
     }
 
 

@@ -46,25 +46,33 @@ class SimulationResult:
     def save(self, out_dir: str | Path, artifacts: Iterable[ArtifactWriter] = ()) -> dict[str, Path]:
         """Write ``timeseries.nc``, ``scenario.toml``, the ``artifacts`` and (last) ``summary.json``.
 
-        Every file is written atomically, and ``summary.json`` only once everything else
-        is in place, so a directory with a ``summary.json`` is complete.
+        Every file is written atomically and carries the run's id (``run_id``: the NetCDF
+        attribute, a comment in ``scenario.toml``, the figures' PNG metadata); an earlier
+        run's ``summary.json`` in the folder is removed first, with the files it listed, and
+        the new one, written last, lists every file with its SHA-256
+        (:func:`meanfield.io.write_complete_folder`).  So a folder with a ``summary.json``
+        holds one complete run and nothing else, which
+        :func:`meanfield.io.check_complete_folder` checks.
 
         Parameters
         ----------
         out_dir : str or Path
         artifacts : iterable of callables
-            ``writer(result, out_dir) -> {name: path}``, e.g. :func:`meanfield.plotting.run_figures`.
+            ``writer(result, out_dir) -> {name: path}``, e.g. :func:`meanfield.plotting.save_run_figures`.
         """
-        from meanfield.io import atomic_write_json, atomic_write_text, atomic_write_with
+        from meanfield.io import atomic_write_text, atomic_write_with, write_complete_folder
 
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        paths: dict[str, Path] = {}
-        paths["timeseries"] = atomic_write_with(
-            out / "timeseries.nc", lambda p: self.dataset.to_netcdf(p, engine="h5netcdf")
-        )
-        paths["scenario"] = atomic_write_text(out / "scenario.toml", self.scenario.to_toml())
-        for writer in artifacts:
-            paths.update(writer(self, out))
-        paths["summary"] = atomic_write_json(out / "summary.json", self.summary)
-        return paths
+        rid = self.summary.get("run_id", "")
+
+        def write_files(out: Path) -> dict[str, Path]:
+            paths: dict[str, Path] = {}
+            paths["timeseries"] = atomic_write_with(
+                out / "timeseries.nc", lambda p: self.dataset.to_netcdf(p, engine="h5netcdf")
+            )
+            header = f"# meanfield run {rid}: the scenario of this run (re-runnable as is)\n" if rid else ""
+            paths["scenario"] = atomic_write_text(out / "scenario.toml", header + self.scenario.to_toml())
+            for writer in artifacts:
+                paths.update(writer(self, out))
+            return paths
+
+        return write_complete_folder(out_dir, write_files, self.summary)

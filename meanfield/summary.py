@@ -15,7 +15,7 @@ import numpy as np
 from meanfield.metrics import w2_block_size, wasserstein2_to_grid_density
 from meanfield.observers import InputStatistics, LoopView, Recorder, TargetTracker
 
-__all__ = ["run_summary"]
+__all__ = ["run_summary", "run_id"]
 
 
 def _finite_mean(x: np.ndarray) -> float | None:
@@ -128,3 +128,19 @@ def _field_error_bound(loop: LoopView) -> float | None:
     """Interpolation error bound of a sampled ``v_r`` at the final robots (None: exact or no agents)."""
     bound = getattr(loop.crowd, "field_error_bound", None)
     return bound(loop.robots) if bound is not None else None
+
+
+def run_id(loop: LoopView, status: str) -> str:
+    """An id of the run, derived from what it is: scenario, outcome, steps and final state.
+
+    Two runs with the same id are the same run (reruns of a seed are bit-identical, and so is
+    their id); a folder whose files carry different ids mixes runs.  SHA-256, 16 hex digits.
+    """
+    import hashlib
+
+    h = hashlib.sha256()
+    h.update(loop.scenario.to_toml().encode())
+    h.update(f"|{status}|{loop.step_index}|{','.join(loop.parts.overrides)}|".encode())
+    for arr in (loop.robots.positions, loop.robots.headings, loop.density):
+        h.update(np.ascontiguousarray(arr, dtype=float).tobytes())
+    return h.hexdigest()[:16]

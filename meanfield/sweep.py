@@ -45,6 +45,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from meanfield.cli import output_dir
 from meanfield.errors import ParameterError
 from meanfield.sweep_plan import (
     CACHED_STATUSES,
@@ -286,7 +287,7 @@ def register(subparsers: Any) -> Callable[[argparse.Namespace], int]:
         ),
     )
     p.add_argument("scenario", nargs="?", default="paper", help="built-in name (paper) or a TOML file")
-    p.add_argument("--out", required=True, type=Path, help="output directory")
+    p.add_argument("--out", required=True, type=output_dir, help="output directory (checked before any work)")
     p.add_argument(
         "--set",
         action="append",

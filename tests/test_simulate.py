@@ -124,7 +124,14 @@ def test_save_writes_documented_outputs(result, tmp_path):
         assert DATA_VARS <= set(ds.data_vars)
         for v in DATA_VARS:
             np.testing.assert_array_equal(ds[v].values, result.dataset[v].values)
-    assert (out / "scenario.toml").read_text() == result.scenario.to_toml()
+    toml = (out / "scenario.toml").read_text()
+    assert toml.endswith(result.scenario.to_toml()) and summary["run_id"] in toml.splitlines()[0]
+    with xr.open_dataset(out / "timeseries.nc", engine="h5netcdf") as ds:
+        assert ds.attrs["run_id"] == summary["run_id"] and ds.attrs["status"] == "completed"
+    from PIL import Image
+
+    assert summary["run_id"] in Image.open(out / "snapshots.png").text["Comment"]
+    assert set(summary["files"]) == {p.name for p in out.iterdir() if p.name != "summary.json"}
     for name in ("target_and_error.png", "snapshots.png"):
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert set(paths) >= {"timeseries", "scenario", "summary"}
