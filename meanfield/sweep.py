@@ -255,13 +255,21 @@ def run_sweep(
                     pass
     finally:
         bar.close()
-        # a second Ctrl-C while closing must not lose the runs so far: they are written below
+        # closing a local cluster takes seconds after 100 %, when a user is tempted to press
+        # Ctrl-C: say so; a Ctrl-C then leaves a sweep whose every run is recorded completed,
+        # and a second Ctrl-C while closing must not lose the runs so far (written below)
+        every_run_recorded = len(records) == len(plan.runs)
+        if progress and (client is not None or cluster is not None):
+            import sys
+
+            print("meanfield sweep: closing the Dask cluster (Ctrl-C keeps the runs)...", file=sys.stderr)
         for closing in (client, cluster):
             if closing is not None:
                 try:
                     closing.close()
                 except BaseException:
-                    state = "interrupted"
+                    if not every_run_recorded:
+                        state = "interrupted"
 
     # ---- the dataset
     ds = gather_dataset(
@@ -340,9 +348,7 @@ def _handle(args: argparse.Namespace) -> int:
 
         flat = zip(ds["status"].values.flat, ds["message"].values.flat, strict=True)
         bad = [f"{st}: {m}" if m else st for st, m in flat if st != "completed"]
-        print(
-            f"meanfield: sweep {ds.attrs['status']}: {len(bad)} run(s) not completed; first: {bad[0]}",
-            file=sys.stderr,
-        )
+        first = f"; first: {bad[0]}" if bad else ""
+        print(f"meanfield: sweep {ds.attrs['status']}: {len(bad)} run(s) not completed{first}", file=sys.stderr)
         return 1
     return 0

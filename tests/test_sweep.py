@@ -224,3 +224,29 @@ def test_empty_sweep_is_refused_from_python(tiny_toml, tmp_path):
     with pytest.raises(ParameterError, match="at least one seed"):
         run_sweep(tiny_toml, {"robots.n": [4]}, [], tmp_path / "b")
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+def test_ctrl_c_while_the_cluster_closes_after_100_percent_keeps_a_completed_sweep(
+    tiny_toml, tmp_path, scheduler_address, monkeypatch, capsys
+):
+    """Issue 16, item 4: a Ctrl-C in the seconds after 100 % (closing the cluster) used to record a
+    finished sweep as "interrupted" and end in an IndexError."""
+    import meanfield.sweep as sweep_module
+
+    real_connect = sweep_module._connect
+
+    class ClosingInterrupted:
+        def close(self):
+            raise KeyboardInterrupt
+
+    def connect(scheduler, workers, timeout):
+        client, _ = real_connect(scheduler, workers, timeout)
+        return client, ClosingInterrupted()  # as a local cluster would, closing after the last run
+
+    monkeypatch.setattr(sweep_module, "_connect", connect)
+    out = tmp_path / "sweep"
+    argv = ["sweep", str(tiny_toml), "--set", "robots.n=4,9", "--scheduler", scheduler_address, "--out", str(out)]
+    assert main(argv) == 0
+    with xr.open_dataset(out / "sweep.nc", engine="h5netcdf") as ds:
+        assert ds.attrs["status"] == "completed" and (ds["status"].values == "completed").all()
+    assert "closing the Dask cluster" in capsys.readouterr().err
