@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from meanfield import plugins
+from meanfield.budget import check_fits
 from meanfield.control import BetaGammaStrategy, ConstantAlpha, SaturatingAlpha
 from meanfield.errors import ParameterError
 from meanfield.grid import Grid
@@ -157,6 +158,7 @@ def assemble(
     if not isinstance(scenario, Scenario):
         raise ParameterError("scenario", type(scenario).__name__, "a Scenario")
     sc = scenario
+    check_fits(sc)  # refuse what cannot fit in memory before anything is allocated
     region = sc.domain
     if any(part.kind == "exit" for part in region.boundary_parts()):
         raise ParameterError(

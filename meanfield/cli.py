@@ -175,9 +175,11 @@ def run_artifacts(figures: bool = True, animate: bool = False) -> list:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    from meanfield.budget import check_fits
     from meanfield.loop import ClosedLoop
 
     sc = scenario_from_args(args)
+    check_fits(sc, args.out)  # memory and the output's disk, before anything is allocated
     loop = ClosedLoop(sc)
     result = loop.run(progress=not args.quiet)
     result.save(args.out, artifacts=run_artifacts(figures=not args.no_figures, animate=args.animate))
@@ -201,6 +203,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         extra = ("body_overlap_max", "jupedsim_version")
         print(json.dumps({k: s[k] for k in keys + extra if k in s}, indent=2))
         print(f"outputs in {args.out}")
+    for warning in s.get("warnings", ()):
+        print(f"meanfield: warning: {warning}", file=sys.stderr)
     if s["status"] != "completed":
         print(f"meanfield: run {s['status']}: {s['message']} (outputs of the last good state written)", file=sys.stderr)
         return 1

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from meanfield.assembly import Parts, assemble
+from meanfield.budget import stability_warnings
 from meanfield.errors import ParameterError, SimulationDiverged
 from meanfield.interfaces import Observation
 from meanfield.observers import InputStatistics, Observer, Recorder, StepRecord, TargetTracker
@@ -213,7 +214,7 @@ class ClosedLoop:
             steps_run=loop.step_index - first,
         )
         rid = run_id(loop, status)
-        summary = {"run_id": rid, **summary}
+        summary = {"run_id": rid, **summary, "warnings": stability_warnings(sc, loop.grid, summary)}
         dataset.attrs.update(run_id=rid, status=status, message=message)
         return SimulationResult(sc, dataset, summary, p.kernel)
 

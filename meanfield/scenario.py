@@ -62,6 +62,9 @@ from meanfield.scenario_sections import (
     RobotSpec,
     TargetSpec,
     ViewSpec,
+    field_hint,
+    region_keys,
+    settable,
 )
 from meanfield.scenario_sections import SECTIONS as _SECTIONS
 from meanfield.validation import integer, module_list, num, region_from_table
@@ -256,13 +259,13 @@ class Scenario:
                     node = node.setdefault(p, {})  # free-form: the controller plugin validates it
                     continue
                 if p not in node or not isinstance(node[p], dict):
-                    raise ParameterError(key, value, _field_hint(parts, {}))
+                    raise ParameterError(key, value, field_hint(parts, {}, _TOP_LEVEL))
                 node = node[p]
-            if parts[-1] not in node and not _settable(parts, node):
-                raise ParameterError(key, value, _field_hint(parts, node))
+            if parts[-1] not in node and not settable(parts, node):
+                raise ParameterError(key, value, field_hint(parts, node, _TOP_LEVEL))
             if parts == ["domain", "kind"] and value != node.get("kind", "box"):
                 # another shape: keep only the keys the new one takes (exits survive the switch)
-                keep = _region_keys(value)
+                keep = region_keys(value)
                 for k in [k for k in node if k != "kind" and keep is not None and k not in keep]:
                     del node[k]
             node[parts[-1]] = value
@@ -354,46 +357,6 @@ class Scenario:
         from meanfield.io import atomic_write_text
 
         atomic_write_text(Path(path), self.to_toml())
-
-
-def _region_keys(kind: Any) -> set[str] | None:
-    """The keys of the ``[domain]`` table of a registered region kind (None: unknown, or any)."""
-    from meanfield.validation import region_keywords
-
-    return region_keywords(kind)
-
-
-def _field_hint(parts: list[str], node: dict[str, Any]) -> str:
-    """What is allowed instead of an unknown dotted key: the shape's keys, or the closest field names."""
-    import difflib
-
-    if parts[0] == "domain" and len(parts) == 2:
-        kind = node.get("kind", "box")
-        keys = sorted(_region_keys(kind) or ())
-        return f"a key of the {kind!r} region ({', '.join(keys)}); set domain.kind first to change the shape"
-    names = [f"{sec}.{f.name}" for sec, cls in _SECTIONS.items() for f in fields(cls)]
-    names += [*_TOP_LEVEL, *(f"domain.{k}" for k in sorted(_region_keys(node.get("kind", "box")) or ()))]
-    close = difflib.get_close_matches(".".join(parts), names, n=3, cutoff=0.75)
-    return "an existing scenario field" + (f" (did you mean {' or '.join(close)}?)" if close else "")
-
-
-def _settable(parts: list[str], node: dict[str, Any]) -> bool:
-    """Whether a dotted key absent from the scenario's table names a field that may be set.
-
-    A field left empty today (``view.radius = "none"`` is omitted, so is ``robots.positions``
-    until a layout uses it), a key of the region's kind (``domain.radius`` after
-    ``domain.kind = "disk"``), or a controller option.
-    """
-    if parts[:-1] == ["controller", "options"]:
-        return True
-    if len(parts) != 2:
-        return False
-    section, name = parts
-    if section == "domain":
-        keys = _region_keys(node.get("kind", "box"))
-        return keys is None or name in keys
-    cls = _SECTIONS.get(section)
-    return cls is not None and name in {f.name for f in fields(cls)}
 
 
 # ---------------------------------------------------------------------- built-ins

@@ -11,7 +11,7 @@ assembles the sections and runs the cross-field checks; import the classes from
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -20,9 +20,12 @@ from meanfield import plugins
 from meanfield.control import DVD_DT_OPTIONS
 from meanfield.errors import ParameterError
 from meanfield.jupedsim_api import PEDESTRIAN_MODELS
-from meanfield.validation import all_numbers, choice, integer, num, optional_limit, point
+from meanfield.validation import all_numbers, choice, integer, num, optional_limit, point, region_keywords
 
 __all__ = [
+    "field_hint",
+    "region_keys",
+    "settable",
     "SECTIONS",
     "PEDESTRIAN_MODELS",
     "GridSpec",
@@ -295,3 +298,42 @@ SECTIONS: dict[str, type] = {
     "pedestrians": PedestrianSpec,
 }
 """The scenario's tables in TOML order: ``{table name: section class}``."""
+
+
+# ---------------------------------------------------------------------- keys that --set may name
+def region_keys(kind: Any) -> set[str] | None:
+    """The keys of the ``[domain]`` table of a registered region kind (None: unknown, or any)."""
+    return region_keywords(kind)
+
+
+def field_hint(parts: list[str], node: dict[str, Any], top_level: tuple[str, ...] = ()) -> str:
+    """What is allowed instead of an unknown dotted key: the shape's keys, or the closest field names."""
+    import difflib
+
+    if parts[0] == "domain" and len(parts) == 2:
+        kind = node.get("kind", "box")
+        keys = sorted(region_keys(kind) or ())
+        return f"a key of the {kind!r} region ({', '.join(keys)}); set domain.kind first to change the shape"
+    names = [f"{sec}.{f.name}" for sec, cls in SECTIONS.items() for f in fields(cls)]
+    names += [*top_level, *(f"domain.{k}" for k in sorted(region_keys(node.get("kind", "box")) or ()))]
+    close = difflib.get_close_matches(".".join(parts), names, n=3, cutoff=0.75)
+    return "an existing scenario field" + (f" (did you mean {' or '.join(close)}?)" if close else "")
+
+
+def settable(parts: list[str], node: dict[str, Any]) -> bool:
+    """Whether a dotted key absent from the scenario's table names a field that may be set.
+
+    A field left empty today (``view.radius = "none"`` is omitted, so is ``robots.positions``
+    until a layout uses it), a key of the region's kind (``domain.radius`` after
+    ``domain.kind = "disk"``), or a controller option.
+    """
+    if parts[:-1] == ["controller", "options"]:
+        return True
+    if len(parts) != 2:
+        return False
+    section, name = parts
+    if section == "domain":
+        keys = region_keys(node.get("kind", "box"))
+        return keys is None or name in keys
+    cls = SECTIONS.get(section)
+    return cls is not None and name in {f.name for f in fields(cls)}
