@@ -48,6 +48,7 @@ import numpy as np
 
 from meanfield import plugins as registry
 from meanfield.domain import Domain
+from meanfield.region import Region
 from meanfield.errors import ParameterError
 from meanfield.scenario_sections import (
     PEDESTRIAN_MODELS,
@@ -170,8 +171,8 @@ class Scenario:
             if isinstance(self.record_humans, str):
                 raise ParameterError("record_humans", self.record_humans, 'an integer >= 0, or "all"')
             self.record_humans = integer("record_humans", self.record_humans, 0)
-        if not isinstance(self.domain, Domain):
-            raise ParameterError("domain", self.domain, "a Domain")
+        if not isinstance(self.domain, Region):
+            raise ParameterError("domain", self.domain, "a Region (e.g. a meanfield.Domain)")
         for key, cls in _SECTIONS.items():
             if not isinstance(getattr(self, key), cls):
                 raise ParameterError(key, getattr(self, key), f"a {cls.__name__}")

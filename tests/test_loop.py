@@ -131,3 +131,44 @@ def test_the_grid_reads_the_shape_from_the_region():
     assert Grid(Domain.polygon([(0, 0), (2, 0), (2, 1), (0, 1)]), (8, 4)).is_box  # a rectangle is a rectangle
     disk = Grid(Domain.disk(1.0), (16, 16))
     assert not disk.is_box and disk.area == pytest.approx(math.pi, rel=1e-12)
+
+
+def test_a_new_region_is_one_class_and_one_registration_line(tmp_path):
+    """A region that is not a Domain: the scenario, the assembly and the loop take any Region."""
+    from meanfield import load_scenario, plugins
+
+    class SquareRoom:
+        """A square room of side ``side`` (its geometry delegated to a box)."""
+
+        def __init__(self, side: float = 1.0):
+            self.side = float(side)
+            self._box = Domain.box(self.side, self.side)
+
+        kind = "square-room"
+
+        def __getattr__(self, name):
+            return getattr(self._box, name)
+
+        def robot_region(self, margin):
+            return self if margin <= 0 else self._box.robot_region(margin)
+
+        def to_dict(self):
+            return {"kind": "square-room", "side": self.side}
+
+    plugins.register("region", "square-room", SquareRoom)
+    try:
+        import tomli_w
+
+        table = _short(0.05).to_dict()
+        table["domain"] = {"kind": "square-room", "side": 2.0}
+        table["target"]["center"] = [1.8, 1.8]
+        path = tmp_path / "square.toml"
+        path.write_text(tomli_w.dumps(table))
+        sc = load_scenario(path)  # [domain] kind = "square-room", side = 2.0
+        assert isinstance(sc.domain, SquareRoom) and isinstance(sc.domain, Region)
+        loop = ClosedLoop(sc)
+        s = loop.run(progress=False).summary
+        assert s["status"] == "completed" and s["scenario"]["domain"] == {"kind": "square-room", "side": 2.0}
+        assert loop.grid.x[-1] > 1.9  # the grid spans the 2 m room
+    finally:
+        plugins.unregister("region", "square-room")
