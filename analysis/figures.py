@@ -6,23 +6,16 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from matplotlib import colormaps
 
 from analysis.limits import LimitsStudy
 from analysis.robot_count import RobotCountStudy
 from analysis.robot_count_sweep import RobotCountSweep
 from meanfield.domain import Domain
 from meanfield.grid import Grid
+from meanfield.io import subplots
 
 __all__ = ["plot_poincare_mode", "plot_robot_count", "plot_robot_count_sweep", "plot_limits", "save_figure"]
-
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def save_figure(fig: Any, path: Path) -> Path:
@@ -34,8 +27,7 @@ def save_figure(fig: Any, path: Path) -> Path:
 
 def plot_poincare_mode(domain: Domain, grid: Grid, mode: np.ndarray, mu2: float, bound: float, exact: float | None):
     """The eigenfunction of μ₂ on Ω (the slowest mean-zero density error under Step I)."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(4.8, 4.2))
+    fig, ax = subplots(figsize=(4.8, 4.2))
     x0, x1, y0, y1 = domain.bounds
     m = np.ma.masked_invalid(mode)
     lim = float(np.nanmax(np.abs(mode)))
@@ -53,8 +45,7 @@ def plot_poincare_mode(domain: Domain, grid: Grid, mode: np.ndarray, mu2: float,
 
 def plot_robot_count(study: RobotCountStudy, coverage: dict[float, int], c: float):
     """Closed-loop success over robot counts, with the coverage estimates ``n(ε)`` marked."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    fig, ax = subplots(figsize=(6.4, 4.0))
     counts = study.counts
     for n in counts:
         ax.scatter([n] * len(study.values[n]), study.values[n], s=12, color="0.6", zorder=2)
@@ -92,7 +83,6 @@ def plot_robot_count_sweep(study: RobotCountSweep):
     Cells where half the seeds or more never reached 90 % are grey and read "never";
     white circles mark the smallest count whose median fraction meets the threshold.
     """
-    plt = _pyplot()
     from matplotlib.colors import ListedColormap
 
     counts = np.array(study.counts)
@@ -102,7 +92,7 @@ def plot_robot_count_sweep(study: RobotCountSweep):
     frac = study.fraction[np.ix_(ci, ei)]
     t90 = study.time_to_90[np.ix_(ci, ei)]
     xe, ye = _edges(etas, log=True), _edges(counts, log=False)
-    fig, axes = plt.subplots(1, 2, figsize=(12.0, 4.6), constrained_layout=True)
+    fig, axes = subplots(1, 2, figsize=(12.0, 4.6), constrained_layout=True)
     panels = (
         (axes[0], frac, "viridis", (0.0, 1.0), "median fraction in target at t_final"),
         (axes[1], np.where(np.isinf(t90), np.nan, t90), "magma_r", (0.0, study.t_final), "median time to 90 % (s)"),
@@ -156,11 +146,10 @@ def plot_robot_count_sweep(study: RobotCountSweep):
 def plot_limits(study: LimitsStudy):
     """How often the speed limits bind and what they cost: error curves, the part of ``A`` the
     applied inputs leave uncancelled (the ISS input), the final fraction against ``u_max``."""
-    plt = _pyplot()
-    fig, axes = plt.subplots(1, 3, figsize=(14, 4.0))
+    fig, axes = subplots(1, 3, figsize=(14, 4.0))
     settings = study.settings()
     limits = sorted({u for _, u in settings})
-    colors = {u: plt.cm.viridis(k / max(len(limits) - 1, 1)) for k, u in enumerate(limits)}
+    colors = {u: colormaps["viridis"](k / max(len(limits) - 1, 1)) for k, u in enumerate(limits)}
     styles = {"min-norm": "--", "bounded": "-"}
     for strategy, u in settings:
         runs = [r for r in study.runs if r.strategy == strategy and r.u_max == u]

@@ -13,17 +13,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from matplotlib.patches import Circle
+
+from meanfield.io import subplots
 
 __all__ = ["plot_pedestrian_figures"]
-
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def plot_pedestrian_figures(
@@ -38,10 +32,9 @@ def plot_pedestrian_figures(
       toolkit's KDE density ``N · ρ̂``, mean over the window, on one colour scale (square
       root), the target region dashed.
 
-    Drawn with matplotlib's Agg backend and written by :func:`meanfield.io.save_figure`
+    Drawn without pyplot (the user's backend untouched) and written by :func:`meanfield.io.save_figure`
     (atomically; the figure is closed).
     """
-    plt = _pyplot()
     from matplotlib.colors import PowerNorm
 
     from meanfield.io import save_figure
@@ -50,7 +43,7 @@ def plot_pedestrian_figures(
     label = f"{metrics.scenario} ({metrics.backend}, seed {metrics.seed})"
     paths: dict[str, Path] = {}
 
-    fig, (a0, a1) = plt.subplots(
+    fig, (a0, a1) = subplots(
         2, 1, figsize=(6.4, 4.6), sharex=True, gridspec_kw={"height_ratios": [3, 1]}, constrained_layout=True
     )
     t = metrics.times
@@ -88,13 +81,13 @@ def plot_pedestrian_figures(
     panels.append(("toolkit KDE, N·ρ̂", metrics.density_toolkit))
     vmax = max(float(np.max(p)) for _, p in panels) or 1.0
     norm = PowerNorm(gamma=0.5, vmin=0.0, vmax=vmax)
-    fig, axes = plt.subplots(1, len(panels), figsize=(3.3 * len(panels) + 0.8, 3.5), constrained_layout=True)
+    fig, axes = subplots(1, len(panels), figsize=(3.3 * len(panels) + 0.8, 3.5), constrained_layout=True)
     x0, x1, y0, y1 = metrics.room_bounds
     im = None
     for ax, (title, dens) in zip(axes, panels, strict=True):
         im = ax.pcolormesh(metrics.x_edges, metrics.y_edges, dens.T, cmap="viridis", norm=norm, shading="flat")
         ax.add_patch(
-            plt.Circle(metrics.target_center, metrics.target_radius, fill=False, ec="w", ls="--", lw=1)
+            Circle(metrics.target_center, metrics.target_radius, fill=False, ec="w", ls="--", lw=1)
         )
         ax.set_xlim(x0, x1)
         ax.set_ylim(y0, y1)

@@ -23,6 +23,7 @@ __all__ = [
     "atomic_write_json",
     "atomic_write_with",
     "save_figure",
+    "subplots",
     "check_output_dir",
     "check_output_file",
     "write_complete_folder",
@@ -87,11 +88,32 @@ def save_figure(fig: Any, path: str | Path, *, dpi: int = 110, close: bool = Tru
     path = Path(path)
     fmt = kwargs.pop("format", path.suffix.lstrip(".") or "png")
     out = atomic_write_with(path, lambda p: fig.savefig(p, dpi=dpi, format=fmt, **kwargs))
-    if close:
+    if close and getattr(fig.canvas, "manager", None) is not None:  # a pyplot figure: let pyplot forget it
         import matplotlib.pyplot as plt
 
         plt.close(fig)
     return out
+
+
+def subplots(
+    nrows: int = 1,
+    ncols: int = 1,
+    *,
+    figsize: tuple[float, float] | None = None,
+    constrained_layout: bool = False,
+    squeeze: bool = True,
+    **kwargs: Any,
+) -> tuple[Any, Any]:
+    """A figure and its axes, like :func:`matplotlib.pyplot.subplots` but without pyplot.
+
+    The figure belongs to no GUI backend and is never registered with pyplot, so drawing it
+    neither changes nor needs the user's backend (a notebook's inline plots stay on); it is
+    written by :func:`save_figure` and, returned into a notebook cell, displays as usual.
+    """
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize, layout="constrained" if constrained_layout else None)
+    return fig, fig.subplots(nrows, ncols, squeeze=squeeze, **kwargs)
 
 
 # ---------------------------------------------------------------------- output folders

@@ -11,13 +11,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.patches import Circle
 
-from meanfield.io import atomic_write_with, save_figure  # noqa: E402
+from meanfield.io import atomic_write_with, save_figure, subplots  # noqa: E402
 from meanfield.result import SimulationResult  # noqa: E402
 from meanfield.robots import navigation_velocity  # noqa: E402
 
@@ -33,10 +30,10 @@ def _extent(ds):
 def plot_target_and_error(result: SimulationResult):
     """Fig. 2 of the paper: target density (left) and convergence error over time (right)."""
     ds = result.dataset
-    fig, (a0, a1) = plt.subplots(1, 2, figsize=(10, 4.2), constrained_layout=True)
+    fig, (a0, a1) = subplots(1, 2, figsize=(10, 4.2), constrained_layout=True)
     im = a0.imshow(ds["target_density"].values.T, origin="lower", extent=_extent(ds), cmap="viridis")
     c = (ds.attrs["target_center_x"], ds.attrs["target_center_y"])
-    a0.add_patch(plt.Circle(c, ds.attrs["target_radius"], fill=False, ec="w", ls="--", lw=1))
+    a0.add_patch(Circle(c, ds.attrs["target_radius"], fill=False, ec="w", ls="--", lw=1))
     a0.set_title("target density ρ* (dashed: target region)")
     a0.set_xlabel("x")
     a0.set_ylabel("y")
@@ -116,7 +113,7 @@ def plot_snapshots(result: SimulationResult, count: int = 4):
     ds = result.dataset
     n = ds.sizes["time"]
     idx = np.unique(np.round(np.linspace(0, n - 1, count)).astype(int))
-    fig, axes = plt.subplots(2, len(idx), figsize=(3.2 * len(idx), 6.4), constrained_layout=True, squeeze=False)
+    fig, axes = subplots(2, len(idx), figsize=(3.2 * len(idx), 6.4), constrained_layout=True, squeeze=False)
     vmax = float(np.nanmax(ds["density"].values[idx]))
     for col, k in enumerate(idx):
         _draw_crowd(axes[0, col], result, k)
@@ -151,16 +148,14 @@ def save_animation(result: SimulationResult, path: Path, max_frames: int = 150, 
     ds = result.dataset
     n = ds.sizes["time"]
     frames = np.unique(np.round(np.linspace(0, n - 1, min(n, max_frames))).astype(int))
-    fig, ax = plt.subplots(figsize=(5, 5), constrained_layout=True)
+    fig, ax = subplots(figsize=(5, 5), constrained_layout=True)
 
     def draw(k):
         ax.clear()
         _draw_crowd(ax, result, int(k))
 
     anim = FuncAnimation(fig, draw, frames=frames, interval=1000 / fps)
-    path = atomic_write_with(Path(path), lambda p: anim.save(p, writer=PillowWriter(fps=fps)))
-    plt.close(fig)
-    return path
+    return atomic_write_with(Path(path), lambda p: anim.save(p, writer=PillowWriter(fps=fps)))
 
 
 def plot_comparison_errors(report):
@@ -168,7 +163,7 @@ def plot_comparison_errors(report):
     from meanfield.metrics import fit_slope
 
     cases = report.cases
-    fig, axes = plt.subplots(1, len(cases), figsize=(5.2 * len(cases), 4.4), constrained_layout=True, squeeze=False)
+    fig, axes = subplots(1, len(cases), figsize=(5.2 * len(cases), 4.4), constrained_layout=True, squeeze=False)
     styles = {
         "error_to_expected": ("o-", "C0", "KDE − E[KDE] under PDE"),
         "error_to_pde": ("s--", "C1", "KDE − PDE (incl. KDE bias)"),
@@ -200,7 +195,7 @@ def plot_comparison_snapshots(report, count: int = 3):
     ds = case.dataset
     n_t = ds.sizes["time"]
     ks = np.unique(np.round(np.linspace(0, n_t - 1, count)).astype(int))
-    fig, axes = plt.subplots(2, len(ks), figsize=(3.2 * len(ks), 6.2), constrained_layout=True, squeeze=False)
+    fig, axes = subplots(2, len(ks), figsize=(3.2 * len(ks), 6.2), constrained_layout=True, squeeze=False)
     ext = _extent(ds)
     n_max = int(ds["n_agents"].values[-1])
     for col, k in enumerate(ks):

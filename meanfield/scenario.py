@@ -48,8 +48,8 @@ import numpy as np
 
 from meanfield import plugins as registry
 from meanfield.domain import Domain
-from meanfield.region import Region
 from meanfield.errors import ParameterError
+from meanfield.region import Region
 from meanfield.scenario_sections import (
     PEDESTRIAN_MODELS,
     ControllerSpec,

@@ -24,7 +24,7 @@ from meanfield.assembly import assemble
 from meanfield.control import AlphaSchedule, ConstantAlpha
 from meanfield.density_crowd import initial_density
 from meanfield.fokker_planck import FokkerPlanck
-from meanfield.io import save_figure
+from meanfield.io import save_figure, subplots
 from meanfield.scenario import Scenario
 from verification.plant import Trajectory, fokker_planck_trajectory, model_trajectory
 from verification.result import CheckResult, worst
@@ -118,9 +118,7 @@ def _case(
 
 
 def _figure(path: Path, series: list[tuple[str, Trajectory, float]]) -> None:
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(1, 2, figsize=(10, 3.8))
+    fig, ax = subplots(1, 2, figsize=(10, 3.8))
     for label, tr, k_p in series:
         (line,) = ax[0].semilogy(tr.t, tr.V1, label=f"{label}: V₁")
         bound = tr.V1[0] * np.exp(-k_p * tr.t)

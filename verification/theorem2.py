@@ -28,7 +28,7 @@ from meanfield.assembly import assemble, disturbance_for
 from meanfield.density_crowd import initial_density
 from meanfield.fokker_planck import FokkerPlanck
 from meanfield.grid import FaceField, Grid
-from meanfield.io import save_figure
+from meanfield.io import save_figure, subplots
 from meanfield.scenario import Scenario
 from verification.plant import Trajectory, fokker_planck_trajectory
 from verification.result import CheckResult, worst
@@ -75,9 +75,7 @@ def _faces(grid: Grid, v_a: Callable, t: float) -> FaceField:
 
 
 def _figure(path: Path, series: list[tuple[str, Trajectory, np.ndarray]]) -> None:
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(6.5, 3.8))
+    fig, ax = subplots(figsize=(6.5, 3.8))
     for label, tr, bound in series:
         (line,) = ax.semilogy(tr.t, tr.rho_error, label=f"{label}: ‖ρ̃‖")
         if np.isfinite(bound).all():

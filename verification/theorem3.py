@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from meanfield.io import save_figure
+from meanfield.io import save_figure, subplots
 from meanfield.scenario import Scenario
 from verification.plant import RobotLoopTrajectory, robot_loop_trajectory
 from verification.result import CheckResult, worst
@@ -86,9 +86,7 @@ def _limited(tr: RobotLoopTrajectory) -> dict[str, Any]:
 
 
 def _figure(path: Path, runs: list[tuple[str, RobotLoopTrajectory]]) -> None:
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(1, 3, figsize=(13, 3.6))
+    fig, ax = subplots(1, 3, figsize=(13, 3.6))
     for label, tr in runs:
         style = "-" if "no limits" in label else ":"
         (line,) = ax[0].semilogy(tr.t, tr.V2, style, label=label)
