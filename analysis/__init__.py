@@ -20,24 +20,34 @@ Example::
     mu2 = neumann_eigenvalue(Domain.disk(1.0), cells=(128, 128))
 """
 
-from analysis.bounded import BoundedBetaGamma, BoundedInputs, achievable_range, bounded_inputs_exact
-from analysis.limits import LimitsStudy, limits_study
-from analysis.poincare import (
-    PoincareReport,
-    exact_neumann_eigenvalue,
-    neumann_eigenvalue,
-    payne_weinberger_bound,
-    poincare_report,
-)
-from analysis.rates import GainReport, decay_rate, gains_for_scenario, gains_from_run, iss_gain
-from analysis.robot_count import (
-    CoverageLayout,
-    RobotCountStudy,
-    coverage_estimate,
-    coverage_layout,
-    coverage_radius,
-    empirical_robot_count,
-)
+from meanfield.lazy import lazy_namespace
+
+_LAZY = {
+    "BoundedBetaGamma": "analysis.bounded",
+    "BoundedInputs": "analysis.bounded",
+    "achievable_range": "analysis.bounded",
+    "bounded_inputs_exact": "analysis.bounded",
+    "LimitsStudy": "analysis.limits",
+    "limits_study": "analysis.limits",
+    "PoincareReport": "analysis.poincare",
+    "exact_neumann_eigenvalue": "analysis.poincare",
+    "neumann_eigenvalue": "analysis.poincare",
+    "payne_weinberger_bound": "analysis.poincare",
+    "poincare_report": "analysis.poincare",
+    "GainReport": "analysis.rates",
+    "decay_rate": "analysis.rates",
+    "gains_for_scenario": "analysis.rates",
+    "gains_from_run": "analysis.rates",
+    "iss_gain": "analysis.rates",
+    "CoverageLayout": "analysis.robot_count",
+    "RobotCountStudy": "analysis.robot_count",
+    "coverage_estimate": "analysis.robot_count",
+    "coverage_layout": "analysis.robot_count",
+    "coverage_radius": "analysis.robot_count",
+    "empirical_robot_count": "analysis.robot_count",
+}
+
+__getattr__, __dir__ = lazy_namespace(__name__, globals(), _LAZY)
 
 __all__ = [
     "BoundedBetaGamma",

@@ -51,6 +51,7 @@ SETTINGS: dict[str, dict[str, dict[str, Any]]] = {
         "full": {"solves": 500, "steps": 2000, "repeats": 2},
     },
     "nmpc": {"quick": {"t_final": 1.0, "repeats": 1}, "full": {"t_final": 4.0, "repeats": 3}},
+    "startup": {"quick": {"repeats": 5}, "full": {"repeats": 11}},
 }
 
 

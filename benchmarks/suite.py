@@ -109,6 +109,7 @@ BENCHMARKS: dict[str, Benchmark] = {
         ("large_crowd", "closed loop at N = 1e6 (stadium)", "v_r summed exactly"),
         ("bounded", "bounded beta/gamma: re-solve and closed loop", "rebuild; min-norm"),
         ("nmpc", "NMPC solve per control step", "backstepping law"),
+        ("startup", "import meanfield; meanfield --help (whole processes)", "python -c pass"),
     )
 }
 """The registry: name -> :class:`Benchmark`, in running order."""

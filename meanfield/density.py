@@ -36,7 +36,6 @@ import math
 from typing import Literal
 
 import numpy as np
-from scipy.signal import fftconvolve
 
 from meanfield.errors import ParameterError
 from meanfield.grid import Grid, linear_binning
@@ -260,6 +259,8 @@ class KernelDensityEstimator:
         ox = np.arange(-kx, kx + 1) * bx
         oy = np.arange(-ky, ky + 1) * by
         ker = np.outer(np.exp(-0.5 * ox**2 / (h * h)), np.exp(-0.5 * oy**2 / (h * h))) * norm
+        from scipy.signal import fftconvolve  # 0.35 s to import: only on the fine grids that use it
+
         if self.boundary == "reflect":
             # mirror images across the walls: pad the counts by reflection
             px, py = min(kx, mx), min(ky, my)
@@ -298,6 +299,8 @@ class KernelDensityEstimator:
             oy = np.arange(-(ny - 1), ny) * g.dy
             ker = np.exp(-0.5 * (ox[:, None] ** 2 + oy[None, :] ** 2) / (h * h))
             ker /= 2 * math.pi * h * h
+            from scipy.signal import fftconvolve
+
             m = fftconvolve(g.volume, ker, mode="same")
             self._mass_cache[h] = np.where(g.active, np.maximum(m, 1e-300), 1.0)
         return self._mass_cache[h]

@@ -180,3 +180,9 @@ def test_a_crashing_check_is_an_error_and_exit_1(tmp_path, monkeypatch):
 def test_verify_bad_input_exits_2(tmp_path, capsys, argv, name):
     assert main(["verify", "paper", "--out", str(tmp_path / "o"), *argv]) == 2
     assert name in capsys.readouterr().err
+
+
+def test_the_check_names_of_the_command_line_are_the_runner_s():
+    from verification.result import CHECK_NAMES
+
+    assert tuple(runner.CHECKS) == CHECK_NAMES

@@ -7,15 +7,26 @@ the report behind ``meanfield verify`` (``runner``, ``report``, ``cli``), and th
 demo (``python -m verification.mutation``).
 """
 
-from verification.agents import check_agents, check_pedestrians
-from verification.mean_field import check_mean_field
-from verification.report import render_markdown, write_report
-from verification.result import VERDICTS, CheckResult
-from verification.robot_count import check_robot_count
-from verification.runner import CHECKS, VerificationRun, verify
-from verification.theorem1 import check_theorem1
-from verification.theorem2 import check_theorem2
-from verification.theorem3 import check_theorem3
+from meanfield.lazy import lazy_namespace
+
+_LAZY = {
+    "check_agents": "verification.agents",
+    "check_pedestrians": "verification.agents",
+    "check_mean_field": "verification.mean_field",
+    "render_markdown": "verification.report",
+    "write_report": "verification.report",
+    "VERDICTS": "verification.result",
+    "CheckResult": "verification.result",
+    "check_robot_count": "verification.robot_count",
+    "CHECKS": "verification.runner",
+    "VerificationRun": "verification.runner",
+    "verify": "verification.runner",
+    "check_theorem1": "verification.theorem1",
+    "check_theorem2": "verification.theorem2",
+    "check_theorem3": "verification.theorem3",
+}
+
+__getattr__, __dir__ = lazy_namespace(__name__, globals(), _LAZY)
 
 __all__ = [
     "CHECKS",

@@ -13,8 +13,7 @@ from typing import Any
 
 from meanfield.cli import add_scenario_arguments, scenario_from_args
 from meanfield.errors import ParameterError
-from verification.report import write_report
-from verification.runner import CHECKS, verify
+from verification.result import CHECK_NAMES
 
 __all__ = ["register"]
 
@@ -28,7 +27,7 @@ def register(subparsers: Any):
     add_scenario_arguments(v)
     v.add_argument("--quick", action="store_true", help="short variant of every check (about 2 minutes)")
     v.add_argument(
-        "--checks", default=None, help=f"comma-separated subset of: {', '.join(CHECKS)} (default: all)"
+        "--checks", default=None, help=f"comma-separated subset of: {', '.join(CHECK_NAMES)} (default: all)"
     )
     v.add_argument("--workers", type=int, default=None, help="worker processes for the fan-out checks")
     v.add_argument("--quiet", action="store_true", help="no progress, no verdict lines")
@@ -36,6 +35,9 @@ def register(subparsers: Any):
 
 
 def _handle(args: argparse.Namespace) -> int:
+    from verification.report import write_report
+    from verification.runner import CHECKS, verify
+
     checks = None
     if args.checks is not None:
         checks = [c.strip() for c in args.checks.split(",") if c.strip()]

@@ -24,7 +24,10 @@ from typing import Any, Literal
 
 import numpy as np
 
-__all__ = ["VERDICTS", "Verdict", "CheckResult", "worst", "jsonable"]
+CHECK_NAMES = ("theorem1", "theorem2", "theorem3", "mean_field", "robot_count", "agents", "pedestrians")
+"""The checks of ``meanfield verify``, in report order (:data:`verification.runner.CHECKS` maps them)."""
+
+__all__ = ["CHECK_NAMES", "VERDICTS", "Verdict", "CheckResult", "worst", "jsonable"]
 
 Verdict = Literal["holds", "fails", "inconclusive", "error"]
 VERDICTS: tuple[str, ...] = ("holds", "fails", "inconclusive", "error")
