@@ -69,12 +69,34 @@ def parse_set(values: Sequence[str]) -> dict[str, object]:
     return out
 
 
+_SCENARIO_HELP = "a built-in scenario ({}) or a TOML file"
+
+
+def builtin_names() -> list[str]:
+    """The built-in scenarios (``meanfield/scenarios/*.toml``), read without importing the toolkit."""
+    from importlib import resources
+
+    folder = resources.files("meanfield").joinpath("scenarios")
+    return sorted(p.name[: -len(".toml")] for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def _builtin_description(name: str) -> str:
+    """The first comment line of a built-in scenario's TOML (what it is)."""
+    from importlib import resources
+
+    text = resources.files("meanfield").joinpath("scenarios", f"{name}.toml").read_text(encoding="utf-8")
+    first = next((line for line in text.splitlines() if line.startswith("#")), "")
+    return first.lstrip("# ").strip()
+
+
 def add_scenario_arguments(parser: argparse.ArgumentParser, seed_help: str = "random seed (overrides the scenario's)"):
     """The arguments every scenario command shares: ``[scenario] --out DIR [--seed S] [--set K=V]...``.
 
     Read them back with :func:`scenario_from_args`.  Command plugins use both.
     """
-    parser.add_argument("scenario", nargs="?", default="paper", help="built-in name (paper) or a TOML file")
+    parser.add_argument(
+        "scenario", nargs="?", default="paper", help=_SCENARIO_HELP.format(", ".join(builtin_names()))
+    )
     parser.add_argument("--out", required=True, type=output_dir, help="output directory (checked before any work)")
     parser.add_argument("--seed", type=int, default=None, help=seed_help)
     parser.add_argument(
@@ -91,6 +113,13 @@ def _build_parser() -> argparse.ArgumentParser:
         prog="meanfield",
         description="Mean-field control of crowds by robots (Zheng et al.): simulate, analyse, verify.",
     )
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        installed = version("meanfield-crowd")
+    except PackageNotFoundError:  # pragma: no cover - run from a source tree without installing
+        installed = "unknown (not installed)"
+    p.add_argument("--version", action="version", version=f"meanfield {installed}")
     sub = p.add_subparsers(dest="command", required=True)
     r = sub.add_parser("run", help="run a closed-loop scenario and write its outputs")
     add_scenario_arguments(r)
@@ -123,7 +152,10 @@ def _build_parser() -> argparse.ArgumentParser:
     c.add_argument("--quiet", action="store_true", help="no progress bar, no summary printout")
     c.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     s = sub.add_parser("scenario", help="print a scenario as TOML (a starting point for your own)")
-    s.add_argument("scenario", nargs="?", default="paper")
+    s.add_argument(
+        "scenario", nargs="?", default="paper", help=_SCENARIO_HELP.format(", ".join(builtin_names()))
+    )
+    s.add_argument("--list", action="store_true", help="list the built-in scenarios, one line each")
     for name in plugins.available("command"):  # e.g. `meanfield analyze` from the analysis package
         try:
             handler = plugins.load("command", name)(sub)
@@ -162,7 +194,7 @@ def scenario_from_args(args: argparse.Namespace):
     return sc
 
 
-def run_artifacts(figures: bool = True, animate: bool = False) -> list:
+def run_artifacts(figures: bool = True, animate: bool = False, progress: bool = False) -> list:
     """The files drawn beside a run's data: its figures (:mod:`meanfield.plotting`) and animation."""
     from meanfield import plotting
 
@@ -170,7 +202,11 @@ def run_artifacts(figures: bool = True, animate: bool = False) -> list:
     if figures:
         out.append(plotting.save_run_figures)
     if animate:
-        out.append(lambda result, folder: {"animation": plotting.save_animation(result, folder / "animation.gif")})
+        out.append(
+            lambda result, folder: {
+                "animation": plotting.save_animation(result, folder / "animation.gif", progress=progress)
+            }
+        )
     return out
 
 
@@ -182,7 +218,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     check_fits(sc, args.out)  # memory and the output's disk, before anything is allocated
     loop = ClosedLoop(sc)
     result = loop.run(progress=not args.quiet)
-    result.save(args.out, artifacts=run_artifacts(figures=not args.no_figures, animate=args.animate))
+    artifacts = run_artifacts(figures=not args.no_figures, animate=args.animate, progress=not args.quiet)
+    result.save(args.out, artifacts=artifacts)
     s = result.summary
     if not args.quiet:
         keys = (
@@ -287,6 +324,12 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 def _cmd_scenario(args: argparse.Namespace) -> int:
     from meanfield.scenario import load_scenario
 
+    if args.list:
+        names = builtin_names()
+        width = max(map(len, names))
+        for name in names:
+            print(f"{name:<{width}}  {_builtin_description(name)}")
+        return 0
     sys.stdout.write(load_scenario(args.scenario).to_toml())
     return 0
 

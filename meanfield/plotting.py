@@ -141,9 +141,15 @@ def save_run_figures(result: SimulationResult, out_dir: Path) -> dict[str, Path]
     }
 
 
-def save_animation(result: SimulationResult, path: Path, max_frames: int = 150, fps: int = 15) -> Path:
-    """Animated GIF of humans, robots and v_r over the run (at most ``max_frames`` frames)."""
+def save_animation(
+    result: SimulationResult, path: Path, max_frames: int = 150, fps: int = 15, progress: bool = False
+) -> Path:
+    """Animated GIF of humans, robots and v_r over the run (at most ``max_frames`` frames).
+
+    About 0.3 s a frame: ``progress`` shows a bar (the command line's ``--animate`` does).
+    """
     from matplotlib.animation import FuncAnimation, PillowWriter
+    from tqdm.auto import tqdm
 
     ds = result.dataset
     n = ds.sizes["time"]
@@ -155,7 +161,14 @@ def save_animation(result: SimulationResult, path: Path, max_frames: int = 150, 
         _draw_crowd(ax, result, int(k))
 
     anim = FuncAnimation(fig, draw, frames=frames, interval=1000 / fps)
-    return atomic_write_with(Path(path), lambda p: anim.save(p, writer=PillowWriter(fps=fps)))
+    with tqdm(total=len(frames), disable=not progress, desc="animation.gif", unit="frame") as bar:
+
+        def tick(i: int, n: int) -> None:
+            bar.update(1)
+
+        return atomic_write_with(
+            Path(path), lambda p: anim.save(p, writer=PillowWriter(fps=fps), progress_callback=tick)
+        )
 
 
 def plot_comparison_errors(report):
