@@ -335,13 +335,15 @@ class Recorder:
                 "body_radius": getattr(loop.crowd, "body_radius", 0.0),
                 "humans_total": loop.crowd.n if loop.crowd.n is not None else 0,
                 "humans_recorded": len(self.humans) if self.humans is not None else 0,
-                "units": "lengths in the scenario's unit (metres for plans), times in seconds",
+                "units_system": loop.scenario.units,
+                "Conventions": "CF-1.10",
             },
         )
         if self.humans is not None:
             ds["human"].attrs["description"] = (
                 "index of the human in the crowd (a spaced subset when record_humans < humans_total)"
             )
+        _label_variables(ds, loop.scenario.units)
         ds["robot_speed"].attrs["description"] = "applied (saturated) speed |u_i| during the step from this frame"
         ds["shortfall"].attrs["description"] = "A minus what the strategy's (unclipped) extra inputs cancel"
         ds["shortfall_applied"].attrs["description"] = (
@@ -355,3 +357,49 @@ class Recorder:
             " (-1: none recorded)"
         )
         return ds
+
+
+# CF ``units`` (UDUNITS) of each variable in SI scenarios, and its ``long_name``; "1" marks a
+# dimensionless quantity, and every unit is "1" in the paper's dimensionless scenarios
+_CF: dict[str, tuple[str, str]] = {
+    "time": ("s", "time"),
+    "x": ("m", "x of the cell centre"),
+    "y": ("m", "y of the cell centre"),
+    "robot_x": ("m", "robot position, x"),
+    "robot_y": ("m", "robot position, y"),
+    "robot_heading": ("rad", "sign heading theta_i"),
+    "robot_speed": ("m s-1", "applied robot speed |u_i|"),
+    "robot_turn_rate": ("rad s-1", "applied turn rate omega_i"),
+    "human_x": ("m", "human position, x"),
+    "human_y": ("m", "human position, y"),
+    "density": ("m-2", "crowd density (estimate) on the grid, unit mass"),
+    "target_density": ("m-2", "target density rho_*"),
+    "V1": ("m-2", "V1 = integral of rho_tilde^2"),
+    "rho_error_l2": ("m-1", "L2 norm of rho_tilde"),
+    "v_error_l2": ("m2 s-1", "L2 norm of v_tilde"),
+    "fraction_in_target": ("1", "fraction of the crowd in the target region"),
+    "seen_fraction": ("1", "fraction of humans with a robot in view"),
+}
+
+
+def _label_variables(ds: Any, units: str) -> None:
+    """CF attributes: ``long_name`` everywhere, ``units`` in SI or ``"1"`` when dimensionless.
+
+    V2, A and the shortfalls mix 1/L² with L⁴/T² (docs page *The paper's slips*, units): they
+    get no physical unit, only their ``long_name``.
+    """
+    for name, (unit, long_name) in _CF.items():
+        if name in ds.variables:
+            ds[name].attrs.setdefault("long_name", long_name)
+            ds[name].attrs["units"] = unit if units == "SI" else "1"
+    for name, long_name in (
+        ("V2", "V2 = integral of rho_tilde^2/2 + |v_tilde|^2/2 (mixes 1/L^2 and L^4/T^2)"),
+        ("A", "cross term A of the robot law, eq. (8)"),
+        ("dissipation", "integral of alpha |grad rho_tilde|^2"),
+        ("shortfall", "part of A the strategy leaves uncancelled"),
+        ("shortfall_applied", "part of A the applied inputs leave uncancelled"),
+        ("saturated", "1 if the limits cut a command in this step"),
+        ("robots_at_limit", "robots whose command reached a limit"),
+    ):
+        if name in ds.variables:
+            ds[name].attrs.setdefault("long_name", long_name)

@@ -68,7 +68,7 @@ from meanfield.scenario_sections import (
     settable,
 )
 from meanfield.scenario_sections import SECTIONS as _SECTIONS
-from meanfield.validation import integer, module_list, num, region_from_table
+from meanfield.validation import choice, integer, module_list, num, region_from_table
 
 __all__ = [
     "Scenario",
@@ -92,7 +92,11 @@ __all__ = [
     "resolve_key",
 ]
 
-_TOP_LEVEL = ("name", "seed", "dt", "t_final", "record_every", "record_humans", "plugins")
+_TOP_LEVEL = ("name", "seed", "dt", "t_final", "record_every", "record_humans", "units", "plugins")
+
+UNIT_SYSTEMS = ("SI", "dimensionless")
+"""``units``: ``"SI"`` (lengths in metres, times in seconds: floor plans, the Unity study) or
+``"dimensionless"`` (the paper's MATLAB study: lengths in room widths, its own time unit)."""
 
 
 def resolve_key(key: str, value: Any = None) -> str:
@@ -142,6 +146,7 @@ class Scenario:
     t_final: float = 40.0
     record_every: int = 10
     record_humans: int | str = 10_000
+    units: str = "SI"
     domain: Domain = field(default_factory=lambda: Domain.box(1.0, 1.0))
     grid: GridSpec = field(default_factory=GridSpec)
     crowd: CrowdSpec = field(default_factory=CrowdSpec)
@@ -171,6 +176,7 @@ class Scenario:
             if isinstance(self.record_humans, str):
                 raise ParameterError("record_humans", self.record_humans, 'an integer >= 0, or "all"')
             self.record_humans = integer("record_humans", self.record_humans, 0)
+        self.units = choice("units", self.units, UNIT_SYSTEMS)
         if not isinstance(self.domain, Region):
             raise ParameterError("domain", self.domain, "a Region (e.g. a meanfield.Domain)")
         for key, cls in _SECTIONS.items():
@@ -206,6 +212,14 @@ class Scenario:
         p = self.pedestrians
         if p.backend != "jupedsim":
             return
+        if self.units != "SI":
+            raise ParameterError(
+                "pedestrians.backend",
+                p.backend,
+                f"a scenario in metres and seconds (units = \"SI\") for JuPedSim's bodies, whose radius "
+                f"({p.radius:g} m) and speed ({p.max_speed:g} m/s) are physical; this one is {self.units} "
+                "(the paper's room widths): use paper-unity, the same study in metres",
+            )
         k = self.dt / p.time_step
         if round(k) < 1 or abs(k - round(k)) > 1e-9 * k:
             raise ParameterError(
@@ -282,6 +296,7 @@ class Scenario:
             "t_final": self.t_final,
             "record_every": self.record_every,
             "record_humans": self.record_humans,
+            "units": self.units,
         }
         if self.plugins:
             out["plugins"] = list(self.plugins)

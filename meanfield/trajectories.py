@@ -87,8 +87,9 @@ def write_pedpy_trajectories(dataset: Any, path: str | Path) -> Path:
     ``id frame x y`` per human, with ``id`` the human's index (the ``human`` coordinate
     when it holds integers) and ``frame = k``.  The header gives the frame rate
     ``1 / Δt``, where ``Δt`` is the time between recorded frames, and the unit
-    ``m``: coordinates are written as recorded, in the scenario's unit of length (metres
-    for ``paper-unity``; the unit square of ``paper`` is read as a 1 m × 1 m room).
+    ``m`` for an SI scenario (``paper-unity``, plans); a dimensionless scenario (``paper``:
+    room widths) says so in the header instead of claiming metres (PedPy reads the numbers
+    alike: the unit square of ``paper`` as a 1 m × 1 m room).
     Positions that are not finite (a human absent from a frame) are left out.
 
     The file is written to a temporary file in the destination's directory and moved
@@ -145,11 +146,17 @@ def write_pedpy_trajectories(dataset: Any, path: str | Path) -> Path:
     xs = x.T.ravel()
     ys = y.T.ravel()
     keep = np.isfinite(xs) & np.isfinite(ys)
+    si = dataset.attrs.get("units_system", "SI") == "SI"
     header = (
         "# trajectories of the humans of a meanfield run (meanfield.trajectories)\n"
         f"# framerate: {frame_rate!r}\n"
         f"# frame k is recorded at time {float(times[0])!r} + k / (frame rate); {m} frames, {n} humans\n"
-        "# id frame x/m y/m\n"
+        + (
+            "# id frame x/m y/m\n"
+            if si
+            else "# lengths and times in the scenario's dimensionless units (room widths), not metres and seconds\n"
+            "# id frame x y\n"
+        )
     )
     buf = io.StringIO()
     buf.write(header)
