@@ -27,32 +27,46 @@ def _extent(ds):
     return (x[0] - dx / 2, x[-1] + dx / 2, y[0] - dy / 2, y[-1] + dy / 2)
 
 
+def _units(result: SimulationResult) -> dict[str, str]:
+    """Axis-label units of the run's scenario: SI, or the paper's dimensionless units."""
+    if result.scenario.units == "SI":
+        return {"length": "m", "time": "s", "density": "1/m²"}
+    return {"length": "room widths", "time": "time units", "density": "1/room width²"}
+
+
+def _axes_labels(ax, u: dict[str, str]) -> None:
+    ax.set_xlabel(f"x ({u['length']})")
+    ax.set_ylabel(f"y ({u['length']})")
+
+
 def plot_target_and_error(result: SimulationResult):
     """Fig. 2 of the paper: target density (left) and convergence error over time (right)."""
     ds = result.dataset
-    fig, (a0, a1) = subplots(1, 2, figsize=(10, 4.2), constrained_layout=True)
+    u = _units(result)
+    fig, (a0, a1) = subplots(1, 2, figsize=(10.5, 4.4), constrained_layout=True)
     im = a0.imshow(ds["target_density"].values.T, origin="lower", extent=_extent(ds), cmap="viridis")
     c = (ds.attrs["target_center_x"], ds.attrs["target_center_y"])
     a0.add_patch(Circle(c, ds.attrs["target_radius"], fill=False, ec="w", ls="--", lw=1))
     a0.set_title("target density ρ* (dashed: target region)")
-    a0.set_xlabel("x")
-    a0.set_ylabel("y")
+    _axes_labels(a0, u)
     a0.set_xlim(_extent(ds)[:2])
     a0.set_ylim(_extent(ds)[2:])
-    fig.colorbar(im, ax=a0, shrink=0.85)
+    fig.colorbar(im, ax=a0, shrink=0.85, label=f"ρ* ({u['density']})")
     t = ds["time"].values
     a1.semilogy(t, ds["rho_error_l2"].values, label="‖ρ̃‖ (L²)")
     a1.semilogy(t, ds["v_error_l2"].values, label="‖ṽ‖ (L²)")
-    a1.semilogy(t, ds["V2"].values, label="V₂")
-    a1.set_xlabel("time")
-    a1.set_title("convergence error")
+    a1.semilogy(t, ds["V2"].values, label="V₂ = ½‖ρ̃‖² + ½‖ṽ‖²")
+    a1.set_xlabel(f"time ({u['time']})")
+    a1.set_ylabel("convergence error (log scale)")
+    a1.set_title("convergence error and evacuation")
     a2 = a1.twinx()
-    a2.plot(t, ds["fraction_in_target"].values, "k:", label="fraction in target")
+    a2.plot(t, ds["fraction_in_target"].values, "k:", label="fraction in target (right axis)")
     a2.set_ylim(0, 1)
     a2.set_ylabel("fraction of humans in target region")
     h1, l1 = a1.get_legend_handles_labels()
     h2, l2 = a2.get_legend_handles_labels()
-    a1.legend(h1 + h2, l1 + l2, loc="center right", fontsize=8)
+    # below the axes: a legend inside would cover the curves, which cross the whole panel
+    a1.legend(h1 + h2, l1 + l2, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncols=2, fontsize=8, frameon=False)
     return fig
 
 
@@ -93,7 +107,26 @@ def _draw_crowd(ax, result: SimulationResult, k: int):
     ax.quiver(rx, ry, np.cos(th), np.sin(th), color="tab:blue", scale=18, width=0.006)
     _outline(ax, result)
     ax.set_aspect("equal")
+    _axes_labels(ax, _units(result))
     ax.set_title(f"t = {ds['time'].values[k]:.1f}, in target {ds['fraction_in_target'].values[k]:.0%}", fontsize=9)
+
+
+def _crowd_legend(fig, ds) -> None:
+    """One legend for the snapshots: humans (or the density), robots, their signs, v_r."""
+    from matplotlib.lines import Line2D
+
+    crowd = (
+        Line2D([], [], ls="", marker=".", color="tab:red", label="humans")
+        if "human_x" in ds
+        else Line2D([], [], color="tab:red", lw=0.7, label="crowd density (contours)")
+    )
+    handles = [
+        crowd,
+        Line2D([], [], ls="", marker="o", mfc="none", mec="tab:blue", mew=1.5, label="robots"),
+        Line2D([], [], color="tab:blue", marker=">", ms=5, label="sign heading θᵢ"),
+        Line2D([], [], color="0.55", marker=">", ms=4, label="navigation field v_r"),
+    ]
+    fig.legend(handles=handles, loc="outside upper center", ncols=4, fontsize=8, frameon=False)
 
 
 def _outline(ax, result: SimulationResult):
@@ -122,7 +155,9 @@ def plot_snapshots(result: SimulationResult, count: int = 4):
         )
         title = "density estimate ρ̂" if "human_x" in ds else "density ρ (Fokker–Planck)"
         axes[1, col].set_title(title, fontsize=9)
-    fig.colorbar(im, ax=axes[1, :].tolist(), shrink=0.8)
+        _axes_labels(axes[1, col], _units(result))
+    fig.colorbar(im, ax=axes[1, :].tolist(), shrink=0.8, label=f"density ({_units(result)['density']})")
+    _crowd_legend(fig, ds)
     return fig
 
 
