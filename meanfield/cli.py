@@ -194,11 +194,22 @@ def scenario_from_args(args: argparse.Namespace):
     return sc
 
 
+def _trajectory_file(result, folder: Path) -> dict[str, Path]:
+    """``trajectories.sqlite``: the humans in JuPedSim's format, for PedPy and JuPedSim's viewer."""
+    from meanfield.trajectories import write_jupedsim_sqlite
+
+    if "human_x" not in result.dataset or result.dataset.sizes["time"] < 2:
+        return {}  # a density crowd has no humans to trace
+    area = result.scenario.domain.to_shapely()
+    return {"trajectories": write_jupedsim_sqlite(result.dataset, area, folder / "trajectories.sqlite")}
+
+
 def run_artifacts(figures: bool = True, animate: bool = False, progress: bool = False) -> list:
-    """The files drawn beside a run's data: its figures (:mod:`meanfield.plotting`) and animation."""
+    """The files written beside a run's data: the trajectories (JuPedSim's SQLite format), the
+    figures (:mod:`meanfield.plotting`) and the animation."""
     from meanfield import plotting
 
-    out = []
+    out = [_trajectory_file]
     if figures:
         out.append(plotting.save_run_figures)
     if animate:
