@@ -126,11 +126,11 @@ def _connect(scheduler: str | None, workers: int | None, timeout: float):
         finally:
             if main:
                 signal.signal(signal.SIGINT, previous)
-        return Client(cluster), cluster
+        return Client(cluster, set_as_default=False), cluster  # the global dask config stays the user's
     if not re.fullmatch(r"[a-z]+://[^\s/]+:\d+", scheduler):
         raise ParameterError("--scheduler", scheduler, "a Dask scheduler address, e.g. tcp://127.0.0.1:8786")
     try:
-        client = Client(scheduler, timeout=timeout)
+        client = Client(scheduler, timeout=timeout, set_as_default=False)
     except (OSError, TimeoutError) as exc:
         raise ParameterError(
             "--scheduler",
@@ -141,6 +141,40 @@ def _connect(scheduler: str | None, workers: int | None, timeout: float):
 
 
 # ---------------------------------------------------------------------- the sweep
+def _collect(client: Any, todo: list, runs_dir: Path, records: dict, bar: Any, on_result: Any):
+    """Submit the runs, record each as it completes; ``(state, pending exception, executed)``."""
+    from distributed import as_completed
+
+    from meanfield.io import atomic_write_json
+
+    state, pending_exc, executed = "completed", None, 0
+    futures = {client.submit(_run_one, r["toml"], pure=False, retries=0): r for r in todo}
+    try:
+        for fut in as_completed(futures):
+            r = futures[fut]
+            if fut.status == "finished":
+                summary = fut.result()
+            else:  # a lost worker, a cancelled task: recorded, re-run on resume
+                exc = fut.exception() if fut.status == "error" else None
+                summary = {"status": "error", "message": f"{type(exc).__name__}: {exc}" if exc else fut.status}
+            rec = {"key": r["key"], "values": r["values"], "seed": r["seed"], "summary": summary}
+            atomic_write_json(runs_dir / f"{r['key']}.json", rec)
+            records[r["key"]] = rec
+            executed += 1
+            bar.update()
+            if on_result is not None:
+                on_result(rec)
+    except BaseException as exc:
+        state = "interrupted"
+        if not isinstance(exc, KeyboardInterrupt):
+            pending_exc = exc
+        try:
+            client.cancel(list(futures))
+        except BaseException:  # a cluster already going down, or a second Ctrl-C
+            pass
+    return state, pending_exc, executed
+
+
 def run_sweep(
     scenario: Any,
     sets: dict[str, list],
@@ -196,7 +230,7 @@ def run_sweep(
         Before any run: an unknown key, a value of the wrong type, an empty sweep, a repeated
         value, an invalid seed or worker count, an unreachable scheduler.
     """
-    from meanfield.io import atomic_write_json, atomic_write_with
+    from meanfield.io import atomic_write_with
 
     # ---- validation: nothing is created or run before all of it passes
     base, sets, seed_list = check_sweep(scenario, sets, seeds)
@@ -224,35 +258,10 @@ def run_sweep(
     bar = tqdm(total=len(plan.runs), initial=reused, disable=not progress, desc="meanfield sweep", unit="run")
     try:
         if todo:
-            from distributed import as_completed
-
-            futures = {}
-            for r in todo:
-                fut = client.submit(_run_one, r["toml"], pure=False, retries=0)
-                futures[fut] = r
-            try:
-                for fut in as_completed(futures):
-                    r = futures[fut]
-                    if fut.status == "finished":
-                        summary = fut.result()
-                    else:  # a lost worker, a cancelled task: recorded, re-run on resume
-                        exc = fut.exception() if fut.status == "error" else None
-                        summary = {"status": "error", "message": f"{type(exc).__name__}: {exc}" if exc else fut.status}
-                    rec = {"key": r["key"], "values": r["values"], "seed": r["seed"], "summary": summary}
-                    atomic_write_json(runs_dir / f"{r['key']}.json", rec)
-                    records[r["key"]] = rec
-                    executed += 1
-                    bar.update()
-                    if on_result is not None:
-                        on_result(rec)
-            except BaseException as exc:
-                state = "interrupted"
-                if not isinstance(exc, KeyboardInterrupt):
-                    pending_exc = exc
-                try:
-                    client.cancel(list(futures))
-                except BaseException:  # a cluster already going down, or a second Ctrl-C
-                    pass
+            # this client serves the futures without becoming dask's default (its global config
+            # stays the user's: an xarray or dask call after the sweep must not look for it)
+            with client.as_current():
+                state, pending_exc, executed = _collect(client, todo, runs_dir, records, bar, on_result)
     finally:
         bar.close()
         # closing a local cluster takes seconds after 100 %, when a user is tempted to press

@@ -66,13 +66,13 @@ def scheduler_address(tmp_path_factory):
         )
         from distributed import Client
 
-        with Client(address, timeout=30) as client:
+        with Client(address, timeout=30, set_as_default=False) as client:
             client.wait_for_workers(2, timeout=60)
         yield address
     finally:
         if len(procs) == 2 and procs[1].poll() is None:
             try:  # the graceful way: the scheduler stops its workers (terminate() alone takes ~8 s)
-                with Client(address, timeout=10) as client:
+                with Client(address, timeout=10, set_as_default=False) as client:
                     client.shutdown()
             except Exception:
                 pass
@@ -250,3 +250,16 @@ def test_ctrl_c_while_the_cluster_closes_after_100_percent_keeps_a_completed_swe
     with xr.open_dataset(out / "sweep.nc", engine="h5netcdf") as ds:
         assert ds.attrs["status"] == "completed" and (ds["status"].values == "completed").all()
     assert "closing the Dask cluster" in capsys.readouterr().err
+
+
+def test_a_sweep_leaves_dask_s_global_configuration_as_it_found_it(tiny_toml, tmp_path, scheduler_address):
+    """After a sweep in the same process, xarray (which asks dask for its scheduler) still writes NetCDF."""
+    import dask
+
+    before = dask.config.get("scheduler", None)
+    run_sweep(tiny_toml, {"robots.n": [4]}, 1, tmp_path / "sweep", scheduler=scheduler_address, progress=False)
+    assert dask.config.get("scheduler", None) == before
+    from meanfield import ClosedLoop, load_scenario
+
+    ClosedLoop(load_scenario(tiny_toml)).run(progress=False).save(tmp_path / "run")  # to_netcdf
+    assert (tmp_path / "run" / "summary.json").is_file()
