@@ -41,6 +41,11 @@ def register(subparsers: Any):
     )
     a.add_argument("--seeds", default="0-2", help="seeds of the studies, 'A-B' or 'a,b' (default 0-2)")
     a.add_argument("--workers", type=int, default=None, help="worker processes (default: the cores)")
+    a.add_argument(
+        "--scheduler",
+        default=None,
+        help="a running Dask scheduler (tcp://HOST:PORT) for the fan-out runs; default: a local cluster, as sweep",
+    )
     a.add_argument("--quick", action="store_true", help="64² eigenvalue, no robot-count or limits study")
     a.add_argument("--quiet", action="store_true", help="no progress bars, no summary printout")
     return _handle
@@ -69,17 +74,20 @@ def _handle(args: argparse.Namespace) -> int:
         limits = []
     if args.workers is not None and args.workers < 1:
         raise ParameterError("--workers", args.workers, "an integer >= 1")
-    report = analyze(
-        sc,
-        args.out,
-        cells=64 if args.quick else args.cells,
-        eps_fractions=eps,
-        robot_counts=[] if args.quick else counts,
-        limits=[] if args.quick else limits,
-        seeds=seeds,
-        workers=args.workers,
-        progress=not args.quiet,
-    )
+    from analysis.parallel import jobs_on
+
+    with jobs_on(args.scheduler, args.workers):  # the fan-out runs share one Dask cluster
+        report = analyze(
+            sc,
+            args.out,
+            cells=64 if args.quick else args.cells,
+            eps_fractions=eps,
+            robot_counts=[] if args.quick else counts,
+            limits=[] if args.quick else limits,
+            seeds=seeds,
+            workers=args.workers,
+            progress=not args.quiet,
+        )
     if not args.quiet:
         p = report["poincare"]
         g = report["gains_scenario"]

@@ -37,15 +37,14 @@ writes to ``OUT``.
 from __future__ import annotations
 
 import argparse
-import logging
-import os
-import re
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 from meanfield.cli import output_dir
+from meanfield.cluster import CONNECT_TIMEOUT
+from meanfield.cluster import connect as _connect
 from meanfield.errors import ParameterError
 from meanfield.sweep_plan import (
     CACHED_STATUSES,
@@ -71,7 +70,6 @@ __all__ = [
 ]
 
 #: Seconds to wait for an external scheduler before refusing its address.
-CONNECT_TIMEOUT: float = 10.0
 
 
 # ---------------------------------------------------------------------- worker side
@@ -94,50 +92,6 @@ def _run_one(scenario_toml: str) -> dict[str, Any]:
             "traceback": traceback.format_exc(),
             "wall_seconds": time.perf_counter() - start,
         }
-
-
-# ---------------------------------------------------------------------- client
-def _connect(scheduler: str | None, workers: int | None, timeout: float):
-    """A ``(client, cluster)`` pair; ``cluster`` is None for an external scheduler."""
-    try:
-        from distributed import Client, LocalCluster
-    except ImportError as exc:  # pragma: no cover - dask is a dependency
-        raise ParameterError("scheduler", scheduler, f"dask.distributed installed ({exc})") from None
-
-    if scheduler is None:
-        import signal
-        import threading
-
-        n = workers or os.cpu_count() or 1
-        # the worker processes start with Ctrl-C ignored (an ignored signal stays ignored
-        # across exec): Ctrl-C reaches this process alone, which records the runs so far
-        # and closes the cluster, instead of every worker printing a KeyboardInterrupt
-        main = threading.current_thread() is threading.main_thread()
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
-        try:
-            cluster = LocalCluster(
-                n_workers=n,
-                threads_per_worker=1,
-                processes=True,
-                dashboard_address=None,
-                scheduler_port=0,
-                silence_logs=logging.ERROR,  # not the warnings of tasks cancelled by a Ctrl-C
-            )
-        finally:
-            if main:
-                signal.signal(signal.SIGINT, previous)
-        return Client(cluster, set_as_default=False), cluster  # the global dask config stays the user's
-    if not re.fullmatch(r"[a-z]+://[^\s/]+:\d+", scheduler):
-        raise ParameterError("--scheduler", scheduler, "a Dask scheduler address, e.g. tcp://127.0.0.1:8786")
-    try:
-        client = Client(scheduler, timeout=timeout, set_as_default=False)
-    except (OSError, TimeoutError) as exc:
-        raise ParameterError(
-            "--scheduler",
-            scheduler,
-            f"the address of a running Dask scheduler (could not connect within {timeout:g} s: {exc})",
-        ) from None
-    return client, None
 
 
 # ---------------------------------------------------------------------- the sweep

@@ -26,12 +26,17 @@ def register(subparsers: Any):
     )
     add_scenario_arguments(v)
     v.add_argument(
-        "--quick", action="store_true", help="short variant of every check (about 40 s for paper on 2 cores)"
+        "--quick", action="store_true", help="short variant of every check (about 45 s for paper on 2 cores)"
     )
     v.add_argument(
         "--checks", default=None, help=f"comma-separated subset of: {', '.join(CHECK_NAMES)} (default: all)"
     )
     v.add_argument("--workers", type=int, default=None, help="worker processes for the fan-out checks")
+    v.add_argument(
+        "--scheduler",
+        default=None,
+        help="a running Dask scheduler (tcp://HOST:PORT) for the fan-out runs; default: a local cluster, as sweep",
+    )
     v.add_argument("--quiet", action="store_true", help="no progress, no verdict lines")
     return _handle
 
@@ -60,10 +65,13 @@ def _handle(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(f"{result.key:>12}: {result.verdict:<12} {result.summary[:160]}", flush=True)
 
-    run = verify(
-        scenario, args.out, quick=args.quick, checks=checks, progress=not args.quiet, workers=args.workers,
-        on_result=show,
-    )
+    from analysis.parallel import jobs_on
+
+    with jobs_on(args.scheduler, args.workers):  # the fan-out checks share one Dask cluster
+        run = verify(
+            scenario, args.out, quick=args.quick, checks=checks, progress=not args.quiet, workers=args.workers,
+            on_result=show,
+        )
     paths = write_report(run, args.out)
     if not args.quiet:
         print(f"{run.status} in {run.seconds:.0f} s; report: {paths['report']}")
