@@ -178,8 +178,9 @@ def _unavailable(name: str, exc: Exception):
 def scenario_from_args(args: argparse.Namespace):
     """The scenario named by ``args.scenario``, after ``--seed``, ``--set`` and ``--backend``.
 
-    ``--backend jupedsim`` without JuPedSim installed raises a :class:`ParameterError` that
-    names the install command (exit status 2), before anything runs.
+    The crowd it names is built when the loop is assembled, before anything runs: there,
+    ``jupedsim`` without JuPedSim installed raises a :class:`ParameterError` that names the
+    install command (exit status 2).
     """
     from meanfield.scenario import load_scenario
 
