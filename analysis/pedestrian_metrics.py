@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from analysis.pedestrian_figures import plot_pedestrian_figures
+from analysis.pedestrian_flow import speed_and_flow
 from meanfield.errors import ParameterError
 
 __all__ = [
@@ -274,6 +275,7 @@ class PedestrianMetrics:
     trajectory_file: str
     seconds: dict[str, float] = field(default_factory=dict)
     figures: dict[str, str] = field(default_factory=dict)
+    speed_and_flow: dict[str, Any] = field(default_factory=dict)  # analysis.pedestrian_flow
 
     @property
     def count_difference(self) -> np.ndarray:
@@ -336,6 +338,7 @@ class PedestrianMetrics:
             "voronoi_frames": self.voronoi_frames,
             "voronoi_error": self.voronoi_error,
             "trajectory_file": self.trajectory_file,
+            "speed_and_flow": {k: v for k, v in self.speed_and_flow.items() if k not in ("mean_speed", "n_t")},
             "seconds": self.seconds,
             "figures": self.figures,
         }
@@ -367,7 +370,10 @@ def pedestrian_metrics(
     segments: int = 1024,
     figures: bool = True,
 ) -> PedestrianMetrics:
-    """Measure a run with PedPy: ``N(t)`` in the target region and density maps.
+    """Measure a run with PedPy: ``N(t)`` in the target region, density maps, speed and flow.
+
+    Speed and flow (:mod:`analysis.pedestrian_flow`): PedPy's individual speeds and their
+    mean per frame, and the flow across the target region's entry line.
 
     Parameters
     ----------
@@ -431,6 +437,10 @@ def pedestrian_metrics(
     if "voronoi_seconds" in maps:
         seconds["density_voronoi"] = maps["voronoi_seconds"]
     kde = n * np.asarray(ds["density"].values[win], dtype=float).mean(axis=0)
+    t0 = time.perf_counter()
+    target_center = (float(ds.attrs["target_center_x"]), float(ds.attrs["target_center_y"]))
+    flow = speed_and_flow(traj, room, target_center, float(ds.attrs["target_radius"]))
+    seconds["speed_and_flow"] = time.perf_counter() - t0
 
     metrics = PedestrianMetrics(
         run_dir=str(run_dir),
@@ -440,7 +450,7 @@ def pedestrian_metrics(
         n_humans=n,
         frame_rate=float(traj.frame_rate),
         times=times,
-        target_center=(float(ds.attrs["target_center_x"]), float(ds.attrs["target_center_y"])),
+        target_center=target_center,
         target_radius=float(ds.attrs["target_radius"]),
         measurement_area=float(target.area),
         n_in_target=counts,
@@ -460,6 +470,7 @@ def pedestrian_metrics(
         density_toolkit=kde,
         trajectory_file=str(traj_path),
         seconds=seconds,
+        speed_and_flow=flow,
     )
     if figures:
         metrics.figures = {k: str(v) for k, v in plot_pedestrian_figures(metrics, out).items()}
