@@ -238,24 +238,33 @@ def plot_comparison_errors(report):
 
 
 def plot_comparison_snapshots(report, count: int = 3):
-    """PDE density against the largest crowd's estimate at ``count`` times (first case)."""
+    """PDE density against the largest crowd's estimate at ``count`` times (first case).
+
+    Each time (column) has its own colour scale, shared by the PDE and the agents, with a
+    labelled colour bar: the density concentrates over the run, and one scale for all
+    would wash the early frames out.
+    """
     case = report.cases[0]
     ds = case.dataset
+    units = "1/m²" if report.scenario.units == "SI" else "1/room width²"
+    length = "m" if report.scenario.units == "SI" else "room widths"
     n_t = ds.sizes["time"]
     ks = np.unique(np.round(np.linspace(0, n_t - 1, count)).astype(int))
-    fig, axes = subplots(2, len(ks), figsize=(3.2 * len(ks), 6.2), constrained_layout=True, squeeze=False)
+    fig, axes = subplots(2, len(ks), figsize=(3.4 * len(ks), 6.6), constrained_layout=True, squeeze=False)
     ext = _extent(ds)
     n_max = int(ds["n_agents"].values[-1])
     for col, k in enumerate(ks):
         pde = ds["pde_density"].values[k]
         est = ds["agents_density"].values[-1, k]
         vmax = max(np.percentile(pde, 99), np.percentile(est, 99))  # a corner peak would wash out the rest
+        vmax = vmax if vmax > 0 else 1.0
         for row, (f, name) in enumerate(((pde, "PDE"), (est, f"agents KDE, N = {n_max}"))):
             ax = axes[row, col]
-            ax.imshow(f.T, origin="lower", extent=ext, vmin=0, vmax=vmax, cmap="viridis")
+            im = ax.imshow(f.T, origin="lower", extent=ext, vmin=0, vmax=vmax, cmap="viridis")
             ax.set_title(f"{name}, t = {ds['time'].values[k]:.3g}", fontsize=9)
-            ax.set_xticks([])
-            ax.set_yticks([])
+            ax.set_xlabel(f"x ({length})", fontsize=8)
+            ax.set_ylabel(f"y ({length})", fontsize=8)
+        fig.colorbar(im, ax=axes[:, col].tolist(), shrink=0.6, location="bottom", label=f"density ({units})")
     fig.suptitle(case.label)
     return fig
 
