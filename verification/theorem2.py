@@ -80,8 +80,9 @@ def _figure(path: Path, series: list[tuple[str, Trajectory, np.ndarray]]) -> Non
         (line,) = ax.semilogy(tr.t, tr.rho_error, label=f"{label}: ‖ρ̃‖")
         if np.isfinite(bound).all():
             ax.semilogy(tr.t, bound, "--", color=line.get_color(), label="ISS bound")
-    ax.set_xlabel("t")
+    ax.set_xlabel("t (scenario time unit)")
     ax.set_title("‖ρ̃(t)‖ against β(‖ρ̃₀‖, t) + γ sup‖ṽ + v_a‖")
+    ax.set_ylabel("‖ρ̃‖ (L², log scale)")
     ax.legend(fontsize=7)
     fig.tight_layout()
     save_figure(fig, path, dpi=110)

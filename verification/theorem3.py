@@ -95,11 +95,14 @@ def _figure(path: Path, runs: list[tuple[str, RobotLoopTrajectory]]) -> None:
         if "no limits" in label:
             ax[2].semilogy(tr.t, np.abs(tr.dV2_dt), color=line.get_color(), lw=0.8)
             ax[2].semilogy(tr.t, np.abs(tr.claim), "k:", lw=0.6)
-    ax[0].set_title("V₂ (solid: no limits; dotted: scenario limits)")
-    ax[1].set_title("‖ρ̃‖ (solid) and ‖ṽ‖ (dashed)")
-    ax[2].set_title("|dV₂/dt| along the plant vs |claim| (dotted; both < 0)")
+    ax[0].set_title("V₂ (solid: no limits; dotted: scenario limits)", fontsize=9)
+    ax[0].set_ylabel("V₂ = ½‖ρ̃‖² + ½‖ṽ‖²")
+    ax[1].set_title("‖ρ̃‖ (solid, dotted) and ‖ṽ‖ (dashed, dash-dot)", fontsize=9)
+    ax[1].set_ylabel("L² norm")
+    ax[2].set_title("no limits: |dV₂/dt| (colour) vs |claim, eq. (8)| (dotted)", fontsize=9)
+    ax[2].set_ylabel("|dV₂/dt|")
     for a in ax:
-        a.set_xlabel("t")
+        a.set_xlabel("t (scenario time unit)")
     ax[0].legend(fontsize=7)
     fig.tight_layout()
     save_figure(fig, path, dpi=110)
