@@ -43,6 +43,7 @@ from scipy.sparse.csgraph import connected_components
 from meanfield.domain import Domain
 from meanfield.errors import ParameterError
 from meanfield.grid import Grid
+from meanfield.region import Region
 
 __all__ = [
     "PoincareReport",
@@ -64,9 +65,9 @@ _RESIDUAL_TOL = 1e-10  # relative residual of the shift-inverted Ritz pairs
 def _check_domain(domain: Any) -> Domain:
     if isinstance(domain, Grid):
         return domain.domain
-    if not isinstance(domain, Domain):
+    if not isinstance(domain, Region):
         raise ParameterError(
-            "domain", type(domain).__name__, "a meanfield.Domain (box, disk or polygon) or a meanfield.Grid"
+            "domain", type(domain).__name__, "a region (a meanfield.Domain or Plan) or a meanfield.Grid"
         )
     return domain
 
@@ -344,7 +345,9 @@ def exact_neumann_eigenvalue(domain: Domain | Grid) -> float | None:
     closed_form = dom.neumann_eigenvalue()  # the shape's own: rectangle, disk
     if closed_form is not None:
         return closed_form
-    v = dom.vertices
+    v = getattr(dom, "vertices", None)  # a polygon's vertices (a plan with holes has none)
+    if v is None:
+        return None
     scale = dom.diameter
     sides = np.hypot(*(np.roll(v, -1, axis=0) - v).T)
     if len(v) == 4:

@@ -51,6 +51,8 @@ class Crowd:
         self.domain = domain
         self.sigma = sigma
         self.rng = rng
+        # a region whose walls are not all convex follows each step from its start (Plan.reflect)
+        self._path_reflection = bool(getattr(domain, "reflects_along_paths", False))
         self._noise = np.empty_like(positions)  # work arrays, reused every step
         self._scaled = np.empty_like(positions)
 
@@ -72,11 +74,15 @@ class Crowd:
             amp = np.sqrt(2.0 * s * dt)[:, None]
         else:
             amp = math.sqrt(2.0 * self.sigma * dt)
+        previous = x.copy() if self._path_reflection else None
         np.multiply(drift, dt, out=self._scaled)
         x += self._scaled
         np.multiply(self._noise, amp, out=self._noise)
         x += self._noise
-        self.domain.reflect(x)
+        if previous is None:
+            self.domain.reflect(x)
+        else:
+            self.domain.reflect(x, previous)
 
     def summary(self) -> dict[str, Any]:
         """No figures of its own (the agent crowd reports the rest)."""

@@ -55,6 +55,7 @@ BUILTIN: dict[str, dict[str, str]] = {
         "box": "meanfield.domain:Domain.box",
         "disk": "meanfield.domain:Domain.disk",
         "polygon": "meanfield.domain:Domain.polygon",
+        "plan": "meanfield.plan:plan_from_table",
     },
     "crowd": {
         "point-mass": "meanfield.agent_crowd:point_mass_crowd",

@@ -69,7 +69,12 @@ class Region(Protocol):
         ...
 
     def reflect(self, points: np.ndarray) -> np.ndarray:
-        """Mirror, in place, the points that left Ω back inside (reflecting walls)."""
+        """Mirror, in place, the points that left Ω back inside (reflecting walls).
+
+        A region whose class sets ``reflects_along_paths = True`` (a plan with re-entrant
+        corners or holes) is called as ``reflect(points, previous)`` by the crowd, with the
+        steps' starts, so that it can follow each step and stop none going through a wall.
+        """
         ...
 
     def project(self, points: np.ndarray) -> np.ndarray:

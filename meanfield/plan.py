@@ -1,0 +1,285 @@
+"""Floor plans: a polygonal room, convex or not, with holes (pillars, furniture).
+
+A :class:`~meanfield.region.Region`.
+
+A plan is any valid shapely polygon, read from WKT (``[domain] kind = "plan"``,
+``wkt = "POLYGON ((...), (...))"``) or GeoJSON (``file = "plan.geojson"``), lengths in
+metres.  Every wall, of the outline and of the holes, has zero flux (the grid's cut cells
+close it, docs page *Discretisation*) and reflects the humans: a step is followed along its
+segment and mirrored at the first wall it meets, so no step, however long, carries a human
+through a corner or a pillar (:meth:`Plan.reflect`).  Exits are not modelled yet (a plan
+with exits is refused by the assembly).
+
+Registered as region ``plan`` (:mod:`meanfield.plugins`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from meanfield.errors import ParameterError
+from meanfield.region import BoundaryPart
+
+__all__ = ["Plan", "plan_from_table"]
+
+
+class Plan:
+    """A room given as a polygon with holes.
+
+    Parameters
+    ----------
+    polygon : shapely.Polygon
+        The walkable area: valid, non-empty, one piece (holes allowed).
+    """
+
+    kind = "plan"
+    reflects_along_paths = True  # reflect needs the step's start (see Plan.reflect)
+
+    def __init__(self, polygon: Any):
+        import shapely
+
+        if not isinstance(polygon, shapely.Polygon):
+            raise ParameterError("wkt", getattr(polygon, "geom_type", type(polygon).__name__), "a POLYGON")
+        if not polygon.is_valid:
+            reason = shapely.is_valid_reason(polygon)
+            raise ParameterError("wkt", reason, "a valid polygon (no self-intersection, holes inside the outline)")
+        if polygon.is_empty or polygon.area <= 0:
+            raise ParameterError("wkt", "an empty polygon", "a polygon with an area > 0")
+        self.polygon = shapely.normalize(polygon)
+        shapely.prepare(self.polygon)
+        self._edges = self._segments()
+        self._inset: dict[float, Any] = {}
+
+    # ------------------------------------------------------------------ builders
+    @classmethod
+    def from_wkt(cls, text: str) -> Plan:
+        """A plan from a WKT ``POLYGON`` (metres)."""
+        import shapely
+
+        try:
+            geom = shapely.from_wkt(text)
+        except Exception as exc:  # shapely's GEOSException and friends
+            raise ParameterError("wkt", str(text)[:80], f"a WKT POLYGON ({exc})") from None
+        return cls(geom)
+
+    @classmethod
+    def from_geojson(cls, source: str | Path | dict) -> Plan:
+        """A plan from a GeoJSON Polygon (a file, or the parsed object; a Feature's geometry is taken)."""
+        import shapely
+
+        if not isinstance(source, dict):
+            path = Path(source)
+            if not path.is_file():
+                raise ParameterError("file", str(source), "an existing GeoJSON file")
+            try:
+                source = json.loads(path.read_text())
+            except ValueError as exc:
+                raise ParameterError("file", str(path), f"valid JSON ({exc})") from None
+        if source.get("type") == "Feature":
+            source = source.get("geometry") or {}
+        if source.get("type") != "Polygon":
+            raise ParameterError("file", source.get("type"), "a GeoJSON Polygon (or a Feature holding one)")
+        return cls(shapely.geometry.shape(source))
+
+    # ------------------------------------------------------------------ the Region interface
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        x0, y0, x1, y1 = self.polygon.bounds
+        return (x0, x1, y0, y1)
+
+    @property
+    def center(self) -> tuple[float, float]:
+        c = self.polygon.centroid
+        return (float(c.x), float(c.y))
+
+    @property
+    def area(self) -> float:
+        return float(self.polygon.area)
+
+    @property
+    def diameter(self) -> float:
+        v = np.asarray(self.polygon.exterior.coords)
+        d = v[:, None, :] - v[None, :, :]
+        return float(np.sqrt((d**2).sum(-1)).max())
+
+    def _shape(self, tol: float) -> Any:
+        """The plan grown by ``tol`` (shrunk for ``tol < 0``; cached)."""
+        import shapely
+
+        if tol not in self._inset:
+            g = self.polygon.buffer(tol, join_style="mitre") if tol else self.polygon
+            shapely.prepare(g)
+            self._inset[tol] = g
+        return self._inset[tol]
+
+    def contains(self, x: Any, y: Any, tol: float | None = None) -> np.ndarray:
+        """Membership of the closed plan (walls included); ``tol > 0`` grows it, ``tol < 0`` shrinks it."""
+        import shapely
+
+        x = np.asarray(x, float)
+        y = np.asarray(y, float)
+        tol = 1e-12 * self.diameter if tol is None else float(tol)
+        return shapely.intersects_xy(self._shape(tol), x, y)
+
+    def _segments(self) -> tuple[np.ndarray, np.ndarray]:
+        """Start points and vectors of every wall segment (outline and holes)."""
+        rings = [self.polygon.exterior, *self.polygon.interiors]
+        starts, vecs = [], []
+        for ring in rings:
+            c = np.asarray(ring.coords)
+            starts.append(c[:-1])
+            vecs.append(np.diff(c, axis=0))
+        return np.vstack(starts), np.vstack(vecs)
+
+    def reflect(self, points: np.ndarray, previous: np.ndarray | None = None) -> np.ndarray:
+        """Mirror, in place, every step that met a wall: followed from ``previous`` to ``points``.
+
+        Each step is a segment; at its first crossing with a wall (outline or hole) the rest
+        of the step is mirrored across that wall, and the mirrored remainder is followed
+        again (up to 8 bounces, then the point is projected).  Without ``previous`` only the
+        points outside are projected onto the plan.
+        """
+        if previous is None:
+            return self.project(points)
+        a, e = self._edges
+        start = previous.copy()
+        for _ in range(8):
+            d = points - start
+            moved = np.flatnonzero(np.any(d != 0, axis=1))
+            if not len(moved):
+                break
+            s, dd = start[moved], d[moved]
+            # segment s + t dd against wall a + u e: solve s + t dd = a + u e
+            cross = dd[:, None, 0] * e[None, :, 1] - dd[:, None, 1] * e[None, :, 0]
+            w = a[None, :, :] - s[:, None, :]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = (w[..., 0] * e[None, :, 1] - w[..., 1] * e[None, :, 0]) / cross
+                u = (w[..., 0] * dd[:, None, 1] - w[..., 1] * dd[:, None, 0]) / cross
+            hit = (cross != 0) & (t > 1e-12) & (t <= 1.0) & (u >= 0.0) & (u <= 1.0)
+            t = np.where(hit, t, np.inf)
+            k = np.argmin(t, axis=1)
+            first = t[np.arange(len(moved)), k]
+            bounce = np.isfinite(first)
+            if not bounce.any():
+                break
+            rows, k, tb = moved[bounce], k[bounce], first[bounce]
+            impact = start[rows] + tb[:, None] * (points[rows] - start[rows])
+            n = np.stack([-e[k, 1], e[k, 0]], axis=1)
+            n /= np.hypot(n[:, 0], n[:, 1])[:, None]
+            rest = points[rows] - impact
+            points[rows] = impact + rest - 2.0 * (rest * n).sum(1)[:, None] * n
+            start[rows] = impact
+            start[np.setdiff1d(moved, rows)] = points[np.setdiff1d(moved, rows)]
+        outside = ~self.contains(points[:, 0], points[:, 1])
+        if outside.any():  # a corner hit twice in a row, or a step of more than 8 bounces
+            points[outside] = self.project(points[outside].copy())
+        return points
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """Nearest point of the plan, in place, for the points outside."""
+        import shapely
+
+        out = ~self.contains(points[:, 0], points[:, 1])
+        if out.any():
+            lines = shapely.shortest_line(self.polygon, shapely.points(points[out]))
+            points[out] = np.array([ln.coords[0] for ln in lines])
+        return points
+
+    def sample_uniform(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        """``n`` points drawn uniformly from the plan, by rejection from its bounding box."""
+        x0, x1, y0, y1 = self.bounds
+        out = np.empty((0, 2))
+        while len(out) < n:
+            m = max(2 * (n - len(out)), 16)
+            p = np.column_stack([rng.uniform(x0, x1, m), rng.uniform(y0, y1, m)])
+            out = np.vstack([out, p[self.contains(p[:, 0], p[:, 1])]])
+        return out[:n].copy()
+
+    def cut_cells(
+        self, x_edges: np.ndarray, y_edges: np.ndarray, dx: float, dy: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Volume fractions and face apertures, by clipping every cell and face with the plan (shapely)."""
+        import shapely
+
+        XL, YL = np.meshgrid(x_edges[:-1], y_edges[:-1], indexing="ij")
+        boxes = shapely.box(XL, YL, XL + dx, YL + dy)
+        frac = np.clip(shapely.area(shapely.intersection(boxes, self.polygon)) / (dx * dy), 0.0, 1.0)
+
+        def aperture(xa, ya, xb, yb, length):
+            ends = np.stack([np.stack([xa, ya], -1), np.stack([xb, yb], -1)], axis=-2)
+            segs = shapely.linestrings(ends.reshape(-1, 2, 2)).reshape(xa.shape)
+            return np.clip(shapely.length(shapely.intersection(segs, self.polygon)) / length, 0.0, 1.0)
+
+        XF, YF = np.meshgrid(x_edges[1:-1], y_edges[:-1], indexing="ij")
+        ax = aperture(XF, YF, XF, YF + dy, dy)
+        XF, YF = np.meshgrid(x_edges[:-1], y_edges[1:-1], indexing="ij")
+        ay = aperture(XF, YF, XF + dx, YF, dx)
+        return frac, ax, ay
+
+    def cells_meeting(self, x_edges: np.ndarray, y_edges: np.ndarray) -> np.ndarray:
+        import shapely
+
+        XL, YL = np.meshgrid(x_edges[:-1], y_edges[:-1], indexing="ij")
+        XR, YR = np.meshgrid(x_edges[1:], y_edges[1:], indexing="ij")
+        return shapely.area(shapely.intersection(shapely.box(XL, YL, XR, YR), self.polygon)) > 0
+
+    def robot_region(self, margin: float) -> Plan:
+        """Where robots may stand: the plan shrunk by ``margin`` (itself for 0)."""
+        if margin <= 0:
+            return self
+        inner = self.polygon.buffer(-margin, join_style="mitre")
+        if inner.is_empty or inner.geom_type != "Polygon":
+            raise ParameterError("robots.margin", margin, "a margin that leaves one piece of the plan")
+        return Plan(inner)
+
+    def lattice(self, n: int) -> np.ndarray:
+        """``n`` points of the plan: the smallest square lattice over its bounding box with ``n``
+        points inside, of which ``n`` evenly spaced ones."""
+        x0, x1, y0, y1 = self.bounds
+        m = math.ceil(math.sqrt(n))
+        while True:
+            xs = x0 + (np.arange(m) + 0.5) * (x1 - x0) / m
+            ys = y0 + (np.arange(m) + 0.5) * (y1 - y0) / m
+            X, Y = np.meshgrid(xs, ys, indexing="ij")
+            inside = self.contains(X, Y, tol=0.0)
+            if inside.sum() >= n:
+                cand = np.column_stack([X[inside], Y[inside]])
+                return cand[np.round(np.linspace(0, len(cand) - 1, n)).astype(int)]
+            m += 1
+
+    def boundary_parts(self) -> tuple[BoundaryPart, ...]:
+        """The outline and every hole's boundary, all walls."""
+        rings = [self.polygon.exterior, *self.polygon.interiors]
+        return tuple(BoundaryPart("wall", np.asarray(r.coords)) for r in rings)
+
+    def neumann_eigenvalue(self) -> float | None:
+        """No closed form for a plan (see :func:`analysis.poincare.neumann_eigenvalue`)."""
+        return None
+
+    def to_shapely(self, resolution: int = 0) -> Any:
+        return self.polygon
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": "plan", "wkt": self.polygon.wkt}
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Plan) and self.polygon.equals(other.polygon)
+
+    def __hash__(self) -> int:
+        return hash(self.polygon.wkt)
+
+    def __repr__(self) -> str:
+        return f"Plan({self.polygon.wkt[:60]}{'...' if len(self.polygon.wkt) > 60 else ''})"
+
+
+def plan_from_table(wkt: str | None = None, file: str | None = None) -> Plan:
+    """Registry factory (kind ``region``, name ``plan``): ``wkt = "POLYGON ((...))"`` or
+    ``file = "plan.geojson"`` (lengths in metres)."""
+    if (wkt is None) == (file is None):
+        raise ParameterError("wkt", "wkt and file" if wkt else "neither wkt nor file", "exactly one of wkt, file")
+    return Plan.from_wkt(wkt) if wkt is not None else Plan.from_geojson(file)
