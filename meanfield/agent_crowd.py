@@ -65,6 +65,9 @@ def initial_positions(scenario: Any, n: int, rng: np.random.Generator) -> np.nda
 class AgentCrowd:
     """Agents that follow the robots' signs (the :class:`~meanfield.interfaces.Crowd` of agents).
 
+    With exits (and an engine that models them, the point-mass SDE), the agents who left are
+    NaN rows of :attr:`positions`; the drift, the KDE and the fractions use those still here.
+
     Parameters
     ----------
     engine : AgentEngine
@@ -153,9 +156,26 @@ class AgentCrowd:
             drift[:, 1] += ay
         return drift
 
+    def _gone(self) -> np.ndarray | None:
+        """The rows of the humans who left through an exit (None: everyone is here)."""
+        active = getattr(self.engine, "active", None)
+        if active is None or active.all():
+            return None
+        return ~active
+
     def advance(self, robots: RobotTeam, t: float, dt: float) -> None:
         """One step of the agents under the robots' signs; the drift must be finite."""
-        drift = self.drift(robots, t, dt)
+        gone = self._gone()
+        if gone is not None:  # the drift of those who left is 0, evaluated at a stand-in point
+            if gone.all():
+                return
+            x = self.engine.positions
+            x[gone] = x[np.flatnonzero(~gone)[0]]
+            drift = self.drift(robots, t, dt)
+            x[gone] = np.nan
+            drift[gone] = 0.0
+        else:
+            drift = self.drift(robots, t, dt)
         if not np.isfinite(drift).all():
             msg = f"non-finite human drift at t = {t:.4g}; the crowd is kept at the last good step"
             raise SimulationDiverged(msg, -1)
@@ -163,8 +183,28 @@ class AgentCrowd:
         self.view.advance(dt)
 
     def density(self) -> np.ndarray:
-        """The robots' KDE of the agents on the grid."""
-        return self.kde(self.positions)
+        """The robots' KDE of the agents on the grid (with exits: of those still here, mass = their share)."""
+        gone = self._gone()
+        if gone is None:
+            return self.kde(self.positions)
+        here = ~gone
+        if not here.any():
+            return np.zeros(self.kde.grid.shape)
+        return self.kde(self.positions[here]) * (np.count_nonzero(here) / len(here))
+
+    def remaining(self) -> int:
+        """How many agents are still in Ω."""
+        gone = self._gone()
+        return self.n if gone is None else int(np.count_nonzero(~gone))
+
+    def remaining_fraction(self) -> float:
+        """The share of the crowd still in Ω (1 without exits)."""
+        return self.remaining() / self.n
+
+    @property
+    def models_exits(self) -> bool:
+        """Whether the engine lets agents leave through exits (the point-mass SDE does)."""
+        return hasattr(self.engine, "exit_time")
 
     def fraction_in_disk(self, center: tuple[float, float], radius: float) -> float:
         return fraction_in_disk(self.positions, center, radius)

@@ -160,12 +160,6 @@ def assemble(
     sc = scenario
     check_fits(sc)  # refuse what cannot fit in memory before anything is allocated
     region = sc.domain
-    if any(part.kind == "exit" for part in region.boundary_parts()):
-        raise ParameterError(
-            "domain.exits",
-            "exits",
-            "none yet: absorbing exits (agents leaving, Dirichlet in the PDE) are not modelled by this version",
-        )
     rng = np.random.default_rng(sc.seed)
     grid = Grid(region, sc.grid.cells)
     kern = kernel if kernel is not None else GaussianKernel(sc.kernel.c, sc.kernel.eta)
@@ -177,6 +171,12 @@ def assemble(
         interaction = InteractionField(grid, GaussianPotential(sc.interaction.strength, sc.interaction.length))
     crowd_name = sc.pedestrians.backend if crowd is None else crowd
     the_crowd = plugins.load("crowd", crowd_name)(CrowdContext(sc, grid, kern, sig, dist, interaction, rng))
+    if any(part.kind == "exit" for part in region.boundary_parts()) and not getattr(the_crowd, "models_exits", False):
+        raise ParameterError(
+            "domain.exits",
+            f"exits with the {crowd_name!r} crowd",
+            "a crowd that lets people leave: 'point-mass' or 'fokker-planck' (JuPedSim's exit stages are not wired)",
+        )
     robots, robot_region = initial_robots(sc, rng)
     c = sc.controller
     strategy = beta_gamma if beta_gamma is not None else plugins.load("beta_gamma", c.beta_gamma)(sc)

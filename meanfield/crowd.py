@@ -48,6 +48,13 @@ class Crowd:
             raise ParameterError("crowd.positions", "points outside Ω", "every human inside the domain")
         sigma = check_sigma("crowd.sigma", sigma)
         self.positions = positions
+        # exits (meanfield.exits): who left, when and where; the positions of those who left are NaN
+        from meanfield.exits import exit_segments
+
+        self.exits = exit_segments(domain)
+        self.active = np.ones(len(positions), dtype=bool)
+        self.exit_time = np.full(len(positions), np.nan)
+        self.exit_index = np.full(len(positions), -1, dtype=np.intp)
         self.domain = domain
         self.sigma = sigma
         self.rng = rng
@@ -74,16 +81,52 @@ class Crowd:
             amp = np.sqrt(2.0 * s * dt)[:, None]
         else:
             amp = math.sqrt(2.0 * self.sigma * dt)
-        previous = x.copy() if self._path_reflection else None
+        previous = x.copy() if self._path_reflection or len(self.exits) else None
         np.multiply(drift, dt, out=self._scaled)
         x += self._scaled
         np.multiply(self._noise, amp, out=self._noise)
         x += self._noise
-        if previous is None:
-            self.domain.reflect(x)
+        if not len(self.exits):
+            if previous is None:
+                self.domain.reflect(x)
+            else:
+                self.domain.reflect(x, previous)
+            return
+        self._leave_and_reflect(previous, t, dt)
+
+    def _leave_and_reflect(self, previous: np.ndarray, t: float, dt: float) -> None:
+        """The humans whose step reached an exit leave (position NaN); the others reflect at the walls."""
+        from meanfield.exits import leaving
+
+        x = self.positions
+        idx = np.flatnonzero(self.active)
+        sigma = 0.0 if callable(self.sigma) else self.sigma  # a σ(x, t): crossings only, no bridge test
+        gone = leaving(previous[idx], x[idx], self.exits, sigma, dt, self.rng)
+        out = idx[gone >= 0]
+        self.active[out] = False
+        self.exit_time[out] = t + dt
+        self.exit_index[out] = gone[gone >= 0]
+        x[out] = np.nan
+        stay = idx[gone < 0]
+        moved = x[stay]
+        if self._path_reflection:
+            self.domain.reflect(moved, previous[stay])
         else:
-            self.domain.reflect(x, previous)
+            self.domain.reflect(moved)
+        x[stay] = moved
+
+    def remaining(self) -> int:
+        """How many humans have not left."""
+        return int(np.count_nonzero(self.active))
 
     def summary(self) -> dict[str, Any]:
-        """No figures of its own (the agent crowd reports the rest)."""
-        return {}
+        """With exits: how many left, through which exit, the last exit time (else nothing)."""
+        if not len(self.exits):
+            return {}
+        out = ~self.active
+        return {
+            "evacuated_fraction": float(out.mean()),
+            "evacuated_per_exit": np.bincount(self.exit_index[out], minlength=len(self.exits)).tolist(),
+            "last_exit_time": float(np.nanmax(self.exit_time)) if out.any() else None,
+            "everyone_out": bool(out.all()),
+        }

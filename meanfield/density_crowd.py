@@ -57,6 +57,8 @@ class DensityCrowd:
     n = None
     positions = None
 
+    models_exits = True
+
     def __init__(self, fp: FokkerPlanck, rho0: np.ndarray, kernel: NavigationKernel, substeps: bool = True):
         self.fp = fp
         self.grid = fp.grid
@@ -68,6 +70,13 @@ class DensityCrowd:
         self.kernel = kernel
         self.substeps = bool(substeps)
         self.last_field: NavigationField | None = None
+        from meanfield.exits import ExitSink, exit_segments
+
+        segs = exit_segments(self.grid.domain)
+        sigma = 0.0 if callable(fp.sigma) else float(fp.sigma)
+        self.sink = ExitSink(self.grid, segs, sigma) if len(segs) else None
+        self.initial_mass = float(self.grid.integrate(self.rho))
+        self.out_per_exit = np.zeros(len(segs))
 
     def robot_velocity(self, robots: RobotTeam) -> tuple[np.ndarray, np.ndarray]:
         """``v_r`` (eq. (3)) on the grid faces at the robots' current states."""
@@ -81,6 +90,13 @@ class DensityCrowd:
             self.rho = self.fp.solve(self.rho, t + dt, t0=t, face_velocity=v_r)
         else:
             self.rho = self.fp.step(self.rho, t, dt, face_velocity=v_r)
+        if self.sink is not None:  # the exits' outflow over the step (Lie splitting, exact for the sink)
+            self.rho, out = self.sink.apply(self.rho, dt)
+            self.out_per_exit += out
+
+    def remaining_fraction(self) -> float:
+        """The mass still in Ω over the initial mass."""
+        return float(self.grid.integrate(self.rho)) / self.initial_mass
 
     def density(self) -> np.ndarray:
         """The density itself (the robots see it exactly)."""
@@ -93,8 +109,12 @@ class DensityCrowd:
         return float(self.grid.integrate(np.where(inside, self.rho, 0.0)))
 
     def summary(self) -> dict[str, Any]:
-        """The solver's method and the mass (1 up to round-off with zero-flux walls)."""
-        return {"fokker_planck_method": self.fp.method, "mass_final": float(self.grid.integrate(self.rho))}
+        """The solver's method and the mass (1 up to round-off with zero-flux walls); with exits, the mass out."""
+        out = {"fokker_planck_method": self.fp.method, "mass_final": float(self.grid.integrate(self.rho))}
+        if self.sink is not None:
+            out["evacuated_fraction"] = float(self.out_per_exit.sum() / self.initial_mass)
+            out["evacuated_per_exit"] = (self.out_per_exit / self.initial_mass).tolist()
+        return out
 
     @classmethod
     def from_context(cls, ctx: CrowdContext, method: str | None = None, substeps: bool = True) -> DensityCrowd:

@@ -184,12 +184,16 @@ class ClosedLoop:
         start = time.perf_counter()
         bar = tqdm(total=n_steps, disable=not progress, desc=f"meanfield run {sc.name}", unit="step", mininterval=0.5)
         try:
+            remaining = getattr(loop.crowd, "remaining_fraction", None)
             for _ in range(n_steps):
                 loop.step()
                 if recorder.last_recorded_step == loop.step_index:
                     bar.update(loop.step_index - first - bar.n)
                 if callback is not None:
                     callback(loop)
+                if remaining is not None and remaining() <= 0.0:
+                    message = f"everyone left through the exits at t = {loop.t:.4g}"
+                    break
         except SimulationDiverged as exc:
             status, message = "diverged", str(exc)
         except KeyboardInterrupt:

@@ -204,9 +204,12 @@ class Recorder:
         self.last_state: ControlState | None = None  # the law's quantities at the last step
         self.humans: np.ndarray | None = None
         self.loop: LoopView | None = None
+        self.exits = False  # the region has exits: record the fraction out
 
     def start(self, loop: LoopView) -> None:
         self.loop = loop
+        region_has_exits = any(p.kind == "exit" for p in loop.parts.region.boundary_parts())
+        self.exits = region_has_exits and hasattr(loop.crowd, "remaining_fraction")
         if loop.crowd.positions is not None:
             self.humans = recorded_humans(loop.crowd.n, loop.scenario.record_humans)
         self.record_state()
@@ -273,6 +276,8 @@ class Recorder:
         f["fraction_in_target"].append(self.target.fraction)
         seen = getattr(loop.crowd, "seen_fraction", None)
         f["seen_fraction"].append(seen() if seen is not None else np.nan)
+        if self.exits:
+            f.setdefault("fraction_out", []).append(1.0 - loop.crowd.remaining_fraction())
         for key in ("robot_speed", "robot_turn_rate"):
             f[key].append(np.full(n, np.nan))
         for key in _CONTROL_KEYS:
@@ -318,6 +323,8 @@ class Recorder:
         data["robots_at_limit"] = ("time", stack(f["robots_at_limit"], np.int16))
         data["shortfall_applied"] = ("time", stack(f["shortfall_applied"], float))
         data["seen_fraction"] = ("time", stack(f["seen_fraction"], float))
+        if "fraction_out" in f:
+            data["fraction_out"] = ("time", stack(f["fraction_out"], float))
         p = loop.parts
         ds = xr.Dataset(
             data_vars=data,

@@ -7,8 +7,8 @@ A plan is any valid shapely polygon, read from WKT (``[domain] kind = "plan"``,
 metres.  Every wall, of the outline and of the holes, has zero flux (the grid's cut cells
 close it, docs page *Discretisation*) and reflects the humans: a step is followed along its
 segment and mirrored at the first wall it meets, so no step, however long, carries a human
-through a corner or a pillar (:meth:`Plan.reflect`).  Exits are not modelled yet (a plan
-with exits is refused by the assembly).
+through a corner or a pillar (:meth:`Plan.reflect`).  ``exits`` are segments of the walls
+through which people leave (:mod:`meanfield.exits`).
 
 Registered as region ``plan`` (:mod:`meanfield.plugins`).
 """
@@ -35,12 +35,14 @@ class Plan:
     ----------
     polygon : shapely.Polygon
         The walkable area: valid, non-empty, one piece (holes allowed).
+    exits : sequence of segments, optional
+        Parts of the walls that are exits, ``((x0, y0), (x1, y1))`` each.
     """
 
     kind = "plan"
     reflects_along_paths = True  # reflect needs the step's start (see Plan.reflect)
 
-    def __init__(self, polygon: Any):
+    def __init__(self, polygon: Any, exits: Any = ()):
         import shapely
 
         if not isinstance(polygon, shapely.Polygon):
@@ -54,6 +56,24 @@ class Plan:
         shapely.prepare(self.polygon)
         self._edges = self._segments()
         self._inset: dict[float, Any] = {}
+        self.exits = self._check_exits(exits or ())
+
+    def _check_exits(self, exits: Any) -> tuple:
+        """Exit segments ``((x0, y0), (x1, y1))``, each on the plan's boundary (outline or hole)."""
+        import shapely
+
+        out = []
+        tol = 1e-9 * self.diameter
+        for k, e in enumerate(exits):
+            try:
+                (ax_, ay_), (bx, by) = e
+                seg = ((float(ax_), float(ay_)), (float(bx), float(by)))
+            except (TypeError, ValueError):
+                raise ParameterError(f"exits[{k}]", e, "a segment [[x0, y0], [x1, y1]]") from None
+            if seg[0] == seg[1] or not self.polygon.boundary.buffer(tol).covers(shapely.LineString(seg)):
+                raise ParameterError(f"exits[{k}]", e, "a segment of two distinct points on the plan's walls")
+            out.append(seg)
+        return tuple(out)
 
     # ------------------------------------------------------------------ builders
     @classmethod
@@ -253,9 +273,20 @@ class Plan:
             m += 1
 
     def boundary_parts(self) -> tuple[BoundaryPart, ...]:
-        """The outline and every hole's boundary, all walls."""
+        """The exits, and the walls: the outline and every hole's boundary without the exits."""
+        import shapely
+
         rings = [self.polygon.exterior, *self.polygon.interiors]
-        return tuple(BoundaryPart("wall", np.asarray(r.coords)) for r in rings)
+        if not self.exits:
+            return tuple(BoundaryPart("wall", np.asarray(r.coords)) for r in rings)
+        doors = shapely.MultiLineString([list(e) for e in self.exits]).buffer(1e-9 * self.diameter)
+        parts = [BoundaryPart("exit", np.asarray(e, float)) for e in self.exits]
+        for ring in rings:
+            walls = shapely.line_merge(ring.difference(doors))
+            for line in getattr(walls, "geoms", [walls]):
+                if not line.is_empty:
+                    parts.append(BoundaryPart("wall", np.asarray(line.coords)))
+        return tuple(parts)
 
     def neumann_eigenvalue(self) -> float | None:
         """No closed form for a plan (see :func:`analysis.poincare.neumann_eigenvalue`)."""
@@ -265,10 +296,13 @@ class Plan:
         return self.polygon
 
     def to_dict(self) -> dict[str, Any]:
-        return {"kind": "plan", "wkt": self.polygon.wkt}
+        d: dict[str, Any] = {"kind": "plan", "wkt": self.polygon.wkt}
+        if self.exits:
+            d["exits"] = [[list(a), list(b)] for a, b in self.exits]
+        return d
 
     def __eq__(self, other: object) -> bool:
-        return isinstance(other, Plan) and self.polygon.equals(other.polygon)
+        return isinstance(other, Plan) and self.polygon.equals(other.polygon) and self.exits == other.exits
 
     def __hash__(self) -> int:
         return hash(self.polygon.wkt)
@@ -277,9 +311,10 @@ class Plan:
         return f"Plan({self.polygon.wkt[:60]}{'...' if len(self.polygon.wkt) > 60 else ''})"
 
 
-def plan_from_table(wkt: str | None = None, file: str | None = None) -> Plan:
+def plan_from_table(wkt: str | None = None, file: str | None = None, exits: Any = ()) -> Plan:
     """Registry factory (kind ``region``, name ``plan``): ``wkt = "POLYGON ((...))"`` or
-    ``file = "plan.geojson"`` (lengths in metres)."""
+    ``file = "plan.geojson"`` (lengths in metres), and ``exits = [[[x0, y0], [x1, y1]], ...]``."""
     if (wkt is None) == (file is None):
         raise ParameterError("wkt", "wkt and file" if wkt else "neither wkt nor file", "exactly one of wkt, file")
-    return Plan.from_wkt(wkt) if wkt is not None else Plan.from_geojson(file)
+    plan = Plan.from_wkt(wkt) if wkt is not None else Plan.from_geojson(file)
+    return Plan(plan.polygon, exits) if exits else plan

@@ -115,6 +115,9 @@ def _w2_to_target(loop: LoopView) -> float | None:
     positions = loop.crowd.positions
     if positions is None:
         return None
+    positions = positions[np.isfinite(positions).all(axis=1)]  # without those who left through an exit
+    if not len(positions):
+        return None
     return wasserstein2_to_grid_density(positions, loop.grid, loop.target, seed=loop.scenario.seed)
 
 

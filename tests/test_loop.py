@@ -110,7 +110,7 @@ def test_bad_input_names_what_is_wrong():
     assert exc.value.name == "controller" and "backstepping" in str(exc.value)
 
 
-def test_exits_are_carried_by_the_region_and_refused_by_the_loop_until_they_have_physics():
+def test_exits_are_carried_by_the_region_and_reach_the_crowd():
     room = Domain.box(1.0, 1.0, exits=[((1.0, 0.4), (1.0, 0.6))])
     parts = {p.kind: p.length for p in room.boundary_parts()}
     assert parts["exit"] == pytest.approx(0.2) and parts["wall"] == pytest.approx(3.8, rel=1e-8)
@@ -118,10 +118,8 @@ def test_exits_are_carried_by_the_region_and_refused_by_the_loop_until_they_have
     with pytest.raises(ParameterError) as exc:
         Domain.box(1.0, 1.0, exits=[((0.5, 0.5), (0.6, 0.5))])  # inside, not on the boundary
     assert exc.value.name == "domain.exits[0]"
-    sc = _short().replace(domain=room)
-    with pytest.raises(ParameterError) as exc:
-        assemble(sc)
-    assert exc.value.name == "domain.exits"
+    crowd = assemble(_short().replace(domain=room)).crowd
+    assert crowd.models_exits and len(crowd.engine.exits) == 1
 
 
 def test_the_grid_reads_the_shape_from_the_region():

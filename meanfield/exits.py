@@ -1,0 +1,126 @@
+"""Exits that absorb: agents leave through them, the density vanishes on them (docs page *Architecture*).
+
+An exit is a segment of ∂Ω (``exits`` of the region).  Its physics, for both crowds:
+
+* **agents** (:func:`leaving`): a human whose step crosses an exit leaves; so does one whose
+  step ends near an exit with the probability that the Brownian path between the two ends
+  touched it, ``exp(−d₀ d₁ / (σ Δt))`` for distances ``d₀``, ``d₁`` to the exit's line
+  (the Brownian-bridge crossing probability of a straight boundary, noise ``sqrt(2σ) dB``),
+  which removes the ``O(sqrt(Δt))`` bias of looking at the steps' ends only;
+* **the density** (:class:`ExitSink`): the mean-field limit of that is ``ρ = 0`` on the
+  exit (Dirichlet), zero flux on the walls.  On the finite-volume grid, a cell an exit
+  crosses loses the diffusive flux through it, ``σ ℓ ρ / d`` (``ℓ`` the exit's length in
+  the cell, ``d`` the distance from the centre to the exit: a ghost value 0 on the exit),
+  applied exactly over each step, ``ρ ← ρ e^{−k Δt}`` with ``k = σ ℓ / (d V)``; the mass it
+  removes is counted per exit, so that mass in Ω plus mass out equals the initial mass.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+__all__ = ["exit_segments", "leaving", "ExitSink"]
+
+
+def exit_segments(region: Any) -> np.ndarray:
+    """The region's exits as an array ``(E, 2, 2)`` of end points (``(0, 2, 2)`` for none, or for a
+    stand-in region without :meth:`~meanfield.region.Region.boundary_parts`)."""
+    boundary = getattr(region, "boundary_parts", None)
+    parts = [p.points for p in (boundary() if boundary else ()) if p.kind == "exit"]
+    segs = [np.stack([pts[k], pts[k + 1]]) for pts in parts for k in range(len(pts) - 1)]
+    return np.array(segs, float).reshape(-1, 2, 2)
+
+
+def _distance_to_lines(points: np.ndarray, segs: np.ndarray) -> np.ndarray:
+    """Distance ``(N, E)`` from each point to each exit segment."""
+    a, b = segs[:, 0], segs[:, 1]
+    ab = b - a
+    t = ((points[:, None, :] - a[None]) * ab[None]).sum(-1) / (ab * ab).sum(-1)[None]
+    t = np.clip(t, 0.0, 1.0)
+    q = a[None] + t[..., None] * ab[None]
+    return np.hypot(*(points[:, None, :] - q).transpose(2, 0, 1))
+
+
+def leaving(
+    start: np.ndarray, end: np.ndarray, segs: np.ndarray, sigma: float, dt: float, rng: np.random.Generator
+) -> np.ndarray:
+    """The exit each step leaves through (its index), or ``-1`` for the humans who stay.
+
+    Parameters
+    ----------
+    start, end : ndarray, shape (N, 2)
+        Where each step starts and (before any reflection) ends.
+    segs : ndarray, shape (E, 2, 2)
+        The exits.
+    sigma : float
+        The diffusion σ of the noise ``sqrt(2σ) dB`` (0: crossings only).
+    dt : float
+    rng : numpy.random.Generator
+        One uniform draw per human near an exit (the Brownian-bridge test).
+    """
+    n = len(start)
+    out = np.full(n, -1, dtype=np.intp)
+    if not len(segs) or not n:
+        return out
+    d = end - start
+    a, e = segs[:, 0], segs[:, 1] - segs[:, 0]
+    cross = d[:, None, 0] * e[None, :, 1] - d[:, None, 1] * e[None, :, 0]
+    w = a[None] - start[:, None, :]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (w[..., 0] * e[None, :, 1] - w[..., 1] * e[None, :, 0]) / cross
+        u = (w[..., 0] * d[:, None, 1] - w[..., 1] * d[:, None, 0]) / cross
+    hit = (cross != 0) & (t > 0) & (t <= 1) & (u >= 0) & (u <= 1)
+    crossed = hit.any(axis=1)
+    out[crossed] = np.argmax(np.where(hit, -t, -np.inf), axis=1)[crossed]  # the first exit on the way
+    if sigma > 0:
+        near = np.flatnonzero(~crossed)
+        if len(near):
+            d0 = _distance_to_lines(start[near], segs)
+            d1 = _distance_to_lines(end[near], segs)
+            p = np.exp(-d0 * d1 / (sigma * dt))  # (M, E): the bridge touched exit e
+            k = np.argmax(p, axis=1)
+            touched = rng.random(len(near)) < p[np.arange(len(near)), k]
+            out[near[touched]] = k[touched]
+    return out
+
+
+class ExitSink:
+    """The density's outflow through the exits (Dirichlet ``ρ = 0`` on them), cell by cell.
+
+    Parameters
+    ----------
+    grid : Grid
+    segs : ndarray, shape (E, 2, 2)
+        The exits.
+    sigma : float
+        The crowd's diffusion σ.
+    """
+
+    def __init__(self, grid: Any, segs: np.ndarray, sigma: float):
+        import shapely
+
+        self.grid = grid
+        self.n_exits = len(segs)
+        nx, ny = grid.shape
+        x0, _, y0, _ = grid.domain.bounds
+        XL, YL = np.meshgrid(x0 + np.arange(nx) * grid.dx, y0 + np.arange(ny) * grid.dy, indexing="ij")
+        boxes = shapely.box(XL, YL, XL + grid.dx, YL + grid.dy)
+        X, Y = grid.centers
+        centres = np.column_stack([X.ravel(), Y.ravel()])
+        self.rates = np.zeros((self.n_exits, nx, ny))  # k per exit and cell (1/time)
+        volume = np.where(grid.active, grid.volume, np.inf)
+        for j, seg in enumerate(segs):
+            length = shapely.length(shapely.intersection(boxes, shapely.LineString(seg)))
+            dist = _distance_to_lines(centres, seg[None])[:, 0].reshape(nx, ny)
+            dist = np.maximum(dist, 1e-3 * min(grid.dx, grid.dy))
+            self.rates[j] = np.where(length > 0, sigma * length / (dist * volume), 0.0)
+        self.total_rate = self.rates.sum(axis=0)
+
+    def apply(self, rho: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """``ρ e^{−k Δt}`` and the mass that left through each exit over the step."""
+        lost = rho * (1.0 - np.exp(-self.total_rate * dt))
+        share = np.divide(self.rates, self.total_rate, out=np.zeros_like(self.rates), where=self.total_rate > 0)
+        per_exit = (share * (lost * self.grid.volume)[None]).sum(axis=(1, 2))
+        return rho - lost, per_exit
