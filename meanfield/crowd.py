@@ -76,6 +76,8 @@ class Crowd:
         self.rng.standard_normal(out=self._noise)
         if callable(self.sigma):
             s = np.asarray(self.sigma(x[:, 0], x[:, 1], t), float)
+            if len(self.exits):  # σ at those who left (NaN positions) is no one's
+                s = np.where(self.active, s, 0.0)
             if np.any(s < 0) or not np.all(np.isfinite(s)):
                 raise ParameterError("crowd.sigma", "negative or non-finite σ(x, t)", "σ(x, t) >= 0")
             amp = np.sqrt(2.0 * s * dt)[:, None]
