@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["exit_segments", "leaving", "ExitSink"]
+__all__ = ["exit_segments", "distance_to_segments", "leaving", "ExitSink"]
 
 
 def exit_segments(region: Any) -> np.ndarray:
@@ -33,8 +33,8 @@ def exit_segments(region: Any) -> np.ndarray:
     return np.array(segs, float).reshape(-1, 2, 2)
 
 
-def _distance_to_lines(points: np.ndarray, segs: np.ndarray) -> np.ndarray:
-    """Distance ``(N, E)`` from each point to each exit segment."""
+def distance_to_segments(points: np.ndarray, segs: np.ndarray) -> np.ndarray:
+    """Distance ``(N, E)`` from each point ``(N, 2)`` to each segment ``(E, 2, 2)``."""
     a, b = segs[:, 0], segs[:, 1]
     ab = b - a
     t = ((points[:, None, :] - a[None]) * ab[None]).sum(-1) / (ab * ab).sum(-1)[None]
@@ -77,8 +77,8 @@ def leaving(
     if sigma > 0:
         near = np.flatnonzero(~crossed)
         if len(near):
-            d0 = _distance_to_lines(start[near], segs)
-            d1 = _distance_to_lines(end[near], segs)
+            d0 = distance_to_segments(start[near], segs)
+            d1 = distance_to_segments(end[near], segs)
             p = np.exp(-d0 * d1 / (sigma * dt))  # (M, E): the bridge touched exit e
             k = np.argmax(p, axis=1)
             touched = rng.random(len(near)) < p[np.arange(len(near)), k]
@@ -106,14 +106,15 @@ class ExitSink:
         nx, ny = grid.shape
         x0, _, y0, _ = grid.domain.bounds
         XL, YL = np.meshgrid(x0 + np.arange(nx) * grid.dx, y0 + np.arange(ny) * grid.dy, indexing="ij")
-        boxes = shapely.box(XL, YL, XL + grid.dx, YL + grid.dy)
+        tol = 1e-9 * max(nx * grid.dx, ny * grid.dy)  # an exit on the outer edge of a cell, up to round-off
+        boxes = shapely.box(XL - tol, YL - tol, XL + grid.dx + tol, YL + grid.dy + tol)
         X, Y = grid.centers
         centres = np.column_stack([X.ravel(), Y.ravel()])
         self.rates = np.zeros((self.n_exits, nx, ny))  # k per exit and cell (1/time)
         volume = np.where(grid.active, grid.volume, np.inf)
         for j, seg in enumerate(segs):
             length = shapely.length(shapely.intersection(boxes, shapely.LineString(seg)))
-            dist = _distance_to_lines(centres, seg[None])[:, 0].reshape(nx, ny)
+            dist = distance_to_segments(centres, seg[None])[:, 0].reshape(nx, ny)
             dist = np.maximum(dist, 1e-3 * min(grid.dx, grid.dy))
             self.rates[j] = np.where(length > 0, sigma * length / (dist * volume), 0.0)
         self.total_rate = self.rates.sum(axis=0)

@@ -230,10 +230,14 @@ class Plan:
         boxes = shapely.box(XL, YL, XL + dx, YL + dy)
         frac = np.clip(shapely.area(shapely.intersection(boxes, self.polygon)) / (dx * dy), 0.0, 1.0)
 
+        walls = self.polygon.boundary
+
         def aperture(xa, ya, xb, yb, length):
             ends = np.stack([np.stack([xa, ya], -1), np.stack([xb, yb], -1)], axis=-2)
             segs = shapely.linestrings(ends.reshape(-1, 2, 2)).reshape(xa.shape)
-            return np.clip(shapely.length(shapely.intersection(segs, self.polygon)) / length, 0.0, 1.0)
+            inside = shapely.length(shapely.intersection(segs, self.polygon))
+            on_wall = shapely.length(shapely.intersection(segs, walls))  # a face along a wall is closed
+            return np.clip((inside - on_wall) / length, 0.0, 1.0)
 
         XF, YF = np.meshgrid(x_edges[1:-1], y_edges[:-1], indexing="ij")
         ax = aperture(XF, YF, XF, YF + dy, dy)

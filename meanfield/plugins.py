@@ -64,6 +64,7 @@ BUILTIN: dict[str, dict[str, str]] = {
     },
     "controller": {
         "backstepping": "meanfield.control:BacksteppingController.from_parts",
+        "evacuation": "meanfield.evacuation:EvacuationController.from_parts",
     },
     "beta_gamma": {
         "min-norm": "meanfield.control:MinimumNormBetaGamma.from_scenario",
