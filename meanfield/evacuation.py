@@ -100,15 +100,17 @@ class EvacuationController(BacksteppingController):
 
     Parameters
     ----------
-    grid, target, sigma, alpha, k_u, k_omega, strategy, interaction, dvd_dt
-        As :class:`~meanfield.control.BacksteppingController` (``alpha`` is unused by Step I
-        here, kept for the shared machinery).
+    *args : Any
+        The arguments of :class:`~meanfield.control.BacksteppingController` (grid, target,
+        σ, α, gains, strategy, interaction, ``dvd_dt``; α is unused by this Step I).
     phi : ndarray
         The distance to the exits on the cells (:func:`exit_distance`).
     v_free : float
         Walking speed in free flow, > 0 (1.34 m/s, Weidmann, in metres and seconds).
     rho_max : float
         Density (of the toolkit's unit-mass ρ) at which walking stops, > 0; ``inf``: no congestion.
+    **kwargs : Any
+        Keyword arguments of :class:`~meanfield.control.BacksteppingController`.
     """
 
     def __init__(self, *args: Any, phi: np.ndarray, v_free: float = 1.34, rho_max: float = math.inf, **kwargs: Any):
