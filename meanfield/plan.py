@@ -156,6 +156,21 @@ class Plan:
             vecs.append(np.diff(c, axis=0))
         return np.vstack(starts), np.vstack(vecs)
 
+    def _first_hit(self, start: np.ndarray, end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """For each step ``start → end``: the fraction ``t`` of it at the first wall met (``inf``:
+        none) and that wall's index."""
+        a, e = self._edges
+        d = end - start
+        cross = d[:, None, 0] * e[None, :, 1] - d[:, None, 1] * e[None, :, 0]
+        w = a[None, :, :] - start[:, None, :]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (w[..., 0] * e[None, :, 1] - w[..., 1] * e[None, :, 0]) / cross
+            u = (w[..., 0] * d[:, None, 1] - w[..., 1] * d[:, None, 0]) / cross
+        hit = (cross != 0) & (t > 1e-12) & (t <= 1.0) & (u >= 0.0) & (u <= 1.0)
+        t = np.where(hit, t, np.inf)
+        k = np.argmin(t, axis=1) if len(start) else np.zeros(0, dtype=np.intp)
+        return t[np.arange(len(start)), k], k
+
     def reflect(self, points: np.ndarray, previous: np.ndarray | None = None) -> np.ndarray:
         """Mirror, in place, every step that met a wall: followed from ``previous`` to ``points``.
 
@@ -166,25 +181,15 @@ class Plan:
         """
         if previous is None:
             return self.project(points)
-        a, e = self._edges
+        e = self._edges[1]
         start = previous.copy()
         for _ in range(8):
-            d = points - start
-            moved = np.flatnonzero(np.any(d != 0, axis=1))
+            moved = np.flatnonzero(np.any(points != start, axis=1))
             if not len(moved):
                 break
-            s, dd = start[moved], d[moved]
-            # segment s + t dd against wall a + u e: solve s + t dd = a + u e
-            cross = dd[:, None, 0] * e[None, :, 1] - dd[:, None, 1] * e[None, :, 0]
-            w = a[None, :, :] - s[:, None, :]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                t = (w[..., 0] * e[None, :, 1] - w[..., 1] * e[None, :, 0]) / cross
-                u = (w[..., 0] * dd[:, None, 1] - w[..., 1] * dd[:, None, 0]) / cross
-            hit = (cross != 0) & (t > 1e-12) & (t <= 1.0) & (u >= 0.0) & (u <= 1.0)
-            t = np.where(hit, t, np.inf)
-            k = np.argmin(t, axis=1)
-            first = t[np.arange(len(moved)), k]
+            first, k = self._first_hit(start[moved], points[moved])
             bounce = np.isfinite(first)
+            start[moved[~bounce]] = points[moved[~bounce]]  # those steps are done
             if not bounce.any():
                 break
             rows, k, tb = moved[bounce], k[bounce], first[bounce]
@@ -194,11 +199,20 @@ class Plan:
             rest = points[rows] - impact
             points[rows] = impact + rest - 2.0 * (rest * n).sum(1)[:, None] * n
             start[rows] = impact
-            start[np.setdiff1d(moved, rows)] = points[np.setdiff1d(moved, rows)]
         outside = ~self.contains(points[:, 0], points[:, 1])
         if outside.any():  # a corner hit twice in a row, or a step of more than 8 bounces
             points[outside] = self.project(points[outside].copy())
         return points
+
+    def stop_at_walls(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+        """Cut, in place, each step ``start → end`` just before the first wall it meets (robots:
+        no robot goes through a wall or a pillar)."""
+        first, _ = self._first_hit(start, end)
+        hit = np.isfinite(first)
+        if hit.any():
+            t = np.maximum(first[hit] - 1e-9, 0.0)[:, None]
+            end[hit] = start[hit] + t * (end[hit] - start[hit])
+        return end
 
     def project(self, points: np.ndarray) -> np.ndarray:
         """Nearest point of the plan, in place, for the points outside."""

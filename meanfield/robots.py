@@ -97,8 +97,16 @@ class RobotTeam:
         self.advance(u, omega, dt, domain)
 
     def advance(self, u: np.ndarray, omega: np.ndarray, dt: float, domain: Domain) -> None:
-        """Euler step of eq. (2) with inputs already within the limits; robots kept in ``domain``."""
+        """Euler step of eq. (2) with inputs already within the limits; robots kept in ``domain``.
+
+        In a plan (a region with ``stop_at_walls``) a robot whose step meets a wall or a
+        pillar stops just before it, instead of passing through.
+        """
+        stop = getattr(domain, "stop_at_walls", None)
+        start = self.positions.copy() if stop is not None else None
         self.positions += dt * u
+        if stop is not None:
+            stop(start, self.positions)
         domain.project(self.positions)
         self.headings = np.mod(self.headings + dt * omega, 2 * np.pi)
 

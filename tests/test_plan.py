@@ -140,3 +140,22 @@ def test_bad_plans_are_refused_naming_the_item(table, name, words):
     with pytest.raises(ParameterError) as exc:
         Scenario.from_dict(sc)
     assert exc.value.name == name and words in str(exc.value)
+
+
+def test_no_robot_goes_through_a_wall_or_a_pillar():
+    from meanfield.robots import RobotTeam
+
+    plan = Plan.from_wkt(TWO_ROOMS)
+    robots = RobotTeam(np.array([[0.3, 0.3], [0.3, 0.9]]), np.zeros(2), 10.0, 10.0)
+    robots.advance(np.array([[4.0, 0.0], [4.0, 0.0]]), np.zeros(2), 0.1, plan)  # both aim at x = 0.7
+    assert robots.positions[0, 0] < 0.49 and robots.positions[0, 0] == pytest.approx(0.49, abs=1e-6)  # stopped
+    np.testing.assert_allclose(robots.positions[1], [0.7, 0.9])  # through the door: moved
+    pillar = Plan.from_wkt(L_WITH_PILLAR)
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        team = RobotTeam(pillar.sample_uniform(30, rng), np.zeros(30), 100.0, 10.0)
+        start = team.positions.copy()
+        team.advance(rng.normal(size=(30, 2)) * 5.0, np.zeros(30), 0.1, pillar)
+        assert pillar.contains(*team.positions.T).all()
+        first, _ = pillar._first_hit(start, team.positions)
+        assert not np.isfinite(first).any()  # no step of a robot crosses a wall
