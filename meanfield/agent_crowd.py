@@ -158,10 +158,10 @@ class AgentCrowd:
 
     def _gone(self) -> np.ndarray | None:
         """The rows of the humans who left through an exit (None: everyone is here)."""
-        active = getattr(self.engine, "active", None)
-        if active is None or active.all():
+        if not len(getattr(self.engine, "exits", ())):  # no exits: nobody leaves, nothing to look at
             return None
-        return ~active
+        active = self.engine.active
+        return None if active.all() else ~active
 
     def advance(self, robots: RobotTeam, t: float, dt: float) -> None:
         """One step of the agents under the robots' signs; the drift must be finite."""

@@ -258,17 +258,13 @@ class BacksteppingController:
         The law has no ``controller.options`` (they belong to other controllers; a sweep may
         set them for every kind), so any are ignored here.
         """
-        return cls(
-            parts.grid,
-            parts.target,
-            parts.sigma,
-            parts.alpha,
-            parts.k_u,
-            parts.k_omega,
-            parts.beta_gamma,
-            parts.interaction,
-            parts.dvd_dt,
-        )
+        return cls(*cls.law_arguments(parts))
+
+    @staticmethod
+    def law_arguments(parts: ControllerParts) -> tuple:
+        """The constructor's positional arguments from the assembled parts (grid to ``dvd_dt``)."""
+        p = parts
+        return (p.grid, p.target, p.sigma, p.alpha, p.k_u, p.k_omega, p.beta_gamma, p.interaction, p.dvd_dt)
 
     def act(self, observation: Observation) -> Command:
         """The :class:`~meanfield.interfaces.Controller` interface: :meth:`robot_inputs` at the observation."""

@@ -23,7 +23,7 @@ from typing import Any, Literal
 import numpy as np
 
 from meanfield.errors import ParameterError
-from meanfield.region import BoundaryPart
+from meanfield.region import BoundaryPart, sample_by_rejection, square_lattice
 
 __all__ = ["Domain"]
 
@@ -294,13 +294,7 @@ class Domain:
 
     def sample_uniform(self, n: int, rng: np.random.Generator) -> np.ndarray:
         """``n`` points drawn uniformly from Ω by rejection from the bounding box."""
-        x0, x1, y0, y1 = self.bounds
-        out = np.empty((0, 2))
-        while len(out) < n:
-            m = max(2 * (n - len(out)), 16)
-            p = np.column_stack([rng.uniform(x0, x1, m), rng.uniform(y0, y1, m)])
-            out = np.vstack([out, p[self.contains(p[:, 0], p[:, 1])]])
-        return out[:n].copy()
+        return sample_by_rejection(self, n, rng)
 
     def to_shapely(self, resolution: int = 4096) -> Any:
         """This domain as a shapely polygon (a disk becomes a ``resolution``-gon)."""
@@ -386,17 +380,7 @@ class Domain:
                 for c in range(k):
                     pts.append((x0 + (c + 0.5 + (cols - k) / 2) * (x1 - x0) / cols, y))
             return np.array(pts, float)
-        m = math.ceil(math.sqrt(n))
-        while True:
-            xs = x0 + (np.arange(m) + 0.5) * (x1 - x0) / m
-            ys = y0 + (np.arange(m) + 0.5) * (y1 - y0) / m
-            X, Y = np.meshgrid(xs, ys, indexing="ij")
-            inside = self.contains(X, Y)
-            if inside.sum() >= n:
-                cand = np.column_stack([X[inside], Y[inside]])
-                idx = np.round(np.linspace(0, len(cand) - 1, n)).astype(int)
-                return cand[idx]
-            m += 1
+        return square_lattice(self, n)
 
     def boundary_parts(self) -> tuple[BoundaryPart, ...]:
         """∂Ω as walls and exits: each exit segment, and the walls between them.

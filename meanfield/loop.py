@@ -184,7 +184,7 @@ class ClosedLoop:
         start = time.perf_counter()
         bar = tqdm(total=n_steps, disable=not progress, desc=f"meanfield run {sc.name}", unit="step", mininterval=0.5)
         try:
-            remaining = getattr(loop.crowd, "remaining_fraction", None)
+            remaining = loop.crowd.remaining_fraction if recorder.exits else None  # only with exits
             for _ in range(n_steps):
                 loop.step()
                 if recorder.last_recorded_step == loop.step_index:

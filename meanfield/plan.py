@@ -16,14 +16,13 @@ Registered as region ``plan`` (:mod:`meanfield.plugins`).
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from meanfield.errors import ParameterError
-from meanfield.region import BoundaryPart
+from meanfield.region import BoundaryPart, sample_by_rejection, square_lattice
 
 __all__ = ["Plan", "plan_from_table"]
 
@@ -226,13 +225,7 @@ class Plan:
 
     def sample_uniform(self, n: int, rng: np.random.Generator) -> np.ndarray:
         """``n`` points drawn uniformly from the plan, by rejection from its bounding box."""
-        x0, x1, y0, y1 = self.bounds
-        out = np.empty((0, 2))
-        while len(out) < n:
-            m = max(2 * (n - len(out)), 16)
-            p = np.column_stack([rng.uniform(x0, x1, m), rng.uniform(y0, y1, m)])
-            out = np.vstack([out, p[self.contains(p[:, 0], p[:, 1])]])
-        return out[:n].copy()
+        return sample_by_rejection(self, n, rng)
 
     def cut_cells(
         self, x_edges: np.ndarray, y_edges: np.ndarray, dx: float, dy: float
@@ -276,19 +269,8 @@ class Plan:
         return Plan(inner)
 
     def lattice(self, n: int) -> np.ndarray:
-        """``n`` points of the plan: the smallest square lattice over its bounding box with ``n``
-        points inside, of which ``n`` evenly spaced ones."""
-        x0, x1, y0, y1 = self.bounds
-        m = math.ceil(math.sqrt(n))
-        while True:
-            xs = x0 + (np.arange(m) + 0.5) * (x1 - x0) / m
-            ys = y0 + (np.arange(m) + 0.5) * (y1 - y0) / m
-            X, Y = np.meshgrid(xs, ys, indexing="ij")
-            inside = self.contains(X, Y, tol=0.0)
-            if inside.sum() >= n:
-                cand = np.column_stack([X[inside], Y[inside]])
-                return cand[np.round(np.linspace(0, len(cand) - 1, n)).astype(int)]
-            m += 1
+        """``n`` evenly spread points of the plan (:func:`~meanfield.region.square_lattice`)."""
+        return square_lattice(self, n, tol=0.0)
 
     def boundary_parts(self) -> tuple[BoundaryPart, ...]:
         """The exits, and the walls: the outline and every hole's boundary without the exits."""

@@ -7,12 +7,13 @@ the toolkit, so that the geometry at the bottom of the layers can name it.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Literal, Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["BoundaryPart", "Region"]
+__all__ = ["BoundaryPart", "Region", "sample_by_rejection", "square_lattice"]
 
 
 @dataclass(frozen=True)
@@ -116,3 +117,30 @@ class Region(Protocol):
     def to_dict(self) -> dict[str, Any]:
         """The scenario's ``[domain]`` table: ``{"kind": name, ...}``."""
         ...
+
+
+def sample_by_rejection(region: Any, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` points drawn uniformly from ``region`` by rejection from its bounding box."""
+    x0, x1, y0, y1 = region.bounds
+    out = np.empty((0, 2))
+    while len(out) < n:
+        m = max(2 * (n - len(out)), 16)
+        p = np.column_stack([rng.uniform(x0, x1, m), rng.uniform(y0, y1, m)])
+        out = np.vstack([out, p[region.contains(p[:, 0], p[:, 1])]])
+    return out[:n].copy()
+
+
+def square_lattice(region: Any, n: int, tol: float | None = None) -> np.ndarray:
+    """``n`` points of ``region``: the smallest square lattice over its bounding box with at least
+    ``n`` points inside (``contains(..., tol)``), of which ``n`` evenly spaced ones."""
+    x0, x1, y0, y1 = region.bounds
+    m = math.ceil(math.sqrt(n))
+    while True:
+        xs = x0 + (np.arange(m) + 0.5) * (x1 - x0) / m
+        ys = y0 + (np.arange(m) + 0.5) * (y1 - y0) / m
+        X, Y = np.meshgrid(xs, ys, indexing="ij")
+        inside = region.contains(X, Y, tol=tol)
+        if inside.sum() >= n:
+            cand = np.column_stack([X[inside], Y[inside]])
+            return cand[np.round(np.linspace(0, len(cand) - 1, n)).astype(int)]
+        m += 1
