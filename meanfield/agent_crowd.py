@@ -20,9 +20,11 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from meanfield import plugins
 from meanfield.crowd import Crowd
 from meanfield.density import KernelDensityEstimator
-from meanfield.errors import SimulationDiverged
+from meanfield.errors import ParameterError, SimulationDiverged
+from meanfield.guidance import Guidance
 from meanfield.interaction import InteractionField
 from meanfield.interfaces import CrowdContext, Disturbance
 from meanfield.kernels import NavigationKernel
@@ -31,6 +33,7 @@ from meanfield.metrics import fraction_in_disk
 from meanfield.region import Region
 from meanfield.robots import RobotTeam, navigation_velocity
 from meanfield.sampled_field import SampledNavigationField
+from meanfield.sight import SightLines
 
 __all__ = ["AgentEngine", "AgentCrowd", "initial_positions", "point_mass_crowd", "SAMPLED_FIELD_ABOVE"]
 
@@ -88,6 +91,12 @@ class AgentCrowd:
         Ω (its bounding box carries the sampled lattice).
     sample_cells : (int, int)
         The grid's cells; the sampled lattice has ``2 nx + 1 × 2 ny + 1`` nodes.
+    sight : SightLines, optional
+        A plan's walls: a human behind a wall does not see that robot's sign
+        (:mod:`meanfield.sight`); exact field evaluation only.
+    guidance : Guidance, optional
+        A baseline the humans follow instead of the signs (:mod:`meanfield.guidance`); None:
+        the robots' signs.
     """
 
     def __init__(
@@ -101,6 +110,8 @@ class AgentCrowd:
         field_evaluation: str = "exact",
         domain: Region | None = None,
         sample_cells: tuple[int, int] = (30, 30),
+        sight: SightLines | None = None,
+        guidance: Guidance | None = None,
     ):
         self.engine = engine
         self.kernel = kernel
@@ -109,6 +120,14 @@ class AgentCrowd:
         self.interaction = interaction
         self.disturbance = disturbance
         self.field_evaluation = field_evaluation
+        self.sight = sight
+        self.guidance = guidance
+        if sight is not None and field_evaluation == "sampled":
+            raise ParameterError(
+                "crowd.field_evaluation",
+                field_evaluation,
+                "'exact' or 'auto' on a plan whose walls hide signs (a sampled field cannot tell which side of a wall)",
+            )
         self.sampled_field = None
         if field_evaluation == "sampled":
             nx, ny = sample_cells
@@ -140,14 +159,17 @@ class AgentCrowd:
         returned array is reused, and overwritten, by the next call.
         """
         positions = self.positions
-        if self.sampled_field is not None:
+        if self.guidance is not None:  # a baseline: the humans ignore the robots
+            drift = self.guidance.velocity(positions, t, dt)
+        elif self.sampled_field is not None:
             self.sampled_field.update(robots.positions, robots.headings)
             if self._drift is None or len(self._drift) != len(positions):
                 self._drift = np.empty((len(positions), 2))
             drift = self.sampled_field.at_points(positions, out=self._drift)
         else:
-            drift = navigation_velocity(self.kernel, robots.positions, robots.headings, positions)
-        self.view.gate(drift, positions, robots.positions, dt)
+            drift = navigation_velocity(self.kernel, robots.positions, robots.headings, positions, self.sight)
+        if self.guidance is None:
+            self.view.gate(drift, positions, robots.positions, dt)
         if self.interaction is not None:
             drift += self.interaction.at_points(positions)
         if self.disturbance is not None:
@@ -181,6 +203,8 @@ class AgentCrowd:
             raise SimulationDiverged(msg, -1)
         self.engine.step(drift, t, dt)
         self.view.advance(dt)
+        if self.guidance is not None:
+            self.guidance.advance(dt)
 
     def density(self) -> np.ndarray:
         """The robots' KDE of the agents on the grid (with exits: of those still here, mass = their share)."""
@@ -232,12 +256,23 @@ class AgentCrowd:
         kde = KernelDensityEstimator(ctx.grid, bw, sc.density.boundary, sc.density.method)
         v = sc.view
         n = len(engine.positions)
-        view = LocalView(n, v.radius, v.walk_speed, v.turning_rate, sc.domain, ctx.rng, engine.body_radius)
+        view = LocalView(n, v.radius, v.walk_speed, v.turning_rate, sc.domain, ctx.rng, engine.body_radius, ctx.sight)
         mode = sc.crowd.field_evaluation
         if mode == "auto":
-            mode = "sampled" if n * sc.robots.n > SAMPLED_FIELD_ABOVE else "exact"
+            mode = "sampled" if n * sc.robots.n > SAMPLED_FIELD_ABOVE and ctx.sight is None else "exact"
+        guidance = plugins.load("guidance", sc.crowd.guidance)(ctx, engine.positions)
         return cls(
-            engine, ctx.kernel, kde, view, ctx.interaction, ctx.disturbance, mode, sc.domain, sc.grid.cells
+            engine,
+            ctx.kernel,
+            kde,
+            view,
+            ctx.interaction,
+            ctx.disturbance,
+            mode,
+            sc.domain,
+            sc.grid.cells,
+            ctx.sight,
+            guidance,
         )
 
 
@@ -246,4 +281,3 @@ def point_mass_crowd(ctx: CrowdContext) -> AgentCrowd:
     sc = ctx.scenario
     humans = initial_positions(sc, sc.crowd.n, ctx.rng)
     return AgentCrowd.from_context(Crowd(humans, sc.domain, ctx.sigma, ctx.rng), ctx)
-

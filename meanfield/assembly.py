@@ -38,6 +38,7 @@ from meanfield.kernels import GaussianKernel, GaussianPotential, NavigationKerne
 from meanfield.metrics import gaussian_target, target_region_radius
 from meanfield.robots import RobotTeam
 from meanfield.scenario import Scenario
+from meanfield.sight import SightLines
 
 __all__ = ["Parts", "assemble", "alpha_schedule_for", "disturbance_for", "initial_robots"]
 
@@ -65,6 +66,8 @@ class Parts:
     robots : RobotTeam
     robot_region : Region
     controller : Controller
+    sight : SightLines
+        Which walls hide the robots' signs (:mod:`meanfield.sight`; none in a convex room).
     overrides : list of str
         The Python-only overrides used (``sigma``, ``disturbance``, ``beta_gamma``, ``kernel``, ...).
     """
@@ -83,6 +86,7 @@ class Parts:
     robots: RobotTeam
     robot_region: Region
     controller: Controller
+    sight: SightLines
     overrides: list[str] = field(default_factory=list)
 
     @property
@@ -170,12 +174,14 @@ def assemble(
     if sc.interaction.kind == "gaussian":
         interaction = InteractionField(grid, GaussianPotential(sc.interaction.strength, sc.interaction.length))
     crowd_name = sc.pedestrians.backend if crowd is None else crowd
-    the_crowd = plugins.load("crowd", crowd_name)(CrowdContext(sc, grid, kern, sig, dist, interaction, rng))
+    sight = SightLines(region)
+    context = CrowdContext(sc, grid, kern, sig, dist, interaction, rng, None if sight.trivial else sight)
+    the_crowd = plugins.load("crowd", crowd_name)(context)
     if any(part.kind == "exit" for part in region.boundary_parts()) and not getattr(the_crowd, "models_exits", False):
         raise ParameterError(
             "domain.exits",
             f"exits with the {crowd_name!r} crowd",
-            "a crowd that lets people leave: 'point-mass' or 'fokker-planck' (JuPedSim's exit stages are not wired)",
+            "a crowd that lets people leave: 'point-mass', 'fokker-planck' or 'jupedsim'",
         )
     robots, robot_region = initial_robots(sc, rng)
     c = sc.controller
@@ -222,5 +228,6 @@ def assemble(
         robots=robots,
         robot_region=robot_region,
         controller=the_controller,
+        sight=sight,
         overrides=sorted(k for k, v in overrides.items() if v is not None),
     )

@@ -122,12 +122,11 @@ class Crowd:
         return int(np.count_nonzero(self.active))
 
     def summary(self) -> dict[str, Any]:
-        """With exits: how many left, through which exit, the last exit time (else nothing)."""
+        """With exits: how many left through each exit, the last exit time (else nothing)."""
         if not len(self.exits):
             return {}
         out = ~self.active
         return {
-            "evacuated_fraction": float(out.mean()),
             "evacuated_per_exit": np.bincount(self.exit_index[out], minlength=len(self.exits)).tolist(),
             "last_exit_time": float(np.nanmax(self.exit_time)) if out.any() else None,
             "everyone_out": bool(out.all()),

@@ -23,6 +23,7 @@ from meanfield.interfaces import CrowdContext
 from meanfield.kernels import NavigationKernel
 from meanfield.metrics import gaussian_target
 from meanfield.robots import NavigationField, RobotTeam
+from meanfield.sight import SightLines
 
 __all__ = ["DensityCrowd", "initial_density"]
 
@@ -52,6 +53,8 @@ class DensityCrowd:
         ``True``: each control period is solved with the solver's own stable sub-steps
         (:meth:`FokkerPlanck.solve`); ``False``: one step of ``dt`` (:meth:`FokkerPlanck.step`),
         the sampled-data plant of the theorem checks.
+    sight : SightLines, optional
+        A plan's walls that hide the signs (:mod:`meanfield.sight`).
     """
 
     n = None
@@ -59,8 +62,16 @@ class DensityCrowd:
 
     models_exits = True
 
-    def __init__(self, fp: FokkerPlanck, rho0: np.ndarray, kernel: NavigationKernel, substeps: bool = True):
+    def __init__(
+        self,
+        fp: FokkerPlanck,
+        rho0: np.ndarray,
+        kernel: NavigationKernel,
+        substeps: bool = True,
+        sight: SightLines | None = None,
+    ):
         self.fp = fp
+        self.sight = sight
         self.grid = fp.grid
         self.rho = np.array(rho0, dtype=float)
         if self.rho.shape != self.grid.shape:
@@ -80,7 +91,7 @@ class DensityCrowd:
 
     def robot_velocity(self, robots: RobotTeam) -> tuple[np.ndarray, np.ndarray]:
         """``v_r`` (eq. (3)) on the grid faces at the robots' current states."""
-        self.last_field = NavigationField(self.kernel, self.grid, robots.positions, robots.headings)
+        self.last_field = NavigationField(self.kernel, self.grid, robots.positions, robots.headings, self.sight)
         return self.last_field.velocity()
 
     def advance(self, robots: RobotTeam, t: float, dt: float) -> None:
@@ -112,7 +123,6 @@ class DensityCrowd:
         """The solver's method and the mass (1 up to round-off with zero-flux walls); with exits, the mass out."""
         out = {"fokker_planck_method": self.fp.method, "mass_final": float(self.grid.integrate(self.rho))}
         if self.sink is not None:
-            out["evacuated_fraction"] = float(self.out_per_exit.sum() / self.initial_mass)
             out["evacuated_per_exit"] = (self.out_per_exit / self.initial_mass).tolist()
         return out
 
@@ -127,7 +137,12 @@ class DensityCrowd:
         the two can be compared under the same robots.
         """
         from meanfield.agent_crowd import initial_positions
+        from meanfield.errors import ParameterError
 
+        if ctx.scenario.crowd.guidance != "signs":
+            raise ParameterError(
+                "crowd.guidance", ctx.scenario.crowd.guidance, "'signs' for the density (the baselines are agents')"
+            )
         initial_positions(ctx.scenario, ctx.scenario.crowd.n, ctx.rng)  # the agents' draw, discarded
         fp = FokkerPlanck(ctx.grid, ctx.sigma, interaction=ctx.interaction, disturbance=ctx.disturbance, method=method)
-        return cls(fp, initial_density(ctx.scenario, ctx.grid), ctx.kernel, substeps=substeps)
+        return cls(fp, initial_density(ctx.scenario, ctx.grid), ctx.kernel, substeps=substeps, sight=ctx.sight)

@@ -1,11 +1,7 @@
 """Step I towards the exits: the geodesic distance to the nearest exit and the controller that follows it.
 
-* :func:`exit_distance` — ``φ``, the length of the shortest path from each cell to an exit
-  inside Ω (around walls and pillars): Dijkstra's algorithm on the grid's cells, each joined
-  to its 8 neighbours through open faces (a diagonal only when a path along the two faces is
-  open), an exit cell starting at its centre's distance to the exit.  The 8-neighbour metric
-  is exact along the axes and the diagonals and overestimates other directions by at most
-  8.2 % (``1/cos 22.5°``).
+* ``φ``, the length of the shortest path from each cell to an exit inside Ω (around walls
+  and pillars): :func:`meanfield.geodesic.exit_distance`.
 * :class:`EvacuationController` — the paper's Step II (eq. (8)) tracking the desired field
   of Hughes' continuum model, ``v_d = −f(ρ) ∇φ − u_W[ρ]`` with ``f(ρ) = v_free (1 − ρ/ρ_max)``
   (walking speed falls with the density), instead of the paper's Step I.  Step II does not
@@ -24,75 +20,11 @@ import numpy as np
 
 from meanfield.control import BacksteppingController, _Prepared
 from meanfield.errors import ParameterError
-from meanfield.grid import FaceField, Grid
+from meanfield.geodesic import exit_distance
+from meanfield.grid import FaceField
 from meanfield.interfaces import ControllerParts
 
 __all__ = ["exit_distance", "EvacuationController"]
-
-
-def exit_distance(grid: Grid, segs: np.ndarray) -> np.ndarray:
-    """``φ`` on the cells: the shortest path inside Ω to the nearest exit (``inf`` on inactive cells).
-
-    Raises
-    ------
-    ParameterError
-        Named ``domain.exits`` without exits, or ``grid.cells`` when some cell of Ω reaches
-        no exit on this grid (a passage narrower than a cell: refine the grid).
-    """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import dijkstra
-
-    from meanfield.exits import ExitSink, distance_to_segments
-
-    if not len(segs):
-        raise ParameterError("domain.exits", "none", "at least one exit (the geodesic Step I leads to them)")
-    nx, ny = grid.shape
-    active = grid.active
-    index = -np.ones(grid.shape, dtype=np.int64)
-    index[active] = np.arange(int(active.sum()))
-    n = int(active.sum())
-    ox = grid.aperture_x > 0  # open x-faces between (i, j) and (i+1, j)
-    oy = grid.aperture_y > 0  # open y-faces between (i, j) and (i, j+1)
-    rows, cols, w = [], [], []
-
-    def link(a: np.ndarray, b: np.ndarray, length: float) -> None:
-        rows.append(a)
-        cols.append(b)
-        w.append(np.full(len(a), length))
-
-    i, j = np.nonzero(ox)
-    link(index[i, j], index[i + 1, j], grid.dx)
-    i, j = np.nonzero(oy)
-    link(index[i, j], index[i, j + 1], grid.dy)
-    diag = math.hypot(grid.dx, grid.dy)
-    # (i, j) -> (i+1, j+1): along x then y, or y then x
-    up = (ox[:, :-1] & oy[1:, :]) | (oy[:-1, :] & ox[:, 1:])
-    i, j = np.nonzero(up)
-    link(index[i, j], index[i + 1, j + 1], diag)
-    # (i, j+1) -> (i+1, j): along x then down, or down then x
-    down = (ox[:, 1:] & oy[1:, :]) | (oy[:-1, :] & ox[:, :-1])
-    i, j = np.nonzero(down)
-    link(index[i, j + 1], index[i + 1, j], diag)
-    # the exits: a source node joined to each exit cell by the centre's distance to its exit
-    sink = ExitSink(grid, segs, 1.0)
-    exit_cells = (sink.total_rate > 0) & active
-    X, Y = grid.centers
-    rows.append(np.full(int(exit_cells.sum()), n))
-    cols.append(index[exit_cells])
-    w.append(distance_to_segments(np.column_stack([X[exit_cells], Y[exit_cells]]), segs).min(axis=1))
-    a, b, length = np.concatenate(rows), np.concatenate(cols), np.concatenate(w)
-    graph = coo_matrix((np.r_[length, length], (np.r_[a, b], np.r_[b, a])), shape=(n + 1, n + 1)).tocsr()
-    dist = dijkstra(graph, directed=False, indices=n)[:n]
-    if not np.isfinite(dist).all():
-        cut = int((~np.isfinite(dist)).sum())
-        raise ParameterError(
-            "grid.cells",
-            grid.cells,
-            f"a grid on which every cell of Ω reaches an exit ({cut} cells do not: a passage is narrower than a cell)",
-        )
-    phi = np.full(grid.shape, np.inf)
-    phi[active] = dist
-    return phi
 
 
 class EvacuationController(BacksteppingController):

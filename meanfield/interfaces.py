@@ -32,6 +32,7 @@ from meanfield.interaction import InteractionField
 from meanfield.kernels import NavigationKernel
 from meanfield.region import BoundaryPart, Region
 from meanfield.robots import NavigationField, RobotTeam
+from meanfield.sight import SightLines
 
 __all__ = [
     "BoundaryPart",
@@ -237,6 +238,8 @@ class CrowdContext:
     rng : numpy.random.Generator
         The run's one generator: draw the initial crowd at construction, and nothing
         else until the first step (the robots' initial headings come next).
+    sight : SightLines or None
+        The plan's walls that hide signs (:mod:`meanfield.sight`); None: every sign is seen.
     """
 
     scenario: Any  # a meanfield.scenario.Scenario (the scenario module sits above this one)
@@ -246,6 +249,7 @@ class CrowdContext:
     disturbance: Disturbance | None
     interaction: InteractionField | None
     rng: np.random.Generator
+    sight: SightLines | None = None
 
 
 @dataclass

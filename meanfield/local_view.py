@@ -24,6 +24,7 @@ import numpy as np
 
 from meanfield.domain import Domain
 from meanfield.errors import ParameterError
+from meanfield.sight import SightLines
 
 __all__ = ["LocalView", "robots_in_view"]
 
@@ -110,6 +111,8 @@ class LocalView:
         Source of the initial headings (uniform) and of the heading increments.
     clearance : float
         Extra distance to the wall at which a walker turns (a body's radius).
+    sight : SightLines, optional
+        A plan's walls: a robot behind a wall is not in view (:mod:`meanfield.sight`).
     """
 
     def __init__(
@@ -121,6 +124,7 @@ class LocalView:
         domain: Domain,
         rng: np.random.Generator,
         clearance: float = 0.0,
+        sight: SightLines | None = None,
     ):
         if radius is not None and not radius > 0:
             raise ParameterError("view.radius", radius, 'a view radius > 0, or "none" (no gating)')
@@ -134,9 +138,20 @@ class LocalView:
         self.domain = domain
         self.rng = rng
         self.clearance = float(clearance)
+        self.sight = sight
         self._n = int(n)
         self._headings: np.ndarray | None = None  # drawn at the first step (see headings)
         self.seen = np.ones(n, dtype=bool)
+
+    @classmethod
+    def blind(
+        cls, n: int, walk_speed: float, turning_rate: float, domain: Domain, rng: np.random.Generator
+    ) -> LocalView:
+        """A view that sees no robot: everyone walks (the uninformed crowd, :mod:`meanfield.guidance`)."""
+        view = cls(n, 1.0, walk_speed, turning_rate, domain, rng)
+        view.radius = 0.0
+        view.seen = np.zeros(n, dtype=bool)
+        return view
 
     @property
     def headings(self) -> np.ndarray:
@@ -215,6 +230,11 @@ class LocalView:
             return v_r
         self.headings  # noqa: B018 -- the walkers' initial headings are drawn here, at the first step
         self.seen = robots_in_view(positions, robots, self.radius)
+        if self.sight is not None and self.seen.any():  # a robot in reach but behind a wall is not seen
+            rows = np.flatnonzero(self.seen)
+            near = ((positions[rows, None, :] - robots[None, :, :]) ** 2).sum(-1) <= self.radius**2
+            visible = self.sight.visible(robots[None, :, :], positions[rows, None, :])
+            self.seen[rows] = (near & visible).any(axis=1)
         walkers = np.flatnonzero(~self.seen)
         if len(walkers):
             v_r[walkers] = self.walk_velocity(positions[walkers], dt, walkers)

@@ -27,6 +27,7 @@ import numpy as np
 from meanfield.assembly import Parts, assemble
 from meanfield.budget import stability_warnings
 from meanfield.errors import ParameterError, SimulationDiverged
+from meanfield.evacuation_measures import EvacuationTracker
 from meanfield.interfaces import Observation
 from meanfield.observers import InputStatistics, Observer, Recorder, StepRecord, TargetTracker
 from meanfield.result import SimulationResult
@@ -106,7 +107,8 @@ class ClosedLoop:
 
     def observe(self) -> Observation:
         """What the robots know now: the density on the grid, their kernels, the time."""
-        field = NavigationField(self.parts.kernel, self.grid, self.robots.positions, self.robots.headings)
+        r = self.robots
+        field = NavigationField(self.parts.kernel, self.grid, r.positions, r.headings, self.parts.sight)
         return Observation(self.density, field, self.t, self.dt)
 
     def start(self) -> None:
@@ -173,7 +175,8 @@ class ClosedLoop:
         sc = loop.scenario
         target, inputs = TargetTracker(0.9), InputStatistics()
         recorder = Recorder(target)
-        for obs in (target, inputs, recorder):
+        evacuation = EvacuationTracker()
+        for obs in (target, inputs, recorder, evacuation):
             loop.attach(obs)
         loop.start()
         p = loop.parts
@@ -200,7 +203,7 @@ class ClosedLoop:
             status, message = "interrupted", f"interrupted at t = {loop.t:.4g}"
         finally:
             bar.close()
-            for obs in (target, inputs, recorder):
+            for obs in (target, inputs, recorder, evacuation):
                 loop.observers.remove(obs)
         wall = time.perf_counter() - start
         recorder.finish()
@@ -216,6 +219,7 @@ class ClosedLoop:
             rho_err0=rho_err0,
             wall=wall,
             steps_run=loop.step_index - first,
+            evacuation=evacuation.summary(),
         )
         rid = run_id(loop, status)
         summary = {"run_id": rid, **summary, "warnings": stability_warnings(sc, loop.grid, summary)}

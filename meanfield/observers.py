@@ -277,7 +277,7 @@ class Recorder:
         seen = getattr(loop.crowd, "seen_fraction", None)
         f["seen_fraction"].append(seen() if seen is not None else np.nan)
         if self.exits:
-            f.setdefault("fraction_out", []).append(1.0 - loop.crowd.remaining_fraction())
+            f.setdefault("fraction_evacuated", []).append(1.0 - loop.crowd.remaining_fraction())
         for key in ("robot_speed", "robot_turn_rate"):
             f[key].append(np.full(n, np.nan))
         for key in _CONTROL_KEYS:
@@ -323,8 +323,8 @@ class Recorder:
         data["robots_at_limit"] = ("time", stack(f["robots_at_limit"], np.int16))
         data["shortfall_applied"] = ("time", stack(f["shortfall_applied"], float))
         data["seen_fraction"] = ("time", stack(f["seen_fraction"], float))
-        if "fraction_out" in f:
-            data["fraction_out"] = ("time", stack(f["fraction_out"], float))
+        if "fraction_evacuated" in f:
+            data["fraction_evacuated"] = ("time", stack(f["fraction_evacuated"], float))
         p = loop.parts
         ds = xr.Dataset(
             data_vars=data,
@@ -386,6 +386,7 @@ _CF: dict[str, tuple[str, str]] = {
     "v_error_l2": ("m2 s-1", "L2 norm of v_tilde"),
     "fraction_in_target": ("1", "fraction of the crowd in the target region"),
     "seen_fraction": ("1", "fraction of humans with a robot in view"),
+    "fraction_evacuated": ("1", "fraction of the crowd out through the exits"),
 }
 
 

@@ -105,6 +105,14 @@ class Plan:
             raise ParameterError("file", source.get("type"), "a GeoJSON Polygon (or a Feature holding one)")
         return cls(shapely.geometry.shape(source))
 
+    @classmethod
+    def from_dxf(cls, path: str | Path, **layers: str | None) -> Plan:
+        """A plan from a DXF drawing, ``layers`` naming its ``walls``, ``obstacles`` and ``exits``
+        layers (:func:`meanfield.plan_dxf.read_dxf`, which documents the conventions)."""
+        from meanfield.plan_dxf import read_dxf
+
+        return cls(*read_dxf(path, **layers))
+
     # ------------------------------------------------------------------ the Region interface
     @property
     def bounds(self) -> tuple[float, float, float, float]:
@@ -311,10 +319,27 @@ class Plan:
         return f"Plan({self.polygon.wkt[:60]}{'...' if len(self.polygon.wkt) > 60 else ''})"
 
 
-def plan_from_table(wkt: str | None = None, file: str | None = None, exits: Any = ()) -> Plan:
-    """Registry factory (kind ``region``, name ``plan``): ``wkt = "POLYGON ((...))"`` or
-    ``file = "plan.geojson"`` (lengths in metres), and ``exits = [[[x0, y0], [x1, y1]], ...]``."""
+def plan_from_table(
+    wkt: str | None = None,
+    file: str | None = None,
+    exits: Any = (),
+    walls_layer: str | None = None,
+    obstacles_layer: str | None = None,
+    exits_layer: str | None = None,
+) -> Plan:
+    """Registry factory (kind ``region``, name ``plan``): ``wkt = "POLYGON ((...))"``,
+    ``file = "plan.geojson"`` or ``file = "plan.dxf"`` (lengths in metres), and
+    ``exits = [[[x0, y0], [x1, y1]], ...]``.  A DXF's layers are named by ``walls_layer``,
+    ``obstacles_layer``, ``exits_layer`` (:mod:`meanfield.plan_dxf`, which also reads its exits)."""
     if (wkt is None) == (file is None):
         raise ParameterError("wkt", "wkt and file" if wkt else "neither wkt nor file", "exactly one of wkt, file")
+    if file is not None and str(file).lower().endswith(".dxf"):
+        from meanfield.plan_dxf import plan_parts_from_table
+
+        return Plan(*plan_parts_from_table(file, exits, walls_layer, obstacles_layer, exits_layer))
+    layers = {"walls_layer": walls_layer, "obstacles_layer": obstacles_layer, "exits_layer": exits_layer}
+    for key, value in layers.items():
+        if value is not None:
+            raise ParameterError(key, value, 'a layer name only with a DXF file (file = "plan.dxf")')
     plan = Plan.from_wkt(wkt) if wkt is not None else Plan.from_geojson(file)
     return Plan(plan.polygon, exits) if exits else plan

@@ -24,6 +24,9 @@ The kinds and what a factory of each kind receives and returns (docs page *Archi
     ``factory(context: CrowdContext) -> Crowd`` (:mod:`meanfield.interfaces`).
 ``controller`` (``meanfield.controllers``)
     ``factory(parts: ControllerParts) -> Controller``.
+``guidance`` (``meanfield.guidance``)
+    ``factory(context: CrowdContext, positions) -> Guidance | None``: what the agents follow
+    (None: the robots' signs; :mod:`meanfield.guidance`).
 ``beta_gamma`` (``meanfield.beta_gamma``)
     ``factory(scenario) -> BetaGammaStrategy``.
 ``command`` (``meanfield.commands``)
@@ -45,6 +48,7 @@ GROUPS = {
     "region": "meanfield.regions",
     "crowd": "meanfield.crowds",
     "controller": "meanfield.controllers",
+    "guidance": "meanfield.guidance",
     "beta_gamma": "meanfield.beta_gamma",
     "command": "meanfield.commands",
 }
@@ -65,6 +69,12 @@ BUILTIN: dict[str, dict[str, str]] = {
     "controller": {
         "backstepping": "meanfield.control:BacksteppingController.from_parts",
         "evacuation": "meanfield.evacuation:EvacuationController.from_parts",
+        "static-signs": "meanfield.static_signs:StaticSigns.from_parts",
+    },
+    "guidance": {
+        "signs": "meanfield.guidance:signs",
+        "geodesic": "meanfield.guidance:geodesic",
+        "random-walk": "meanfield.guidance:random_walk",
     },
     "beta_gamma": {
         "min-norm": "meanfield.control:MinimumNormBetaGamma.from_scenario",

@@ -26,6 +26,7 @@ from meanfield.domain import Domain
 from meanfield.errors import ParameterError, limit_or_inf
 from meanfield.grid import FaceField, Grid
 from meanfield.kernels import NavigationKernel
+from meanfield.sight import SightLines
 
 __all__ = ["RobotTeam", "NavigationField", "navigation_velocity", "saturate_inputs"]
 
@@ -126,13 +127,19 @@ def saturate_inputs(u: np.ndarray, omega: np.ndarray, u_max: float, omega_max: f
 
 
 def navigation_velocity(
-    kernel: NavigationKernel, positions: np.ndarray, headings: np.ndarray, points: np.ndarray
+    kernel: NavigationKernel,
+    positions: np.ndarray,
+    headings: np.ndarray,
+    points: np.ndarray,
+    sight: SightLines | None = None,
 ) -> np.ndarray:
     """``v_r(x) = Σ_i K̄(x - R_i) e(θ_i)`` at ``points`` (N, 2) (paper, eq. (3)); shape (N, 2).
 
     Cost O(N n), evaluated in blocks of points so that temporaries hold at most
     ``_EXACT_BLOCK`` robot-point pairs whatever N is; for very large crowds sample the
     field on a lattice instead (:class:`~meanfield.sampled_field.SampledNavigationField`).
+    With ``sight`` (a floor plan), robot ``i``'s term is zero where a wall hides it
+    (:mod:`meanfield.sight`, docs page *Buildings*).
     """
     n = len(positions)
     cos, sin = np.cos(headings), np.sin(headings)
@@ -142,6 +149,8 @@ def navigation_velocity(
     for a in range(0, len(points), step):
         block = points[a : a + step]
         k = kernel.magnitude(block[None, :, 0] - rx, block[None, :, 1] - ry)  # (n, block)
+        if sight is not None and not sight.trivial:
+            k = k * sight.mask(positions, block)
         out[a : a + step, 0] = cos @ k
         out[a : a + step, 1] = sin @ k
     return out
@@ -161,9 +170,20 @@ class NavigationField:
     positions, headings : ndarray
         Robot states ``R_i`` (n, 2) and ``θ_i`` (n,); complex values are allowed
         (complex-step differentiation in the tests).
+    sight : SightLines, optional
+        A plan's walls: each robot's kernel is zero on the faces it does not see
+        (:mod:`meanfield.sight`, decided between cells).  The mask is piecewise constant in ``R_i``: the rates and
+        moments below differentiate the kernel where it is visible and ignore the jumps.
     """
 
-    def __init__(self, kernel: NavigationKernel, grid: Grid, positions: np.ndarray, headings: np.ndarray):
+    def __init__(
+        self,
+        kernel: NavigationKernel,
+        grid: Grid,
+        positions: np.ndarray,
+        headings: np.ndarray,
+        sight: SightLines | None = None,
+    ):
         self.kernel = kernel
         self.grid = grid
         self.positions = np.array(positions).reshape(-1, 2)  # the robots it was built for (dtype kept)
@@ -172,7 +192,8 @@ class NavigationField:
         self.sin = np.sin(headings)
         rx = positions[:, 0][:, None]
         ry = positions[:, 1][:, None]
-        self.separable = bool(getattr(kernel, "separable", False))
+        hidden = sight is not None and not sight.trivial
+        self.separable = bool(getattr(kernel, "separable", False)) and not hidden
         if self.separable:
             s = -2.0 / kernel.eta
             c = kernel.c
@@ -198,6 +219,10 @@ class NavigationField:
             self._ky = kernel.magnitude(Xy[None] - rx3, Yy[None] - ry3)
             self._gx_x, self._gy_x = kernel.magnitude_gradient(Xx[None] - rx3, Yx[None] - ry3)
             self._gx_y, self._gy_y = kernel.magnitude_gradient(Xy[None] - rx3, Yy[None] - ry3)
+            if hidden:
+                sx, sy = sight.face_masks(grid, self.positions)
+                self._kx, self._gx_x, self._gy_x = self._kx * sx, self._gx_x * sx, self._gy_x * sx
+                self._ky, self._gx_y, self._gy_y = self._ky * sy, self._gx_y * sy, self._gy_y * sy
 
     # ---------------------------------------------------------------- the field itself
     def velocity(self) -> FaceField:

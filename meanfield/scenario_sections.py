@@ -63,7 +63,11 @@ class CrowdSpec:
     ``field_evaluation`` is how ``v_r`` reaches the humans: ``"exact"`` (eq. (3) at each
     human, O(N n)), ``"sampled"`` (on a lattice twice as fine as the grid, interpolated
     bilinearly, O(N + n M): :mod:`meanfield.sampled_field`) or ``"auto"`` (sampled when
-    ``N n > 2·10⁶``).
+    ``N n > 2·10⁶``).  ``guidance`` is what the agents follow: the robots' ``"signs"``
+    (the paper), or a baseline, ``"geodesic"`` (the informed crowd, walking the shortest
+    route to an exit at ``free_speed``) or ``"random-walk"`` (the uninformed crowd; registry
+    kind ``guidance``, :mod:`meanfield.guidance`).  ``free_speed`` is the free walking speed
+    (1.34 m/s, Weidmann), also used by the evacuation lower bound.
     """
 
     n: int = 200
@@ -72,6 +76,8 @@ class CrowdSpec:
     initial_std: float = 0.1
     sigma: float = 0.015
     field_evaluation: str = "auto"
+    guidance: str = "signs"
+    free_speed: float = 1.34
 
     def __post_init__(self) -> None:
         self.n = integer("crowd.n", self.n, 1)
@@ -80,6 +86,8 @@ class CrowdSpec:
         self.initial_std = num("crowd.initial_std", self.initial_std, lo=0.0, lo_open=True)
         self.sigma = num("crowd.sigma", self.sigma, lo=0.0)
         self.field_evaluation = choice("crowd.field_evaluation", self.field_evaluation, ("auto", "exact", "sampled"))
+        self.guidance = choice("crowd.guidance", self.guidance, plugins.available("guidance"))
+        self.free_speed = num("crowd.free_speed", self.free_speed, lo=0.0, lo_open=True)
 
 
 @dataclass

@@ -40,6 +40,7 @@ def run_summary(
     rho_err0: float,
     wall: float,
     steps_run: int,
+    evacuation: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """``summary.json`` of a run: outcome, errors, W₂, time to 90 %, input statistics, the crowd's own figures.
 
@@ -59,6 +60,9 @@ def run_summary(
         Seconds spent stepping.
     steps_run : int
         Steps taken in this call (for ``steps_per_second``).
+    evacuation : dict, optional
+        With exits: the evacuation measures
+        (:meth:`~meanfield.evacuation_measures.EvacuationTracker.summary`).
     """
     sc = loop.scenario
     p = loop.parts
@@ -91,6 +95,7 @@ def run_summary(
         "field_error_bound_final": _field_error_bound(loop),
         "view_radius": sc.view.radius,
         **crowd.summary(),  # the crowd's own figures (agents: field_evaluation, seen_fraction_final, bodies)
+        **(evacuation or {}),  # with exits: fraction evacuated, RSET, flows, peak density, lower bound
         "V2_initial": recorder.first_V2,
         "V2_final": float(dataset["V2"].values[-1]) if dataset.sizes["time"] else None,
         "A_final": _last_A(recorder),

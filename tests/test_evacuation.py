@@ -100,7 +100,7 @@ def test_the_evacuation_controller_runs_from_a_scenario():
     loop = ClosedLoop(sc)
     assert isinstance(loop.controller, EvacuationController)
     s = loop.run(progress=False).summary
-    assert s["status"] == "completed" and s["controller"] == "evacuation" and 0 <= s["evacuated_fraction"] <= 1
+    assert s["status"] == "completed" and s["controller"] == "evacuation" and 0 <= s["fraction_evacuated"] <= 1
     with pytest.raises(ParameterError) as exc:
         ClosedLoop(paper_scenario(seed=0).with_values({"controller.kind": "evacuation"}))  # no exits
     assert exc.value.name == "domain.exits"

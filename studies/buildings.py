@@ -1,0 +1,183 @@
+"""Robot guidance against the baselines on the shipped floor plans (docs page *Buildings*).
+
+Run from the repository's root::
+
+    python studies/buildings.py [--seeds 5] [--backends point-mass jupedsim] [--workers 2]
+
+For each built-in plan (``l-room``, ``office``, ``hall``), seed and backend it runs
+
+* robot guidance (the plan's controller, ``evacuation``) with 4, 8 and 16 robots;
+* static signs (``controller.kind = "static-signs"``) with 4, 8 and 16 robots;
+* the informed crowd (``crowd.guidance = "geodesic"``) and the uninformed crowd
+  (``crowd.guidance = "random-walk"``), which have no use for robots;
+
+and keeps each run's evacuation figures in ``studies/results/buildings.jsonl`` (one line per
+run, appended as each finishes, so that an interrupted study resumes where it stopped).
+Then it prints the table of the docs page (``--table``: only the table, from the file) and
+draws ``docs/figures/buildings_evacuation.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+
+import numpy as np
+
+PLANS = ("l-room", "office", "hall")
+SETTINGS = {  # label: overrides
+    **{f"guidance {n}": {"robots.n": n} for n in (4, 8, 16)},
+    **{f"static {n}": {"robots.n": n, "controller.kind": "static-signs"} for n in (4, 8, 16)},
+    "informed": {"crowd.guidance": "geodesic", "robots.n": 4, "controller.kind": "static-signs"},
+    "uninformed": {"crowd.guidance": "random-walk", "robots.n": 4, "controller.kind": "static-signs"},
+}
+RESULTS = Path("studies/results/buildings.jsonl")
+KEYS = (
+    "fraction_evacuated",
+    "evacuation_time_95",
+    "evacuation_time_100",
+    "evacuation_lower_bound",
+    "lower_bound_walk",
+    "lower_bound_flow",
+    "peak_density",
+    "crush_risk",
+    "time_final",
+    "wall_seconds",
+)
+
+
+def one_run(plan: str, setting: str, seed: int, backend: str) -> dict:
+    """One run's evacuation figures (the baselines' robots are parked and seen by no one)."""
+    from meanfield import run
+    from meanfield.scenario import builtin_scenarios
+
+    sc = builtin_scenarios()[plan](seed=seed).with_values({**SETTINGS[setting], "pedestrians.backend": backend})
+    result = run(sc, progress=False)
+    s = result.summary
+    curve = result.dataset["fraction_evacuated"]
+    return {
+        "plan": plan,
+        "setting": setting,
+        "seed": seed,
+        "backend": backend,
+        **{k: s.get(k) for k in KEYS},
+        "curve_t": curve["time"].values.tolist(),
+        "curve": curve.values.tolist(),
+    }
+
+
+def _done() -> set[tuple]:
+    if not RESULTS.exists():
+        return set()
+    rows = [json.loads(line) for line in RESULTS.read_text().splitlines() if line.strip()]
+    return {(r["plan"], r["setting"], r["seed"], r["backend"]) for r in rows}
+
+
+def run_all(seeds: int, backends: list[str], workers: int) -> None:
+    RESULTS.parent.mkdir(parents=True, exist_ok=True)
+    todo = [
+        (p, s, k, b)
+        for b in backends
+        for p in PLANS
+        for s in SETTINGS
+        for k in range(seeds)
+        if (p, s, k, b) not in _done()
+    ]
+    print(f"{len(todo)} runs to do")
+    with ProcessPoolExecutor(workers) as pool, RESULTS.open("a") as out:
+        futures = {pool.submit(one_run, *job): job for job in todo}
+        for i, f in enumerate(as_completed(futures), 1):
+            row = f.result()
+            out.write(json.dumps(row) + "\n")
+            out.flush()
+            os.fsync(out.fileno())
+            print(
+                f"[{i}/{len(todo)}] {futures[f]}: out {row['fraction_evacuated']:.3f},"
+                f" t100 {row['evacuation_time_100']}"
+            )
+
+
+def _rset(r: dict) -> float:
+    """Everyone out: the time; not everyone: infinity (the table says how many left)."""
+    t = r["evacuation_time_100"]
+    return np.inf if t is None else t
+
+
+def table(backends: list[str]) -> str:
+    rows = [json.loads(line) for line in RESULTS.read_text().splitlines() if line.strip()]
+    lines = [
+        "| plan | crowd | setting | seeds | out, median (worst) | RSET s, median (worst) | ÷ informed | ÷ bound |"
+        " peak persons/m² (max) |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for b in backends:
+        for p in PLANS:
+            runs = {
+                s: [r for r in rows if r["plan"] == p and r["backend"] == b and r["setting"] == s] for s in SETTINGS
+            }
+            informed = np.median([_rset(r) for r in runs["informed"]]) if runs["informed"] else np.nan
+            for s, rs in runs.items():
+                if not rs:
+                    continue
+                out = np.array([r["fraction_evacuated"] for r in rs])
+                rset = np.array([_rset(r) for r in rs])
+                bound = np.median([r["evacuation_lower_bound"] for r in rs])
+                peak = np.array([r["peak_density"] for r in rs])
+                med = float(np.median(rset))
+
+                def fmt(x: float) -> str:
+                    return "not all out" if not np.isfinite(x) else f"{x:.1f}"
+
+                ratio = med / informed if np.isfinite(med) and np.isfinite(informed) else np.nan
+                lines.append(
+                    f"| {p} | {b} | {s} | {len(rs)} | {np.median(out):.3f} ({out.min():.3f}) | {fmt(med)} "
+                    f"({fmt(rset.max())}) | {'—' if not np.isfinite(ratio) else f'{ratio:.2f}'} | "
+                    f"{'—' if not np.isfinite(med) else f'{med / bound:.2f}'} |"
+                    f" {np.median(peak):.1f} ({peak.max():.1f}) |"
+                )
+    return "\n".join(lines)
+
+
+def figure(backends: list[str], path: str = "docs/figures/buildings_evacuation.png") -> None:
+    """The median evacuation curve of each setting on each plan (one panel per plan and crowd)."""
+    from meanfield.io import save_figure, subplots
+
+    rows = [json.loads(line) for line in RESULTS.read_text().splitlines() if line.strip()]
+    fig, axes = subplots(len(backends), len(PLANS), figsize=(4.2 * len(PLANS), 3.4 * len(backends)), squeeze=False)
+    shown = ("guidance 4", "guidance 8", "guidance 16", "static 8", "informed", "uninformed")
+    for bi, b in enumerate(backends):
+        for pi, p in enumerate(PLANS):
+            ax = axes[bi][pi]
+            for s in shown:
+                rs = [r for r in rows if r["plan"] == p and r["backend"] == b and r["setting"] == s]
+                if not rs:
+                    continue
+                t = max((r["curve_t"] for r in rs), key=len)
+                curves = np.array([np.interp(t, r["curve_t"], r["curve"], right=r["curve"][-1]) for r in rs])
+                ax.plot(t, np.median(curves, axis=0), label=s, lw=1.6 if s.startswith("guidance") else 1.1)
+            ax.set(title=f"{p} — {b}", xlabel="time (s)", ylabel="fraction evacuated (median of seeds)", ylim=(0, 1.02))
+            ax.grid(alpha=0.3)
+    axes[0][0].legend(fontsize=8, loc="lower right")
+    fig.tight_layout()
+    save_figure(fig, path)
+    print(f"wrote {path}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=5)
+    ap.add_argument("--backends", nargs="+", default=["point-mass", "jupedsim"])
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--table", action="store_true", help="only print the table and draw the figure from the results")
+    args = ap.parse_args()
+    if not args.table:
+        run_all(args.seeds, args.backends, args.workers)
+    print(table(args.backends))
+    figure(args.backends)
+
+
+if __name__ == "__main__":
+    main()
