@@ -19,6 +19,9 @@ large_crowd     the closed loop at N = 10⁶ (``stadium``) against the same loop
 bounded         the bounded β/γ program re-solved (cvxpy DPP) against rebuilt each time, and
                 its closed loop against min-norm's (``bench_bounded.py``)
 nmpc            NMPC solve per control step against the backstepping law (``bench_nmpc.py``)
+startup         ``import meanfield`` and ``meanfield --help`` against ``python -c pass``
+plan            a closed-loop step on the ``office`` plan against the same loop on a box of
+                the same grid and crowd; goal: at most 1.5× (``bench_plan.py``)
 ==============  ==========================================================================
 
 An anchor that is not installed (py-pde, FiPy, JuPedSim) gives a record with
@@ -110,6 +113,7 @@ BENCHMARKS: dict[str, Benchmark] = {
         ("bounded", "bounded beta/gamma: re-solve and closed loop", "rebuild; min-norm"),
         ("nmpc", "NMPC solve per control step", "backstepping law"),
         ("startup", "import meanfield; meanfield --help (whole processes)", "python -c pass"),
+        ("plan", "closed-loop step on the office plan", "the same loop on a box"),
     )
 }
 """The registry: name -> :class:`Benchmark`, in running order."""

@@ -93,7 +93,7 @@ class AgentCrowd:
         The grid's cells; the sampled lattice has ``2 nx + 1 × 2 ny + 1`` nodes.
     sight : SightLines, optional
         A plan's walls: a human behind a wall does not see that robot's sign
-        (:mod:`meanfield.sight`); exact field evaluation only.
+        (:mod:`meanfield.sight`, decided between the grid's cells); exact field evaluation only.
     guidance : Guidance, optional
         A baseline the humans follow instead of the signs (:mod:`meanfield.guidance`); None:
         the robots' signs.
@@ -166,10 +166,11 @@ class AgentCrowd:
             if self._drift is None or len(self._drift) != len(positions):
                 self._drift = np.empty((len(positions), 2))
             drift = self.sampled_field.at_points(positions, out=self._drift)
-        else:
-            drift = navigation_velocity(self.kernel, robots.positions, robots.headings, positions, self.sight)
-        if self.guidance is None:
             self.view.gate(drift, positions, robots.positions, dt)
+        else:
+            visible = None if self.sight is None else self.sight.mask(robots.positions, positions, self.kde.grid)
+            drift = navigation_velocity(self.kernel, robots.positions, robots.headings, positions, visible)
+            self.view.gate(drift, positions, robots.positions, dt, visible)
         if self.interaction is not None:
             drift += self.interaction.at_points(positions)
         if self.disturbance is not None:
@@ -256,7 +257,7 @@ class AgentCrowd:
         kde = KernelDensityEstimator(ctx.grid, bw, sc.density.boundary, sc.density.method)
         v = sc.view
         n = len(engine.positions)
-        view = LocalView(n, v.radius, v.walk_speed, v.turning_rate, sc.domain, ctx.rng, engine.body_radius, ctx.sight)
+        view = LocalView(n, v.radius, v.walk_speed, v.turning_rate, sc.domain, ctx.rng, engine.body_radius)
         mode = sc.crowd.field_evaluation
         if mode == "auto":
             mode = "sampled" if n * sc.robots.n > SAMPLED_FIELD_ABOVE and ctx.sight is None else "exact"

@@ -24,7 +24,6 @@ import numpy as np
 
 from meanfield.domain import Domain
 from meanfield.errors import ParameterError
-from meanfield.sight import SightLines
 
 __all__ = ["LocalView", "robots_in_view"]
 
@@ -111,8 +110,6 @@ class LocalView:
         Source of the initial headings (uniform) and of the heading increments.
     clearance : float
         Extra distance to the wall at which a walker turns (a body's radius).
-    sight : SightLines, optional
-        A plan's walls: a robot behind a wall is not in view (:mod:`meanfield.sight`).
     """
 
     def __init__(
@@ -124,7 +121,6 @@ class LocalView:
         domain: Domain,
         rng: np.random.Generator,
         clearance: float = 0.0,
-        sight: SightLines | None = None,
     ):
         if radius is not None and not radius > 0:
             raise ParameterError("view.radius", radius, 'a view radius > 0, or "none" (no gating)')
@@ -138,7 +134,6 @@ class LocalView:
         self.domain = domain
         self.rng = rng
         self.clearance = float(clearance)
-        self.sight = sight
         self._n = int(n)
         self._headings: np.ndarray | None = None  # drawn at the first step (see headings)
         self.seen = np.ones(n, dtype=bool)
@@ -209,7 +204,14 @@ class LocalView:
                 self.headings[idx[rows]] = np.arctan2(d[ok, 1], d[ok, 0])
         return self.walk_speed * e
 
-    def gate(self, v_r: np.ndarray, positions: np.ndarray, robots: np.ndarray, dt: float) -> np.ndarray:
+    def gate(
+        self,
+        v_r: np.ndarray,
+        positions: np.ndarray,
+        robots: np.ndarray,
+        dt: float,
+        visible: np.ndarray | None = None,
+    ) -> np.ndarray:
         """Replace, in place, the navigation velocity of every human who sees no robot by its walk.
 
         Parameters
@@ -220,6 +222,9 @@ class LocalView:
         robots : ndarray, shape (n, 2)
         dt : float
             The control period (the walkers' look-ahead).
+        visible : ndarray of bool, shape (n, N), optional
+            In a floor plan, which robot each human sees (:meth:`meanfield.sight.SightLines.mask`):
+            a robot within the radius but behind a wall is not in view.
 
         Returns
         -------
@@ -230,11 +235,10 @@ class LocalView:
             return v_r
         self.headings  # noqa: B018 -- the walkers' initial headings are drawn here, at the first step
         self.seen = robots_in_view(positions, robots, self.radius)
-        if self.sight is not None and self.seen.any():  # a robot in reach but behind a wall is not seen
+        if visible is not None and self.seen.any():  # a robot in reach but behind a wall is not seen
             rows = np.flatnonzero(self.seen)
             near = ((positions[rows, None, :] - robots[None, :, :]) ** 2).sum(-1) <= self.radius**2
-            visible = self.sight.visible(robots[None, :, :], positions[rows, None, :])
-            self.seen[rows] = (near & visible).any(axis=1)
+            self.seen[rows] = (near & visible[:, rows].T).any(axis=1)
         walkers = np.flatnonzero(~self.seen)
         if len(walkers):
             v_r[walkers] = self.walk_velocity(positions[walkers], dt, walkers)

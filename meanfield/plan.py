@@ -53,6 +53,7 @@ class Plan:
             raise ParameterError("wkt", "an empty polygon", "a polygon with an area > 0")
         self.polygon = shapely.normalize(polygon)
         shapely.prepare(self.polygon)
+        self._diameter: float | None = None
         self._edges = self._segments()
         self._inset: dict[float, Any] = {}
         self.exits = self._check_exits(exits or ())
@@ -130,9 +131,11 @@ class Plan:
 
     @property
     def diameter(self) -> float:
-        v = np.asarray(self.polygon.exterior.coords)
-        d = v[:, None, :] - v[None, :, :]
-        return float(np.sqrt((d**2).sum(-1)).max())
+        if self._diameter is None:
+            v = np.asarray(self.polygon.exterior.coords)
+            d = v[:, None, :] - v[None, :, :]
+            self._diameter = float(np.sqrt((d**2).sum(-1)).max())
+        return self._diameter
 
     def _shape(self, tol: float) -> Any:
         """The plan grown by ``tol`` (shrunk for ``tol < 0``; cached)."""
@@ -219,6 +222,30 @@ class Plan:
         if hit.any():
             t = np.maximum(first[hit] - 1e-9, 0.0)[:, None]
             end[hit] = start[hit] + t * (end[hit] - start[hit])
+        return end
+
+    def slide_along_walls(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+        """Follow, in place, each step ``start → end`` up to the first wall, then along it.
+
+        What the step has left after the wall is projected on the wall's direction and
+        followed again (stopping at the next wall), so that a robot driven into a pillar
+        or a wall at an angle goes round it instead of stopping dead; a slide whose straight
+        chord would cut a corner is not taken (the step stops at the wall), so no robot's
+        step ever crosses a wall (robots, :meth:`~meanfield.robots.RobotTeam.advance`).
+        """
+        e = self._edges[1]
+        first, k = self._first_hit(start, end)
+        hit = np.flatnonzero(np.isfinite(first))
+        if not len(hit):
+            return end
+        t = np.maximum(first[hit] - 1e-9, 0.0)[:, None]
+        stop = start[hit] + t * (end[hit] - start[hit])
+        along = e[k[hit]] / np.hypot(e[k[hit], 0], e[k[hit], 1])[:, None]
+        rest = ((end[hit] - stop) * along).sum(1)[:, None] * along
+        slid = self.stop_at_walls(stop, stop + rest)
+        # keep a slide only if the straight move to it crosses no wall either (past a corner it may)
+        clear = ~np.isfinite(self._first_hit(start[hit], slid)[0])
+        end[hit] = np.where(clear[:, None], slid, stop)
         return end
 
     def project(self, points: np.ndarray) -> np.ndarray:

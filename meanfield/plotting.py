@@ -4,7 +4,12 @@
   and the fraction of humans in the target region over time.
 * ``snapshots.png`` — Fig. 3: four instants; top row humans (red), robots (blue circles)
   and the arrows of v_r; bottom row the density estimates ρ̂.
+* ``evacuation.png`` — with exits: the fraction of the crowd out over time, the times at
+  which 95 % and everyone were out, and the lower bound on the evacuation time.
 * ``animation.gif`` — the top row of Fig. 3 over the whole run (``--animate``).
+
+In a floor plan the arrows of ``v_r`` are drawn inside Ω only, each robot's share hidden
+behind walls (:mod:`meanfield.sight`), and every panel shows the walls and the exits.
 """
 
 from __future__ import annotations
@@ -17,8 +22,9 @@ from matplotlib.patches import Circle
 from meanfield.io import atomic_write_with, save_figure, subplots  # noqa: E402
 from meanfield.result import SimulationResult  # noqa: E402
 from meanfield.robots import navigation_velocity  # noqa: E402
+from meanfield.sight import SightLines  # noqa: E402
 
-__all__ = ["plot_target_and_error", "plot_snapshots", "save_run_figures", "save_animation"]
+__all__ = ["plot_target_and_error", "plot_snapshots", "plot_evacuation", "save_run_figures", "save_animation"]
 
 
 def _extent(ds):
@@ -78,8 +84,11 @@ def _field_arrows(result: SimulationResult, k: int, m: int = 15):
     ys = np.linspace(y0, y1, m + 2)[1:-1]
     X, Y = np.meshgrid(xs, ys, indexing="ij")
     pts = np.column_stack([X.ravel(), Y.ravel()])
+    domain = result.scenario.domain
+    pts = pts[domain.contains(pts[:, 0], pts[:, 1])]
     R = np.column_stack([ds["robot_x"].values[k], ds["robot_y"].values[k]])
-    v = navigation_velocity(loop_kernel, R, ds["robot_heading"].values[k], pts)
+    visible = SightLines(domain).mask(R, pts)  # exact segments (None in a convex room)
+    v = navigation_velocity(loop_kernel, R, ds["robot_heading"].values[k], pts, visible)
     return pts, v
 
 
@@ -108,7 +117,11 @@ def _draw_crowd(ax, result: SimulationResult, k: int):
     _outline(ax, result)
     ax.set_aspect("equal")
     _axes_labels(ax, _units(result))
-    ax.set_title(f"t = {ds['time'].values[k]:.1f}, in target {ds['fraction_in_target'].values[k]:.0%}", fontsize=9)
+    if "fraction_evacuated" in ds:
+        state = f"out {ds['fraction_evacuated'].values[k]:.0%}"
+    else:
+        state = f"in target {ds['fraction_in_target'].values[k]:.0%}"
+    ax.set_title(f"t = {ds['time'].values[k]:.1f} {_units(result)['time']}, {state}", fontsize=9)
 
 
 def _crowd_legend(fig, ds) -> None:
@@ -155,9 +168,32 @@ def plot_snapshots(result: SimulationResult, count: int = 4):
         )
         title = "density estimate ρ̂" if "human_x" in ds else "density ρ (Fokker–Planck)"
         axes[1, col].set_title(title, fontsize=9)
+        _outline(axes[1, col], result)
         _axes_labels(axes[1, col], _units(result))
     fig.colorbar(im, ax=axes[1, :].tolist(), shrink=0.8, label=f"density ({_units(result)['density']})")
     _crowd_legend(fig, ds)
+    return fig
+
+
+def plot_evacuation(result: SimulationResult):
+    """The fraction of the crowd out over time, with RSET (95 %, 100 %) and the lower bound."""
+    ds, s = result.dataset, result.summary
+    u = _units(result)
+    fig, ax = subplots(figsize=(6.4, 4.0), constrained_layout=True)
+    ax.plot(ds["time"].values, ds["fraction_evacuated"].values, color="tab:green", lw=2, label="fraction out")
+    for key, label, style in (
+        ("evacuation_time_95", "95 % out", ":"),
+        ("evacuation_time_100", "everyone out (RSET)", "--"),
+        ("evacuation_lower_bound", "lower bound", "-."),
+    ):
+        if s.get(key) is not None:
+            ax.axvline(s[key], color="0.3", ls=style, lw=1, label=f"{label}: {s[key]:.1f} {u['time']}")
+    ax.set(xlabel=f"time ({u['time']})", ylabel="fraction of the crowd out", ylim=(0, 1.02))
+    peak = s.get("peak_density")
+    title = "evacuation" if peak is None else f"evacuation (peak density {peak:.1f} {u['density'].replace('1/', '/')})"
+    ax.set_title(title + (" — crush risk" if s.get("crush_risk") else ""))
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower right", fontsize=8)
     return fig
 
 
@@ -167,13 +203,17 @@ def _save(fig, path: Path, run_id: str | None = None) -> Path:
 
 
 def save_run_figures(result: SimulationResult, out_dir: Path) -> dict[str, Path]:
-    """Write ``target_and_error.png`` and ``snapshots.png`` into ``out_dir`` (the run's id in their metadata)."""
+    """Write ``target_and_error.png``, ``snapshots.png`` and, with exits, ``evacuation.png`` into
+    ``out_dir`` (the run's id in their metadata)."""
     out_dir = Path(out_dir)
     rid = result.summary.get("run_id")
-    return {
+    out = {
         "target_and_error": _save(plot_target_and_error(result), out_dir / "target_and_error.png", rid),
         "snapshots": _save(plot_snapshots(result), out_dir / "snapshots.png", rid),
     }
+    if "fraction_evacuated" in result.dataset:
+        out["evacuation"] = _save(plot_evacuation(result), out_dir / "evacuation.png", rid)
+    return out
 
 
 def save_animation(

@@ -100,10 +100,11 @@ class RobotTeam:
     def advance(self, u: np.ndarray, omega: np.ndarray, dt: float, domain: Domain) -> None:
         """Euler step of eq. (2) with inputs already within the limits; robots kept in ``domain``.
 
-        In a plan (a region with ``stop_at_walls``) a robot whose step meets a wall or a
-        pillar stops just before it, instead of passing through.
+        In a plan (a region with ``slide_along_walls``) a robot whose step meets a wall or a
+        pillar goes on along it with what is left of the step's component along the wall
+        (a head-on step stops), never through it.
         """
-        stop = getattr(domain, "stop_at_walls", None)
+        stop = getattr(domain, "slide_along_walls", None)
         start = self.positions.copy() if stop is not None else None
         self.positions += dt * u
         if stop is not None:
@@ -131,15 +132,15 @@ def navigation_velocity(
     positions: np.ndarray,
     headings: np.ndarray,
     points: np.ndarray,
-    sight: SightLines | None = None,
+    visible: np.ndarray | None = None,
 ) -> np.ndarray:
     """``v_r(x) = Σ_i K̄(x - R_i) e(θ_i)`` at ``points`` (N, 2) (paper, eq. (3)); shape (N, 2).
 
     Cost O(N n), evaluated in blocks of points so that temporaries hold at most
     ``_EXACT_BLOCK`` robot-point pairs whatever N is; for very large crowds sample the
     field on a lattice instead (:class:`~meanfield.sampled_field.SampledNavigationField`).
-    With ``sight`` (a floor plan), robot ``i``'s term is zero where a wall hides it
-    (:mod:`meanfield.sight`, docs page *Buildings*).
+    With ``visible`` (bool, ``(n, N)``: which robot each point sees in a floor plan,
+    :meth:`meanfield.sight.SightLines.mask`), robot ``i``'s term is zero where a wall hides it.
     """
     n = len(positions)
     cos, sin = np.cos(headings), np.sin(headings)
@@ -149,8 +150,8 @@ def navigation_velocity(
     for a in range(0, len(points), step):
         block = points[a : a + step]
         k = kernel.magnitude(block[None, :, 0] - rx, block[None, :, 1] - ry)  # (n, block)
-        if sight is not None and not sight.trivial:
-            k = k * sight.mask(positions, block)
+        if visible is not None:
+            k = k * visible[:, a : a + step]
         out[a : a + step, 0] = cos @ k
         out[a : a + step, 1] = sin @ k
     return out
@@ -193,8 +194,9 @@ class NavigationField:
         rx = positions[:, 0][:, None]
         ry = positions[:, 1][:, None]
         hidden = sight is not None and not sight.trivial
-        self.separable = bool(getattr(kernel, "separable", False)) and not hidden
-        if self.separable:
+        separable = bool(getattr(kernel, "separable", False))
+        self.separable = separable and not hidden
+        if separable:
             s = -2.0 / kernel.eta
             c = kernel.c
             # one-dimensional factors (robot, coordinate)
@@ -210,7 +212,14 @@ class NavigationField:
             self._gxc = s * dxc * self._fxc
             self._gyf = s * dyf * self._fyf
             self._gyc = s * dyc * self._fyc
-        else:
+        if separable and hidden:  # the kernels on the faces from their 1-D factors (no exp per face)
+            self._kx = self._fxf[:, :, None] * self._fyc[:, None, :]
+            self._ky = self._fxc[:, :, None] * self._fyf[:, None, :]
+            self._gx_x = self._gxf[:, :, None] * self._fyc[:, None, :]
+            self._gy_x = self._fxf[:, :, None] * self._gyc[:, None, :]
+            self._gx_y = self._gxc[:, :, None] * self._fyf[:, None, :]
+            self._gy_y = self._fxc[:, :, None] * self._gyf[:, None, :]
+        elif not separable:
             Xx, Yx = grid.face_points_x
             Xy, Yy = grid.face_points_y
             rx3 = positions[:, 0][:, None, None]
@@ -219,10 +228,10 @@ class NavigationField:
             self._ky = kernel.magnitude(Xy[None] - rx3, Yy[None] - ry3)
             self._gx_x, self._gy_x = kernel.magnitude_gradient(Xx[None] - rx3, Yx[None] - ry3)
             self._gx_y, self._gy_y = kernel.magnitude_gradient(Xy[None] - rx3, Yy[None] - ry3)
-            if hidden:
-                sx, sy = sight.face_masks(grid, self.positions)
-                self._kx, self._gx_x, self._gy_x = self._kx * sx, self._gx_x * sx, self._gy_x * sx
-                self._ky, self._gx_y, self._gy_y = self._ky * sy, self._gx_y * sy, self._gy_y * sy
+        if hidden:
+            sx, sy = sight.face_masks(grid, self.positions)
+            self._kx, self._gx_x, self._gy_x = self._kx * sx, self._gx_x * sx, self._gy_x * sx
+            self._ky, self._gx_y, self._gy_y = self._ky * sy, self._gx_y * sy, self._gy_y * sy
 
     # ---------------------------------------------------------------- the field itself
     def velocity(self) -> FaceField:

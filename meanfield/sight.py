@@ -4,13 +4,14 @@ Design notes, section *Signs need line of sight* (docs page *Buildings*): robot 
 navigation field is zero at ``x`` when the segment from ``R_i`` to ``x`` crosses a wall,
 so eq. (3) becomes ``v_r(x) = Σ_i s_i(x) K̄(x − R_i) e(θ_i)`` with ``s_i(x) ∈ {0, 1}``.
 
-Agents test the exact segment from each robot to each human.  The grid's field (what the
-robots' law and the density see) decides sight at the grid's resolution: a face is seen
-from robot ``i`` when the point of the robot's cell sees the points of both cells beside
-the face (a cell's point is its centre, or the nearest point of Ω when the centre is in a
-wall).  Each cell's row of that table is computed the first time a robot stands in the
-cell and kept, so a robot costs one test of every cell against the walls per new cell,
-not one per step.
+Sight is decided at the grid's resolution, the same way for the agents and for the grid's
+field (what the robots' law and the density see): a human sees robot ``i`` when the point
+of the robot's cell sees the point of the human's cell, and a face is seen when the
+robot's cell sees the points of both cells beside it (a cell's point is its centre, or the
+nearest point of Ω when the centre is in a wall).  Each cell's row of that table is
+computed the first time a robot stands in the cell and kept, so a robot costs one test of
+every cell against the walls per new cell, and a step costs a table look-up per pair.
+:meth:`SightLines.visible` is the exact test of segments (used to build the rows).
 
 Only walls that can stand between two points of Ω can hide anything: the walls of the
 outline that lie on its convex hull never do (both points are on the same side of them), so
@@ -105,13 +106,22 @@ class SightLines:
             out[s : s + step] = ~hit.any(axis=1)
         return out.reshape(shape)
 
-    def mask(self, robots: np.ndarray, points: np.ndarray) -> np.ndarray | None:
-        """``s_i(x)``: shape ``(n, M)``, True where robot ``i`` sees point ``x`` (None: all visible)."""
+    def mask(self, robots: np.ndarray, points: np.ndarray, grid: Any = None) -> np.ndarray | None:
+        """``s_i(x)``: shape ``(n, M)``, True where robot ``i`` sees point ``x`` (None: all visible).
+
+        Exact segment tests without ``grid``; with it, decided between the grid's cells
+        (the cell of the robot sees the cell of the point), as the grid's field is, at the
+        cost of a table look-up per pair.
+        """
         if self.trivial:
             return None
         robots = np.real(np.asarray(robots)).reshape(-1, 2)
         points = np.asarray(points, float).reshape(-1, 2)
-        return self.visible(robots[:, None, :], points[None, :, :])
+        if grid is None:
+            return self.visible(robots[:, None, :], points[None, :, :])
+        cells = self._cells_of(grid)
+        i, j = cells.index(points)
+        return cells.rows(robots)[:, i, j]
 
     def face_masks(self, grid: Any, robots: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Which faces of ``grid`` each robot sees: shapes ``(n, nx-1, ny)`` and ``(n, nx, ny-1)``.
@@ -123,11 +133,15 @@ class SightLines:
         nx, ny = grid.shape
         if self.trivial:
             return np.ones((len(robots), nx - 1, ny), bool), np.ones((len(robots), nx, ny - 1), bool)
+        cells = self._cells_of(grid)
+        rows = cells.rows(robots)
+        return rows[:, 1:, :] & rows[:, :-1, :], rows[:, :, 1:] & rows[:, :, :-1]
+
+    def _cells_of(self, grid: Any) -> _CellSight:
         cells = self._grids.get(id(grid))
         if cells is None or cells.grid is not grid:
             cells = self._grids[id(grid)] = _CellSight(grid, self)
-        rows = np.stack([cells.row(p) for p in robots])
-        return rows[:, 1:, :] & rows[:, :-1, :], rows[:, :, 1:] & rows[:, :, :-1]
+        return cells
 
 
 class _CellSight:
@@ -147,18 +161,34 @@ class _CellSight:
         self.active = grid.active
         # a point in a cell without volume looks from the nearest cell that has some
         _, (self._ii, self._jj) = ndimage.distance_transform_edt(~grid.active, return_indices=True)
-        self.rows: dict[tuple[int, int], np.ndarray] = {}
+        self._rows: dict[tuple[int, int], np.ndarray] = {}
+        x0, _, y0, _ = grid.domain.bounds
+        self._origin = np.array([x0, y0])
+        self._size = np.array([grid.dx, grid.dy])
+        self._last = np.zeros((0, 2), dtype=np.intp), np.zeros((0, *grid.shape), dtype=bool)
 
-    def row(self, position: np.ndarray) -> np.ndarray:
-        """The cells seen from the cell holding ``position`` (bool, ``grid.shape``)."""
-        g = self.grid
-        x0, _, y0, _ = g.domain.bounds
-        i = min(max(int((position[0] - x0) / g.dx), 0), g.cells[0] - 1)
-        j = min(max(int((position[1] - y0) / g.dy), 0), g.cells[1] - 1)
-        key = (int(self._ii[i, j]), int(self._jj[i, j]))
-        row = self.rows.get(key)
+    def index(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The cell (with volume) of each point; a point outside the grid takes the nearest edge cell."""
+        ij = ((points - self._origin) / self._size).astype(np.intp)  # NaN rows: some cell, never read
+        i = np.clip(ij[:, 0], 0, self.grid.cells[0] - 1)
+        j = np.clip(ij[:, 1], 0, self.grid.cells[1] - 1)
+        return self._ii[i, j], self._jj[i, j]
+
+    def rows(self, robots: np.ndarray) -> np.ndarray:
+        """The cells seen from the cell of each robot: bool, ``(n, nx, ny)`` (the last answer reused)."""
+        i, j = self.index(robots)
+        keys = np.column_stack([i, j])
+        last_keys, last_rows = self._last
+        if np.array_equal(keys, last_keys):
+            return last_rows
+        out = np.stack([self._row((int(a), int(b))) for a, b in keys])
+        self._last = keys, out
+        return out
+
+    def _row(self, key: tuple[int, int]) -> np.ndarray:
+        row = self._rows.get(key)
         if row is None:
             row = self.sight.visible(self.points[key], self.points) & self.active
             row[key] = True
-            self.rows[key] = row
+            self._rows[key] = row
         return row

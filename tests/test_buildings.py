@@ -28,10 +28,11 @@ def test_a_wall_hides_a_sign_and_a_convex_room_hides_nothing():
     kernel = GaussianKernel(1.0, 0.5)
     robot, heading = np.array([[0.3, 0.9]]), np.array([0.0])
     humans = np.array([[0.3, 0.5], [0.8, 0.3], [0.8, 0.9]])  # same room; behind the wall; through the door
-    v = navigation_velocity(kernel, robot, heading, humans, sight)
     bare = navigation_velocity(kernel, robot, heading, humans)
-    np.testing.assert_array_equal(v[[0, 2]], bare[[0, 2]])  # in sight: the paper's field, exactly
-    assert bare[1, 0] > 0.05 and v[1, 0] == 0.0  # behind the wall: nothing
+    for grid in (None, Grid(plan, (20, 20))):  # exact segments; between the cells of a grid
+        v = navigation_velocity(kernel, robot, heading, humans, sight.mask(robot, humans, grid))
+        np.testing.assert_array_equal(v[[0, 2]], bare[[0, 2]])  # in sight: the paper's field, exactly
+        assert bare[1, 0] > 0.05 and v[1, 0] == 0.0  # behind the wall: nothing
     # visibility is symmetric, and the walls on the outline's convex hull never count
     a, b = plan.sample_uniform(300, np.random.default_rng(1)), plan.sample_uniform(300, np.random.default_rng(2))
     np.testing.assert_array_equal(sight.visible(a, b), sight.visible(b, a))
@@ -168,3 +169,15 @@ def test_baselines_are_refused_where_they_mean_nothing():
     with pytest.raises(ParameterError) as exc:
         ClosedLoop(_corridor("geodesic"), crowd="fokker-planck")
     assert exc.value.name == "crowd.guidance"
+
+
+def test_a_robot_driven_into_a_pillar_at_an_angle_slides_round_it():
+    from meanfield.robots import RobotTeam
+
+    hall = builtin_scenarios()["hall"](seed=0).domain  # pillar [7, 8] x [6, 7]
+    team = RobotTeam(np.array([[6.5, 6.2]]), np.zeros(1), 10.0, 10.0)
+    for _ in range(40):
+        team.advance(np.array([[1.0, 0.5]]), np.zeros(1), 0.1, hall)
+    x, y = team.positions[0]
+    assert x > 8.0 and y > 7.0  # round the pillar's corner, not stuck at its face
+    assert hall.contains(np.array([x]), np.array([y]))[0]
