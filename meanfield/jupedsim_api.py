@@ -3,6 +3,9 @@
 JuPedSim (Forschungszentrum Jülich, LGPL) simulates pedestrians as bodies moved by an
 operational model.  The toolkit uses it through *direct steering*: every control period it
 gives each agent a target point and a desired speed, and lets the model avoid collisions.
+With exits, an agent may instead be put on the journey of an *exit stage*
+(``Simulation.add_exit_stage``): JuPedSim then routes it to the exit's area and removes it
+when its centre is inside.
 JuPedSim's API moves between versions, and its next major version renames the steering
 attributes (``Agent.target`` becomes ``Agent.final_target``, PR #1626; ``v0`` became
 ``desired_speed`` in 1.x).  Everything that depends on those names is here, resolved once
@@ -106,9 +109,28 @@ class JuPedSimAdapter:
         JuPedSim's step (s).
     seed : int
         Seed of the models that draw random numbers (anticipation velocity).
+    exit_areas : sequence of shapely.Polygon
+        One exit stage per area, in this order (the exit's index); each inside ``geometry``.
+
+    Attributes
+    ----------
+    alive : ndarray of bool, shape (N,)
+        The agents still in the simulation.
+    route : ndarray of int, shape (N,)
+        The exit each agent walks to (-1: direct steering).
+    left_at : ndarray, shape (N,)
+        When each agent's centre was first in its exit's area (NaN: still here); JuPedSim
+        removes it at its next step.
+    left_by : ndarray of int, shape (N,)
+        Through which exit each agent left (-1: still here).
+
+    Notes
+    -----
+    JuPedSim keeps its agents in an array and erases the removed ones, which moves the
+    others: the native handles are fetched again after every removal (:meth:`_refresh`).
     """
 
-    def __init__(self, geometry: Any, model: str, time_step: float, seed: int = 0):
+    def __init__(self, geometry: Any, model: str, time_step: float, seed: int = 0, exit_areas: Any = ()):
         jps = load_jupedsim()
         if model not in MODELS:
             raise ParameterError("pedestrians.model", model, "one of " + ", ".join(MODELS))
@@ -121,12 +143,26 @@ class JuPedSimAdapter:
         kwargs = {"rng_seed": int(seed)} if model == "anticipation-velocity" else {}
         self._params_cls = params_cls
         self.sim = jps.Simulation(model=model_cls(**kwargs), geometry=geometry, dt=float(time_step))
+        self.time_step = float(time_step)
         stage = self.sim.add_direct_steering_stage()
         self._stage = stage
         self._journey = self.sim.add_journey(jps.JourneyDescription([stage]))
+        # one journey per exit, of its exit stage alone (a direct steering stage must be alone in its journey)
+        self.exit_areas = tuple(exit_areas)
+        self._exit_routes: list[tuple[int, int]] = []
+        for area in self.exit_areas:
+            exit_stage = self.sim.add_exit_stage(area)
+            self._exit_routes.append((self.sim.add_journey(jps.JourneyDescription([exit_stage])), exit_stage))
+        self._ids: list[int] = []
+        self._row: dict[int, int] = {}
         self._handles: list[Any] = []
         self._states: list[Any] = []
         self._speeds = np.empty(0)
+        self.alive = np.ones(0, dtype=bool)
+        self.route = np.full(0, -1, dtype=np.intp)
+        self.left_at = np.full(0, np.nan)
+        self.left_by = np.full(0, -1, dtype=np.intp)
+        self._stale = self._removal_reported = False
 
     # ------------------------------------------------------------------ agents
     def add_agents(self, positions: np.ndarray, radius: float, desired_speed: float) -> None:
@@ -134,14 +170,19 @@ class JuPedSimAdapter:
 
         The agents are kept in this order: row ``j`` of :meth:`positions` is agent ``j``.
         """
-        if self._handles:
+        if self._ids:
             raise RuntimeError("add_agents may be called once, before the simulation starts")
         ids = []
         for x, y in np.asarray(positions, float):
             ids.append(self.sim.add_agent(self._agent_parameters((float(x), float(y)), radius, desired_speed)))
-        native = self.sim._obj  # the bound C++ simulation: its agent handles skip the Python wrappers
-        self._handles = [native.agent(i) for i in ids]
-        self._states = [h.model for h in self._handles]
+        n = len(ids)
+        self._ids = ids
+        self._row = {agent_id: row for row, agent_id in enumerate(ids)}
+        self.alive = np.ones(n, dtype=bool)
+        self.route = np.full(n, -1, dtype=np.intp)
+        self.left_at = np.full(n, np.nan)
+        self.left_by = np.full(n, -1, dtype=np.intp)
+        self._fetch_handles()
         # the renamed attributes, resolved once; their bound setters and getter are called
         # directly in the per-step loops (no attribute look-up per agent)
         agent_type, state_type = type(self._handles[0]), type(self._states[0])
@@ -150,7 +191,19 @@ class JuPedSimAdapter:
         self._set_target = getattr(agent_type, target).fset
         self._set_speed = getattr(state_type, speed).fset
         self._get_position = agent_type.position.fget
-        self._speeds = np.full(len(self._handles), float(desired_speed))
+        self._speeds = np.full(n, float(desired_speed))
+
+    def _fetch_handles(self) -> None:
+        """The native handles of the agents still in the simulation (None for those gone)."""
+        native = self.sim._obj  # the bound C++ simulation: its agent handles skip the Python wrappers
+        self._handles = [native.agent(i) if here else None for i, here in zip(self._ids, self.alive, strict=True)]
+        self._states = [None if h is None else h.model for h in self._handles]
+        self._stale = False
+
+    def _refresh(self) -> None:
+        """Fetch the handles again if JuPedSim erased agents since they were fetched."""
+        if self._stale:
+            self._fetch_handles()
 
     def _agent_parameters(self, position: tuple[float, float], radius: float, speed: float) -> Any:
         common = {"position": position, "journey_id": self._journey, "stage_id": self._stage}
@@ -161,36 +214,106 @@ class JuPedSimAdapter:
 
     @property
     def n(self) -> int:
-        """Number of agents."""
-        return len(self._handles)
+        """Number of agents added (those gone included)."""
+        return len(self._ids)
 
     # ------------------------------------------------------------------ steering
-    def steer(self, targets: np.ndarray, speeds: np.ndarray) -> None:
+    def steer(self, targets: np.ndarray, speeds: np.ndarray, routes: np.ndarray | None = None) -> None:
         """Set every agent's target point (N, 2), inside the walkable area, and desired speed (N,).
 
-        Only the speeds that changed since the last call cross into JuPedSim.
+        ``routes`` (N,) puts an agent on the journey of exit ``routes[j]`` (JuPedSim walks it
+        there; its target is then ignored) or, for -1, back to direct steering.  The rows of
+        the agents gone are ignored.  Only the speeds that changed since the last call cross
+        into JuPedSim.
         """
-        if len(targets) != len(self._handles) or len(speeds) != len(self._handles):
-            raise ValueError(f"steer: {len(self._handles)} targets and speeds expected")
-        list(map(self._set_target, self._handles, targets.tolist()))
-        changed = np.flatnonzero(speeds != self._speeds)
+        if len(targets) != len(self._ids) or len(speeds) != len(self._ids):
+            raise ValueError(f"steer: {len(self._ids)} targets and speeds expected")
+        self._refresh()
+        if routes is not None:
+            self._switch(np.flatnonzero(self.alive & (routes != self.route)), routes)
+        handles = self._handles
+        direct = np.flatnonzero(self.alive & (self.route < 0))
+        if len(direct) == len(handles):  # everyone here and steered directly (no exits, or none near)
+            list(map(self._set_target, handles, targets.tolist()))
+        else:
+            list(map(self._set_target, [handles[i] for i in direct], targets[direct].tolist()))
+        changed = np.flatnonzero(self.alive & (speeds != self._speeds))
         if len(changed):
             states = self._states
             list(map(self._set_speed, [states[i] for i in changed], speeds[changed].tolist()))
             self._speeds[changed] = speeds[changed]
 
+    def _switch(self, rows: np.ndarray, routes: np.ndarray) -> None:
+        """Put the agents of ``rows`` on the journeys of ``routes[rows]`` (-1: direct steering)."""
+        for row in rows.tolist():
+            k = int(routes[row])
+            journey, stage = self._exit_routes[k] if k >= 0 else (self._journey, self._stage)
+            self.sim.switch_agent_journey(self._ids[row], journey, stage)
+            self.route[row] = k
+
     def positions(self, out: np.ndarray | None = None) -> np.ndarray:
-        """Agent positions, shape (N, 2), in the order they were added (written into ``out``)."""
-        n = len(self._handles)
-        flat = np.fromiter(itertools.chain.from_iterable(map(self._get_position, self._handles)), float, 2 * n)
-        if out is None:
-            return flat.reshape(n, 2)
-        out[:] = flat.reshape(n, 2)
+        """Agent positions, shape (N, 2), in the order they were added (written into ``out``).
+
+        The rows of the agents gone are NaN.
+        """
+        self._refresh()
+        n = len(self._ids)
+        out = np.empty((n, 2)) if out is None else out
+        if self.alive.all():
+            flat = np.fromiter(itertools.chain.from_iterable(map(self._get_position, self._handles)), float, 2 * n)
+            out[:] = flat.reshape(n, 2)
+            return out
+        here = np.flatnonzero(self.alive)
+        handles = [self._handles[i] for i in here]
+        flat = np.fromiter(itertools.chain.from_iterable(map(self._get_position, handles)), float, 2 * len(here))
+        out[:] = np.nan
+        out[here] = flat.reshape(-1, 2)
         return out
 
     def iterate(self, count: int = 1) -> None:
-        """Advance JuPedSim by ``count`` of its steps."""
-        self.sim.iterate(count)
+        """Advance JuPedSim by ``count`` of its steps, and record who left through an exit.
+
+        JuPedSim removes an agent on an exit's journey at the start of the step after the one
+        that brought its centre into the exit's area: that earlier step's end is ``left_at``.
+        Those inside their exit's area after the last step have left too (JuPedSim removes
+        them at its next step).
+        """
+        native = self.sim._obj
+        for _ in range(count):
+            native.iterate()
+            removed = native.removed_agents()
+            # handles are invalid once JuPedSim erased an agent (in this step or the next one)
+            if removed or self._removal_reported:
+                self._stale = True
+            self._removal_reported = bool(removed)
+            if removed:
+                t = native.elapsed_time() - self.time_step
+                for agent_id in removed:
+                    self._leave(self._row[agent_id], t)
+        if self._exit_routes:
+            self._leave_arrived()
+
+    def _leave(self, row: int, t: float) -> None:
+        if self.alive[row]:
+            self.alive[row] = False
+            self.left_at[row] = t
+            self.left_by[row] = self.route[row]
+
+    def _leave_arrived(self) -> None:
+        """The agents already in their exit's area leave now (JuPedSim removes them at its next step)."""
+        import shapely
+
+        walking = np.flatnonzero(self.alive & (self.route >= 0))
+        if not len(walking):
+            return
+        self._refresh()
+        xy = np.array([self._get_position(self._handles[i]) for i in walking.tolist()], float)
+        t = self.elapsed_time
+        for k, area in enumerate(self.exit_areas):
+            mine = self.route[walking] == k
+            inside = shapely.contains_xy(area, xy[mine, 0], xy[mine, 1])
+            for row in walking[mine][inside].tolist():
+                self._leave(row, t)
 
     @property
     def elapsed_time(self) -> float:

@@ -11,6 +11,19 @@ bodies, collision avoidance and the random walk of the humans who see no robot
 
 :func:`place_bodies` draws the initial crowd from the scenario's initial law without
 overlapping bodies and at least one radius from the walls, or refuses the body radius.
+
+**Exits.**  Bodies leave through the region's exits by JuPedSim's exit stages.  Each door
+is opened in JuPedSim's walkable area: a *vestibule*, the door segment pushed
+``2 radius`` outwards, is added to Ω, and is the exit stage's area (:func:`door_areas`;
+where there is no room behind a door, a strip ``2 radius`` deep just inside it is the
+area instead).  A human whose desired velocity leads through a door within its look-ahead
+(the steering distance of :meth:`PedestrianCrowd.steering_targets`) is put on that exit's
+journey: JuPedSim routes it through the opening, past the door posts and the other
+bodies, at its desired speed, and removes it when its centre is in the area, i.e. once it
+has crossed the door.  A human whose velocity turns away is steered directly again.
+Direct steering alone could not do this: its targets are kept a radius inside the walls,
+doors included, so a body never crosses one.  The door then has a capacity: bodies
+queue at it, where point masses pass in any number.
 """
 
 from __future__ import annotations
@@ -22,13 +35,15 @@ from typing import Any
 import numpy as np
 
 from meanfield.agent_crowd import AgentCrowd, initial_positions
+from meanfield.crowd import Crowd
 from meanfield.errors import ParameterError
+from meanfield.exits import exit_segments, leaving
 from meanfield.interfaces import CrowdContext
 from meanfield.jupedsim_api import JuPedSimAdapter
 from meanfield.metrics import max_body_overlap
 from meanfield.region import Region as Domain
 
-__all__ = ["PedestrianCrowd", "place_bodies", "jupedsim_crowd"]
+__all__ = ["PedestrianCrowd", "place_bodies", "door_areas", "jupedsim_crowd"]
 
 
 def place_bodies(
@@ -109,6 +124,67 @@ def place_bodies(
     return kept
 
 
+def door_areas(area: Any, segs: np.ndarray, depth: float) -> tuple[Any, list[Any]]:
+    """JuPedSim's walkable area and one exit area per door (:mod:`meanfield.exits` segments).
+
+    Each door gets a *vestibule*: the rectangle on the door segment, ``depth`` deep on the
+    side away from Ω (and ``depth / 1000`` into Ω, so that it overlaps Ω rather than
+    touching it up to round-off).  It is added to the walkable area and is the door's exit
+    area, so that a body walks through the door and leaves once its centre has crossed it.
+    A vestibule that would reach into Ω away from its door (a wall thinner than ``depth``
+    behind the door, a pillar cut in two) is not added; the exit area is then the strip
+    ``depth`` deep just inside the door, where a body leaves when it reaches the door.
+
+    Parameters
+    ----------
+    area : shapely.Polygon
+        Ω (holes allowed).
+    segs : ndarray, shape (E, 2, 2)
+        The doors.
+    depth : float
+        Depth of the vestibules and strips, > 0 (twice the body radius).
+
+    Returns
+    -------
+    walkable : shapely.Polygon
+        Ω with the vestibules.
+    exits : list of shapely.Polygon
+        The exit areas, in the order of ``segs``.
+    """
+    import shapely
+
+    walkable, exits = area, []
+    for a, b in np.asarray(segs, float):
+        e = b - a
+        normal = np.array([e[1], -e[0]]) / math.hypot(*e)
+        # the side away from Ω is the one whose rectangle covers less of Ω
+        inward = [shapely.area(shapely.intersection(_rect(a, b, s * normal, 0.0, depth), area)) for s in (1.0, -1.0)]
+        outward = normal if inward[0] <= inward[1] else -normal
+        vestibule = _rect(a, b, outward, -1e-3 * depth, depth)
+        overlap = shapely.intersection(vestibule, area)
+        grown = shapely.union(walkable, vestibule)
+        fits = (  # Ω meets the vestibule only next to the door (a disk's chord: the cap behind it)
+            shapely.hausdorff_distance(overlap, shapely.LineString([a, b])) <= 0.25 * depth
+            and isinstance(grown, shapely.Polygon)
+            and len(grown.interiors) == len(walkable.interiors)
+        )
+        if fits:
+            # one order of the walls, whatever the doors: the anticipation model slides along
+            # the walls one after the other, and some orders stop its bodies at a door post
+            walkable = shapely.normalize(grown)
+            exits.append(vestibule)
+        else:
+            exits.append(shapely.intersection(_rect(a, b, -outward, 0.0, depth), area))
+    return walkable, exits
+
+
+def _rect(a: np.ndarray, b: np.ndarray, normal: np.ndarray, near: float, far: float) -> Any:
+    """The rectangle on the segment ``a b`` between the offsets ``near`` and ``far`` along ``normal``."""
+    import shapely
+
+    return shapely.Polygon([a + near * normal, b + near * normal, b + far * normal, a + far * normal])
+
+
 class PedestrianCrowd:
     """Humans as JuPedSim bodies under direct steering (same interface as :class:`~meanfield.crowd.Crowd`).
 
@@ -129,6 +205,18 @@ class PedestrianCrowd:
         JuPedSim operational model (``pedestrians.model``).
     seed : int
         Seed for models with randomness.
+
+    Attributes
+    ----------
+    exits : ndarray, shape (E, 2, 2)
+        Ω's exits (:func:`~meanfield.exits.exit_segments`), as in :class:`~meanfield.crowd.Crowd`.
+    active : ndarray of bool, shape (N,)
+        The humans still in Ω.
+    exit_time : ndarray, shape (N,)
+        When each human left: the end of the JuPedSim step that brought its centre through
+        the door (NaN while here).
+    exit_index : ndarray of int, shape (N,)
+        The exit it left through (-1 while here).
     """
 
     def __init__(
@@ -154,13 +242,27 @@ class PedestrianCrowd:
         self.radius = float(radius)
         self.max_speed = float(max_speed)
         self.time_step = float(time_step)
-        self.adapter = JuPedSimAdapter(domain.to_shapely(resolution=256), model, time_step, seed)
+        # a plan's holes (pillars) are kept: JuPedSim's geometry takes the polygon's interiors
+        self.exits = exit_segments(domain)
+        area = domain.to_shapely(resolution=256)
+        walkable, exit_areas = door_areas(area, self.exits, 2.0 * self.radius)
+        # a region that is not convex (a plan): steering targets go to Ω shrunk by a radius
+        self._inner = area.buffer(-self.radius, join_style="mitre") if self._not_convex(domain) else None
+        self.adapter = JuPedSimAdapter(walkable, model, time_step, seed, exit_areas)
         self.adapter.add_agents(positions, radius, max_speed)
         self.positions = self.adapter.positions()
+        self.active = self.adapter.alive.copy()
+        self.exit_time = self.adapter.left_at.copy()
+        self.exit_index = self.adapter.left_by.copy()
         self.model = model
         # deepest overlap of two bodies so far, over every control step (from the start)
         self.max_body_overlap, self.max_body_overlap_time = 0.0, None
         self.track_body_overlap(0.0)
+
+    @staticmethod
+    def _not_convex(domain: Domain) -> bool:
+        """Whether Ω may be non-convex (a plan: its reflection follows paths)."""
+        return bool(getattr(domain, "reflects_along_paths", False))
 
     @property
     def body_radius(self) -> float:
@@ -169,7 +271,7 @@ class PedestrianCrowd:
 
     def track_body_overlap(self, t: float) -> None:
         """Record the deepest overlap of the bodies at time ``t``."""
-        pos = self.positions
+        pos = self.positions[self.active]
         depth, _ = max_body_overlap(pos[:, 0], pos[:, 1], self.radius)
         if depth > self.max_body_overlap:
             self.max_body_overlap, self.max_body_overlap_time = depth, t
@@ -180,7 +282,7 @@ class PedestrianCrowd:
         The recorded frames of ``timeseries.nc`` are a subset of those steps; anyone can
         re-check them with :func:`~meanfield.metrics.max_body_overlap`.
         """
-        return {
+        out: dict[str, Any] = {
             "pedestrian_model": self.model,
             "jupedsim_version": self.adapter.version,
             "body_radius": self.radius,
@@ -188,43 +290,90 @@ class PedestrianCrowd:
             "body_overlap_max_relative": self.max_body_overlap / (2.0 * self.radius),
             "body_overlap_time": self.max_body_overlap_time,
         }
+        out.update(Crowd.summary(self))  # with exits, the point masses' figures (same attributes)
+        return out
+
+    def remaining(self) -> int:
+        """How many humans have not left."""
+        return int(np.count_nonzero(self.active))
 
     @property
     def n(self) -> int:
         """Number of humans N."""
         return len(self.positions)
 
+    def look_ahead(self, dt: float) -> float:
+        """How far ahead a human's target lies: ``2 max_speed dt + 2 radius``."""
+        return 2.0 * self.max_speed * dt + 2.0 * self.radius
+
     def steering_targets(self, velocity: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """Target points and desired speeds for desired velocities (N, 2) over a period ``dt``.
 
-        The target lies ``2 max_speed dt + 2 radius`` ahead (farther than a period's walk,
-        so a human does not stop at it), moved inside the walkable area: a target beyond a
-        wall is projected onto it and pulled back a radius towards the human.
+        The target lies :meth:`look_ahead` ahead (farther than a period's walk, so a human
+        does not stop at it), moved inside the walkable area: a target beyond a wall is
+        projected onto it and pulled back a radius towards the human.  On a plan (pillars,
+        re-entrant corners) that pull could land in a pillar, where JuPedSim refuses a
+        target: there the target is the nearest point a radius inside the walls.  The rows
+        of those who left are NaN.
         """
         speed = np.hypot(velocity[:, 0], velocity[:, 1])
         moving = speed > 0
         direction = np.zeros_like(velocity)
         direction[moving] = velocity[moving] / speed[moving, None]
-        x = self.positions
-        targets = x + (2.0 * self.max_speed * dt + 2.0 * self.radius) * direction
-        out = ~self.domain.contains(targets[:, 0], targets[:, 1], tol=-self.radius)
-        if out.any():
-            q = self.domain.project(targets[out].copy())
+        here = np.flatnonzero(self.active)
+        x = self.positions[here]
+        targets = np.full_like(velocity, np.nan)
+        ahead = x + self.look_ahead(dt) * direction[here]
+        out = ~self.domain.contains(ahead[:, 0], ahead[:, 1], tol=-self.radius)
+        if out.any() and self._inner is not None:  # the nearest point a radius inside the walls
+            import shapely
+
+            lines = shapely.shortest_line(self._inner, shapely.points(ahead[out]))
+            ahead[out] = shapely.get_coordinates(lines).reshape(-1, 2, 2)[:, 0]
+        elif out.any():  # convex Ω: onto the wall, then a radius back towards the human
+            q = self.domain.project(ahead[out].copy())
             back = x[out] - q
             dist = np.hypot(back[:, 0], back[:, 1])
             pull = np.minimum(self.radius, dist)
             ok = dist > 0
             q[ok] += back[ok] * (pull[ok] / dist[ok])[:, None]
             q[~ok] = x[out][~ok]
-            targets[out] = q
+            ahead[out] = q
+        targets[here] = ahead
         return targets, np.minimum(speed, self.max_speed)
 
+    def exit_routes(self, velocity: np.ndarray, dt: float) -> np.ndarray:
+        """The exit each human walks through (-1: none): the first its look-ahead crosses.
+
+        A human whose desired velocity (N, 2) leads through a door within
+        :meth:`look_ahead` walks on that exit's journey (JuPedSim routes it through the door).
+        """
+        routes = np.full(len(velocity), -1, dtype=np.intp)
+        speed = np.hypot(velocity[:, 0], velocity[:, 1])
+        rows = np.flatnonzero(self.active & (speed > 0))
+        if not len(self.exits) or not len(rows):
+            return routes
+        x = self.positions[rows]
+        ahead = x + (self.look_ahead(dt) / speed[rows])[:, None] * velocity[rows]
+        routes[rows] = leaving(x, ahead, self.exits, 0.0, dt, None)  # crossings only: no draw
+        return routes
+
     def step(self, drift: np.ndarray, t: float, dt: float) -> None:
-        """Walk the bodies for one control period ``dt`` towards the desired velocities ``drift``."""
+        """Walk the bodies for one control period ``dt`` towards the desired velocities ``drift``.
+
+        With exits, a human whose velocity leads through a door walks through it
+        (:meth:`exit_routes`) and leaves: its row of :attr:`positions` becomes NaN, and
+        :attr:`active`, :attr:`exit_time`, :attr:`exit_index` record it.
+        """
         targets, speeds = self.steering_targets(drift, dt)
-        self.adapter.steer(targets, speeds)
+        routes = self.exit_routes(drift, dt) if len(self.exits) else None
+        self.adapter.steer(targets, speeds, routes)
         self.adapter.iterate(int(round(dt / self.time_step)))
         self.adapter.positions(out=self.positions)
+        if len(self.exits):
+            self.active[:] = self.adapter.alive
+            self.exit_time[:] = self.adapter.left_at
+            self.exit_index[:] = self.adapter.left_by
         self.track_body_overlap(t + dt)
 
 

@@ -181,3 +181,13 @@ def test_a_robot_driven_into_a_pillar_at_an_angle_slides_round_it():
     x, y = team.positions[0]
     assert x > 8.0 and y > 7.0  # round the pillar's corner, not stuck at its face
     assert hall.contains(np.array([x]), np.array([y]))[0]
+
+
+def test_a_plan_run_saves_its_evacuation_figure(tmp_path):
+    from meanfield.plotting import save_run_figures
+
+    sc = builtin_scenarios()["l-room"](seed=0).with_values({"crowd.n": 30, "t_final": 2.0})
+    result = ClosedLoop(sc).run(progress=False)
+    paths = save_run_figures(result, tmp_path)
+    assert set(paths) == {"target_and_error", "snapshots", "evacuation"}
+    assert all(p.stat().st_size > 10_000 for p in paths.values())

@@ -80,27 +80,44 @@ def test_the_closed_loop_evacuates_through_a_door_on_agents_and_on_the_density()
     sc = paper_scenario(seed=0).replace(domain=room, t_final=5.0)
     agents = ClosedLoop(sc).run(progress=False)
     s = agents.summary
-    assert s["status"] == "completed" and 0 < s["evacuated_fraction"] <= 1
-    assert s["evacuated_per_exit"] == [round(s["evacuated_fraction"] * 200)]
-    out = agents.dataset["fraction_out"].values
-    assert out[0] == 0 and np.all(np.diff(out) >= 0) and out[-1] == pytest.approx(s["evacuated_fraction"])
+    assert s["status"] == "completed" and 0 < s["fraction_evacuated"] <= 1
+    assert s["evacuated_per_exit"] == [round(s["fraction_evacuated"] * 200)]
+    out = agents.dataset["fraction_evacuated"].values
+    assert out[0] == 0 and np.all(np.diff(out) >= 0) and out[-1] == pytest.approx(s["fraction_evacuated"])
     pde = ClosedLoop(sc, crowd="fokker-planck").run(progress=False).summary
-    assert pde["mass_final"] + pde["evacuated_fraction"] == pytest.approx(1.0, abs=1e-11)
+    assert pde["mass_final"] + pde["fraction_evacuated"] == pytest.approx(1.0, abs=1e-11)
 
 
-def test_jupedsim_bodies_with_exits_are_refused_until_its_exit_stages_are_wired():
+def test_jupedsim_bodies_leave_through_a_door_in_the_closed_loop():
     from meanfield import load_scenario
 
-    sc = load_scenario("paper-unity")
-    side = sc.domain.bounds[1]
-    room = Domain.box(side, side, exits=[((side, 0.0), (side, 10.0))])
     try:
         import jupedsim  # noqa: F401
     except ImportError:
         pytest.skip("JuPedSim is not installed (the pedestrians extra)")
-    with pytest.raises(ParameterError) as exc:
-        ClosedLoop(sc.replace(domain=room).with_values({"pedestrians.backend": "jupedsim"}))
-    assert exc.value.name == "domain.exits" and "point-mass" in str(exc.value)
+    sc = load_scenario("paper-unity")
+    side = sc.domain.bounds[1]
+    room = Domain.box(side, side, exits=[((side, 0.0), (side, 10.0))])
+    sc = sc.replace(domain=room).with_values({"pedestrians.backend": "jupedsim", "t_final": 40.0, "record_every": 1})
+
+    def to_the_door(x, y, t):  # a disturbance towards the door (150 m, 5 m) at walking speed
+        dx, dy = side - x, 5.0 - y
+        d = np.maximum(np.hypot(dx, dy), 1e-9)
+        return 1.34 * dx / d, 1.34 * dy / d
+
+    a = ClosedLoop(sc, disturbance=to_the_door).run(progress=False)
+    b = ClosedLoop(sc, disturbance=to_the_door).run(progress=False)
+    s, n = a.summary, sc.crowd.n
+    assert s["status"] == "completed" and s["backend"] == "jupedsim"
+    left = round(s["fraction_evacuated"] * n)
+    assert left > 0 and s["evacuated_per_exit"] == [left] and s["last_exit_time"] <= 40.0
+    out = a.dataset["fraction_evacuated"].values
+    here = np.isfinite(a.dataset["human_x"].values).sum(axis=1)
+    assert out[0] == 0 and np.all(np.diff(out) >= 0) and out[-1] == pytest.approx(s["fraction_evacuated"])
+    np.testing.assert_array_equal(here + np.round(out * n), n)  # at every step: remaining + left = N
+    assert s["body_overlap_max"] <= 1e-6 * sc.pedestrians.radius
+    np.testing.assert_array_equal(a.dataset["human_x"].values, b.dataset["human_x"].values)  # same seed, same run
+    assert b.summary["evacuated_per_exit"] == s["evacuated_per_exit"]
 
 
 def test_a_plan_with_a_door_evacuates_and_refuses_a_door_off_its_walls():
@@ -110,7 +127,7 @@ def test_a_plan_with_a_door_evacuates_and_refuses_a_door_off_its_walls():
     assert [p.kind for p in plan.boundary_parts()].count("exit") == 1
     sc = paper_scenario(seed=1).replace(domain=plan, t_final=3.0).with_values({"target.center": [0.9, 0.2]})
     s = ClosedLoop(sc).run(progress=False).summary
-    assert s["evacuated_fraction"] > 0
+    assert s["fraction_evacuated"] > 0
     with pytest.raises(ParameterError) as exc:
         Plan(plan.polygon, [((0.5, 0.1), (0.6, 0.1))])  # inside the room, not on a wall
     assert exc.value.name == "exits[0]"
