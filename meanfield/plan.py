@@ -54,6 +54,7 @@ class Plan:
         self.polygon = shapely.normalize(polygon)
         shapely.prepare(self.polygon)
         self._diameter: float | None = None
+        self._walls: Any = None  # the WallIndex, built at the first step
         self._edges = self._segments()
         self._inset: dict[float, Any] = {}
         self.exits = self._check_exits(exits or ())
@@ -168,18 +169,13 @@ class Plan:
 
     def _first_hit(self, start: np.ndarray, end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """For each step ``start → end``: the fraction ``t`` of it at the first wall met (``inf``:
-        none) and that wall's index."""
-        a, e = self._edges
-        d = end - start
-        cross = d[:, None, 0] * e[None, :, 1] - d[:, None, 1] * e[None, :, 0]
-        w = a[None, :, :] - start[:, None, :]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = (w[..., 0] * e[None, :, 1] - w[..., 1] * e[None, :, 0]) / cross
-            u = (w[..., 0] * d[:, None, 1] - w[..., 1] * d[:, None, 0]) / cross
-        hit = (cross != 0) & (t > 1e-12) & (t <= 1.0) & (u >= 0.0) & (u <= 1.0)
-        t = np.where(hit, t, np.inf)
-        k = np.argmin(t, axis=1) if len(start) else np.zeros(0, dtype=np.intp)
-        return t[np.arange(len(start)), k], k
+        none) and that wall's index (only the walls near a short step are tested,
+        :class:`~meanfield.wall_index.WallIndex`)."""
+        if self._walls is None:
+            from meanfield.wall_index import WallIndex
+
+            self._walls = WallIndex(*self._edges, self.bounds)
+        return self._walls.first_hit(start, end)
 
     def reflect(self, points: np.ndarray, previous: np.ndarray | None = None) -> np.ndarray:
         """Mirror, in place, every step that met a wall: followed from ``previous`` to ``points``.

@@ -191,3 +191,22 @@ def test_a_plan_run_saves_its_evacuation_figure(tmp_path):
     paths = save_run_figures(result, tmp_path)
     assert set(paths) == {"target_and_error", "snapshots", "evacuation"}
     assert all(p.stat().st_size > 10_000 for p in paths.values())
+
+
+@pytest.mark.parametrize("name", ["office", "hall"])
+def test_the_wall_index_finds_the_same_first_wall_as_testing_every_wall(name):
+    from meanfield.wall_index import WallIndex, segment_hits
+
+    plan = builtin_scenarios()[name](seed=0).domain
+    a, e = plan._edges
+    index = WallIndex(a, e, plan.bounds)
+    rng = np.random.default_rng(7)
+    start = plan.sample_uniform(30_000, rng)  # above FULL_TEST_BELOW pairs: the look-ups are used
+    for scale in (0.05, 0.3, 3.0):  # steps shorter and longer than a lattice cell
+        end = start + scale * rng.normal(size=start.shape)
+        t, k = index.first_hit(start, end)
+        full = segment_hits(start, end - start, a[None], e[None])
+        j = np.argmin(full, axis=1)
+        np.testing.assert_array_equal(t, full[np.arange(len(start)), j])
+        hit = np.isfinite(t)
+        assert hit.any() and np.array_equal(k[hit], j[hit])
