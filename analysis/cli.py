@@ -3,7 +3,9 @@
 Registered as a ``meanfield.commands`` entry point (see :mod:`meanfield.plugins`).  Writes
 ``DIR/analysis.json`` (last, atomically: a directory with it is complete) and figures:
 
-- ``poincare_mode.png``: μ₂ of Ω, its eigenfunction, the Payne–Weinberger bound;
+- ``poincare_mode.png``: μ₂ of Ω, its eigenfunction, the Payne–Weinberger bound (``null`` in
+  the JSON and "not applicable" in the figure when Ω is not convex, e.g. a floor plan with
+  a re-entrant corner or a pillar: ``docs/poincare.md``, *Floor plans*);
 - ``robot_count.png``: the coverage estimates ``n(ε)`` against closed-loop runs over ``n``;
 - ``speed_limits.png``: min-norm (clipped) against the bounded program over ``u_max``.
 """
@@ -32,9 +34,7 @@ def register(subparsers: Any):
     )
     add_scenario_arguments(a, seed_help="random seed of the reference run (overrides the scenario's)")
     a.add_argument("--cells", type=int, default=128, help="cells per side of the eigenvalue grid (default 128)")
-    a.add_argument(
-        "--eps", default="0.5,0.2,0.1,0.05", help="coverage levels ε as fractions of the kernel peak c"
-    )
+    a.add_argument("--eps", default="0.5,0.2,0.1,0.05", help="coverage levels ε as fractions of the kernel peak c")
     a.add_argument("--robot-counts", default="1,2,4,6,9,12,16,25", help="robot counts of the empirical study")
     a.add_argument(
         "--limits", default=None, help="speed limits of the limits study (default 0.25, 0.5, 1, 2 × the scenario's)"
@@ -91,11 +91,17 @@ def _handle(args: argparse.Namespace) -> int:
     if not args.quiet:
         p = report["poincare"]
         g = report["gains_scenario"]
-        print(f"mu2 = {p['mu2']:.6g} (Payne–Weinberger bound {p['payne_weinberger']:.4g}, exact {p['exact']})")
+        from analysis.poincare import NOT_CONVEX
+
+        pw = p["payne_weinberger"]
+        pw_text = f"{pw:.4g}" if pw is not None else NOT_CONVEX
+        print(f"mu2 = {p['mu2']:.6g} (Payne–Weinberger bound {pw_text}, exact {p['exact']})")
         print(f"at the target: alpha_inf = {g['alpha_inf']:.4g}, k_p = {g['k_p']:.4g}, ISS gain = {g['iss_gain']:.4g}")
         b = g["bulk"]
-        print(f"  bulk (95 % of the mass, not a guarantee): alpha = {b['alpha']:.4g}, k_p = {b['k_p']:.4g}, "
-              f"ISS gain = {b['iss_gain']:.4g}")
+        print(
+            f"  bulk (95 % of the mass, not a guarantee): alpha = {b['alpha']:.4g}, k_p = {b['k_p']:.4g}, "
+            f"ISS gain = {b['iss_gain']:.4g}"
+        )
         cov = ", ".join(f"eps={k}: n={v['n']}" for k, v in report["coverage"].items())
         print(f"coverage estimate: {cov}")
         if "robot_count" in report:

@@ -9,6 +9,7 @@ import numpy as np
 from matplotlib import colormaps
 
 from analysis.limits import LimitsStudy
+from analysis.poincare import NOT_CONVEX
 from analysis.robot_count import RobotCountStudy
 from analysis.robot_count_sweep import RobotCountSweep
 from meanfield.domain import Domain
@@ -25,20 +26,34 @@ def save_figure(fig: Any, path: Path) -> Path:
     return io.save_figure(fig, path, dpi=130, bbox_inches="tight", format="png")
 
 
-def plot_poincare_mode(domain: Domain, grid: Grid, mode: np.ndarray, mu2: float, bound: float, exact: float | None):
-    """The eigenfunction of μ₂ on Ω (the slowest mean-zero density error under Step I)."""
+def plot_poincare_mode(
+    domain: Domain, grid: Grid, mode: np.ndarray, mu2: float, bound: float | None, exact: float | None
+):
+    """The eigenfunction of μ₂ on Ω (the slowest mean-zero density error under Step I).
+
+    ``bound`` is the Payne–Weinberger bound, ``None`` when Ω is not convex: the figure then
+    says it is not applicable (``docs/poincare.md``, *Floor plans*).
+    """
     fig, ax = subplots(figsize=(4.8, 4.2))
     x0, x1, y0, y1 = domain.bounds
     m = np.ma.masked_invalid(mode)
     lim = float(np.nanmax(np.abs(mode)))
     im = ax.imshow(m.T, origin="lower", extent=(x0, x1, y0, y1), cmap="RdBu_r", vmin=-lim, vmax=lim)
     fig.colorbar(im, ax=ax, shrink=0.8)
-    text = f"μ₂ = {mu2:.5g} (grid {grid.cells[0]}×{grid.cells[1]})\nPayne–Weinberger π²/d² = {bound:.4g}"
+    pw = f"π²/d² = {bound:.4g}" if bound is not None else NOT_CONVEX
+    text = f"μ₂ = {mu2:.5g} (grid {grid.cells[0]}×{grid.cells[1]})\nPayne–Weinberger {pw}"
     if exact is not None:
         text += f"\nexact {exact:.6g}, rel. error {abs(mu2 - exact) / exact:.1e}"
     ax.set_title("Slowest Neumann mode of Ω", fontsize=10)
-    ax.text(0.02, 0.02, text, transform=ax.transAxes, fontsize=7.5, va="bottom",
-            bbox={"facecolor": "white", "alpha": 0.8, "lw": 0})
+    ax.text(
+        0.02,
+        0.02,
+        text,
+        transform=ax.transAxes,
+        fontsize=7.5,
+        va="bottom",
+        bbox={"facecolor": "white", "alpha": 0.8, "lw": 0},
+    )
     ax.set_aspect("equal")
     return fig
 
@@ -55,8 +70,14 @@ def plot_robot_count(study: RobotCountStudy, coverage: dict[float, int], c: floa
     for k, (eps, n) in enumerate(sorted(coverage.items(), reverse=True)):
         ax.axvline(n, color=f"C{k + 1}", ls="--", lw=1.0, label=f"coverage, ε = {eps / c:.2g}·c: n = {n}")
     if study.minimum is not None:
-        ax.annotate(f"empirical minimum n = {study.minimum}", (study.minimum, med[study.minimum]),
-                    xytext=(10, -30), textcoords="offset points", arrowprops={"arrowstyle": "->"}, fontsize=8)
+        ax.annotate(
+            f"empirical minimum n = {study.minimum}",
+            (study.minimum, med[study.minimum]),
+            xytext=(10, -30),
+            textcoords="offset points",
+            arrowprops={"arrowstyle": "->"},
+            fontsize=8,
+        )
     ax.set_xlabel("robots n")
     ax.set_ylabel(study.metric.replace("_", " "))
     ax.set_ylim(-0.02, 1.02)
@@ -108,18 +129,41 @@ def plot_robot_count_sweep(study: RobotCountSweep):
             for j, eta in enumerate(etas):
                 v = frac[i, j] if ax is axes[0] else t90[i, j]
                 text = "never" if np.isinf(v) else ("" if np.isnan(v) else f"{v:.2f}" if ax is axes[0] else f"{v:.0f}")
-                ax.text(eta, n, text, ha="center", va="center", fontsize=6.5,
-                        color="w" if (ax is axes[0] and v < 0.6) or (ax is axes[1] and np.isfinite(v) and v > 0.6 * hi)
-                        else "k")
+                ax.text(
+                    eta,
+                    n,
+                    text,
+                    ha="center",
+                    va="center",
+                    fontsize=6.5,
+                    color="w"
+                    if (ax is axes[0] and v < 0.6) or (ax is axes[1] and np.isfinite(v) and v > 0.6 * hi)
+                    else "k",
+                )
         styles = ("-", "--", ":")
         for k, (f, ns) in enumerate(sorted(study.coverage.items(), reverse=True)):
             n_cov = np.array(ns)[ei]
-            ax.plot(etas, np.minimum(n_cov, ye[-1]), styles[k % 3], color="C3", lw=1.4, marker="^",
-                    ms=4, label=f"coverage estimate, ε = {f:g}·c")
+            ax.plot(
+                etas,
+                np.minimum(n_cov, ye[-1]),
+                styles[k % 3],
+                color="C3",
+                lw=1.4,
+                marker="^",
+                ms=4,
+                label=f"coverage estimate, ε = {f:g}·c",
+            )
         best = [(eta, study.minimum[float(eta)]) for eta in etas if study.minimum.get(float(eta)) is not None]
         if best:
-            ax.plot(*zip(*best, strict=True), "o", mfc="none", mec="w", ms=11, mew=1.6,
-                    label=f"smallest n with median ≥ {study.threshold:g}")
+            ax.plot(
+                *zip(*best, strict=True),
+                "o",
+                mfc="none",
+                mec="w",
+                ms=11,
+                mew=1.6,
+                label=f"smallest n with median ≥ {study.threshold:g}",
+            )
         ax.set_xscale("log")
         ax.set_xticks(etas)
         ax.set_xticklabels([f"{e:g}" for e in etas])
@@ -133,12 +177,15 @@ def plot_robot_count_sweep(study: RobotCountSweep):
     from matplotlib.lines import Line2D
 
     # the white circles would not show on the white legend: a black-edged stand-in
-    handles = [Line2D([], [], marker="o", mfc="none", mec="k", ls="none", ms=9) if lab.startswith("smallest") else h
-               for h, lab in zip(handles, labels, strict=True)]
+    handles = [
+        Line2D([], [], marker="o", mfc="none", mec="k", ls="none", ms=9) if lab.startswith("smallest") else h
+        for h, lab in zip(handles, labels, strict=True)
+    ]
     fig.legend(handles, labels, loc="outside lower center", ncol=len(labels), fontsize=8, frameon=False)
     fig.suptitle(
         f"Robot count × kernel range: medians over {len(study.seeds)} seeds (coverage estimates beyond the "
-        "top row are drawn at its edge)", fontsize=10
+        "top row are drawn at its edge)",
+        fontsize=10,
     )
     return fig
 
@@ -167,25 +214,35 @@ def plot_limits(study: LimitsStudy):
     axes[1].set_ylabel("applied shortfall: A not cancelled (median)")
     axes[1].set_yscale("symlog", linthresh=1e-2)
     axes[1].axhline(0.0, color="k", lw=0.6)
-    binding = ", ".join(
-        f"{s} {u:g}: {study.median(s, u, 'limits_binding_fraction'):.0%}" for s, u in settings
-    )
+    binding = ", ".join(f"{s} {u:g}: {study.median(s, u, 'limits_binding_fraction'):.0%}" for s, u in settings)
     axes[1].set_title("steps with a robot at a limit (median): " + binding, fontsize=6.5, wrap=True)
     for strategy in dict.fromkeys(s for s, _ in settings):
         us = [u for s, u in settings if s == strategy]
-        axes[2].plot(us, [study.median(strategy, u, "fraction_in_target") for u in us], "o" + styles[strategy],
-                     color="k", label=f"{strategy} (median)")
+        axes[2].plot(
+            us,
+            [study.median(strategy, u, "fraction_in_target") for u in us],
+            "o" + styles[strategy],
+            color="k",
+            label=f"{strategy} (median)",
+        )
         for r in study.runs:
             if r.strategy == strategy:
-                axes[2].scatter(r.u_max * (1.03 if strategy == "bounded" else 0.97),
-                                r.summary["fraction_in_target"], s=9, color="0.6")
+                axes[2].scatter(
+                    r.u_max * (1.03 if strategy == "bounded" else 0.97),
+                    r.summary["fraction_in_target"],
+                    s=9,
+                    color="0.6",
+                )
     axes[2].set_xscale("log")
     axes[2].set_xticks(limits, [f"{u:g}" for u in limits])
     axes[2].minorticks_off()
     axes[2].set_xlabel("speed limit u_max")
     axes[2].set_ylabel("final fraction in target")
     axes[2].legend(fontsize=7)
-    fig.suptitle(f"Speed limits on the {study.scenario_name} scenario ({study.robots} robots): "
-                 "dashed = min-norm clipped, solid = bounded program", fontsize=10)
+    fig.suptitle(
+        f"Speed limits on the {study.scenario_name} scenario ({study.robots} robots): "
+        "dashed = min-norm clipped, solid = bounded program",
+        fontsize=10,
+    )
     fig.tight_layout()
     return fig

@@ -7,17 +7,24 @@ the Poincaré–Wirtinger inequality on Ω,
 
 where μ₂ is the first non-zero eigenvalue of the Neumann Laplacian
 (``-Δu = μ u`` in Ω, ``∂u/∂n = 0`` on ∂Ω) and the paper's Poincaré constant is
-``c₂ = √μ₂``.  This module computes μ₂ for the three shapes of
-:class:`~meanfield.domain.Domain`:
+``c₂ = √μ₂``.  The inequality holds on every bounded connected Lipschitz domain, convex or
+not, so this module computes μ₂ for every region: the shapes of
+:class:`~meanfield.domain.Domain` and floor plans (:class:`~meanfield.plan.Plan`,
+non-convex, with holes):
 
 * :func:`neumann_eigenvalue`: the k-th non-zero eigenvalue of the cell-centred
-  finite-volume Neumann Laplacian of :class:`~meanfield.grid.Grid` (cut cells for disks
-  and polygons), by sparse shift-invert Lanczos.  Second-order accurate on boxes, disks
-  and convex polygons (measured; see ``docs/poincare.md``).
-* :func:`payne_weinberger_bound`: the certified lower bound ``π²/diam(Ω)²`` for convex Ω.
+  finite-volume Neumann Laplacian of :class:`~meanfield.grid.Grid` (cut cells for disks,
+  polygons and plans), by sparse shift-invert Lanczos.  Second-order accurate on boxes,
+  disks and convex polygons (measured; see ``docs/poincare.md``), slower at re-entrant
+  corners.
+* :func:`payne_weinberger_bound`: the certified lower bound ``π²/diam(Ω)²``, for convex Ω
+  only (``None`` otherwise: see :func:`is_convex`).
 * :func:`exact_neumann_eigenvalue`: closed forms (rectangle, disk, equilateral and
   right isosceles triangle), ``None`` otherwise.
 * :func:`poincare_report`: all of the above in one :class:`PoincareReport`.
+
+:mod:`analysis.plan_constants` adds what floor plans need: whether the grid keeps Ω in one
+piece, and the decay rate with exits.
 
 Examples
 --------
@@ -48,6 +55,7 @@ from meanfield.region import Region
 __all__ = [
     "PoincareReport",
     "exact_neumann_eigenvalue",
+    "is_convex",
     "neumann_eigenvalue",
     "payne_weinberger_bound",
     "poincare_report",
@@ -59,6 +67,9 @@ _DENSE_LIMIT = 100  # up to this many unknowns, a dense generalized eigensolve
 _SHAPE_RTOL = 1e-9  # relative tolerance of the closed-form shape detection
 _MAX_ITERATIONS = 300  # subspace iterations before falling back to ARPACK
 _RESIDUAL_TOL = 1e-10  # relative residual of the shift-inverted Ritz pairs
+_CONVEX_RTOL = 1e-12  # (hull area - area) / area below this: convex up to round-off
+NOT_CONVEX = "not applicable (Ω not convex)"
+"""How reports print the Payne–Weinberger bound of a non-convex Ω."""
 
 
 # ---------------------------------------------------------------------- validation
@@ -110,6 +121,30 @@ def _check_flag(name: str, value: Any) -> bool:
 
 
 # ---------------------------------------------------------------------- operator
+def _face_graph(grid: Grid) -> tuple[sp.csr_matrix, np.ndarray]:
+    """Weighted adjacency of the active cells through the open faces, and those cells' mask.
+
+    The weight of a face is aperture × face length / cell distance, so that the stiffness
+    ``diag(row sums) − adjacency`` is ``Gᵀ W G`` of :func:`_assemble`.
+    """
+    nx, ny = grid.shape
+    active = grid.volume > 0
+    index = np.full((nx, ny), -1)
+    index[active] = np.arange(int(active.sum()))
+    rows, cols, vals = [], [], []
+    for coef, left, right in (
+        (grid.aperture_x * (grid.dy / grid.dx), index[:-1, :], index[1:, :]),
+        (grid.aperture_y * (grid.dx / grid.dy), index[:, :-1], index[:, 1:]),
+    ):
+        open_ = (coef > 0) & (left >= 0) & (right >= 0)
+        rows.append(left[open_])
+        cols.append(right[open_])
+        vals.append(coef[open_])
+    n = int(active.sum())
+    r, c, w = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+    return sp.coo_matrix((np.r_[w, w], (np.r_[r, c], np.r_[c, r])), shape=(n, n)).tocsr(), active
+
+
 def _assemble(grid: Grid) -> tuple[sp.csc_matrix, np.ndarray, np.ndarray]:
     """Stiffness ``L = Gᵀ W G``, lumped mass ``M`` (cell volumes) and the unknown cells.
 
@@ -122,21 +157,8 @@ def _assemble(grid: Grid) -> tuple[sp.csc_matrix, np.ndarray, np.ndarray]:
     """
     nx, ny = grid.shape
     volume = grid.volume
-    active = volume > 0
-    index = np.full((nx, ny), -1)
-    index[active] = np.arange(int(active.sum()))
-    rows, cols, vals = [], [], []
-    for coef, left, right in (
-        (grid.aperture_x * (grid.dy / grid.dx), index[:-1, :], index[1:, :]),
-        (grid.aperture_y * (grid.dx / grid.dy), index[:, :-1], index[:, 1:]),
-    ):
-        open_ = coef > 0
-        rows.append(left[open_])
-        cols.append(right[open_])
-        vals.append(coef[open_])
-    n = int(active.sum())
-    r, c, w = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
-    adjacency = sp.coo_matrix((np.r_[w, w], (np.r_[r, c], np.r_[c, r])), shape=(n, n)).tocsr()
+    adjacency, active = _face_graph(grid)
+    n = adjacency.shape[0]
     ncomp, labels = connected_components(adjacency, directed=False)
     keep = np.ones(n, bool)
     if ncomp > 1:
@@ -225,14 +247,17 @@ def neumann_eigenvalue(
     Accuracy: exact discrete eigenvalue ``(4/h²) sin²(πh/2L)`` on a box (relative error
     ``π²h²/12L²``); second order on disks and convex polygons through cut cells
     (relative error ≈ 6e-5 on the unit disk at 128², see ``docs/poincare.md``).  The
-    discrete value converges from below.
+    discrete value converges from below.  On a floor plan (non-convex, holes) the same
+    operator with the plan's cut cells: exact on the L of three squares for the modes the
+    grid aligns with, slower (below second order) for the modes a re-entrant corner bends.
 
     Parameters
     ----------
-    domain : Domain or Grid
-        The convex workspace Ω.  A :class:`~meanfield.grid.Grid` is used as it is (its
-        own cut cells); for a :class:`Domain` the grid ``Grid(domain, cells, cut_cells)``
-        is built (exact cut cells: a disk is the true circle).
+    domain : Domain, Plan or Grid
+        The workspace Ω: any region (:class:`~meanfield.region.Region`), convex or not.  A
+        :class:`~meanfield.grid.Grid` is used as it is (its own cut cells); for a region
+        the grid ``Grid(domain, cells, cut_cells)`` is built (exact cut cells: a disk is
+        the true circle, a plan is clipped with shapely).
     cells : (int, int), default (128, 128)
         Cells ``(nx, ny)`` over the bounding box, each >= 4.  With a ``Grid``, leave it
         out or give the grid's own.
@@ -283,7 +308,7 @@ def neumann_eigenvalue(
     n = stiffness.shape[0]
     if k > n - 1:
         raise ParameterError("k", k, f"an integer between 1 and {n - 1} for this grid ({n} cells in Ω)")
-    shift = -1e-3 * payne_weinberger_bound(dom)
+    shift = -1e-3 * math.pi**2 / dom.diameter**2  # any σ < 0 keeps L − σM definite; this one is μ₂'s scale
     vals, vecs = _smallest_eigenpairs(stiffness, mass, k, shift)
     mu = float(vals[k - 1])
     if not return_mode:
@@ -296,8 +321,27 @@ def neumann_eigenvalue(
     return mu, mode
 
 
-def payne_weinberger_bound(domain: Domain | Grid) -> float:
-    """The Payne–Weinberger lower bound ``μ₂ >= π²/diam(Ω)²`` for convex Ω.
+def is_convex(domain: Domain | Grid) -> bool:
+    """Whether Ω is convex: every :class:`Domain` is; another region when it has no holes and
+    its convex hull adds no area beyond round-off (relative ``1e-12``).
+
+    Parameters
+    ----------
+    domain : Domain, Plan or Grid
+        The workspace (a grid's domain is used).
+    """
+    dom = _check_domain(domain)
+    if isinstance(dom, Domain):
+        return True  # box, disk and polygon: Domain.polygon refuses a non-convex vertex list
+    shape = dom.to_shapely()
+    if getattr(shape, "geom_type", None) != "Polygon" or len(shape.interiors):
+        return False
+    area = float(shape.area)
+    return area > 0 and (float(shape.convex_hull.area) - area) <= _CONVEX_RTOL * area
+
+
+def payne_weinberger_bound(domain: Domain | Grid) -> float | None:
+    """The Payne–Weinberger lower bound ``μ₂ >= π²/diam(Ω)²`` for convex Ω; ``None`` otherwise.
 
     Payne & Weinberger, "An optimal Poincaré inequality for convex domains",
     Arch. Rational Mech. Anal. 5 (1960) 286–292; the gap in their proof was closed by
@@ -306,12 +350,25 @@ def payne_weinberger_bound(domain: Domain | Grid) -> float:
     and certified for every :class:`Domain`, all of which are convex.  It gives the
     guaranteed rate ``dV₁/dt ≤ -2 α_inf (π/diam Ω)² V₁`` in Theorem 1 of the paper.
 
+    It does not hold without convexity: two rooms joined by a narrow door have μ₂ as small
+    as one likes at a fixed diameter.  For a region that is not convex (:func:`is_convex`:
+    a plan with a re-entrant corner or a hole) the bound is not applicable and ``None`` is
+    returned, never a number (``docs/poincare.md``, *Floor plans*); the computed μ₂ of
+    :func:`neumann_eigenvalue` still gives Theorem 1's rate there.
+
     Parameters
     ----------
-    domain : Domain or Grid
+    domain : Domain, Plan or Grid
         The workspace (a grid's domain is used).
+
+    Returns
+    -------
+    float or None
+        ``π²/diam(Ω)²``, or ``None`` when Ω is not convex.
     """
     dom = _check_domain(domain)
+    if not is_convex(dom):
+        return None
     return math.pi**2 / dom.diameter**2
 
 
@@ -376,8 +433,9 @@ class PoincareReport:
         Computed first non-zero Neumann eigenvalue.
     c2 : float
         The paper's Poincaré constant ``√μ₂``.
-    payne_weinberger : float
-        The certified lower bound ``π²/diam(Ω)²``.
+    payne_weinberger : float or None
+        The certified lower bound ``π²/diam(Ω)²``; ``None`` when Ω is not convex (the bound
+        is not applicable: :func:`payne_weinberger_bound`).
     exact : float or None
         The closed form, where known.
     relative_error : float or None
@@ -388,7 +446,7 @@ class PoincareReport:
 
     mu2: float
     c2: float
-    payne_weinberger: float
+    payne_weinberger: float | None
     exact: float | None
     relative_error: float | None
     cells: tuple[int, int]
@@ -410,7 +468,8 @@ def poincare_report(
 ) -> PoincareReport:
     """Compute μ₂ and collect it with ``c₂ = √μ₂``, the Payne–Weinberger bound and the closed form.
 
-    Arguments as in :func:`neumann_eigenvalue`.
+    Arguments as in :func:`neumann_eigenvalue`.  On a region that is not convex the
+    Payne–Weinberger entry is ``None`` (not applicable), never a number.
     """
     mu2 = neumann_eigenvalue(domain, cells, cut_cells=cut_cells)
     exact = exact_neumann_eigenvalue(domain)

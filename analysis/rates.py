@@ -13,6 +13,14 @@ Theorem 2 (``v_r = v_d + ṽ``, disturbance ``v_a``, ``w = ṽ + v_a``):
 so ``‖ρ̃‖`` is ultimately bounded by ``γ sup‖w‖`` with the ISS gain
 ``γ = sup ρ / (c₁ c₂ α_inf)``; it approaches ``sup ρ / (c₂ α_inf)`` as ``c₁ → 1``, at the
 price of a vanishing rate ``(1 − c₁) α_inf μ₂`` outside the ball.
+
+Floor plans (``docs/verification.md``, *Floor plans and exits*): both theorems need Ω in one
+piece, and :func:`grid_pieces` says whether the grid keeps it so (a grid too coarse for a
+narrow door splits it, and the discrete μ₂ of the whole grid is then 0).  With exits the mass
+is not conserved and μ₂ no longer bounds the decay of ``‖ρ̃‖``; the exits' outflow (a Robin
+condition on the exits, zero flux on the walls) makes the operator coercive without a
+mean-zero condition instead, and its smallest eigenvalue ``λ_E`` (:func:`exit_eigenvalue`)
+takes the place of ``α_inf μ₂`` in Theorem 2's bound.
 """
 
 from __future__ import annotations
@@ -22,8 +30,12 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
+import scipy.linalg
+import scipy.sparse as sp
+import scipy.sparse.linalg as sla
+from scipy.sparse.csgraph import connected_components
 
-from analysis.poincare import neumann_eigenvalue
+from analysis.poincare import _face_graph, neumann_eigenvalue
 from meanfield.assembly import alpha_schedule_for, disturbance_for
 from meanfield.errors import ParameterError, positive_number
 from meanfield.grid import Grid
@@ -31,7 +43,16 @@ from meanfield.metrics import gaussian_target
 from meanfield.result import SimulationResult
 from meanfield.scenario import Scenario
 
-__all__ = ["decay_rate", "iss_gain", "mass_quantile_level", "GainReport", "gains_for_scenario", "gains_from_run"]
+__all__ = [
+    "decay_rate",
+    "exit_eigenvalue",
+    "grid_pieces",
+    "iss_gain",
+    "mass_quantile_level",
+    "GainReport",
+    "gains_for_scenario",
+    "gains_from_run",
+]
 
 
 def decay_rate(alpha_inf: float, mu2: float) -> float:
@@ -224,3 +245,79 @@ def _disturbance_size(scenario: Scenario) -> float:
     X, Y = grid.centers
     vx, vy = va(X, Y, 0.0)
     return float(np.sqrt(grid.integrate(vx * vx + vy * vy)))
+
+
+# ---------------------------------------------------------------------- floor plans and exits
+_DENSE_LIMIT = 1500  # up to this many active cells, a dense generalized eigensolve
+
+
+def _check_grid(grid: object) -> Grid:
+    if not isinstance(grid, Grid):
+        raise ParameterError("grid", type(grid).__name__, "a meanfield.Grid")
+    return grid
+
+
+def grid_pieces(grid: Grid) -> tuple[int, float]:
+    """How many pieces the grid's active cells form through its open faces, and the share of
+    Ω's area outside the largest.
+
+    Parameters
+    ----------
+    grid : Grid
+
+    Returns
+    -------
+    (int, float)
+        The number of pieces (1: connected) and the area share of all but the largest.
+    """
+    grid = _check_grid(grid)
+    adjacency, active = _face_graph(grid)
+    ncomp, labels = connected_components(adjacency, directed=False)
+    area = np.bincount(labels, weights=grid.volume[active])
+    return int(ncomp), float(1.0 - area.max() / area.sum())
+
+
+def exit_eigenvalue(grid: Grid, alpha: float, rates: np.ndarray) -> float:
+    """The smallest eigenvalue ``λ_E`` of ``α L + K`` in the cell volumes' inner product.
+
+    ``L = Gᵀ W G`` is the grid's Neumann stiffness (:func:`analysis.poincare.neumann_eigenvalue`:
+    ``uᵀ L u = ∫|∇_h u|²`` on the faces), ``K = diag(k V)`` the exits' outflow, ``k`` the rate
+    at which each cell an exit crosses loses its density (:class:`~meanfield.exits.ExitSink`,
+    ``σ ℓ / (d V)``).  So ``α ∫|∇u|² + ∫k u² >= λ_E ∫u²`` for every ``u``, with no mean-zero
+    condition: the semi-discrete form of ``−αΔ`` with zero flux on the walls and the exits'
+    Robin outflow (as the grid is refined, the Dirichlet condition ``ρ = 0`` on the exits:
+    a ``1 × w`` strip with an exit across one end has ``λ_E → α π²/4``).  ``λ_E = 0``
+    without exits (the constants), or when a piece of the grid reaches no exit.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid the density lives on (all its active cells are unknowns).
+    alpha : float
+        The diffusion gain, ``> 0`` (Theorem 2: the smallest face gain ``α_inf``).
+    rates : ndarray
+        ``k`` on ``grid.shape`` (1/time), ``>= 0``; zero away from the exits.
+
+    Returns
+    -------
+    float
+        ``λ_E`` (1/time), ``>= 0``.
+    """
+    grid = _check_grid(grid)
+    if not (isinstance(alpha, int | float | np.floating) and math.isfinite(alpha) and alpha > 0):
+        raise ParameterError("alpha", alpha, "a finite number > 0")
+    k = np.asarray(rates, float)
+    if k.shape != grid.shape or not np.all(np.isfinite(k)) or (k < 0).any():
+        raise ParameterError("rates", getattr(k, "shape", k), f"finite rates >= 0 on grid.shape {grid.shape}")
+    adjacency, active = _face_graph(grid)
+    volume = grid.volume[active]
+    stiffness = sp.diags(np.asarray(adjacency.sum(axis=1)).ravel()) - adjacency
+    operator = (alpha * stiffness + sp.diags(k[active] * volume)).tocsc()
+    n = operator.shape[0]
+    if n <= _DENSE_LIMIT:
+        lam = scipy.linalg.eigh(operator.toarray(), np.diag(volume), eigvals_only=True, subset_by_index=[0, 0])[0]
+    else:
+        shift = -1e-3 * alpha * math.pi**2 / grid.domain.diameter**2  # σ < 0: α L + K − σM is definite
+        vals = sla.eigsh(operator, k=1, M=sp.diags(volume).tocsc(), sigma=shift, which="LM", return_eigenvectors=False)
+        lam = vals[0]
+    return max(float(lam), 0.0)

@@ -23,6 +23,7 @@ from analysis.parallel import map_jobs
 from meanfield.domain import Domain
 from meanfield.errors import ParameterError, positive_number
 from meanfield.kernels import GaussianKernel
+from meanfield.region import Region
 from meanfield.scenario import Scenario
 
 __all__ = [
@@ -92,10 +93,12 @@ def coverage_layout(domain: Domain, radius: float, max_robots: int = 100_000) ->
     A ``cols × rows`` cell-centred lattice over the bounding box ``w × h`` covers it when
     each cell's half-diagonal ``½√((w/cols)² + (h/rows)²) ≤ radius``; only cells that meet
     Ω need a robot.  Every ``cols`` is tried with its smallest admissible ``rows``; the
-    arrangement with the fewest robots wins (ties: the squarer cells).
+    arrangement with the fewest robots wins (ties: the squarer cells).  Any region works
+    (a floor plan too); the disks are Euclidean, so on a plan a sign may count as covering a
+    point behind a wall: there the count is a lower estimate.
     """
-    if not isinstance(domain, Domain):
-        raise ParameterError("domain", type(domain).__name__, "a Domain")
+    if not isinstance(domain, Region):
+        raise ParameterError("domain", type(domain).__name__, "a region (a Domain or a Plan)")
     radius = positive_number("radius", radius)
     x0, x1, y0, y1 = domain.bounds
     w, h = x1 - x0, y1 - y0

@@ -28,12 +28,52 @@ def test_quick_analysis_writes_json_and_the_mode_figure(tmp_path, capsys):
     assert "mu2 =" in capsys.readouterr().out
 
 
+def test_quick_analysis_of_an_l_shaped_plan_reports_payne_weinberger_as_not_applicable(tmp_path, capsys):
+    from analysis.poincare import neumann_eigenvalue
+    from meanfield import paper_scenario
+    from meanfield.scenario import Scenario
+
+    table = paper_scenario(seed=0).to_dict()
+    table["domain"] = {"kind": "plan", "wkt": "POLYGON ((0 0, 1 0, 1 0.4, 0.4 0.4, 0.4 1, 0 1, 0 0))"}
+    table["target"]["center"] = [0.85, 0.2]
+    sc = Scenario.from_dict(table)
+    path = tmp_path / "l.toml"
+    path.write_text(sc.to_toml())
+    out = tmp_path / "an"
+    assert main(["analyze", str(path), "--out", str(out), "--quick", "--set", "t_final=0.3"]) == 0
+    d = json.loads((out / "analysis.json").read_text())
+    p = d["poincare"]
+    assert p["payne_weinberger"] is None and p["exact"] is None
+    assert p["mu2"] == pytest.approx(neumann_eigenvalue(sc.domain, (64, 64)), rel=1e-12)
+    assert p["mu2"] < math.pi**2 / 2  # below π²/diam² (diameter √2): the bound would be false here
+    assert d["gains_scenario"]["k_p"] == pytest.approx(2 * d["gains_scenario"]["alpha_inf"] * p["mu2"], rel=1e-12)
+    assert d["coverage"]["0.5"]["n"] >= 1
+    assert "Payne–Weinberger bound not applicable (Ω not convex)" in capsys.readouterr().out
+
+
 def test_studies_write_their_figures(tmp_path):
     out = tmp_path / "an"
-    rc = main([
-        "analyze", "paper", "--out", str(out), "--quiet", "--cells", "16", "--set", "t_final=0.2",
-        "--robot-counts", "1,4", "--seeds", "0", "--limits", "0.1", "--workers", "1",
-    ])
+    rc = main(
+        [
+            "analyze",
+            "paper",
+            "--out",
+            str(out),
+            "--quiet",
+            "--cells",
+            "16",
+            "--set",
+            "t_final=0.2",
+            "--robot-counts",
+            "1,4",
+            "--seeds",
+            "0",
+            "--limits",
+            "0.1",
+            "--workers",
+            "1",
+        ]
+    )
     assert rc == 0
     d = json.loads((out / "analysis.json").read_text())
     assert d["robot_count"]["counts"] == [1, 4]

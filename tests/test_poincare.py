@@ -13,6 +13,7 @@ from scipy.special import jnp_zeros
 from analysis.poincare import (
     PoincareReport,
     exact_neumann_eigenvalue,
+    is_convex,
     neumann_eigenvalue,
     payne_weinberger_bound,
     poincare_report,
@@ -255,6 +256,92 @@ def test_payne_weinberger_is_sharp_for_thin_rectangles():
     for w in (0.5, 0.1, 0.01):
         dom = Domain.polygon(_moved([(0, 0), (1, 0), (1, w), (0, w)], 0.4))
         assert exact_neumann_eigenvalue(dom) / payne_weinberger_bound(dom) == pytest.approx(1 + w**2, rel=1e-9)
+
+
+# ---------------------------------------------------------------------- floor plans: not convex
+L_THIN = "POLYGON ((0 0, 1 0, 1 0.2, 0.2 0.2, 0.2 1, 0 1, 0 0))"  # arms 0.2 wide, diameter √2
+PILLAR_ROOM = "POLYGON ((0 0, 1 0, 1 1, 0 1, 0 0), (0.4 0.4, 0.6 0.4, 0.6 0.6, 0.4 0.6, 0.4 0.4))"
+
+
+def test_convexity_of_regions():
+    """Every Domain is convex; a plan is when it has no hole and its hull adds no area."""
+    from meanfield.plan import Plan
+
+    assert is_convex(Domain.disk(1.0)) and is_convex(Domain.polygon(PENTAGON)) and is_convex(Domain.box(2, 1))
+    assert is_convex(Plan.from_wkt("POLYGON ((0 0, 1 0, 1 1, 0 1, 0 0))"))
+    assert is_convex(Plan.from_wkt("POLYGON ((0 0, 0.5 0, 1 0, 1 1, 0 1, 0 0))"))  # a collinear vertex
+    assert is_convex(Grid(Plan.from_wkt("POLYGON ((0 0, 1 0, 0.5 0.8, 0 0))"), (8, 8)))
+    assert not is_convex(Plan.from_wkt(L_THIN))
+    assert not is_convex(Plan.from_wkt(PILLAR_ROOM))  # convex outline, but a hole
+    dent = "POLYGON ((0 0, 1 0, 1 1, 0.5 0.999, 0 1, 0 0))"  # a re-entrant vertex 1e-3 deep
+    assert not is_convex(Plan.from_wkt(dent))
+
+
+def test_payne_weinberger_is_not_applicable_when_the_plan_is_not_convex():
+    """On the thin L, μ₂ lies far below π²/diam²: the bound would be false, so it is None, never a number."""
+    from meanfield.plan import Plan
+
+    thin = Plan.from_wkt(L_THIN)
+    assert neumann_eigenvalue(thin, (32, 32)) < 0.75 * math.pi**2 / thin.diameter**2  # 3.39 against 4.93
+    assert payne_weinberger_bound(thin) is None and payne_weinberger_bound(Grid(thin, (8, 8))) is None
+    for plan in (thin, Plan.from_wkt(PILLAR_ROOM)):
+        rep = poincare_report(plan, (24, 24))
+        assert rep.payne_weinberger is None and rep.to_dict()["payne_weinberger"] is None
+        assert rep.mu2 > 0 and rep.c2 == pytest.approx(math.sqrt(rep.mu2), rel=1e-15) and rep.exact is None
+    square = Plan.from_wkt("POLYGON ((0 0, 1 0, 1 1, 0 1, 0 0))")
+    assert payne_weinberger_bound(square) == pytest.approx(math.pi**2 / 2, rel=1e-15)  # a convex plan keeps it
+
+
+def test_the_mode_figure_says_the_bound_is_not_applicable():
+    from analysis.figures import plot_poincare_mode
+    from meanfield.plan import Plan
+
+    thin = Plan.from_wkt(L_THIN)
+    grid = Grid(thin, (16, 16))
+    mu, mode = neumann_eigenvalue(grid, return_mode=True)
+    texts = [t.get_text() for t in plot_poincare_mode(thin, grid, mode, mu, None, None).axes[0].texts]
+    assert any("not applicable (Ω not convex)" in t for t in texts)
+    texts = [t.get_text() for t in plot_poincare_mode(thin, grid, mode, mu, 2.5, None).axes[0].texts]
+    assert any("π²/d² = 2.5" in t for t in texts)
+
+
+# ---------------------------------------------------------------------- grid pieces, the exits' rate
+def test_grid_pieces_counts_what_the_open_faces_join():
+    from analysis.rates import grid_pieces
+    from meanfield.plan import Plan
+
+    assert grid_pieces(Grid(Plan.from_wkt(PILLAR_ROOM), (20, 20))) == (1, 0.0)
+    grid = Grid(Domain.box(1.0, 1.0), (10, 10))
+    grid.aperture_x[2, :] = 0.0  # a wall the grid cannot cross: columns 0-2 apart from 3-9
+    pieces, share = grid_pieces(grid)
+    assert pieces == 2 and share == pytest.approx(0.3, rel=1e-12)
+    with pytest.raises(ParameterError):
+        grid_pieces(Domain.box(1.0, 1.0))
+
+
+def test_exit_eigenvalue_of_a_strip_with_an_exit_across_one_end():
+    """−αu'' = λu on (0, 1), u'(0) = 0, u(1) = 0 (the exits' outflow is Dirichlet as h → 0): λ = απ²/4,
+    for any α, and no exits give λ = 0 (the constants)."""
+    from analysis.rates import exit_eigenvalue
+    from meanfield.exits import ExitSink, exit_segments
+
+    strip = Domain.box(1.0, 0.2, exits=[((1.0, 0.0), (1.0, 0.2))])
+    sigma = 0.3
+    errors = []
+    for n in (20, 40):
+        grid = Grid(strip, (n, 4))
+        rates = ExitSink(grid, exit_segments(strip), sigma).total_rate
+        lam = exit_eigenvalue(grid, sigma, rates)
+        errors.append(abs(lam - sigma * math.pi**2 / 4) / (sigma * math.pi**2 / 4))
+        assert lam < sigma * math.pi**2 / 4  # from below, as the Neumann eigenvalues
+    assert errors[1] < 3e-4 and errors[1] < errors[0] / 3  # second order
+    grid = Grid(Domain.box(1.0, 1.0), (10, 10))
+    assert exit_eigenvalue(grid, 0.2, np.zeros(grid.shape)) == pytest.approx(0.0, abs=1e-12)
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(ParameterError):
+            exit_eigenvalue(grid, bad, np.zeros(grid.shape))
+    with pytest.raises(ParameterError):
+        exit_eigenvalue(grid, 0.2, -np.ones(grid.shape))
 
 
 # ---------------------------------------------------------------------- grid consistency and mode

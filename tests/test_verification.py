@@ -1,5 +1,5 @@
 """verification: the Theorem 1–3 checks against exact answers, the runner, the report and
-``meanfield verify`` (verdicts, exit codes, non-convex scenarios, crashing checks)."""
+``meanfield verify`` (verdicts, exit codes, non-convex polygons, crashing checks)."""
 
 from __future__ import annotations
 
@@ -57,8 +57,17 @@ def _loop_trajectory(dV2, claim, V2) -> RobotLoopTrajectory:
     n = len(V2)
     one = np.ones(n)
     return RobotLoopTrajectory(
-        np.linspace(0, 1, n), np.asarray(V2, float), one, np.asarray(V2, float) ** 0.5,
-        np.asarray(dV2, float), np.asarray(claim, float), one, one, 0 * one, one, 0 * one,
+        np.linspace(0, 1, n),
+        np.asarray(V2, float),
+        one,
+        np.asarray(V2, float) ** 0.5,
+        np.asarray(dV2, float),
+        np.asarray(claim, float),
+        one,
+        one,
+        0 * one,
+        one,
+        0 * one,
     )
 
 
@@ -127,8 +136,18 @@ def _tiny_toml(tmp_path, vertices=None):
 def test_verify_command_writes_report_and_verdicts(tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "jupedsim", None)  # pedestrians: inconclusive at once, not 3 Unity runs
     out = tmp_path / "out"
-    code = main(["verify", str(_tiny_toml(tmp_path)), "--out", str(out), "--quick", "--quiet",
-                 "--checks", "theorem1,theorem2,pedestrians"])
+    code = main(
+        [
+            "verify",
+            str(_tiny_toml(tmp_path)),
+            "--out",
+            str(out),
+            "--quick",
+            "--quiet",
+            "--checks",
+            "theorem1,theorem2,pedestrians",
+        ]
+    )
     assert code == 0
     data = json.loads((out / "verdicts.json").read_text())
     assert data["status"] == "completed"
@@ -144,7 +163,9 @@ def test_verify_command_writes_report_and_verdicts(tmp_path, capsys, monkeypatch
 
 
 def test_non_convex_domain_gives_inconclusive_verdicts(tmp_path):
-    """An L-shaped (non-convex) domain: every claim inconclusive with the reason, exit 0."""
+    """A non-convex vertex list under kind = "polygon" (Domain.polygon refuses it): every claim
+    inconclusive with the reason and the way to a floor plan, exit 0.  Plans themselves are
+    checked (tests/test_verification_plans.py)."""
     path = _tiny_toml(tmp_path, vertices=[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.5, 0.4], [0.0, 1.0]])
     out = tmp_path / "out"
     assert main(["verify", str(path), "--out", str(out), "--quick", "--quiet"]) == 0
@@ -152,7 +173,7 @@ def test_non_convex_domain_gives_inconclusive_verdicts(tmp_path):
     assert [v["key"] for v in data["verdicts"]] == list(runner.CHECKS)
     for v in data["verdicts"]:
         assert v["verdict"] == "inconclusive"
-        assert "not convex" in v["reason"]
+        assert "not convex" in v["reason"] and 'kind = "plan"' in v["reason"]
 
 
 def test_a_crashing_check_is_an_error_and_exit_1(tmp_path, monkeypatch):
@@ -165,8 +186,18 @@ def test_a_crashing_check_is_an_error_and_exit_1(tmp_path, monkeypatch):
     monkeypatch.setitem(runner.CHECKS, "theorem1", broken)
     monkeypatch.setitem(runner.CHECKS, "pedestrians", fine)
     out = tmp_path / "out"
-    code = main(["verify", str(_tiny_toml(tmp_path)), "--out", str(out), "--quick", "--quiet",
-                 "--checks", "theorem1,pedestrians"])
+    code = main(
+        [
+            "verify",
+            str(_tiny_toml(tmp_path)),
+            "--out",
+            str(out),
+            "--quick",
+            "--quiet",
+            "--checks",
+            "theorem1,pedestrians",
+        ]
+    )
     assert code == 1
     data = json.loads((out / "verdicts.json").read_text())
     assert [v["verdict"] for v in data["verdicts"]] == ["error", "inconclusive"]

@@ -2,7 +2,8 @@
 
 Built on :mod:`analysis` and :mod:`meanfield`; never imported by them.  One module per
 claim (``theorem1``, ``theorem2``, ``theorem3``, ``mean_field``, ``robot_count``,
-``agents``), the plants they run (``plant``), the result type (``result``), the runner and
+``agents``), the plants they run (``plant``), the hypotheses a scenario's grid meets
+(``hypotheses``: Ω in one piece, no exits), the result type (``result``), the runner and
 the report behind ``meanfield verify`` (``runner``, ``report``, ``cli``), and the mutation
 demo (``python -m verification.mutation``).
 """

@@ -316,7 +316,7 @@ def check_pedestrians(
     Parameters
     ----------
     scenario : Scenario
-        Not used (see above); the runner has already refused a non-convex domain.
+        Not used (see above).
     out_dir : Path
         The report's directory; the figure goes to ``out_dir / "figures"``.
     quick : bool

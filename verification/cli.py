@@ -28,9 +28,7 @@ def register(subparsers: Any):
     v.add_argument(
         "--quick", action="store_true", help="short variant of every check (about 45 s for paper on 2 cores)"
     )
-    v.add_argument(
-        "--checks", default=None, help=f"comma-separated subset of: {', '.join(CHECK_NAMES)} (default: all)"
-    )
+    v.add_argument("--checks", default=None, help=f"comma-separated subset of: {', '.join(CHECK_NAMES)} (default: all)")
     v.add_argument("--workers", type=int, default=None, help="worker processes for the fan-out checks")
     v.add_argument(
         "--scheduler",
@@ -58,7 +56,9 @@ def _handle(args: argparse.Namespace) -> int:
     except ParameterError as exc:
         if "convex" not in str(exc):
             raise
-        scenario = exc  # every check reports inconclusive, with this reason
+        # a non-convex kind = "polygon" (floor plans, kind = "plan", load and are checked):
+        # every check reports inconclusive, with the reason and the way to a plan
+        scenario = exc
     args.out.mkdir(parents=True, exist_ok=True)
 
     def show(result) -> None:
@@ -69,7 +69,12 @@ def _handle(args: argparse.Namespace) -> int:
 
     with jobs_on(args.scheduler, args.workers):  # the fan-out checks share one Dask cluster
         run = verify(
-            scenario, args.out, quick=args.quick, checks=checks, progress=not args.quiet, workers=args.workers,
+            scenario,
+            args.out,
+            quick=args.quick,
+            checks=checks,
+            progress=not args.quiet,
+            workers=args.workers,
             on_result=show,
         )
     paths = write_report(run, args.out)

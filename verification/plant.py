@@ -13,7 +13,10 @@ Two discretisations of eq. (4) with ``v_r = v_d + w`` (``w = ṽ + v_a``, zero f
   (Scharfetter–Gummel fluxes, positive) driven by ``v_d(ρⁿ) + w`` re-evaluated every
   step: the closed loop as a sampled-data feedback realises it.
 
-Both record ``V₁ = ∫ρ̃²`` and the Step-I dissipation ``∫α|∇ρ̃|²`` along the way.
+Both record ``V₁ = ∫ρ̃²`` and the Step-I dissipation ``∫α|∇ρ̃|²`` along the way.  On a
+region with exits the Fokker–Planck plant loses the exits' outflow after every step, as
+the toolkit's density crowd does (:class:`~meanfield.exits.ExitSink`; ``docs/verification.md``,
+*Floor plans and exits*), and records the mass left in Ω.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from scipy import sparse
 from scipy.integrate import solve_ivp
 
 from meanfield.control import BacksteppingController
+from meanfield.exits import ExitSink, exit_segments
 from meanfield.fokker_planck import FokkerPlanck
 from meanfield.grid import FaceField, Grid
 
@@ -34,6 +38,7 @@ __all__ = [
     "Trajectory",
     "RobotLoopTrajectory",
     "alpha_on_faces",
+    "exit_sink",
     "face_points",
     "model_trajectory",
     "fokker_planck_trajectory",
@@ -66,6 +71,8 @@ class Trajectory:
         ``‖w(t)‖`` on the faces (0 for Theorem 1).
     rho_final : ndarray
         The last density.
+    mass : ndarray or None
+        ``∫ρ`` at the records (the initial mass throughout without exits).
     """
 
     t: np.ndarray
@@ -78,6 +85,7 @@ class Trajectory:
     w_norm: np.ndarray
     rho_final: np.ndarray
     info: dict = field(default_factory=dict)
+    mass: np.ndarray | None = None
 
     @property
     def rho_error(self) -> np.ndarray:
@@ -199,6 +207,16 @@ def model_trajectory(
     return Trajectory(sol.t, *cols, rho_final=sol.y[:, -1].reshape(shape), info={"nfev": int(sol.nfev)})
 
 
+def exit_sink(grid: Grid, sigma: Any) -> ExitSink | None:
+    """The outflow of the region's exits on ``grid`` (``None`` without exits), as the density
+    crowd builds it: a diffusion σ given as a function gives no outflow, there as in
+    :class:`~meanfield.density_crowd.DensityCrowd`."""
+    segs = exit_segments(grid.domain)
+    if not len(segs):
+        return None
+    return ExitSink(grid, segs, 0.0 if callable(sigma) else float(sigma))
+
+
 def fokker_planck_trajectory(
     ctrl: BacksteppingController,
     fp: FokkerPlanck,
@@ -207,11 +225,14 @@ def fokker_planck_trajectory(
     dt: float,
     w: FaceDisturbance | None = None,
     record_every: int = 1,
+    sink: ExitSink | None = None,
 ) -> Trajectory:
     """Run the Fokker–Planck plant under the sampled Step-I feedback ``v_r = v_d(ρⁿ) + w(tⁿ)``.
 
     Every step re-evaluates eq. (6) at the current density and hands it to
-    :meth:`~meanfield.fokker_planck.FokkerPlanck.step` as the face velocity.
+    :meth:`~meanfield.fokker_planck.FokkerPlanck.step` as the face velocity; with exits,
+    the step is followed by their outflow (``sink``, Lie splitting as in the density crowd),
+    and the recorded ``dV₁/dt`` includes the outflow's rate ``−kρ``.
 
     Parameters
     ----------
@@ -225,25 +246,47 @@ def fokker_planck_trajectory(
         ``w(t)`` on the faces.
     record_every : int
         Record every so many steps (and the last).
+    sink : ExitSink, optional
+        The exits' outflow (:func:`exit_sink`); ``None``: zero flux through all of ∂Ω.
+
+    The run stops early, saying so in ``info["stopped"]``, if ρ reaches 0 on a face, where
+    ``v_d`` is undefined (the theorems assume ρ > 0).  The last record then holds the state
+    but no rate (``dV₁/dt`` and the dissipation's pairing are set from ``ρ̇ = 0``).
     """
     steps = int(round(t_final / dt))
     rho = np.asarray(rho0, float).copy()
-    times, rows = [], []
+    times, rows, mass = [], [], []
     t = 0.0
+    g = ctrl.grid
+    info: dict[str, Any] = {"dt": dt, "steps": steps}
     for k in range(steps + 1):
         wf = None if w is None else w(t)
-        v = ctrl.virtual_velocity(rho, t)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            v = ctrl.virtual_velocity(rho, t)
+        if not (np.isfinite(v[0]).all() and np.isfinite(v[1]).all()):  # ρ = 0 on a face: v_d undefined
+            info["stopped"] = f"ρ reached 0 on a face at t = {t:.4g}: v_d = −(α∇ρ̃ − ∇(σρ))/ρ is undefined there"
+            if not times or times[-1] != t:
+                times.append(t)
+                rows.append(_measure(ctrl, rho, np.zeros_like(rho), wf))  # ρ̇ unknown: the record keeps V₁ only
+                mass.append(g.integrate(rho))
+            break
         if wf is not None:
             v = (v[0] + wf[0], v[1] + wf[1])
         if k % record_every == 0 or k == steps:
             times.append(t)
-            rows.append(_measure(ctrl, rho, fp.rhs(rho, t, face_velocity=v), wf))
+            rate = fp.rhs(rho, t, face_velocity=v)
+            if sink is not None:
+                rate = rate - sink.total_rate * rho
+            rows.append(_measure(ctrl, rho, rate, wf))
+            mass.append(g.integrate(rho))
         if k == steps:
             break
         rho = fp.step(rho, t, dt, face_velocity=v)
+        if sink is not None:
+            rho, _ = sink.apply(rho, dt)
         t = (k + 1) * dt
     cols = [np.array(c, float) for c in zip(*rows, strict=True)]
-    return Trajectory(np.array(times), *cols, rho_final=rho, info={"dt": dt, "steps": steps})
+    return Trajectory(np.array(times), *cols, rho_final=rho, info=info, mass=np.array(mass, float))
 
 
 @dataclass
@@ -253,7 +296,10 @@ class RobotLoopTrajectory:
     Every array is per recorded step.  ``dV2_dt`` is the semi-discrete rate
     ``⟨ρ̃, ρ̇⟩ + ⟨ṽ, ∂_t v_r − ∂_t v_d⟩`` along the plant's own ``ρ̇`` and the applied
     inputs; ``claim`` is ``−∫α|∇ρ̃|² − Σk_u|b_i|² − Σk_ω g_i² + shortfall`` (eq. (8) with
-    the part of ``A`` the applied inputs did not cancel).
+    the part of ``A`` the applied inputs did not cancel).  With exits, ``ρ̇`` includes their
+    outflow ``E = −kρ`` and ``exit_term`` is its share of the rate,
+    ``⟨ρ̃, E⟩ − ⟨ṽ, ∂_ρv_d[E]⟩``: the law's model has no exits, so the law does not cancel it
+    and ``dV₂/dt = claim + exit_term`` is what Step II gives (``None`` without exits).
     """
 
     t: np.ndarray
@@ -268,6 +314,8 @@ class RobotLoopTrajectory:
     speed: np.ndarray  # largest commanded robot speed
     at_limit: np.ndarray  # robots whose command reached a limit
     info: dict = field(default_factory=dict)
+    exit_term: np.ndarray | None = None  # with exits: their share of dV₂/dt, which the law does not cancel
+    mass: np.ndarray | None = None  # ∫ρ at the records
 
 
 class _LyapunovRates:
@@ -276,6 +324,8 @@ class _LyapunovRates:
     def __init__(self, record_every: int):
         self.record_every = record_every
         self.rows: list[tuple] = []
+        self.exit_term: list[float] = []
+        self.mass: list[float] = []
 
     def start(self, loop: Any) -> None:
         pass
@@ -287,6 +337,13 @@ class _LyapunovRates:
         obs, st, u, w = record.observation, record.command.state, record.u, record.omega
         rho, t = obs.density, obs.t
         rho_dot = fp.rhs(rho, t, face_velocity=obs.field.velocity())
+        sink = getattr(loop.crowd, "sink", None)
+        if sink is not None:  # the exits' outflow: part of the plant's ρ̇, unknown to the law
+            out = -sink.total_rate * rho
+            rho_dot = rho_dot + out
+            dvd_out = ctrl.virtual_velocity_rate(rho, out, t)
+            self.exit_term.append(g.inner(st.rho_tilde, out) - g.face_inner(st.v_tilde, dvd_out))
+        self.mass.append(g.integrate(rho))
         dvr = obs.field.velocity_rate(u, w)
         dvd = ctrl.virtual_velocity_rate(rho, rho_dot, t)
         dV2 = g.inner(st.rho_tilde, rho_dot) + g.face_inner(st.v_tilde, (dvr[0] - dvd[0], dvr[1] - dvd[1]))
@@ -352,4 +409,7 @@ def robot_loop_trajectory(scenario: Any, t_final: float, dt: float, record_every
     except SimulationDiverged:
         pass
     cols = [np.array(c, float) for c in zip(*rates.rows, strict=True)]
-    return RobotLoopTrajectory(*cols, info={"dt": dt, "steps": steps})
+    exit_term = np.array(rates.exit_term, float) if crowd.sink is not None else None
+    return RobotLoopTrajectory(
+        *cols, info={"dt": dt, "steps": steps}, exit_term=exit_term, mass=np.array(rates.mass, float)
+    )

@@ -7,9 +7,9 @@ A verdict is one of three words:
 ``"fails"``
     They do not: the claim (or the bound it was held against) is contradicted by the run.
 ``"inconclusive"``
-    The check could not decide: a hypothesis of the claim is not met by the scenario (a
-    non-convex domain, a backend that is not installed, inputs the theorem assumes
-    unbounded but the robots have limits, ...).  ``reason`` says which.
+    The check could not decide: a hypothesis of the claim is not met by the scenario (exits
+    that let mass out, a grid that splits Ω, a backend that is not installed, inputs the
+    theorem assumes unbounded but the robots have limits, ...).  ``reason`` says which.
 
 A check that *crashed* is not a verdict: the runner records it with ``verdict = "error"``
 and the command exits non-zero (see :mod:`verification.runner`).

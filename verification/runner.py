@@ -1,9 +1,14 @@
 """Run every check on one scenario and collect the verdicts (``meanfield verify``).
 
-A scenario the checks cannot use gives ``inconclusive`` verdicts with the reason — for a
-non-convex polygon (refused by :class:`~meanfield.domain.Domain`, and outside the
-theorems' hypotheses) every claim is inconclusive.  A check that raises is recorded with
-verdict ``"error"`` and the exception, and the run goes on with the next check.
+The checks run on any region: boxes, disks, convex polygons and floor plans
+(:class:`~meanfield.plan.Plan`: re-entrant corners, pillars, exits).  Theorems 1–3 need Ω
+connected, not convex (the Poincaré–Wirtinger inequality; μ₂ is computed on the plan's
+grid), and say themselves which hypothesis a scenario misses (:mod:`verification.hypotheses`:
+a grid that splits Ω, exits that let mass out).  A scenario that cannot be loaded gives
+``inconclusive`` verdicts with the reason: a non-convex vertex list under
+``kind = "polygon"``, which :meth:`~meanfield.domain.Domain.polygon` refuses, is pointed to
+``kind = "plan"``.  A check that raises is recorded with verdict ``"error"`` and the
+exception, and the run goes on with the next check.
 """
 
 from __future__ import annotations
@@ -51,8 +56,9 @@ def unusable_scenario_reason(exc: Exception) -> str:
     text = str(exc)
     if "non-convex" in text or "not convex" in text:
         return (
-            "the domain is not convex: the paper's theorems (Poincaré constant, Lyapunov arguments) assume a "
-            f"convex Ω, and the toolkit refuses non-convex polygons ({text})"
+            'the domain is not convex, and kind = "polygon" takes convex vertex lists only: give the room as a '
+            'floor plan, [domain] kind = "plan" with wkt = "POLYGON ((x y, ...))", and the checks run on it '
+            f"(Theorems 1–3 need Ω connected, not convex) ({text})"
         )
     return f"the scenario cannot be used: {text}"
 
@@ -98,7 +104,7 @@ def verify(
     ----------
     scenario : Scenario, or the exception raised while loading it
         An exception (e.g. a :class:`~meanfield.errors.ParameterError` for a non-convex
-        polygon) makes every check ``inconclusive`` with the reason.
+        ``kind = "polygon"``) makes every check ``inconclusive`` with the reason.
     out_dir : path
         Where the checks put their figures (``out_dir/figures``).
     quick : bool

@@ -8,6 +8,14 @@ simplest gain the theorem allows, and the only one with a non-vanishing ``α_inf
 constant α it also integrates the controller's exact semi-discrete model
 (:func:`~verification.plant.model_trajectory`), a linear heat equation for ρ̃, to see
 whether ρ stays positive — the theorem divides by ρ.
+
+Any connected Ω will do, convex or not (a floor plan with re-entrant corners and pillars):
+the proof needs the Poincaré–Wirtinger inequality, and μ₂ is computed on the scenario's
+own cut-cell grid.  Two hypotheses are checked first (:mod:`verification.hypotheses`):
+the grid keeps Ω in one piece, else the verdict is ``inconclusive``; and no exits.  With
+exits the mass is not conserved, the claim does not apply (``inconclusive``), and the
+plant with the exits' outflow is run and reported, not judged (``docs/verification.md``,
+*Floor plans and exits*).
 """
 
 from __future__ import annotations
@@ -26,7 +34,8 @@ from meanfield.density_crowd import initial_density
 from meanfield.fokker_planck import FokkerPlanck
 from meanfield.io import save_figure, subplots
 from meanfield.scenario import Scenario
-from verification.plant import Trajectory, fokker_planck_trajectory, model_trajectory
+from verification.hypotheses import disconnected_reason, exits_reason, hypotheses
+from verification.plant import Trajectory, exit_sink, fokker_planck_trajectory, model_trajectory
 from verification.result import CheckResult, worst
 
 __all__ = ["CLAIM", "alpha_cases", "check_theorem1", "exponential_verdict", "fitted_rate", "feedback_step"]
@@ -93,9 +102,7 @@ def alpha_cases(scenario: Scenario, schedule: AlphaSchedule) -> list[tuple[str, 
     return cases
 
 
-def _case(
-    label: str, traj: Trajectory, mu2: float, plant: str, extra: dict[str, Any] | None = None
-) -> dict[str, Any]:
+def _case(label: str, traj: Trajectory, mu2: float, plant: str, extra: dict[str, Any] | None = None) -> dict[str, Any]:
     alpha_inf = float(traj.alpha_min.min())
     k_p = decay_rate(alpha_inf, mu2) if alpha_inf > 0 else 0.0
     verdict, figures = exponential_verdict(traj.t, traj.V1, k_p)
@@ -113,6 +120,11 @@ def _case(
         "identity_mismatch": float(identity.max() / max(2 * traj.dissipation.max(), 1e-300)),
         "t_final": float(traj.t[-1]),
     }
+    stopped = traj.info.get("stopped")
+    if stopped:  # the theorem assumes ρ > 0: judged only up to there, and a bound kept there is no proof
+        out["stopped"] = stopped
+        if verdict == "holds":
+            out["verdict"], out["reason"] = "inconclusive", f"{stopped}; the bound held until then"
     out.update(extra or {})
     return out
 
@@ -156,11 +168,19 @@ def check_theorem1(
     start = time.perf_counter()
     parts = assemble(scenario, crowd="fokker-planck", controller="backstepping")  # the PDE plant's parts
     grid, ctrl = parts.grid, parts.controller
+    hyp = hypotheses(grid)
+    split = disconnected_reason(hyp, grid.cells)
+    if split is not None:
+        return CheckResult.inconclusive(
+            "theorem1", CLAIM, split, measured={"hypotheses": hyp.to_dict()}, seconds=time.perf_counter() - start
+        )
     mu2 = neumann_eigenvalue(grid)
     rho0 = initial_density(scenario, grid)
     t_final = 1.5 if quick else 4.0
     h = min(grid.dx, grid.dy)
     c = scenario.controller
+    sink = exit_sink(grid, ctrl.sigma)
+    plant = "Fokker–Planck (Scharfetter–Gummel, sampled v_d" + (", exits' outflow)" if sink else ")")
     schedules = alpha_cases(scenario, ctrl.alpha)
     cases, series = [], []
     for label, schedule in schedules:
@@ -168,11 +188,19 @@ def check_theorem1(
         dt = feedback_step(h, c.alpha, scenario.dt)
         fp = FokkerPlanck(grid, ctrl.sigma, method="split", interaction=ctrl.interaction)
         every = max(1, int(round(0.02 / dt)))
-        traj = fokker_planck_trajectory(ctrl, fp, rho0, t_final, dt, record_every=every)
-        case = _case(label, traj, mu2, "Fokker–Planck (Scharfetter–Gummel, sampled v_d)", {"dt": dt})
+        traj = fokker_planck_trajectory(ctrl, fp, rho0, t_final, dt, record_every=every, sink=sink)
+        case = _case(label, traj, mu2, plant, {"dt": dt})
+        if sink is not None:
+            out = float(1.0 - traj.mass[-1] / traj.mass[0])
+            case.update(
+                verdict="inconclusive",
+                reason=f"mass not conserved: {out:.2%} of the crowd left through the exits",
+                mass_out=out,
+                V1_floor_final=float((traj.mass[0] - traj.mass[-1]) ** 2 / grid.area),
+            )
         cases.append(case)
         series.append((label, traj, case["k_p"]))
-        if isinstance(schedule, ConstantAlpha):
+        if isinstance(schedule, ConstantAlpha) and sink is None and len(traj.t) > 1:  # the model has no exits
             model = model_trajectory(ctrl, rho0, traj.t)
             m = _case(label, model, mu2, "semi-discrete model (central fluxes, exact substitution)")
             m["positive"] = bool(m["rho_min"] > 0)
@@ -185,29 +213,41 @@ def check_theorem1(
     _figure(figdir / "theorem1.png", series)
     verdict = worst([k["verdict"] for k in cases if k["plant"].startswith("Fokker")])
     first = cases[0]
+    reason = "; ".join(dict.fromkeys(k["reason"] for k in cases if k["verdict"] == "inconclusive"))
     parts = []
+    if sink is not None:
+        reason = exits_reason(first["mass_out"], float(series[0][1].t[-1]))
+        parts.append(f"not applicable: {reason}; reported, not judged")
+    elif not hyp.convex:
+        parts.append(f"Ω not convex ({hyp.region}): μ₂ = {mu2:.4g} of its cut-cell grid")
     for k in cases:
         vac = " (vacuous bound)" if k["vacuous"] else ""
+        gone = f", mass out {k['mass_out']:.2%}" if "mass_out" in k else ""
         parts.append(
             f"{k['case']}, {k['plant'].split(' (')[0]}: {k['verdict']}{vac}, fitted rate {k['fitted_rate']:.3g} "
-            f"vs k_p {k['k_p']:.3g}, worst V₁/bound {k['worst_ratio_to_bound']:.3g}, min ρ {k['rho_min']:.2g}"
+            f"vs k_p {k['k_p']:.3g}, worst V₁/bound {k['worst_ratio_to_bound']:.3g}, min ρ {k['rho_min']:.2g}{gone}"
         )
     return CheckResult(
         key="theorem1",
         claim=CLAIM,
         verdict=verdict,
         summary="; ".join(parts),
+        reason=reason,
         measured={
             "fitted_rate": first["fitted_rate"],
             "worst_ratio_to_bound": first["worst_ratio_to_bound"],
             "cases": len(cases),
+            "hypotheses": hyp.to_dict(),
+            **({"mass_out": first["mass_out"]} if sink is not None else {}),
         },
         bound={"k_p": first["k_p"], "alpha_inf": first["alpha_inf"], "mu2_discrete": mu2},
         criterion=(
             "On the Fokker–Planck plant under the sampled feedback v_r = v_d(ρⁿ): holds when "
             f"V₁(t) ≤ V₁(0)e^{{−k_p t}}(1 + {RTOL:g}) at every record and V₁ never rises, with k_p = 2 α_inf μ₂ "
-            "(α_inf the smallest face gain along the run, μ₂ the discrete Neumann eigenvalue of the grid); "
-            "the verdict is the worst over the α cases. The semi-discrete model is reported, not judged."
+            "(α_inf the smallest face gain along the run, μ₂ the discrete Neumann eigenvalue of the grid, on any "
+            "connected Ω, convex or not); the verdict is the worst over the α cases. The semi-discrete model is "
+            "reported, not judged. Inconclusive when the grid splits Ω into pieces, or when Ω has exits (mass is "
+            "not conserved; the plant with the exits' outflow is then reported, not judged)."
         ),
         cases=cases,
         figures=["figures/theorem1.png"],
