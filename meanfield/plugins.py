@@ -70,6 +70,7 @@ BUILTIN: dict[str, dict[str, str]] = {
         "backstepping": "meanfield.control:BacksteppingController.from_parts",
         "evacuation": "meanfield.evacuation:EvacuationController.from_parts",
         "static-signs": "meanfield.static_signs:StaticSigns.from_parts",
+        "coverage": "meanfield.coverage:CoverageController.from_parts",
     },
     "guidance": {
         "signs": "meanfield.guidance:signs",

@@ -137,6 +137,13 @@ class SightLines:
         rows = cells.rows(robots)
         return rows[:, 1:, :] & rows[:, :-1, :], rows[:, :, 1:] & rows[:, :, :-1]
 
+    def cell_rows(self, grid: Any, robots: np.ndarray) -> np.ndarray:
+        """Which cells of ``grid`` each robot sees: bool, ``(n, nx, ny)`` (all, without sight-blocking walls)."""
+        robots = np.real(np.asarray(robots)).reshape(-1, 2)
+        if self.trivial:
+            return np.ones((len(robots), *grid.shape), bool)
+        return self._cells_of(grid).rows(robots)
+
     def _cells_of(self, grid: Any) -> _CellSight:
         cells = self._grids.get(id(grid))
         if cells is None or cells.grid is not grid:

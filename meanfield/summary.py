@@ -96,6 +96,7 @@ def run_summary(
         "view_radius": sc.view.radius,
         **crowd.summary(),  # the crowd's own figures (agents: field_evaluation, seen_fraction_final, bodies)
         **(evacuation or {}),  # with exits: fraction evacuated, RSET, flows, peak density, lower bound
+        **_controller_summary(loop),  # a controller's own figures (coverage: idle robots)
         "V2_initial": recorder.first_V2,
         "V2_final": float(dataset["V2"].values[-1]) if dataset.sizes["time"] else None,
         "A_final": _last_A(recorder),
@@ -107,6 +108,12 @@ def run_summary(
         "scenario": sc.to_dict(),
     }
     return summary
+
+
+def _controller_summary(loop: LoopView) -> dict[str, Any]:
+    """A controller's own figures, if it reports any (``summary()``; the paper's law has none)."""
+    own = getattr(loop.controller, "summary", None)
+    return own() if callable(own) else {}
 
 
 def _last_A(recorder: Recorder) -> float | None:
