@@ -3,7 +3,7 @@
 Run:  python benchmarks/bench_plan.py [--steps 300] [--repeats 3] [--json FILE]
 
 Our figure: steps per second of the built-in ``office`` scenario (a 30 m × 14 m floor of
-eight rooms and a corridor, 60×28 cells, 120 humans, 8 robots, the evacuation controller):
+eight rooms and a corridor, 60×28 cells, 120 humans, 8 robots, the coverage controller):
 walls that reflect along each step, signs hidden behind walls, two exits.  Anchor: the same
 scenario on the 30 m × 14 m box with the same exits (no inner walls, nothing hidden), so
 the ratio is the price of the plan alone.  Goal: a step on the plan costs at most 1.5× a
@@ -77,7 +77,7 @@ def suite_records(quick: bool) -> list[dict[str, Any]]:
         measured(
             "plan",
             "closed_loop office vs box",
-            "office plan (30x14 m, 60x28 cells, N=120, n=8, evacuation controller) against the same loop on a box",
+            "office plan (30x14 m, 60x28 cells, N=120, n=8, coverage controller) against the same loop on a box",
             "ClosedLoop(office).step(): walls, sight lines, exits, steps/s",
             "ClosedLoop(office on a 30x14 m box, same exits).step(), steps/s",
             ours,

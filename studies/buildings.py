@@ -6,9 +6,11 @@ Run from the repository's root::
 
 For each built-in plan (``l-room``, ``office``, ``hall``), seed and backend it runs
 
-* robot guidance (the plan's controller, ``evacuation``) with 4, 8 and 16 robots;
+* robot guidance by the paper's Step II towards the exits (``controller.kind = "evacuation"``)
+  with 4, 8 and 16 robots;
 * static signs (``controller.kind = "static-signs"``) with 4, 8 and 16 robots;
-* coverage and heading (``controller.kind = "coverage"``) with 4, 8 and 16 robots;
+* robot guidance by coverage and heading (``controller.kind = "coverage"``, the plans'
+  default) with 4, 8 and 16 robots;
 * the informed crowd (``crowd.guidance = "geodesic"``) and the uninformed crowd
   (``crowd.guidance = "random-walk"``), which have no use for robots;
 
@@ -30,7 +32,7 @@ import numpy as np
 
 PLANS = ("l-room", "office", "hall")
 SETTINGS = {  # label: overrides
-    **{f"guidance {n}": {"robots.n": n} for n in (4, 8, 16)},
+    **{f"evacuation {n}": {"robots.n": n, "controller.kind": "evacuation"} for n in (4, 8, 16)},
     **{f"static {n}": {"robots.n": n, "controller.kind": "static-signs"} for n in (4, 8, 16)},
     **{f"coverage {n}": {"robots.n": n, "controller.kind": "coverage"} for n in (4, 8, 16)},
     "informed": {"crowd.guidance": "geodesic", "robots.n": 4, "controller.kind": "static-signs"},
@@ -155,7 +157,7 @@ def figure(backends: list[str], path: str = "docs/figures/buildings_evacuation.p
 
     rows = [json.loads(line) for line in RESULTS.read_text().splitlines() if line.strip()]
     fig, axes = subplots(len(backends), len(PLANS), figsize=(4.2 * len(PLANS), 3.4 * len(backends)), squeeze=False)
-    shown = ("guidance 8", "guidance 16", "coverage 8", "coverage 16", "static 8", "informed", "uninformed")
+    shown = ("evacuation 8", "evacuation 16", "coverage 8", "coverage 16", "static 8", "informed", "uninformed")
     for bi, b in enumerate(backends):
         for pi, p in enumerate(PLANS):
             ax = axes[bi][pi]
@@ -165,7 +167,7 @@ def figure(backends: list[str], path: str = "docs/figures/buildings_evacuation.p
                     continue
                 t = max((r["curve_t"] for r in rs), key=len)
                 curves = np.array([np.interp(t, r["curve_t"], r["curve"], right=r["curve"][-1]) for r in rs])
-                wide = s.startswith(("guidance", "coverage"))
+                wide = s.startswith(("evacuation", "coverage"))
                 ax.plot(t, np.median(curves, axis=0), label=s, lw=1.6 if wide else 1.1, ls="--" if "16" in s else "-")
             ax.set(title=f"{p} — {b}", xlabel="time (s)", ylabel="fraction evacuated (median of seeds)", ylim=(0, 1.02))
             ax.grid(alpha=0.3)
