@@ -249,6 +249,8 @@ def fokker_planck_trajectory(
     sink : ExitSink, optional
         The exits' outflow (:func:`exit_sink`); ``None``: zero flux through all of ∂Ω.
 
+    Notes
+    -----
     The run stops early, saying so in ``info["stopped"]``, if ρ reaches 0 on a face, where
     ``v_d`` is undefined (the theorems assume ρ > 0).  The last record then holds the state
     but no rate (``dV₁/dt`` and the dissipation's pairing are set from ``ρ̇ = 0``).
