@@ -210,3 +210,13 @@ def test_the_wall_index_finds_the_same_first_wall_as_testing_every_wall(name):
         np.testing.assert_array_equal(t, full[np.arange(len(start)), j])
         hit = np.isfinite(t)
         assert hit.any() and np.array_equal(k[hit], j[hit])
+
+
+def test_a_robot_or_a_crowd_centre_in_a_pillar_is_refused_naming_it():
+    hall = builtin_scenarios()["hall"](seed=0)  # pillar [7, 8] x [6, 7]
+    with pytest.raises(ParameterError) as exc:
+        hall.with_values({"robots.n": 2, "robots.layout": "explicit", "robots.positions": [[3.0, 3.0], [7.5, 6.5]]})
+    assert exc.value.name == "robots.positions[1]"
+    with pytest.raises(ParameterError) as exc:
+        hall.with_values({"crowd.initial": "gaussian", "crowd.initial_center": [7.5, 6.5]})
+    assert exc.value.name == "crowd.initial_center"
