@@ -114,6 +114,22 @@ def disturbance_for(scenario: Scenario) -> Disturbance | None:
     return lambda x, y, t: (-s * (y - cy), s * (x - cx))
 
 
+def law_scales(scenario: Scenario, region: Region, kernel: NavigationKernel) -> tuple[float, float] | None:
+    """``(ℓ, c)`` of ``controller.scaling = "kernel"`` (``√|Ω|`` and the kernel's strength), else None."""
+    if scenario.controller.scaling != "kernel":
+        return None
+    c = getattr(kernel, "c", None)
+    if not (isinstance(c, (int, float)) and c > 0):
+        raise ParameterError("controller.scaling", "kernel", "a kernel with a strength c > 0 (the unit of speed)")
+    if scenario.controller.beta_gamma != "min-norm":
+        raise ParameterError(
+            "controller.scaling",
+            "kernel",
+            "beta_gamma = 'min-norm' (the other strategies' limits are in the scenario's units)",
+        )
+    return (float(np.sqrt(region.area)), float(c))
+
+
 def initial_robots(scenario: Scenario, rng: np.random.Generator) -> tuple[RobotTeam, Region]:
     """The robots' initial states (``robots.layout``, headings) and the region they may stand in."""
     r = scenario.robots
@@ -203,6 +219,7 @@ def assemble(
         dvd_dt=c.dvd_dt,
         options=dict(c.options),
         dt=sc.dt,
+        scales=law_scales(sc, region, kern),
     )
     the_controller = plugins.load("controller", c.kind if controller is None else controller)(parts)
     overrides: dict[str, Any] = {

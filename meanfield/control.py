@@ -215,6 +215,11 @@ class BacksteppingController:
         central fluxes (``"model"``, consistent with Theorem 1's identity) or with the
         Scharfetter–Gummel right-hand side of :class:`~meanfield.fokker_planck.FokkerPlanck`
         (``"fokker-planck"``), or a backward difference of ``v_d`` between calls.
+    scales : (float, float), optional
+        ``(ℓ, c)``: run the law in the units of length ``ℓ`` and speed ``c`` (time ``ℓ/c``),
+        so that it is the same law in any unit of length: ``V₂ = ½ℓ²∫ρ̃² + ½(cℓ)⁻²∫|ṽ|²``,
+        dimensionless gains, β/γ of minimum norm in the scaled inputs (docs page
+        *The controller*, "A law in any unit of length").  None: the paper's law.
     """
 
     def __init__(
@@ -228,8 +233,10 @@ class BacksteppingController:
         strategy: BetaGammaStrategy | None = None,
         interaction: InteractionField | None = None,
         dvd_dt: Literal["model", "fokker-planck", "finite-difference"] = "finite-difference",
+        scales: tuple[float, float] | None = None,
     ):
         self.grid = grid
+        self.scales = None if scales is None else (float(scales[0]), float(scales[1]))
         target = np.asarray(target, float)
         if target.shape != grid.shape:
             raise ParameterError("target", target.shape, f"an array of grid.shape {grid.shape}")
@@ -258,7 +265,7 @@ class BacksteppingController:
         The law has no ``controller.options`` (they belong to other controllers; a sweep may
         set them for every kind), so any are ignored here.
         """
-        return cls(*cls.law_arguments(parts))
+        return cls(*cls.law_arguments(parts), scales=parts.scales)
 
     @staticmethod
     def law_arguments(parts: ControllerParts) -> tuple:
@@ -395,9 +402,11 @@ class BacksteppingController:
                 h = t - prev[0]
                 dvd = ((v_d[0] - prev[1][0]) / h, (v_d[1] - prev[1][1]) / h)
             self._previous_vd = (t, v_d)
+        k_u = self.k_u[:, None] if self.k_u.ndim else self.k_u
+        if self.scales is not None:
+            return self._scaled_inputs(p, v_d, vt, b, gg, dvd, k_u)
         A = g.face_inner(vt, (p.rf[0] * p.grt[0] - dvd[0], p.rf[1] * p.grt[1] - dvd[1]))
         extra = self.strategy(b, gg, A)
-        k_u = self.k_u[:, None] if self.k_u.ndim else self.k_u
         return ControlState(
             v_d=v_d,
             v_tilde=vt,
@@ -411,6 +420,37 @@ class BacksteppingController:
             dissipation=self._dissipation(p),
             k_u=self.k_u,
             k_omega=self.k_omega,
+        )
+
+    def _scaled_inputs(self, p: _Prepared, v_d: FaceField, vt: FaceField, b, gg, dvd, k_u) -> ControlState:
+        """Step II in the units ``ℓ``, ``c`` (``scales``): the law run on ``x/ℓ``, ``t c/ℓ``, ``ρℓ²``, ``v/c``.
+
+        ``b̂ = b/(c²ℓ)``, ``ĝ = g/(c²ℓ²)``, ``Â = (ℓ³/c)⟨ṽ, ρ∇ρ̃⟩ − ⟨ṽ, ∂_t v_d⟩/(c³ℓ)``; then
+        ``û = k_u b̂ + δû``, ``ω̂ = −k_ω ĝ + δω̂`` and ``u = c û``, ``ω = (c/ℓ) ω̂``, so that
+        ``dV̂₂/dt̂ = −D̂ − Σ k_u|b̂|² − Σ k_ω ĝ²`` with ``V̂₂ = ½ℓ²∫ρ̃² + ½(cℓ)⁻²∫|ṽ|²``,
+        ``t̂ = tc/ℓ`` and ``D̂ = (ℓ³/c) D``.
+        """
+        g = self.grid
+        ell, c = self.scales
+        pull = g.face_inner(vt, (p.rf[0] * p.grt[0], p.rf[1] * p.grt[1]))
+        A = ell**3 / c * pull - g.face_inner(vt, dvd) / (c**3 * ell)
+        b, gg = b / (c * c * ell), gg / (c * c * ell * ell)
+        extra = self.strategy(b, gg, A)
+        return ControlState(
+            v_d=v_d,
+            v_tilde=vt,
+            rho_tilde=p.rho_t,
+            b=b,
+            g=gg,
+            A=A,
+            u=c * (k_u * b + extra.du),
+            omega=c / ell * (-self.k_omega * gg + extra.domega),
+            shortfall=extra.shortfall,
+            dissipation=ell**3 / c * self._dissipation(p),
+            k_u=self.k_u,
+            k_omega=self.k_omega,
+            input_scale=(c, c / ell),
+            v2_weights=(ell * ell, 1.0 / (c * ell) ** 2),
         )
 
     def reset(self) -> None:

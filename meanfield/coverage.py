@@ -164,7 +164,7 @@ class CoverageController:
         robots = np.real(o.field.positions)
         c, self.idle = self.centroids(robots, self._weight(o.density, law))
         u = self.k_position * (c - robots)
-        omega = -self.k_heading * law.g
+        omega = law.input_scale[1] * (-self.k_heading * law.g)  # ω̂ = −k ĝ, in the law's units
         self.steps += 1
         self.idle_robot_steps += int(self.idle.sum())
         state = dataclasses.replace(law, u=u, omega=omega, shortfall=float("nan"), k_u=0.0, k_omega=self.k_heading)

@@ -66,7 +66,7 @@ class EvacuationController(BacksteppingController):
             raise ParameterError("controller.options", unknown, f"options among {sorted(allowed)}")
         phi = exit_distance(parts.grid, exit_segments(parts.region))
         opts = {k: float(v) for k, v in parts.options.items()}
-        return cls(*cls.law_arguments(parts), phi=phi, **opts)
+        return cls(*cls.law_arguments(parts), phi=phi, scales=parts.scales, **opts)
 
     def _speed(self, rf: Any) -> tuple[Any, Any]:
         """``f(ρ)`` and ``f'(ρ)`` on the faces (0 beyond ``ρ_max``; complex ρ allowed for derivative checks)."""

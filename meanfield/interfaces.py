@@ -150,6 +150,11 @@ class ControlState:
     dissipation: float  # ∫ α |∇ρ̃|²
     k_u: Any = 0.0  # the gains the law was evaluated with (scalar or per robot)
     k_omega: Any = 0.0
+    # the law in the kernel's units (controller.scaling = "kernel"): b, g, A and the dissipation
+    # are in those units, inputs u = input_scale[0] û and ω = input_scale[1] ω̂, and
+    # V₂ = ½ v2_weights[0] ∫ρ̃² + ½ v2_weights[1] ∫|ṽ|²; all ones for the paper's law
+    input_scale: tuple[float, float] = (1.0, 1.0)
+    v2_weights: tuple[float, float] = (1.0, 1.0)
 
     def applied_shortfall(self, u: np.ndarray, omega: np.ndarray) -> float:
         """``A − (Σ b_i·δu_i − Σ g_i δω_i)`` for the inputs actually applied (after saturation).
@@ -160,6 +165,7 @@ class ControlState:
         """
         k_u = np.asarray(self.k_u, float)
         k_u = k_u[:, None] if k_u.ndim else k_u
+        u, omega = u / self.input_scale[0], omega / self.input_scale[1]  # in the law's units
         du = u - k_u * self.b
         dw = omega + np.asarray(self.k_omega, float) * self.g
         return float(self.A - ((self.b * du).sum() - (self.g * dw).sum()))
@@ -282,6 +288,9 @@ class ControllerParts:
         ``controller.options`` of the scenario, for the controller to validate.
     dt : float
         The control period.
+    scales : (float, float) or None
+        ``(ℓ, c)``: the law's unit of length and of speed with ``controller.scaling = "kernel"``
+        (``ℓ = √|Ω|``, ``c`` the kernel's strength); None: the paper's law, in the scenario's units.
     """
 
     grid: Grid
@@ -300,3 +309,4 @@ class ControllerParts:
     dvd_dt: str
     options: dict[str, Any]
     dt: float
+    scales: tuple[float, float] | None = None

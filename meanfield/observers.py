@@ -234,9 +234,10 @@ class Recorder:
         g = self.loop.grid
         rt = g.norm(state.rho_tilde)
         vt = g.face_norm(state.v_tilde)
+        w_rho, w_v = state.v2_weights  # (1, 1) but for the law in the kernel's units
         return {
             "V1": rt * rt,
-            "V2": 0.5 * rt * rt + 0.5 * vt * vt,
+            "V2": 0.5 * w_rho * rt * rt + 0.5 * w_v * vt * vt,
             "rho_error_l2": rt,
             "v_error_l2": vt,
             "A": state.A,

@@ -217,7 +217,9 @@ class ControllerSpec:
     ``"backstepping"`` (the paper's law) or any other registered controller, such as
     ``"nmpc"`` (:mod:`analysis.nmpc`); ``options`` is passed to that plugin, which
     validates it.  ``dvd_dt`` is one of :data:`meanfield.control.DVD_DT_OPTIONS`.  See
-    :mod:`meanfield.plugins`.
+    :mod:`meanfield.plugins`.  ``scaling`` is ``"paper"`` (the paper's law, in the scenario's
+    units) or ``"kernel"`` (the same law in the units ``√|Ω|`` and the kernel's ``c``: the
+    robots' inputs no longer depend on the unit of length, and the gains are dimensionless).
     """
 
     alpha: float = 0.2
@@ -229,6 +231,7 @@ class ControllerSpec:
     dvd_dt: str = "finite-difference"
     kind: str = "backstepping"
     options: dict[str, Any] = field(default_factory=dict)
+    scaling: str = "paper"
 
     def __post_init__(self) -> None:
         self.alpha = num("controller.alpha", self.alpha, lo=0.0, lo_open=True)
@@ -238,6 +241,7 @@ class ControllerSpec:
         self.k_omega = num("controller.k_omega", self.k_omega, lo=0.0)
         self.beta_gamma = choice("controller.beta_gamma", self.beta_gamma, plugins.available("beta_gamma"))
         self.dvd_dt = choice("controller.dvd_dt", self.dvd_dt, DVD_DT_OPTIONS)
+        self.scaling = choice("controller.scaling", self.scaling, ("paper", "kernel"))
         self.kind = choice("controller.kind", self.kind, plugins.available("controller"))
         if not isinstance(self.options, dict):
             raise ParameterError("controller.options", self.options, "a table of options for the controller kind")

@@ -190,7 +190,8 @@ def check_theorem3(
     cases: list[dict[str, Any]] = []
     runs = []
     for n in counts:
-        base = scenario.with_values({"robots.n": n, "controller.dvd_dt": "model", "controller.beta_gamma": "min-norm"})
+        law = {"controller.dvd_dt": "model", "controller.beta_gamma": "min-norm", "controller.scaling": "paper"}
+        base = scenario.with_values({"robots.n": n, **law})  # the paper's law, in the scenario's units
         free = base.with_values({"robots.u_max": None, "robots.omega_max": None})
         tr = robot_loop_trajectory(free, t_free, UNLIMITED_DT, record_every=1)
         verdict, figs = lyapunov_verdict(tr)
