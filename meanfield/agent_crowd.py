@@ -39,6 +39,9 @@ __all__ = ["AgentEngine", "AgentCrowd", "initial_positions", "point_mass_crowd",
 
 SAMPLED_FIELD_ABOVE = 2_000_000
 """``crowd.field_evaluation = "auto"`` samples ``v_r`` on a lattice above this many human-robot pairs."""
+REACH_FRACTION = 0.05
+"""A sign *reaches* a human whose ``|v_r|`` is at least this share of one kernel's peak (and who
+sees a robot): :attr:`AgentCrowd.reached`, the stragglers of ``summary.json``."""
 
 
 class AgentEngine(Protocol):
@@ -128,6 +131,9 @@ class AgentCrowd:
                 field_evaluation,
                 "'exact' or 'auto' on a plan whose walls hide signs (a sampled field cannot tell which side of a wall)",
             )
+        self.reached: np.ndarray | None = None  # whom a sign reached at the last step (None: baselines)
+        peak = kernel.magnitude(np.zeros(1), np.zeros(1))
+        self._reach_speed = REACH_FRACTION * float(np.max(np.abs(peak)))
         self.sampled_field = None
         if field_evaluation == "sampled":
             nx, ny = sample_cells
@@ -166,11 +172,15 @@ class AgentCrowd:
             if self._drift is None or len(self._drift) != len(positions):
                 self._drift = np.empty((len(positions), 2))
             drift = self.sampled_field.at_points(positions, out=self._drift)
+            self.reached = np.hypot(drift[:, 0], drift[:, 1]) >= self._reach_speed
             self.view.gate(drift, positions, robots.positions, dt)
+            self.reached &= self.view.seen
         else:
             visible = None if self.sight is None else self.sight.mask(robots.positions, positions, self.kde.grid)
             drift = navigation_velocity(self.kernel, robots.positions, robots.headings, positions, visible)
+            self.reached = np.hypot(drift[:, 0], drift[:, 1]) >= self._reach_speed
             self.view.gate(drift, positions, robots.positions, dt, visible)
+            self.reached &= self.view.seen
         if self.interaction is not None:
             drift += self.interaction.at_points(positions)
         if self.disturbance is not None:

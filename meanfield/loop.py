@@ -33,6 +33,7 @@ from meanfield.observers import InputStatistics, Observer, Recorder, StepRecord,
 from meanfield.result import SimulationResult
 from meanfield.robots import NavigationField, saturate_inputs
 from meanfield.scenario import Scenario, load_scenario
+from meanfield.stragglers import StragglerTracker
 from meanfield.summary import run_id, run_summary
 
 __all__ = ["ClosedLoop", "Observer", "StepRecord", "run"]  # Observer, StepRecord: from meanfield.observers
@@ -175,8 +176,8 @@ class ClosedLoop:
         sc = loop.scenario
         target, inputs = TargetTracker(0.9), InputStatistics()
         recorder = Recorder(target)
-        evacuation = EvacuationTracker()
-        for obs in (target, inputs, recorder, evacuation):
+        evacuation, stragglers = EvacuationTracker(), StragglerTracker()
+        for obs in (target, inputs, recorder, evacuation, stragglers):
             loop.attach(obs)
         loop.start()
         p = loop.parts
@@ -203,7 +204,7 @@ class ClosedLoop:
             status, message = "interrupted", f"interrupted at t = {loop.t:.4g}"
         finally:
             bar.close()
-            for obs in (target, inputs, recorder, evacuation):
+            for obs in (target, inputs, recorder, evacuation, stragglers):
                 loop.observers.remove(obs)
         wall = time.perf_counter() - start
         recorder.finish()
@@ -219,7 +220,7 @@ class ClosedLoop:
             rho_err0=rho_err0,
             wall=wall,
             steps_run=loop.step_index - first,
-            evacuation=evacuation.summary(),
+            measures={**evacuation.summary(), **stragglers.summary(loop)},
         )
         rid = run_id(loop, status)
         summary = {"run_id": rid, **summary, "warnings": stability_warnings(sc, loop.grid, summary)}

@@ -40,7 +40,7 @@ def run_summary(
     rho_err0: float,
     wall: float,
     steps_run: int,
-    evacuation: dict[str, Any] | None = None,
+    measures: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """``summary.json`` of a run: outcome, errors, W₂, time to 90 %, input statistics, the crowd's own figures.
 
@@ -60,9 +60,10 @@ def run_summary(
         Seconds spent stepping.
     steps_run : int
         Steps taken in this call (for ``steps_per_second``).
-    evacuation : dict, optional
-        With exits: the evacuation measures
-        (:meth:`~meanfield.evacuation_measures.EvacuationTracker.summary`).
+    measures : dict, optional
+        The other observers' figures: with exits the evacuation measures
+        (:meth:`~meanfield.evacuation_measures.EvacuationTracker.summary`), with agents
+        following signs the stragglers (:meth:`~meanfield.stragglers.StragglerTracker.summary`).
     """
     sc = loop.scenario
     p = loop.parts
@@ -95,7 +96,7 @@ def run_summary(
         "field_error_bound_final": _field_error_bound(loop),
         "view_radius": sc.view.radius,
         **crowd.summary(),  # the crowd's own figures (agents: field_evaluation, seen_fraction_final, bodies)
-        **(evacuation or {}),  # with exits: fraction evacuated, RSET, flows, peak density, lower bound
+        **(measures or {}),  # evacuation measures (with exits), stragglers (agents following signs)
         **_controller_summary(loop),  # a controller's own figures (coverage: idle robots)
         "V2_initial": recorder.first_V2,
         "V2_final": float(dataset["V2"].values[-1]) if dataset.sizes["time"] else None,

@@ -51,7 +51,13 @@ SUMMARY_KEYS: tuple[str, ...] = (
     "l2_error_final",
     "w2_to_target_final",
     "max_robot_speed",
+    "limits_binding_fraction",
+    "stragglers",
+    "fraction_evacuated",
+    "evacuation_time_95",
+    "evacuation_time_100",
     "wall_seconds",
+    "steps_per_second",
     "steps",
 )
 #: Statuses of a run that are reused on resume (the others are run again).
