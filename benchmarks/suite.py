@@ -22,6 +22,8 @@ nmpc            NMPC solve per control step against the backstepping law (``benc
 startup         ``import meanfield`` and ``meanfield --help`` against ``python -c pass``
 plan            a closed-loop step on the ``office`` plan against the same loop on a box of
                 the same grid and crowd; goal: at most 1.5× (``bench_plan.py``)
+controllers     each installed controller's ``act`` per control step against the paper's law,
+                with its real-time factor in ``paper-unity``'s units (``bench_controllers.py``)
 ==============  ==========================================================================
 
 An anchor that is not installed (py-pde, FiPy, JuPedSim) gives a record with
@@ -114,6 +116,7 @@ BENCHMARKS: dict[str, Benchmark] = {
         ("nmpc", "NMPC solve per control step", "backstepping law"),
         ("startup", "import meanfield; meanfield --help (whole processes)", "python -c pass"),
         ("plan", "closed-loop step on the office plan", "the same loop on a box"),
+        ("controllers", "act() per step of every installed controller", "the paper's law"),
     )
 }
 """The registry: name -> :class:`Benchmark`, in running order."""
