@@ -114,6 +114,10 @@ def disturbance_for(scenario: Scenario) -> Disturbance | None:
     return lambda x, y, t: (-s * (y - cy), s * (x - cx))
 
 
+SENSING_CONTROLLERS = ("backstepping", "evacuation", "coverage")
+"""The controllers that run on a group's knowledge (any number of robots, the group's own field)."""
+
+
 def law_scales(scenario: Scenario, region: Region, kernel: NavigationKernel) -> tuple[float, float] | None:
     """``(ℓ, c)`` of ``controller.scaling = "kernel"`` (``√|Ω|`` and the kernel's strength), else None."""
     if scenario.controller.scaling != "kernel":
@@ -221,7 +225,18 @@ def assemble(
         dt=sc.dt,
         scales=law_scales(sc, region, kern),
     )
-    the_controller = plugins.load("controller", c.kind if controller is None else controller)(parts)
+    kind = c.kind if controller is None else controller
+    factory = plugins.load("controller", kind)
+    the_controller = factory(parts)
+    if sc.sensing.local:  # one controller per robot, on what its group knows
+        from meanfield.local_sensing import LocalSensing
+
+        if kind not in SENSING_CONTROLLERS:
+            raise ParameterError(
+                "sensing", kind, f"controller.kind among {list(SENSING_CONTROLLERS)} with a sensing or comm radius"
+            )
+        own = [the_controller] + [factory(parts) for _ in range(robots.n - 1)]
+        the_controller = LocalSensing(own, grid, kern, sc.sensing.radius, sc.sensing.comm_radius, sight)
     overrides: dict[str, Any] = {
         "sigma": sigma,
         "disturbance": disturbance,

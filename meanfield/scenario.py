@@ -61,6 +61,7 @@ from meanfield.scenario_sections import (
     KernelSpec,
     PedestrianSpec,
     RobotSpec,
+    SensingSpec,
     TargetSpec,
     ViewSpec,
     field_hint,
@@ -159,6 +160,7 @@ class Scenario:
     controller: ControllerSpec = field(default_factory=ControllerSpec)
     view: ViewSpec = field(default_factory=ViewSpec)
     pedestrians: PedestrianSpec = field(default_factory=PedestrianSpec)
+    sensing: SensingSpec = field(default_factory=SensingSpec)
     plugins: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:

@@ -39,6 +39,7 @@ __all__ = [
     "ControllerSpec",
     "ViewSpec",
     "PedestrianSpec",
+    "SensingSpec",
 ]
 
 
@@ -296,6 +297,31 @@ class PedestrianSpec:
         self.time_step = num("pedestrians.time_step", self.time_step, lo=0.0, lo_open=True)
 
 
+@dataclass
+class SensingSpec:
+    """What each robot knows (:mod:`meanfield.local_sensing`).
+
+    ``radius``: a robot sees the crowd's density only within this distance of itself;
+    ``comm_radius``: robots within this distance of each other share what they see (a
+    connected group shares everything, the limit of consensus on their estimates).  Either
+    ``"none"`` (the default): no limit, the paper's centralized robots.
+    """
+
+    radius: float | None = None
+    comm_radius: float | None = None
+
+    def __post_init__(self) -> None:
+        self.radius = optional_limit("sensing.radius", self.radius, what='a radius > 0, or "none" (no limit)')
+        self.comm_radius = optional_limit(
+            "sensing.comm_radius", self.comm_radius, what='a radius > 0, or "none" (no limit)'
+        )
+
+    @property
+    def local(self) -> bool:
+        """True when some robot knows less than everything."""
+        return self.radius is not None or self.comm_radius is not None
+
+
 SECTIONS: dict[str, type] = {
     "grid": GridSpec,
     "crowd": CrowdSpec,
@@ -308,6 +334,7 @@ SECTIONS: dict[str, type] = {
     "controller": ControllerSpec,
     "view": ViewSpec,
     "pedestrians": PedestrianSpec,
+    "sensing": SensingSpec,
 }
 """The scenario's tables in TOML order: ``{table name: section class}``."""
 
