@@ -35,14 +35,17 @@ __all__ = ["study_controllers", "candidates", "register"]
 LAW = "backstepping"
 
 
-def candidates(scenario: Any) -> dict[str, dict[str, Any]]:
+def candidates(scenario: Any, sensing: float | None = None) -> dict[str, dict[str, Any]]:
     """Every installed controller that applies to ``scenario``: ``{label: scenario overrides}``.
 
     The registered controllers by name (``evacuation`` only in a room with exits), and the
     paper's law with the bounded β/γ program (``backstepping+bounded``) when ``bounded`` is
-    installed.
+    installed.  With ``sensing = r``, each controller that runs on local knowledge
+    (:data:`meanfield.assembly.SENSING_CONTROLLERS`) gets a twin ``<name>@r`` whose robots
+    see within ``r`` and talk within ``2 r`` (:mod:`meanfield.local_sensing`).
     """
     from meanfield import plugins
+    from meanfield.assembly import SENSING_CONTROLLERS
     from meanfield.exits import exit_segments
 
     exits = len(exit_segments(scenario.domain)) > 0
@@ -53,6 +56,9 @@ def candidates(scenario: Any) -> dict[str, dict[str, Any]]:
         out[name] = {"controller.kind": name}
         if name == LAW and "bounded" in plugins.available("beta_gamma"):
             out[f"{LAW}+bounded"] = {"controller.kind": LAW, "controller.beta_gamma": "bounded"}
+        if sensing is not None and name in SENSING_CONTROLLERS:
+            local = {"sensing.radius": sensing, "sensing.comm_radius": 2 * sensing}
+            out[f"{name}@{sensing:g}"] = {"controller.kind": name, **local}
     return out
 
 
@@ -90,6 +96,7 @@ def study_controllers(
     out_dir: str | Path,
     *,
     controllers: Sequence[str] | None = None,
+    sensing: float | None = None,
     workers: int | None = None,
     progress: bool = True,
 ) -> list[dict[str, Any]]:
@@ -105,6 +112,8 @@ def study_controllers(
         Where each controller's sweep and the study's table and figure go.
     controllers : sequence of str, optional
         Labels among :func:`candidates` (default: all of them).
+    sensing : float, optional
+        Add each controller's twin with a sensing radius (and twice that to talk): ``<name>@r``.
     workers : int, optional
         Worker processes of the local Dask cluster.
     progress : bool
@@ -125,7 +134,9 @@ def study_controllers(
     from meanfield.sweep import run_sweep
 
     base = load_scenario(scenario) if isinstance(scenario, (str, Path)) else scenario
-    known = candidates(base)
+    if sensing is not None and not (isinstance(sensing, (int, float)) and math.isfinite(sensing) and sensing > 0):
+        raise ParameterError("--sensing", sensing, "a sensing radius > 0")
+    known = candidates(base, sensing)
     chosen = list(known) if controllers is None else list(controllers)
     for name in chosen:
         if name not in known:
@@ -231,6 +242,13 @@ def register(subparsers: Any) -> Callable[[argparse.Namespace], int]:
     p.add_argument("--out", required=True, type=output_dir, help="output directory (checked before any work)")
     p.add_argument("--seeds", default="10", help="N for seeds 0..N-1, or A-B, or a,b,c (default 10)")
     p.add_argument("--controllers", default=None, help="comma-separated labels (default: every installed one)")
+    p.add_argument(
+        "--sensing",
+        type=float,
+        default=None,
+        metavar="R",
+        help="also run each controller that can with a sensing radius R (and 2R to talk): label NAME@R",
+    )
     p.add_argument("--workers", type=int, default=None, help="worker processes of the local cluster (default: cores)")
     p.add_argument("--quiet", action="store_true", help="no progress bars, no table printout")
     return _handle
@@ -248,6 +266,7 @@ def _handle(args: argparse.Namespace) -> int:
             parse_seeds(args.seeds),
             args.out,
             controllers=names,
+            sensing=args.sensing,
             workers=args.workers,
             progress=not args.quiet,
         )

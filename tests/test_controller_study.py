@@ -46,3 +46,15 @@ def test_an_unknown_controller_is_refused_before_anything_runs(tmp_path):
     cmd = [sys.executable, "-m", "meanfield.cli", "study", "controllers", "paper", "--out", str(tmp_path / "cli")]
     done = subprocess.run([*cmd, "--controllers", "telepathy"], capture_output=True, text=True)
     assert done.returncode == 2 and "--controllers" in done.stderr and not (tmp_path / "cli").exists()
+
+
+def test_a_sensing_radius_adds_each_local_controller_s_twin(tmp_path):
+    twins = candidates(paper_scenario(seed=0), 0.2)
+    assert twins["coverage@0.2"] == {"controller.kind": "coverage", "sensing.radius": 0.2, "sensing.comm_radius": 0.4}
+    assert "backstepping@0.2" in twins and "static-signs@0.2" not in twins  # parked signs need no knowledge
+    sc = paper_scenario(seed=0).replace(t_final=0.05)
+    (row,) = study_controllers(sc, 1, tmp_path, controllers=["coverage@0.2"], sensing=0.2, workers=1, progress=False)
+    assert row["controller"] == "coverage@0.2" and row["seeds"] == 1
+    with pytest.raises(ParameterError) as exc:
+        study_controllers(sc, 1, tmp_path / "bad", sensing=-0.1)
+    assert exc.value.name == "--sensing"
