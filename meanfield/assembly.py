@@ -224,6 +224,7 @@ def assemble(
         options=dict(c.options),
         dt=sc.dt,
         scales=law_scales(sc, region, kern),
+        sight=sight,
     )
     kind = c.kind if controller is None else controller
     factory = plugins.load("controller", kind)

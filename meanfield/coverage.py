@@ -121,7 +121,8 @@ class CoverageController:
         else:
             law = BacksteppingController.from_parts(parts)
         opts.setdefault("k_heading", HEADING_GAIN_FACTOR * float(np.max(parts.k_omega)))
-        return cls(law, parts.grid, SightLines(parts.region), **opts)
+        sight = parts.sight if parts.sight is not None else SightLines(parts.region)
+        return cls(law, parts.grid, sight, **opts)
 
     # ------------------------------------------------------------------ positions
     def owners(self, robots: np.ndarray) -> np.ndarray:

@@ -95,13 +95,11 @@ def geodesic(ctx: CrowdContext, positions: np.ndarray) -> GeodesicGuidance:
     """Registry factory (``geodesic``): the informed crowd, at ``crowd.free_speed``, to the exits."""
     from meanfield.exits import exit_segments
     from meanfield.geodesic import ExitRoutes
-    from meanfield.sight import SightLines
 
     segs = exit_segments(ctx.scenario.domain)
     if not len(segs):
         raise ParameterError("crowd.guidance", "geodesic", "a plan with exits (domain.exits) for the informed crowd")
-    sight = ctx.sight if ctx.sight is not None else SightLines(ctx.scenario.domain)
-    return GeodesicGuidance(ExitRoutes(ctx.grid, segs, sight), ctx.scenario.crowd.free_speed)
+    return GeodesicGuidance(ExitRoutes(ctx.grid, segs, ctx.sight), ctx.scenario.crowd.free_speed)
 
 
 def random_walk(ctx: CrowdContext, positions: np.ndarray) -> RandomWalkGuidance:

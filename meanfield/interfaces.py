@@ -291,6 +291,9 @@ class ControllerParts:
     scales : (float, float) or None
         ``(ℓ, c)``: the law's unit of length and of speed with ``controller.scaling = "kernel"``
         (``ℓ = √|Ω|``, ``c`` the kernel's strength); None: the paper's law, in the scenario's units.
+    sight : SightLines or None
+        The run's sight lines (:mod:`meanfield.sight`), shared with the crowd and the loop so
+        that their table of which cell sees which is computed once; None: built from ``region``.
     """
 
     grid: Grid
@@ -310,3 +313,4 @@ class ControllerParts:
     options: dict[str, Any]
     dt: float
     scales: tuple[float, float] | None = None
+    sight: SightLines | None = None

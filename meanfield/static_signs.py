@@ -60,7 +60,7 @@ class StaticSigns:
         stations = parts.robot_region.lattice(parts.robots.n)
         segs = exit_segments(parts.region)
         if len(segs):
-            e = ExitRoutes(parts.grid, segs).heading(stations)
+            e = ExitRoutes(parts.grid, segs, parts.sight).heading(stations)
         else:
             e = np.asarray(parts.target_center, float) - stations
         bearings = np.arctan2(e[:, 1], e[:, 0])
