@@ -1,4 +1,4 @@
-"""Bounded β/γ design: the robots' extra inputs under speed limits (cvxpy + Clarabel).
+"""Bounded β/γ design: the robots' extra inputs under speed limits (an exact dual; Clarabel, cvxpy).
 
 The paper's Step-II law (eq. (8)) is ``u_i = k_u b_i + δu_i``, ``ω_i = -k_ω g_i + δω_i``,
 and (semi-discrete, exactly)
@@ -28,10 +28,18 @@ faster than promised); ``"equality"`` is the paper's condition ``= A``, whose so
 without limits is exactly the closed-form minimum-norm choice
 ``δu_i = A b_i / Z``, ``δω_i = −A g_i / Z``, ``Z = Σ|b_i|² + Σ g_i²``.
 
-The program is built once with cvxpy Parameters (disciplined parametrised programming,
-DPP) and re-solved each step by Clarabel.  :func:`bounded_inputs_exact` solves the same
-program exactly through its one-dimensional dual (the blocks decouple for a fixed
-multiplier); it is the tests' reference and a fast alternative (``method="exact"``).
+Three solvers of the same program, chosen by ``method``:
+
+- ``"exact"`` (default, the fastest): :func:`bounded_inputs_exact`, the program solved
+  exactly through its one-dimensional dual (for a fixed multiplier the robots decouple);
+- ``"clarabel"``: Clarabel's native API, the solver built once and its data updated each
+  call (:class:`analysis.bounded_cone.ClarabelProgram`);
+- ``"cvxpy"``: the program built once with cvxpy Parameters (disciplined parametrised
+  programming, DPP) and re-solved by Clarabel (:class:`analysis.bounded_cone.CvxpyProgram`),
+  the reference formulation.
+
+The interior-point solvers agree with the exact dual to their tolerance (about 1e-6 of the
+limits at the paper's scale; ``tests/test_bounded.py``, ``benchmarks/bench_bounded.py``).
 """
 
 from __future__ import annotations
@@ -43,12 +51,14 @@ from typing import Literal
 
 import numpy as np
 
+from analysis.bounded_cone import SOLVER_OPTIONS, ClarabelProgram, CvxpyProgram
 from meanfield.control import ExtraInputs
 from meanfield.errors import ParameterError, limit_or_inf
 from meanfield.scenario import Scenario
 
 __all__ = [
     "CONDITIONS",
+    "METHODS",
     "BoundedInputs",
     "BoundedBetaGamma",
     "bounded_inputs_exact",
@@ -59,7 +69,8 @@ __all__ = [
 CONDITIONS = ("inequality", "equality")
 """How the extra inputs must meet ``A``: at least (``≥ A``) or exactly (the paper's ``= A``)."""
 
-_METHODS = ("clarabel", "exact")
+METHODS = ("exact", "clarabel", "cvxpy")
+"""The solvers of the program: the exact 1-D dual, Clarabel's native API, cvxpy (DPP) + Clarabel."""
 
 
 @dataclass
@@ -131,13 +142,6 @@ def _half_widths(nb: np.ndarray, limit: float) -> np.ndarray:
         return np.where(nb > 0, limit / np.where(nb > 0, nb, 1.0), math.inf)
 
 
-def _scales(lam: float | np.ndarray, nb: np.ndarray, k: np.ndarray, limit: float) -> np.ndarray:
-    """Per-robot scale ``s_i = clip(λ, −k_i − L/|b_i|, −k_i + L/|b_i|)`` (``δ = s_i b_i``);
-    ``lam`` of shape (m, 1) gives all m multipliers at once, shape (m, n)."""
-    half = _half_widths(nb, limit)
-    return np.clip(lam, -k - half, -k + half)
-
-
 def bounded_inputs_exact(
     b: np.ndarray,
     g: np.ndarray,
@@ -156,7 +160,9 @@ def bounded_inputs_exact(
     ``s_i = clip(λ, −k_u − u_max/|b_i|, −k_u + u_max/|b_i|)``; likewise
     ``δω_i = −t_i(λ) g_i`` with ``t_i = clip(λ, −k_ω − ω_max/|g_i|, −k_ω + ω_max/|g_i|)``.
     The achieved value ``c(λ) = Σ|b_i|² s_i + Σ g_i² t_i`` is non-decreasing and
-    piecewise linear, so ``c(λ) = A`` is solved exactly between two breakpoints.
+    piecewise linear, so ``c(λ) = A`` is solved exactly between two breakpoints.  These are
+    the KKT conditions of the program, which is convex and strictly feasible in its cones
+    (``δu_i = −k_u b_i``, ``δω_i = k_ω g_i``), so the solution is the program's optimum.
 
     Parameters
     ----------
@@ -170,6 +176,11 @@ def bounded_inputs_exact(
         Limits (None: none).
     condition : {"inequality", "equality"}
         ``≥ A`` (λ ≥ 0) or ``= A`` (λ free).
+
+    Returns
+    -------
+    BoundedInputs
+        The inputs, the shortfall and what the limits did.
     """
     t0 = time.perf_counter()
     n = np.shape(b)[0] if np.ndim(b) == 2 else -1
@@ -180,51 +191,61 @@ def bounded_inputs_exact(
     W = limit_or_inf("omega_max", omega_max)
     if condition not in CONDITIONS:
         raise ParameterError("condition", condition, " or ".join(map(repr, CONDITIONS)))
+    return _exact(b, g, A, ku, kw, U, W, condition, achievable_range(b, g, ku, kw, U, W), t0)
+
+
+def _exact(
+    b: np.ndarray,
+    g: np.ndarray,
+    A: float,
+    ku: np.ndarray,
+    kw: np.ndarray,
+    U: float,
+    W: float,
+    condition: str,
+    achievable: tuple[float, float],
+    t0: float,
+) -> BoundedInputs:
+    """:func:`bounded_inputs_exact` on validated arguments (the strategy's fast path)."""
     nb = np.hypot(b[:, 0], b[:, 1])
     ng = np.abs(g)
-    lo, hi = achievable_range(b, g, ku, kw, U, W)
-    wb = nb * nb
-    wg = ng * ng
-
-    def achieved(lam: float) -> float:
-        return float((wb * _scales(lam, nb, ku, U)).sum() + (wg * _scales(lam, ng, kw, W)).sum())
-
-    # candidate multipliers: the breakpoints of c(λ), where a robot enters or leaves a limit
-    bu = _half_widths(nb, U)
-    bw = _half_widths(ng, W)
-    knots = np.concatenate([-ku - bu, -ku + bu, -kw - bw, -kw + bw])
-    knots = np.unique(knots[np.isfinite(knots)])
+    lo, hi = achievable
+    n = len(g)
+    # robots' speed scales, then turn scales: c(λ) = Σ w_j clip(λ, low_j, high_j)
+    w = np.concatenate((nb * nb, ng * ng))
+    half = np.concatenate((_half_widths(nb, U), _half_widths(ng, W)))
+    k = np.concatenate((ku, kw))
+    low = -k - half
+    high = -k + half
     lam_min = 0.0 if condition == "inequality" else -math.inf
     feasible = A <= hi and (condition == "inequality" or A >= lo)
-    if wb.sum() + wg.sum() == 0:
+    if w.sum() == 0:
         lam = 0.0  # every integral is zero: no input changes the value; least effort
-    elif condition == "inequality" and achieved(0.0) >= A:
+    elif condition == "inequality" and float(w @ np.clip(0.0, low, high)) >= A:
         lam = 0.0  # the condition already holds at the least-effort point
     elif not feasible:
         lam = math.inf if A > hi else -math.inf  # the input that comes closest to A
     else:
-        pts = knots[knots > lam_min] if condition == "inequality" else knots
-        pts = np.concatenate([[lam_min if math.isfinite(lam_min) else (pts.min() - 1.0 if pts.size else -1.0)], pts])
-        vals = (wb * _scales(pts[:, None], nb, ku, U)).sum(axis=1) + (wg * _scales(pts[:, None], ng, kw, W)).sum(axis=1)
-        if vals[-1] < A:  # beyond the last breakpoint c(λ) is linear with the unconstrained slope
-            slope = (wb * (bu == math.inf)).sum() + (wg * (bw == math.inf)).sum()
-            lam = pts[-1] + (A - vals[-1]) / slope
-        elif vals[0] > A:  # equality, A below the first breakpoint (unlimited robots only)
-            slope = (wb * (bu == math.inf)).sum() + (wg * (bw == math.inf)).sum()
-            lam = pts[0] - (vals[0] - A) / slope
+        # candidate multipliers: the breakpoints of c(λ), where a robot enters or leaves a limit
+        knots = np.concatenate((low, high))
+        knots = np.sort(knots[np.isfinite(knots) & (knots > lam_min)])
+        first = lam_min if math.isfinite(lam_min) else (knots[0] - 1.0 if knots.size else -1.0)
+        pts = np.concatenate(([first], knots))
+        vals = np.clip(pts[:, None], low, high) @ w
+        if vals[-1] < A or vals[0] > A:  # beyond the breakpoints c(λ) is linear with the unconstrained slope
+            slope = w[half == math.inf].sum()
+            lam = pts[-1] + (A - vals[-1]) / slope if vals[-1] < A else pts[0] - (vals[0] - A) / slope
         else:
             j = int(np.searchsorted(vals, A, side="left"))
             if vals[j] == A:
                 lam = float(pts[j])
             else:
                 lam = float(pts[j - 1] + (A - vals[j - 1]) * (pts[j] - pts[j - 1]) / (vals[j] - vals[j - 1]))
-    su = _scales(lam, nb, ku, U)
-    tw = _scales(lam, ng, kw, W)
+    scale = np.clip(lam, low, high)
     if math.isinf(lam):  # every robot on its limit: finite scales from the clip
-        su = np.where(np.isfinite(su), su, 0.0)
-        tw = np.where(np.isfinite(tw), tw, 0.0)
-    du = su[:, None] * b
-    dw = -tw * g
+        scale = np.where(np.isfinite(scale), scale, 0.0)
+    du = scale[:n, None] * b
+    dw = -scale[n:] * g
     return _finish(b, g, A, ku, kw, U, W, du, dw, feasible, (lo, hi), time.perf_counter() - t0)
 
 
@@ -283,7 +304,7 @@ def _finish(
 
 
 class BoundedBetaGamma:
-    """β/γ strategy under speed limits: the convex program of this module, re-solved each step.
+    """β/γ strategy under speed limits: the convex program of this module, solved each step.
 
     Parameters
     ----------
@@ -295,9 +316,28 @@ class BoundedBetaGamma:
         Speed and turn-rate limits (None: none).
     condition : {"inequality", "equality"}
         ``Σ b_i·δu_i − Σ g_i δω_i ≥ A`` (default) or ``= A`` (the paper's).
-    method : {"clarabel", "exact"}
-        cvxpy + Clarabel (the program built once with Parameters, DPP) or the exact
-        one-dimensional dual of :func:`bounded_inputs_exact`.
+    method : {"exact", "clarabel", "cvxpy"}
+        The exact one-dimensional dual of :func:`bounded_inputs_exact` (default: exact, and
+        the fastest, ``benchmarks/bench_bounded.py``), Clarabel's native API with the data
+        updated in place, or cvxpy + Clarabel (the program built once with Parameters, DPP;
+        the reference formulation).  With a cone solver, ``A`` out of reach is answered by
+        the closed-form maximiser, and a solver failure by the exact dual.
+
+    Attributes
+    ----------
+    last : BoundedInputs or None
+        The last call's result.
+    program : ClarabelProgram, CvxpyProgram or None
+        The cone program of methods ``"clarabel"`` and ``"cvxpy"`` (None for ``"exact"``).
+    cone_solves : int
+        Calls that ran a cone solver (methods ``"clarabel"``, ``"cvxpy"``);
+        ``cone_failures`` of them found no solution and were answered by the exact dual.
+    closed_form_solves : int
+        Calls answered without one: method ``"exact"``, or ``A`` out of reach, or every
+        integral zero.
+    unreachable_solves : int
+        Calls whose program was infeasible (``A`` out of the robots' reach, or every
+        integral zero with ``A > 0``), for any method.
 
     Examples
     --------
@@ -309,9 +349,8 @@ class BoundedBetaGamma:
     """
 
     name = "bounded"
-    SOLVER_OPTIONS = {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10, "tol_ktratio": 1e-8}
-    """Clarabel's tolerances (its defaults are 1e-8): the inputs agree with the exact dual to
-    about 5e-9 at one or two more interior-point iterations."""
+    SOLVER_OPTIONS = SOLVER_OPTIONS
+    """Clarabel's tolerances for methods ``"clarabel"`` and ``"cvxpy"`` (its defaults are 1e-8)."""
 
     def __init__(
         self,
@@ -321,7 +360,7 @@ class BoundedBetaGamma:
         u_max: float | None,
         omega_max: float | None,
         condition: Literal["inequality", "equality"] = "inequality",
-        method: Literal["clarabel", "exact"] = "clarabel",
+        method: Literal["exact", "clarabel", "cvxpy"] = "exact",
     ):
         if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
             raise ParameterError("n", n, "an integer >= 1 (the number of robots)")
@@ -332,81 +371,47 @@ class BoundedBetaGamma:
         self.omega_max = limit_or_inf("omega_max", omega_max)
         if condition not in CONDITIONS:
             raise ParameterError("condition", condition, " or ".join(map(repr, CONDITIONS)))
-        if method not in _METHODS:
-            raise ParameterError("method", method, " or ".join(map(repr, _METHODS)))
+        if method not in METHODS:
+            raise ParameterError("method", method, " or ".join(map(repr, METHODS)))
         self.condition = condition
         self.method = method
         self.last: BoundedInputs | None = None
-        self.cone_solves = 0  # calls that ran Clarabel
-        self.closed_form_solves = 0  # calls answered in closed form (A unreachable, or method "exact")
-        if method == "clarabel":
-            self._build()
-
-    def _build(self) -> None:
-        """The parametrised program (DPP): compiled on the first solve, then only re-filled."""
-        import cvxpy as cp
-
-        n = self.n
-        self._b = cp.Parameter((n, 2), name="b")
-        self._g = cp.Parameter(n, name="g")
-        self._A = cp.Parameter(name="A")
-        self._du = cp.Variable((n, 2), name="du")
-        self._dw = cp.Variable(n, name="domega")
-        gain = cp.sum(cp.multiply(self._b, self._du)) - self._g @ self._dw
-        cons = [gain == self._A if self.condition == "equality" else gain >= self._A]
-        if math.isfinite(self.u_max):
-            u = cp.multiply(self.k_u[:, None], self._b) + self._du
-            cons.append(cp.SOC(np.full(n, self.u_max), u, axis=1))
-        if math.isfinite(self.omega_max):
-            w = cp.multiply(-self.k_omega, self._g) + self._dw
-            cons += [w <= self.omega_max, -w <= self.omega_max]
-        self._problem = cp.Problem(cp.Minimize(cp.sum_squares(self._du) + cp.sum_squares(self._dw)), cons)
-        assert self._problem.is_dpp()
+        self.cone_solves = 0
+        self.cone_failures = 0
+        self.closed_form_solves = 0
+        self.unreachable_solves = 0
+        self.program: ClarabelProgram | CvxpyProgram | None = None
+        if method != "exact":
+            cone = ClarabelProgram if method == "clarabel" else CvxpyProgram
+            self.program = cone(
+                self.n, self.k_u, self.k_omega, self.u_max, self.omega_max, condition, self.SOLVER_OPTIONS
+            )
 
     def __call__(self, b: np.ndarray, g: np.ndarray, A: float) -> BoundedInputs:
         """Extra inputs for the integrals ``b`` (n, 2), ``g`` (n,) and ``A`` of eq. (8)."""
-        if self.method == "exact":
-            out = bounded_inputs_exact(
-                b, g, A, self.k_u, self.k_omega, self.u_max, self.omega_max, self.condition
-            )
-            self.closed_form_solves += 1
-        else:
-            out = self._solve(b, g, A)
-        self.last = out
-        return out
-
-    def _solve(self, b: np.ndarray, g: np.ndarray, A: float) -> BoundedInputs:
-        import cvxpy as cp
-
         t0 = time.perf_counter()
         b, g, A = _check_integrals(b, g, A, self.n)
-        U, W = self.u_max, self.omega_max
-        lo, hi = achievable_range(b, g, self.k_u, self.k_omega, U, W)
-        if A > hi or (self.condition == "equality" and A < lo) or (b * b).sum() + (g * g).sum() == 0:
-            # unreachable: the closest reachable value is attained on the limits, in closed
-            # form (the cone program would be infeasible; its minimiser is this point)
-            out = bounded_inputs_exact(b, g, A, self.k_u, self.k_omega, U, W, self.condition)
-            out.solve_seconds = time.perf_counter() - t0
+        ku, kw, U, W = self.k_u, self.k_omega, self.u_max, self.omega_max
+        reach = achievable_range(b, g, ku, kw, U, W)
+        lo, hi = reach
+        unreachable = A > hi or (self.condition == "equality" and A < lo)
+        self.unreachable_solves += unreachable
+        out = None
+        if self.program is None or unreachable or not (b.any() or g.any()):
+            # method "exact", or unreachable: the closest reachable value is attained on the
+            # limits, in closed form (the cone program would be infeasible; this is its minimiser)
             self.closed_form_solves += 1
-            return out
-        self.cone_solves += 1
-        self._b.value = b
-        self._g.value = g
-        self._A.value = A
-        try:
-            self._problem.solve(solver=cp.CLARABEL, **self.SOLVER_OPTIONS)
-            status = self._problem.status
-        except cp.SolverError:
-            status = "solver_error"
-        if status not in ("optimal", "optimal_inaccurate") or self._du.value is None:
-            # A on the edge of the reachable range: the feasible set is (nearly) one point
-            out = bounded_inputs_exact(b, g, A, self.k_u, self.k_omega, U, W, self.condition)
-            out.solve_seconds = time.perf_counter() - t0
-            return out
-        return _finish(
-            b, g, A, self.k_u, self.k_omega, U, W, np.array(self._du.value), np.array(self._dw.value),
-            True, (lo, hi), time.perf_counter() - t0,
-        )
+        else:
+            self.cone_solves += 1
+            raw = self.program.solve(b, g, A)
+            if raw is not None:
+                out = _finish(b, g, A, ku, kw, U, W, raw[0], raw[1], True, reach, time.perf_counter() - t0)
+            else:
+                self.cone_failures += 1
+        if out is None:  # also a cone solver's failure: A on the edge of the reachable range,
+            out = _exact(b, g, A, ku, kw, U, W, self.condition, reach, t0)  # the feasible set ~ one point
+        self.last = out
+        return out
 
 
 def bounded_strategy_for(scenario: Scenario) -> BoundedBetaGamma:

@@ -54,6 +54,11 @@ SETTINGS: dict[str, dict[str, dict[str, Any]]] = {
     "startup": {"quick": {"repeats": 5}, "full": {"repeats": 11}},
     "plan": {"quick": {"steps": 200, "repeats": 2}, "full": {"steps": 600, "repeats": 3}},
     "controllers": {"quick": {"steps": 60, "repeats": 1}, "full": {"steps": 300, "repeats": 2}},
+    # bench_scaling.CROWDS / GRIDS: quick stops at N = 1e6 and 256^2
+    "scaling": {
+        "quick": {"max_humans": 1_000_000, "max_cells": 256},
+        "full": {"max_humans": 10_000_000, "max_cells": 512},
+    },
 }
 
 

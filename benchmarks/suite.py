@@ -8,8 +8,9 @@ rate / anchor rate).  The benchmarks, in the order they run:
 ==============  ==========================================================================
 kde             KDE of 10⁴ points on 256² against ``scipy.stats.gaussian_kde``; of 10⁶
                 points against the exact sum of the same estimate (``bench_kde.py``)
-closed_loop     the paper scenario's closed loop (N = 200), steps per second, against
-                ``gaussian_kde`` calls per second, 200 points on the 900 cells (``bench_closed_loop.py``)
+closed_loop     the paper scenario's closed loop (N = 200), steps per second, against the same
+                loop in plain numpy (``plain_loop.py``) and against ``gaussian_kde`` calls per
+                second, 200 points on the 900 cells (``bench_closed_loop.py``)
 fokker_planck   the Fokker–Planck solver (ADI, automatic step) against py-pde and FiPy on
                 one drift–diffusion problem, 64² (quick) or 128² (``bench_fokker_planck.py``)
 jupedsim        the JuPedSim crowd backend steered every step against JuPedSim alone
@@ -24,6 +25,9 @@ plan            a closed-loop step on the ``office`` plan against the same loop 
                 the same grid and crowd; goal: at most 1.5× (``bench_plan.py``)
 controllers     each installed controller's ``act`` per control step against the paper's law,
                 with its real-time factor in ``paper-unity``'s units (``bench_controllers.py``)
+scaling         steps per second and peak memory against N (10² … 10⁷) and the grid (30² …
+                512²), with the fitted exponents (``bench_scaling.py``; the figure of
+                ``docs/scale.md`` with ``--figure``)
 ==============  ==========================================================================
 
 An anchor that is not installed (py-pde, FiPy, JuPedSim) gives a record with
@@ -108,7 +112,7 @@ BENCHMARKS: dict[str, Benchmark] = {
     name: Benchmark(name, measures, anchor, _adapter(f"bench_{name}"))
     for name, measures, anchor in (
         ("kde", "kernel density estimate, N = 1e4 and 1e6 on 256^2", "scipy gaussian_kde; exact sum"),
-        ("closed_loop", "closed loop, paper scenario (N = 200)", "scipy gaussian_kde calls"),
+        ("closed_loop", "closed loop, paper scenario (N = 200)", "plain numpy loop; gaussian_kde calls"),
         ("fokker_planck", "Fokker–Planck solver, 64^2 / 128^2", "py-pde and FiPy (optional)"),
         ("jupedsim", "JuPedSim crowd backend, steered every step", "JuPedSim alone (optional)"),
         ("large_crowd", "closed loop at N = 1e6 (stadium)", "v_r summed exactly"),
@@ -117,6 +121,7 @@ BENCHMARKS: dict[str, Benchmark] = {
         ("startup", "import meanfield; meanfield --help (whole processes)", "python -c pass"),
         ("plan", "closed-loop step on the office plan", "the same loop on a box"),
         ("controllers", "act() per step of every installed controller", "the paper's law"),
+        ("scaling", "closed-loop step against N and the grid (log-log, fitted exponents)", "linear extrapolation"),
     )
 }
 """The registry: name -> :class:`Benchmark`, in running order."""

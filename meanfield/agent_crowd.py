@@ -22,12 +22,13 @@ import numpy as np
 
 from meanfield import plugins
 from meanfield.crowd import Crowd
+from meanfield.crowd_loops import bilinear_at, gaussian_field_at
 from meanfield.density import KernelDensityEstimator
 from meanfield.errors import ParameterError, SimulationDiverged
 from meanfield.guidance import Guidance
 from meanfield.interaction import InteractionField
 from meanfield.interfaces import CrowdContext, Disturbance
-from meanfield.kernels import NavigationKernel
+from meanfield.kernels import GaussianKernel, NavigationKernel
 from meanfield.local_view import LocalView
 from meanfield.metrics import fraction_in_disk
 from meanfield.region import Region
@@ -39,6 +40,7 @@ __all__ = ["AgentEngine", "AgentCrowd", "initial_positions", "point_mass_crowd",
 
 SAMPLED_FIELD_ABOVE = 2_000_000
 """``crowd.field_evaluation = "auto"`` samples ``v_r`` on a lattice above this many human-robot pairs."""
+_EVERYONE = np.ones((0, 0), dtype=bool)  # no sight mask: every robot seen
 REACH_FRACTION = 0.05
 """A sign *reaches* a human whose ``|v_r|`` is at least this share of one kernel's peak (and who
 sees a robot): :attr:`AgentCrowd.reached`, the stragglers of ``summary.json``."""
@@ -161,24 +163,33 @@ class AgentCrowd:
         """``u_W(X_j) + v_r(X_j, t) + v_a(X_j, t)`` at every agent (paper, eq. (1)).
 
         With a finite view radius, ``v_r`` is replaced by the random walk for the humans who
-        see no robot (:meth:`LocalView.gate`).  With a sampled field (large crowds) the
-        returned array is reused, and overwritten, by the next call.
+        see no robot (:meth:`LocalView.gate`).  With the Gaussian kernel or a sampled field
+        the returned array is a work array, overwritten by the next call; both are one
+        compiled pass over the humans (:mod:`meanfield.crowd_loops`).
         """
         positions = self.positions
         if self.guidance is not None:  # a baseline: the humans ignore the robots
             drift = self.guidance.velocity(positions, t, dt)
         elif self.sampled_field is not None:
-            self.sampled_field.update(robots.positions, robots.headings)
-            if self._drift is None or len(self._drift) != len(positions):
-                self._drift = np.empty((len(positions), 2))
-            drift = self.sampled_field.at_points(positions, out=self._drift)
-            self.reached = np.hypot(drift[:, 0], drift[:, 1]) >= self._reach_speed
+            f = self.sampled_field
+            f.update(robots.positions, robots.headings)
+            drift, self.reached = self._work(len(positions))
+            (x0, y0), (hx, hy) = f.origin, f.spacing
+            bilinear_at(f.vx, f.vy, x0, y0, 1.0 / hx, 1.0 / hy, positions, self._reach_speed, drift, self.reached)
             self.view.gate(drift, positions, robots.positions, dt)
             self.reached &= self.view.seen
         else:
             visible = None if self.sight is None else self.sight.mask(robots.positions, positions, self.kde.grid)
-            drift = navigation_velocity(self.kernel, robots.positions, robots.headings, positions, visible)
-            self.reached = np.hypot(drift[:, 0], drift[:, 1]) >= self._reach_speed
+            if isinstance(self.kernel, GaussianKernel):  # one compiled pass (meanfield.crowd_loops)
+                drift, self.reached = self._work(len(positions))
+                k, theta = self.kernel, robots.headings
+                seen = _EVERYONE if visible is None else visible
+                rx, ry = robots.positions[:, 0].copy(), robots.positions[:, 1].copy()
+                ex, ey = k.c * np.cos(theta), k.c * np.sin(theta)
+                gaussian_field_at(positions, rx, ry, ex, ey, 1.0 / k.eta, seen, self._reach_speed, drift, self.reached)
+            else:
+                drift = navigation_velocity(self.kernel, robots.positions, robots.headings, positions, visible)
+                self.reached = np.hypot(drift[:, 0], drift[:, 1]) >= self._reach_speed
             self.view.gate(drift, positions, robots.positions, dt, visible)
             self.reached &= self.view.seen
         if self.interaction is not None:
@@ -188,6 +199,12 @@ class AgentCrowd:
             drift[:, 0] += ax
             drift[:, 1] += ay
         return drift
+
+    def _work(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """The drift (n, 2) and reached (n,) arrays, kept between steps of the same crowd size."""
+        if self._drift is None or len(self._drift) != n:
+            self._drift, self._reached = np.empty((n, 2)), np.empty(n, dtype=bool)
+        return self._drift, self._reached
 
     def _gone(self) -> np.ndarray | None:
         """The rows of the humans who left through an exit (None: everyone is here)."""

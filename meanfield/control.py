@@ -44,6 +44,8 @@ from meanfield.interfaces import (
     ExtraInputs,
     Observation,
 )
+from meanfield.kernels import GaussianKernel
+from meanfield.law_loops import fused_robot_inputs
 from meanfield.robots import NavigationField
 
 DVD_DT_OPTIONS = ("model", "fokker-planck", "finite-difference")
@@ -257,6 +259,7 @@ class BacksteppingController:
         self._fokker_planck = FokkerPlanck(grid, sigma, interaction=interaction) if dvd_dt == "fokker-planck" else None
         self._previous_vd: tuple[float, FaceField] | None = None
         self._target_gradient = grid.gradient(self.target)
+        self._fused_state: dict[str, Any] = {}  # the compiled law's per-run constants (meanfield.law_loops)
 
     @classmethod
     def from_parts(cls, parts: ControllerParts) -> BacksteppingController:
@@ -384,6 +387,10 @@ class BacksteppingController:
         dt : float, optional
             Step since the previous call (needed by ``dvd_dt="finite-difference"``).
         """
+        if self._fusable(rho, field):  # the paper's common case: one compiled call, same numbers
+            state = fused_robot_inputs(self, rho, field, t)
+            if state is not None:
+                return state
         g = self.grid
         p = self._prepare(rho, t)
         v_d = self._virtual_velocity(p)
@@ -420,6 +427,26 @@ class BacksteppingController:
             dissipation=self._dissipation(p),
             k_u=self.k_u,
             k_omega=self.k_omega,
+        )
+
+    def _fusable(self, rho: np.ndarray, field: NavigationField) -> bool:
+        """Whether :func:`meanfield.law_loops.fused_robot_inputs` computes this law (checked every call:
+        a schedule or strategy may be replaced between calls)."""
+        return (
+            self.grid.is_box
+            and not callable(self.sigma)
+            and self.interaction is None
+            and type(self.alpha) in (ConstantAlpha, SaturatingAlpha)
+            and type(self.strategy) is MinimumNormBetaGamma
+            and self.dvd_dt == "finite-difference"
+            and self.scales is None
+            and self.k_u.ndim <= 1
+            and self.k_omega.ndim <= 1
+            and field.separable
+            and type(field.kernel) is GaussianKernel
+            and rho.dtype == float
+            and field.positions.dtype == float
+            and field.headings.dtype == float
         )
 
     def _scaled_inputs(self, p: _Prepared, v_d: FaceField, vt: FaceField, b, gg, dvd, k_u) -> ControlState:

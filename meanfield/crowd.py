@@ -15,10 +15,13 @@ from typing import Any
 
 import numpy as np
 
+from meanfield.crowd_loops import euler_maruyama
 from meanfield.errors import ParameterError, SigmaLike, check_sigma
 from meanfield.region import Region
 
 __all__ = ["Crowd"]
+
+_NO_BOX = np.empty(0)
 
 
 class Crowd:
@@ -60,8 +63,9 @@ class Crowd:
         self.rng = rng
         # a region whose walls are not all convex follows each step from its start (Plan.reflect)
         self._path_reflection = bool(getattr(domain, "reflects_along_paths", False))
-        self._noise = np.empty_like(positions)  # work arrays, reused every step
-        self._scaled = np.empty_like(positions)
+        self._noise = np.empty_like(positions)  # work array, reused every step
+        box = getattr(domain, "kind", None) == "box" and not self._path_reflection
+        self._box = np.asarray(domain.bounds, float) if box else _NO_BOX
 
     @property
     def n(self) -> int:
@@ -72,7 +76,7 @@ class Crowd:
         """One Euler–Maruyama step of eq. (1) with drift (N, 2), then reflect at the walls."""
         x = self.positions
         if self._noise.shape != x.shape:  # positions replaced by an array of another size
-            self._noise, self._scaled = np.empty_like(x), np.empty_like(x)
+            self._noise = np.empty_like(x)
         self.rng.standard_normal(out=self._noise)
         if callable(self.sigma):
             s = np.asarray(self.sigma(x[:, 0], x[:, 1], t), float)
@@ -82,17 +86,16 @@ class Crowd:
                 raise ParameterError("crowd.sigma", "negative or non-finite σ(x, t)", "σ(x, t) >= 0")
             amp = np.sqrt(2.0 * s * dt)[:, None]
         else:
-            amp = math.sqrt(2.0 * self.sigma * dt)
+            amp = np.full((1, 1), math.sqrt(2.0 * self.sigma * dt))
         previous = x.copy() if self._path_reflection or len(self.exits) else None
-        np.multiply(drift, dt, out=self._scaled)
-        x += self._scaled
-        np.multiply(self._noise, amp, out=self._noise)
-        x += self._noise
+        # a box without exits folds its walls into the same pass (meanfield.crowd_loops)
+        folded = self._box if previous is None else _NO_BOX
+        euler_maruyama(x, drift, self._noise, dt, amp, folded)
         if not len(self.exits):
-            if previous is None:
-                self.domain.reflect(x)
-            else:
+            if previous is not None:
                 self.domain.reflect(x, previous)
+            elif not folded.shape[0]:
+                self.domain.reflect(x)
             return
         self._leave_and_reflect(previous, t, dt)
 

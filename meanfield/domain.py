@@ -16,6 +16,7 @@ other module asks which shape Ω is.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -150,9 +151,9 @@ class Domain:
         return self.with_exits(exits) if exits is not None and len(exits) else self
 
     # ------------------------------------------------------------------ geometry
-    @property
+    @functools.cached_property
     def bounds(self) -> tuple[float, float, float, float]:
-        """``(xmin, xmax, ymin, ymax)`` of the bounding box."""
+        """``(xmin, xmax, ymin, ymax)`` of the bounding box (computed once: the domain is frozen)."""
         if self.kind == "disk":
             cx, cy = self.center
             r = self.radius

@@ -186,11 +186,14 @@ class ClosedLoop:
         first = loop.step_index
         n_steps = sc.steps - first
         start = time.perf_counter()
-        bar = tqdm(total=n_steps, disable=not progress, desc=f"meanfield run {sc.name}", unit="step", mininterval=0.5)
+        bar = None  # shown once the first step is done: it loads (or compiles) the compiled loops
         try:
             remaining = loop.crowd.remaining_fraction if recorder.exits else None  # only with exits
             for _ in range(n_steps):
                 loop.step()
+                if bar is None:
+                    desc = f"meanfield run {sc.name}"
+                    bar = tqdm(total=n_steps, disable=not progress, desc=desc, unit="step", mininterval=0.5)
                 if recorder.last_recorded_step == loop.step_index:
                     bar.update(loop.step_index - first - bar.n)
                 if callback is not None:
@@ -203,7 +206,8 @@ class ClosedLoop:
         except KeyboardInterrupt:
             status, message = "interrupted", f"interrupted at t = {loop.t:.4g}"
         finally:
-            bar.close()
+            if bar is not None:
+                bar.close()
             for obs in (target, inputs, recorder, evacuation, stragglers):
                 loop.observers.remove(obs)
         wall = time.perf_counter() - start

@@ -121,10 +121,13 @@ def saturate_inputs(u: np.ndarray, omega: np.ndarray, u_max: float, omega_max: f
         if over.any():
             u = u.copy()
             # scaled a hair below the limit, so that round-off never puts ‖u_i‖ above it
-            u[over] *= (u_max / speed[over] * (1 - 4 * np.finfo(float).eps))[:, None]
-    if math.isfinite(omega_max):
-        omega = np.clip(omega, -omega_max, omega_max)
+            u[over] *= (u_max / speed[over] * _SHRINK)[:, None]
+    if math.isfinite(omega_max):  # = np.clip(omega, -ω_max, ω_max), without its dispatch cost
+        omega = np.minimum(np.maximum(omega, -omega_max), omega_max)
     return u, omega
+
+
+_SHRINK = 1 - 4 * np.finfo(float).eps
 
 
 def navigation_velocity(
@@ -191,11 +194,21 @@ class NavigationField:
         self.headings = np.array(headings).reshape(-1)
         self.cos = np.cos(headings)
         self.sin = np.sin(headings)
+        self._sight = sight
+        hidden = sight is not None and not sight.trivial
+        self.separable = bool(getattr(kernel, "separable", False)) and not hidden
+        self._built = False  # the kernels on the faces: computed on first use (_build)
+
+    def _build(self) -> None:
+        """The kernels and their gradients on the faces (from 1-D factors when the kernel is separable)."""
+        if self._built:
+            return
+        self._built = True
+        kernel, grid, positions, sight = self.kernel, self.grid, self.positions, self._sight
         rx = positions[:, 0][:, None]
         ry = positions[:, 1][:, None]
         hidden = sight is not None and not sight.trivial
         separable = bool(getattr(kernel, "separable", False))
-        self.separable = separable and not hidden
         if separable:
             s = -2.0 / kernel.eta
             c = kernel.c
@@ -236,6 +249,7 @@ class NavigationField:
     # ---------------------------------------------------------------- the field itself
     def velocity(self) -> FaceField:
         """``v_r`` on the faces: x-component on x-faces, y-component on y-faces."""
+        self._build()
         if self.separable:
             vx = (self.cos[:, None] * self._fxf).T @ self._fyc
             vy = (self.sin[:, None] * self._fxc).T @ self._fyf
@@ -245,6 +259,7 @@ class NavigationField:
     def velocity_rate(self, u: np.ndarray, omega: np.ndarray) -> FaceField:
         """``∂_t v_r = Σ_i (-K_ξ^i u_i + K_θ^i ω_i)`` on the faces (paper, eq. (5))."""
         # -K_ξ u = -e(θ) (∇K̄ · u);  K_θ ω = K̄ e⊥(θ) ω
+        self._build()
         ux, uy = u[:, 0], u[:, 1]
         if self.separable:
             ax = -self.cos * ux
@@ -278,6 +293,7 @@ class NavigationField:
         Integrals use the grid's face inner product, so ``Σ_i b_i·u_i - g_i ω_i`` equals
         ``-<F, ∂_t v_r>`` exactly.
         """
+        self._build()
         Wx = self.grid.weight_x * F[0]
         Wy = self.grid.weight_y * F[1]
         if self.separable:

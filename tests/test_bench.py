@@ -19,7 +19,7 @@ from meanfield.cli import main
 
 EXPECTED = {
     *("kde", "closed_loop", "fokker_planck", "jupedsim", "large_crowd", "bounded", "nmpc", "startup"),
-    *("plan", "controllers"),
+    *("plan", "controllers", "scaling"),
 }
 TOP_KEYS = {
     "suite",
@@ -132,7 +132,7 @@ def test_a_small_real_run_writes_the_documented_json_atomically(tmp_path, monkey
     monkeypatch.setattr(suite, "atomic_write_json", spy)
     out = tmp_path / "bench.json"
     assert main(["bench", "--quick", "--only", "closed_loop", "--out", str(out)]) == 0
-    assert written[0] == (False, 0) and written[-1] == (True, 1)  # at the start, after the benchmark, at the end
+    assert written[0] == (False, 0) and written[-1] == (True, 2)  # at the start, after the benchmark, at the end
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bench.json"]  # no temporary file left
     doc = json.loads(out.read_text())
     assert set(doc) == TOP_KEYS
@@ -143,11 +143,12 @@ def test_a_small_real_run_writes_the_documented_json_atomically(tmp_path, monkey
     assert doc["threads"]["environment"]["OMP_NUM_THREADS"] == "1"
     assert "OMP_NUM_THREADS" not in os.environ  # restored after the run
     assert {"processor", "cpu_count", "python", "versions"} <= set(doc["machine"])
-    (record,) = doc["records"]
-    assert set(record) == RECORD_KEYS and record["skipped"] is False
-    assert record["unit"] == "steps/s" and record["anchor_unit"] == "calls/s"
+    plain, record = doc["records"]  # against the plain numpy loop, against gaussian_kde
+    assert set(record) == set(plain) == RECORD_KEYS and record["skipped"] is plain["skipped"] is False
+    assert record["unit"] == plain["unit"] == "steps/s" and record["anchor_unit"] == "calls/s"
+    assert record["ours_value"] == plain["ours_value"]  # one measurement of ours, two anchors
     assert record["ratio"] == pytest.approx(record["ours_value"] / record["anchor_value"])
-    assert isinstance(record["pass"], bool) and doc["all_goals_pass"] is record["pass"]
+    assert isinstance(record["pass"], bool) and doc["all_goals_pass"] is (record["pass"] and plain["pass"])
     captured = capsys.readouterr()
     assert "closed_loop paper vs gaussian_kde" in captured.out and "ours faster" in captured.out
     assert "[1/1] closed_loop" in captured.err

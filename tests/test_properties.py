@@ -474,19 +474,19 @@ def test_bounded_program_constraints_and_shortfall(problem, condition, method):
 
 @pytest.mark.xfail(
     strict=True,
-    reason="finding: the Clarabel path meets A only to the interior-point solver's absolute "
+    reason="finding: the cvxpy path meets A only to the interior-point solver's absolute "
     "tolerance; with limits of ~1e-7 and integrals of ~1e-10 it reports feasible=True with a "
     "shortfall up to ~1e3 A (the exact dual: ~1e-15 relative). Realistic limits (0.1 m/s, "
     "1 rad/s) are accurate at every integral scale down to 1e-10 (measured)",
 )
-def test_clarabel_meets_A_relative_to_its_size_with_tiny_limits():
+def test_the_cvxpy_path_meets_A_relative_to_its_size_with_tiny_limits():
     rng = np.random.default_rng(0)
     worst = 0.0
     for _ in range(20):
         n = int(rng.integers(1, 7))
         b, g = 1e-10 * rng.normal(size=(n, 2)), 1e-10 * rng.normal(size=n)
         A = abs(rng.normal()) * 1e-20 * n
-        out = BoundedBetaGamma(n, 10.0, 10.0, 1e-7, 1e-7)(b, g, A)
+        out = BoundedBetaGamma(n, 10.0, 10.0, 1e-7, 1e-7, method="cvxpy")(b, g, A)
         exact = bounded_inputs_exact(b, g, A, 10.0, 10.0, 1e-7, 1e-7)
         assert out.feasible and exact.feasible and exact.shortfall <= 1e-12 * A
         worst = max(worst, out.shortfall / A)

@@ -1,0 +1,211 @@
+"""Compiled kernels: numba where it is installed and compiles, the numpy path everywhere else.
+
+A hot loop of the toolkit (the crowd's step, the KDE's binning, the controller's integrals)
+is written twice: once in numpy, which is the reference, and once as a plain loop that
+numba compiles to machine code (``@njit(cache=True)``: compiled on first use, then read
+from numba's on-disk cache by every later process).  :func:`compiled` pairs the two::
+
+    def _binned_numpy(points, ...): ...          # the reference
+
+    @compiled(fallback=_binned_numpy)
+    def binned(points, ...): ...                 # the same arithmetic, one pass per point
+
+Calling ``binned(...)`` runs the compiled loop when :func:`enabled`, else the numpy one.
+A loop that fails to compile (numba missing, a numba that cannot type it, a read-only
+cache directory it cannot work around) falls back to numpy with **one** warning naming the
+cause; the run goes on.  The environment variable ``MEANFIELD_COMPILED=0`` (or
+:func:`use_compiled` ``(False)``) selects the numpy path everywhere, which is what the
+benchmarks' anchors and the tests that compare the two paths do.
+
+Why numba: it compiles the plain loops the equations are written in (no new language, no
+build step at install time), caches the machine code on disk, and is already what py-pde,
+the field's PDE library, is built on.  Its wheels exist for every platform the toolkit runs on.
+
+What "the same results" means: the two paths do the same floating-point operations in a
+different order, so they agree to round-off on one call (the tests check this for every
+pair); a chaotic closed loop then amplifies round-off, so whole runs agree in distribution,
+not bit for bit.  A given path is deterministic: the same seed gives the same numbers.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import warnings
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any
+
+__all__ = [
+    "compiled",
+    "enabled",
+    "use_compiled",
+    "numpy_path",
+    "numba_available",
+    "status",
+    "kernels",
+    "inner",
+    "UNAVAILABLE",
+    "CompiledKernel",
+    "CompiledFallbackWarning",
+]
+
+ENV = "MEANFIELD_COMPILED"
+"""``MEANFIELD_COMPILED=0`` (or ``false``/``no``/``off``) selects the numpy path everywhere."""
+
+
+class CompiledFallbackWarning(RuntimeWarning):
+    """A compiled loop could not be used; the numpy path runs instead (the message says why)."""
+
+
+_override: bool | None = None
+_failures: dict[str, str] = {}
+_kernels: list[CompiledKernel] = []
+
+
+@functools.cache
+def _numba() -> Any:
+    try:
+        import numba
+    except Exception as exc:  # ImportError, or a numba broken against this numpy
+        return exc
+    return numba
+
+
+def numba_available() -> bool:
+    """Whether numba imports (not whether every loop compiles: see :func:`status`)."""
+    return not isinstance(_numba(), Exception)
+
+
+def _from_environment() -> bool:
+    return os.environ.get(ENV, "1").strip().lower() not in {"0", "false", "no", "off"}
+
+
+_environment = _from_environment()  # read at import, and again by use_compiled(None)
+
+
+def enabled() -> bool:
+    """Whether the compiled path is selected: numba imports, and neither :func:`use_compiled`
+    nor ``MEANFIELD_COMPILED=0`` (read at import, and again by ``use_compiled(None)``) turned it off."""
+    on = _environment if _override is None else _override
+    return on and numba_available()
+
+
+def use_compiled(on: bool | None) -> None:
+    """Select the compiled path (True), the numpy path (False), or follow ``MEANFIELD_COMPILED`` (None, read now)."""
+    global _override, _environment
+    if on is not None and not isinstance(on, bool):
+        from meanfield.errors import ParameterError
+
+        raise ParameterError("on", on, "True, False or None")
+    _override = on
+    if on is None:
+        _environment = _from_environment()
+
+
+@contextmanager
+def numpy_path() -> Iterator[None]:
+    """Run the block on the numpy path (the reference), then restore the previous choice."""
+    global _override
+    before = _override
+    _override = False
+    try:
+        yield
+    finally:
+        _override = before
+
+
+def status() -> dict[str, Any]:
+    """What runs: ``{"enabled": bool, "numba": version or the import error, "fallbacks": {name: cause}}``."""
+    nb = _numba()
+    return {
+        "enabled": enabled(),
+        "numba": str(nb) if isinstance(nb, Exception) else nb.__version__,
+        "fallbacks": dict(_failures),
+    }
+
+
+UNAVAILABLE = object()
+"""What a kernel without a numpy twin (``fallback=None``) returns when it cannot run compiled:
+the caller then takes its own numpy path."""
+
+
+def inner(loop: Callable[..., Any]) -> Callable[..., Any]:
+    """A helper called only from inside compiled loops: ``numba.njit(cache=True)`` it when numba imports.
+
+    Its own failures surface when the loop calling it compiles (and fall back there).
+    """
+    nb = _numba()
+    return loop if isinstance(nb, Exception) else nb.njit(cache=True)(loop)
+
+
+class CompiledKernel:
+    """A loop compiled by numba on first call, with its numpy fallback (see the module's doc)."""
+
+    def __init__(self, loop: Callable[..., Any], fallback: Callable[..., Any] | None, options: dict[str, Any]):
+        self.loop = loop
+        self.fallback = fallback
+        self.name = f"{loop.__module__}.{loop.__qualname__}"
+        self._options = options
+        self._jitted: Callable[..., Any] | None = None
+        self._ready = False
+        functools.update_wrapper(self, loop)
+
+    def _compile(self) -> Callable[..., Any] | None:
+        nb = _numba()
+        if isinstance(nb, Exception):
+            return None
+        return nb.njit(cache=True, **self._options)(self.loop)
+
+    def _fail(self, exc: BaseException) -> None:
+        cause = f"{type(exc).__name__}: {str(exc).strip().splitlines()[0] if str(exc).strip() else ''}"
+        _failures[self.name] = cause
+        warnings.warn(
+            f"the compiled {self.name} could not be used ({cause}); the numpy path runs instead",
+            CompiledFallbackWarning,
+            stacklevel=3,
+        )
+
+    def _numpy(self, *args: Any) -> Any:
+        return UNAVAILABLE if self.fallback is None else self.fallback(*args)
+
+    def __call__(self, *args: Any) -> Any:
+        if self.name in _failures or not enabled():
+            return self._numpy(*args)
+        if self._ready:
+            return self._jitted(*args)
+        try:  # the first call compiles (or loads the cache); a failure there falls back, once
+            self._jitted = self._jitted or self._compile()
+            if self._jitted is None:
+                return self._numpy(*args)
+            out = self._jitted(*args)
+        except Exception as exc:  # numba's typing/lowering errors, a cache it cannot write
+            self._fail(exc)
+            return self._numpy(*args)
+        self._ready = True
+        return out
+
+
+def compiled(fallback: Callable[..., Any] | None, **options: Any) -> Callable[[Callable[..., Any]], CompiledKernel]:
+    """Decorator: the loop below, compiled by numba (``cache=True``), with ``fallback`` its numpy twin.
+
+    Parameters
+    ----------
+    fallback : callable or None
+        The numpy implementation, same arguments, same result (to round-off).  None: the
+        caller has its own numpy path and takes it when the call returns :data:`UNAVAILABLE`.
+    **options
+        Passed to ``numba.njit`` (``fastmath`` is left off: the two paths must agree).
+    """
+
+    def wrap(loop: Callable[..., Any]) -> CompiledKernel:
+        kernel = CompiledKernel(loop, fallback, options)
+        _kernels.append(kernel)
+        return kernel
+
+    return wrap
+
+
+def kernels() -> list[CompiledKernel]:
+    """Every compiled loop defined so far (for the tests that compare each with its fallback)."""
+    return list(_kernels)

@@ -1,0 +1,200 @@
+"""The crowd's per-human loops, compiled: the signs' field at each human and the Euler–Maruyama step.
+
+Each loop here is one pass over the humans, paired with its numpy twin (the reference,
+:mod:`meanfield.compiled`):
+
+* :func:`gaussian_field_at`: ``v_r(X_j) = Σ_i K̄(X_j - R_i) e(θ_i)`` for the paper's Gaussian
+  ``K̄(ξ) = c exp(-|ξ|²/η)`` (eq. (3); docs page *The model*), optionally masked by which robot
+  each human sees (plans, :mod:`meanfield.sight`);
+* :func:`bilinear_at`: the same field sampled on a lattice and interpolated to the humans
+  (:mod:`meanfield.sampled_field`);
+* :func:`euler_maruyama`: ``X_j += b_j dt + a ξ_j`` (eq. (1) discretized), with the box's
+  reflecting walls folded in when Ω is a box (any number of bounces, as
+  :meth:`meanfield.domain.Domain.reflect` does).
+
+Both field loops also flag the humans a sign *reaches* (``|v_r| >= reach``, used for the
+stragglers).  The noise ``ξ_j`` is drawn by the caller from its numpy Generator, so both
+paths consume the same random stream.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from meanfield.compiled import compiled
+
+__all__ = ["gaussian_field_at", "bilinear_at", "euler_maruyama"]
+
+
+# ----------------------------------------------------------------------------- v_r, exact
+def _gaussian_field_numpy(points, rx, ry, ex, ey, inv_eta, visible, reach, out, reached):
+    block = max(1, (1 << 20) // max(len(rx), 1))
+    for a in range(0, len(points), block):
+        p = points[a : a + block]
+        dx = p[None, :, 0] - rx[:, None]
+        dy = p[None, :, 1] - ry[:, None]
+        k = np.exp(-(dx * dx + dy * dy) * inv_eta)
+        if visible.shape[1]:
+            k *= visible[:, a : a + block]
+        out[a : a + block, 0] = ex @ k
+        out[a : a + block, 1] = ey @ k
+    np.greater_equal(out[:, 0] * out[:, 0] + out[:, 1] * out[:, 1], reach * reach, out=reached)
+    return out
+
+
+@compiled(fallback=_gaussian_field_numpy)
+def gaussian_field_at(points, rx, ry, ex, ey, inv_eta, visible, reach, out, reached):
+    """``v_r`` of eq. (3) at every human for the Gaussian kernel, into ``out`` (N, 2).
+
+    Parameters
+    ----------
+    points : ndarray, shape (N, 2)
+        The humans.
+    rx, ry : ndarray, shape (n,)
+        The robots' positions.
+    ex, ey : ndarray, shape (n,)
+        ``c cos θ_i`` and ``c sin θ_i`` (the kernel's strength folded in).
+    inv_eta : float
+        ``1 / η``.
+    visible : ndarray of bool, shape (n, N) or (n, 0)
+        Which robot each human sees; an empty second axis means every robot is seen.
+    reach : float
+        ``reached[j] = |v_r(X_j)| >= reach``.
+    out : ndarray, shape (N, 2)
+    reached : ndarray of bool, shape (N,)
+    """
+    n = rx.shape[0]
+    masked = visible.shape[1] > 0
+    r2 = reach * reach
+    for j in range(points.shape[0]):
+        x = points[j, 0]
+        y = points[j, 1]
+        vx = 0.0
+        vy = 0.0
+        for i in range(n):
+            if masked and not visible[i, j]:
+                continue
+            dx = x - rx[i]
+            dy = y - ry[i]
+            k = math.exp(-(dx * dx + dy * dy) * inv_eta)
+            vx += ex[i] * k
+            vy += ey[i] * k
+        out[j, 0] = vx
+        out[j, 1] = vy
+        reached[j] = vx * vx + vy * vy >= r2
+    return out
+
+
+# ----------------------------------------------------------------------------- v_r, sampled
+def _bilinear_numpy(vx, vy, x0, y0, inv_hx, inv_hy, points, reach, out, reached):
+    mx, my = vx.shape
+    s = np.clip((points[:, 0] - x0) * inv_hx, 0.0, mx - 1.0)
+    t = np.clip((points[:, 1] - y0) * inv_hy, 0.0, my - 1.0)
+    i = np.minimum(s, mx - 2.0).astype(np.intp)
+    j = np.minimum(t, my - 2.0).astype(np.intp)
+    s -= i
+    t -= j
+    for col, f in enumerate((vx, vy)):
+        lo = f[i, j] + (f[i, j + 1] - f[i, j]) * t
+        hi = f[i + 1, j] + (f[i + 1, j + 1] - f[i + 1, j]) * t
+        out[:, col] = lo + (hi - lo) * s
+    np.greater_equal(out[:, 0] * out[:, 0] + out[:, 1] * out[:, 1], reach * reach, out=reached)
+    return out
+
+
+@compiled(fallback=_bilinear_numpy)
+def bilinear_at(vx, vy, x0, y0, inv_hx, inv_hy, points, reach, out, reached):
+    """Bilinear interpolation of a lattice field ``(vx, vy)`` at every human, into ``out`` (N, 2).
+
+    Node ``(a, b)`` of the lattice sits at ``(x0 + a h_x, y0 + b h_y)``; a point outside
+    the lattice takes the value at its nearest edge.  The interpolation error is bounded
+    in :mod:`meanfield.sampled_field`.
+
+    Parameters
+    ----------
+    vx, vy : ndarray, shape (mx, my)
+        The field's components at the nodes.
+    x0, y0, inv_hx, inv_hy : float
+        The lattice's origin and inverse spacings.
+    points : ndarray, shape (N, 2)
+    reach : float
+        ``reached[j] = |v_r(X_j)| >= reach``.
+    out : ndarray, shape (N, 2)
+    reached : ndarray of bool, shape (N,)
+    """
+    mx, my = vx.shape
+    r2 = reach * reach
+    for p in range(points.shape[0]):
+        s = min(max((points[p, 0] - x0) * inv_hx, 0.0), mx - 1.0)
+        t = min(max((points[p, 1] - y0) * inv_hy, 0.0), my - 1.0)
+        i = int(min(s, mx - 2.0))
+        j = int(min(t, my - 2.0))
+        s -= i
+        t -= j
+        lo = vx[i, j] + (vx[i, j + 1] - vx[i, j]) * t
+        hi = vx[i + 1, j] + (vx[i + 1, j + 1] - vx[i + 1, j]) * t
+        ux = lo + (hi - lo) * s
+        lo = vy[i, j] + (vy[i, j + 1] - vy[i, j]) * t
+        hi = vy[i + 1, j] + (vy[i + 1, j + 1] - vy[i + 1, j]) * t
+        uy = lo + (hi - lo) * s
+        out[p, 0] = ux
+        out[p, 1] = uy
+        reached[p] = ux * ux + uy * uy >= r2
+    return out
+
+
+# ----------------------------------------------------------------------------- the SDE step
+def _fold_numpy(col, lo, hi):
+    out = (col < lo) | (col > hi)
+    if out.any():
+        period = 2.0 * (hi - lo)
+        s = np.mod(col[out] - lo, period)
+        col[out] = lo + np.where(s > hi - lo, period - s, s)
+
+
+def _euler_maruyama_numpy(x, drift, noise, dt, amp, box):
+    x += drift * dt
+    x += noise * amp
+    if box.shape[0]:
+        _fold_numpy(x[:, 0], box[0], box[1])
+        _fold_numpy(x[:, 1], box[2], box[3])
+    return x
+
+
+@compiled(fallback=_euler_maruyama_numpy)
+def euler_maruyama(x, drift, noise, dt, amp, box):
+    """One Euler–Maruyama step of eq. (1), in place: ``X_j += b_j dt + a_j ξ_j``, then the box's walls.
+
+    Parameters
+    ----------
+    x : ndarray, shape (N, 2)
+        Positions, updated in place.
+    drift : ndarray, shape (N, 2)
+        ``b_j = u_W + v_r + v_a`` at each human.
+    noise : ndarray, shape (N, 2)
+        Standard normal draws ``ξ_j``.
+    dt : float
+    amp : ndarray, shape (N, 1) or (1, 1)
+        ``sqrt(2 σ dt)`` per human (one row when σ is constant).
+    box : ndarray, shape (4,) or (0,)
+        ``(x0, x1, y0, y1)``: fold each coordinate back into the box (reflecting walls, any
+        number of bounces); empty: no walls here (the caller reflects).
+    """
+    walls = box.shape[0] == 4
+    one = amp.shape[0] == 1
+    for j in range(x.shape[0]):
+        a = amp[0, 0] if one else amp[j, 0]
+        for k in range(2):
+            v = x[j, k] + drift[j, k] * dt
+            v = v + noise[j, k] * a
+            if walls:
+                lo = box[2 * k]
+                hi = box[2 * k + 1]
+                if v < lo or v > hi:
+                    period = 2.0 * (hi - lo)
+                    s = (v - lo) % period
+                    v = lo + (period - s if s > hi - lo else s)
+            x[j, k] = v
+    return x

@@ -1,0 +1,200 @@
+"""Compiled loops against their numpy twins (meanfield.compiled, meanfield.crowd_loops).
+
+Which results are the same on both paths, and how:
+
+* every compiled loop of the crowd agrees with its numpy twin to round-off on one call;
+* a closed loop on the compiled path follows the numpy path's trajectory to round-off
+  amplified over 100 steps (the chaotic loop amplifies round-off, so whole runs agree in
+  distribution, not bit for bit);
+* each path alone is deterministic: the same seed gives identical numbers.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from meanfield import ClosedLoop, Domain, GaussianKernel, ParameterError, compiled, paper_scenario
+from meanfield.crowd_loops import bilinear_at, euler_maruyama, gaussian_field_at
+from meanfield.robots import navigation_velocity
+from meanfield.sampled_field import SampledNavigationField
+
+needs_numba = pytest.mark.skipif(not compiled.numba_available(), reason="numba is not installed")
+
+
+def both(kernel, *args):
+    """The loop's result on the compiled path and on the numpy path (arguments copied for each)."""
+    fresh = [a.copy() if isinstance(a, np.ndarray) else a for a in args]
+    fast = kernel(*fresh)
+    with compiled.numpy_path():
+        ref = kernel(*[a.copy() if isinstance(a, np.ndarray) else a for a in args])
+    return fast, ref, fresh
+
+
+@needs_numba
+@pytest.mark.parametrize("masked", [False, True])
+def test_gaussian_field_matches_numpy_and_the_reference_evaluation(masked):
+    rng = np.random.default_rng(3)
+    pts, robots, theta = rng.uniform(0, 1, (500, 2)), rng.uniform(0, 1, (7, 2)), rng.uniform(0, 6.3, 7)
+    k = GaussianKernel(0.2, 0.05)
+    visible = rng.uniform(size=(7, 500)) < 0.6 if masked else np.ones((0, 0), bool)
+    args = (pts, robots[:, 0].copy(), robots[:, 1].copy(), k.c * np.cos(theta), k.c * np.sin(theta), 1 / k.eta)
+    fast, ref, fresh = both(gaussian_field_at, *args, visible, 0.01, np.empty((500, 2)), np.empty(500, bool))
+    exact = navigation_velocity(k, robots, theta, pts, visible if masked else None)
+    assert np.max(np.abs(fast - ref)) <= 1e-15 and np.max(np.abs(fast - exact)) <= 1e-15
+    reached = fresh[-1]
+    assert np.array_equal(reached, np.hypot(exact[:, 0], exact[:, 1]) >= 0.01)
+    assert 0 < reached.sum() < 500  # the flag separates the crowd here
+
+
+@needs_numba
+def test_bilinear_matches_numpy_and_is_exact_on_bilinear_fields():
+    rng = np.random.default_rng(4)
+    xs, ys = np.linspace(0, 2, 9), np.linspace(-1, 1, 7)
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    vx, vy = 1 + 2 * X - 3 * Y + 0.5 * X * Y, -X * Y + 4.0  # bilinear: reproduced exactly
+    pts = np.column_stack([rng.uniform(0, 2, 1000), rng.uniform(-1, 1, 1000)])
+    h = (xs[1] - xs[0], ys[1] - ys[0])
+    fast, ref, _ = both(
+        bilinear_at, vx, vy, 0.0, -1.0, 1 / h[0], 1 / h[1], pts, 0.0, np.empty((1000, 2)), np.empty(1000, bool)
+    )
+    assert np.max(np.abs(fast - ref)) <= 1e-14
+    px, py = pts[:, 0], pts[:, 1]
+    assert np.allclose(fast[:, 0], 1 + 2 * px - 3 * py + 0.5 * px * py, atol=1e-13, rtol=0)
+    assert np.allclose(fast[:, 1], -px * py + 4.0, atol=1e-13, rtol=0)
+
+
+def test_bilinear_agrees_with_the_sampled_field():
+    rng = np.random.default_rng(5)
+    f = SampledNavigationField(GaussianKernel(0.2, 0.05), (0, 1, 0, 1), (21, 21))
+    f.update(rng.uniform(0, 1, (5, 2)), rng.uniform(0, 6, 5))
+    pts = rng.uniform(-0.1, 1.1, (300, 2))  # some outside: the nearest edge's value
+    got = bilinear_at(f.vx, f.vy, 0.0, 0.0, 20.0, 20.0, pts, 0.0, np.empty((300, 2)), np.empty(300, bool))
+    assert np.max(np.abs(got - f.at_points(pts))) <= 1e-15
+
+
+@needs_numba
+@pytest.mark.parametrize("walls", [True, False])
+def test_euler_maruyama_matches_numpy_and_the_domain_reflection(walls):
+    rng = np.random.default_rng(6)
+    x = rng.uniform(0, 1, (400, 2))
+    drift, noise = rng.normal(size=(400, 2)), rng.normal(size=(400, 2))
+    amp = np.full((1, 1), 1.7)  # long steps: several bounces
+    box = np.array([0.0, 1.0, 0.0, 2.0]) if walls else np.empty(0)
+    fast, ref, _ = both(euler_maruyama, x, drift, noise, 0.3, amp, box)
+    assert np.max(np.abs(fast - ref)) <= 1e-14
+    free = x + 0.3 * drift + 1.7 * noise
+    if walls:
+        assert np.max(np.abs(fast - Domain.box(1.0, 2.0).reflect(free))) <= 1e-14
+        assert (fast >= 0).all() and (fast[:, 0] <= 1).all() and (fast[:, 1] <= 2).all()
+    else:
+        assert np.max(np.abs(fast - free)) <= 1e-15
+    per_human = rng.uniform(0, 1, (400, 1))
+    fast, ref, _ = both(euler_maruyama, x, drift, noise, 0.3, per_human, box)
+    assert np.max(np.abs(fast - ref)) <= 1e-14
+
+
+@needs_numba
+def test_closed_loop_follows_the_numpy_path_and_each_path_is_deterministic():
+    sc = paper_scenario(seed=2).replace(t_final=1.0)
+
+    def final(numpy_path: bool):
+        loop = ClosedLoop(sc)
+        if numpy_path:
+            with compiled.numpy_path():
+                for _ in range(100):
+                    loop.step()
+        else:
+            for _ in range(100):
+                loop.step()
+        return loop.crowd.positions.copy(), loop.robots.positions.copy()
+
+    fast, fast_again, ref = final(False), final(False), final(True)
+    assert all(np.array_equal(a, b) for a, b in zip(fast, fast_again, strict=True))
+    assert np.max(np.abs(fast[0] - ref[0])) <= 1e-9 and np.max(np.abs(fast[1] - ref[1])) <= 1e-9
+
+
+def _never_compiles(x):  # numba cannot type a Python set of strings built from an array
+    return {str(v) for v in x}
+
+
+def _fallback_of(x):
+    return x * 2.0
+
+
+def test_a_loop_that_does_not_compile_falls_back_with_one_warning(monkeypatch):
+    kernel = compiled.compiled(fallback=_fallback_of)(_never_compiles)
+    monkeypatch.setattr(compiled, "_failures", {})
+    monkeypatch.setattr(compiled, "_override", True)
+    if not compiled.numba_available():
+        pytest.skip("numba is not installed: nothing compiles, nothing to warn about")
+    with pytest.warns(compiled.CompiledFallbackWarning, match="_never_compiles") as record:
+        out = kernel(np.arange(3.0))
+    assert np.array_equal(out, [0.0, 2.0, 4.0]) and len(record) == 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the second call: no second warning
+        assert np.array_equal(kernel(np.arange(2.0)), [0.0, 2.0])
+    assert "_never_compiles" in next(iter(compiled.status()["fallbacks"]))
+
+
+def test_the_environment_variable_selects_the_numpy_path(monkeypatch):
+    monkeypatch.setattr(compiled, "_override", True)
+    monkeypatch.setattr(compiled, "_environment", True)
+    monkeypatch.setenv("MEANFIELD_COMPILED", "0")
+    compiled.use_compiled(None)  # follow the environment, read now
+    assert not compiled.enabled() and compiled.status()["enabled"] is False
+    monkeypatch.setenv("MEANFIELD_COMPILED", "1")
+    compiled.use_compiled(None)
+    assert compiled.enabled() == compiled.numba_available()
+
+
+def test_use_compiled_refuses_what_is_not_a_choice():
+    with pytest.raises(ParameterError) as exc:
+        compiled.use_compiled("yes")
+    assert exc.value.name == "on" and "True, False or None" in str(exc.value)
+
+
+@needs_numba
+@pytest.mark.parametrize("schedule", ["constant", "saturating"])
+@pytest.mark.parametrize("gains", ["scalar", "per-robot"])
+def test_the_fused_law_matches_the_numpy_law(schedule, gains):
+    from meanfield import Grid, NavigationField
+    from meanfield.control import BacksteppingController, ConstantAlpha, SaturatingAlpha
+
+    rng = np.random.default_rng(7)
+    grid = Grid(Domain.box(1.0, 1.5), cells=(17, 23))
+    X, Y = grid.centers
+    target = grid.normalize(np.exp(-((X - 0.8) ** 2 + (Y - 1.2) ** 2) / 0.05))
+    alpha = ConstantAlpha(0.3) if schedule == "constant" else SaturatingAlpha(0.2, 2.0)
+    n = 5
+    k_u = 10.0 if gains == "scalar" else rng.uniform(1, 10, n)
+    kernel = GaussianKernel(0.2, 0.05)
+
+    def law():
+        return BacksteppingController(grid, target, 0.015, alpha, k_u=k_u, k_omega=7.0)
+
+    fused, plain = law(), law()
+    assert fused._fusable(target, NavigationField(kernel, grid, [[0.5, 0.5]], [0.0]))
+    for t in (0.0, 0.01, 0.02):  # the first call without, the next ones with the previous v_d
+        rho = grid.normalize(rng.uniform(0.2, 2.0, grid.shape))
+        field = NavigationField(kernel, grid, rng.uniform(0, 1, (n, 2)) * [1.0, 1.5], rng.uniform(0, 6.3, n))
+        fast = fused.robot_inputs(rho, field, t, 0.01)
+        with compiled.numpy_path():
+            ref = plain.robot_inputs(rho, field, t, 0.01)
+        for name in ("u", "omega", "b", "g", "rho_tilde"):
+            a, r = getattr(fast, name), getattr(ref, name)
+            assert np.max(np.abs(a - r)) <= 1e-12 * max(1.0, np.max(np.abs(r))), name
+        for name in ("v_d", "v_tilde"):
+            for a, r in zip(getattr(fast, name), getattr(ref, name), strict=True):
+                assert np.max(np.abs(a - r)) <= 1e-12 * np.max(np.abs(r)), name
+        for name in ("A", "dissipation", "shortfall"):
+            assert getattr(fast, name) == pytest.approx(getattr(ref, name), rel=1e-12, abs=1e-300), name
+        # the law's identity (eq. (8)): Σ b_i·u_i - g_i ω_i = Σ k_u |b_i|² + k_ω g_i² + A on the fused path too
+        lhs = (fast.b * fast.u).sum() - (fast.g * fast.omega).sum()
+        rhs = (np.reshape(k_u, (-1, 1)) * fast.b**2).sum() + (7.0 * fast.g**2).sum() + fast.A
+        assert lhs == pytest.approx(rhs, rel=1e-12)
+    from meanfield.law_loops import paper_law
+
+    assert paper_law._ready and not compiled.status()["fallbacks"]  # it did run compiled
