@@ -131,12 +131,22 @@ the caller then takes its own numpy path."""
 
 
 def inner(loop: Callable[..., Any]) -> Callable[..., Any]:
-    """A helper called only from inside compiled loops: ``numba.njit(cache=True)`` it when numba imports.
+    """Mark a helper called only from inside compiled loops of the same module.
 
-    Its own failures surface when the loop calling it compiles (and fall back there).
+    It stays a plain function until a loop of its module compiles: then it is replaced, in
+    the module, by its ``numba.njit(cache=True)`` version (so importing the toolkit never
+    imports numba).  Its own failures surface when that loop compiles, and fall back there.
     """
-    nb = _numba()
-    return loop if isinstance(nb, Exception) else nb.njit(cache=True)(loop)
+    loop._compiled_inner = True  # type: ignore[attr-defined]
+    return loop
+
+
+def _compile_inner_helpers(loop: Callable[..., Any], nb: Any) -> None:
+    """Replace the :func:`inner` helpers of ``loop``'s module by their compiled versions (once)."""
+    space = loop.__globals__
+    for name, value in list(space.items()):
+        if getattr(value, "_compiled_inner", False) and not hasattr(value, "py_func"):
+            space[name] = nb.njit(cache=True)(value)
 
 
 class CompiledKernel:
@@ -155,6 +165,7 @@ class CompiledKernel:
         nb = _numba()
         if isinstance(nb, Exception):
             return None
+        _compile_inner_helpers(self.loop, nb)
         return nb.njit(cache=True, **self._options)(self.loop)
 
     def _fail(self, exc: BaseException) -> None:

@@ -26,6 +26,7 @@ from meanfield.domain import Domain
 from meanfield.errors import ParameterError, limit_or_inf
 from meanfield.grid import FaceField, Grid
 from meanfield.kernels import NavigationKernel
+from meanfield.plan_loops import face_moments, masked_face_kernels
 from meanfield.sight import SightLines
 
 __all__ = ["RobotTeam", "NavigationField", "navigation_velocity", "saturate_inputs"]
@@ -225,14 +226,21 @@ class NavigationField:
             self._gxc = s * dxc * self._fxc
             self._gyf = s * dyf * self._fyf
             self._gyc = s * dyc * self._fyc
-        if separable and hidden:  # the kernels on the faces from their 1-D factors (no exp per face)
-            self._kx = self._fxf[:, :, None] * self._fyc[:, None, :]
-            self._ky = self._fxc[:, :, None] * self._fyf[:, None, :]
-            self._gx_x = self._gxf[:, :, None] * self._fyc[:, None, :]
-            self._gy_x = self._fxf[:, :, None] * self._gyc[:, None, :]
-            self._gx_y = self._gxc[:, :, None] * self._fyf[:, None, :]
-            self._gy_y = self._fxc[:, :, None] * self._gyf[:, None, :]
-        elif not separable:
+        if separable and hidden:  # the kernels on the faces from their 1-D factors and the masks, one pass
+            sx, sy = sight.face_masks(grid, self.positions)
+            n, (nx, ny) = len(positions), grid.shape
+            dtype = np.result_type(self._fxf, self._fyc)
+            out = tuple(np.empty((n, nx - 1, ny), dtype) for _ in range(3)) + tuple(
+                np.empty((n, nx, ny - 1), dtype) for _ in range(3)
+            )
+            factors = (self._fxf, self._fyc, self._fxc, self._fyf, self._gxf, self._gyc, self._gxc, self._gyf)
+            if dtype == float:
+                masked_face_kernels(*factors, sx, sy, out)
+            else:  # complex steps (the tests' derivatives): the numpy twin
+                masked_face_kernels.fallback(*factors, sx, sy, out)
+            self._kx, self._gx_x, self._gy_x, self._ky, self._gx_y, self._gy_y = out
+            return
+        if not separable:
             Xx, Yx = grid.face_points_x
             Xy, Yy = grid.face_points_y
             rx3 = positions[:, 0][:, None, None]
@@ -241,7 +249,7 @@ class NavigationField:
             self._ky = kernel.magnitude(Xy[None] - rx3, Yy[None] - ry3)
             self._gx_x, self._gy_x = kernel.magnitude_gradient(Xx[None] - rx3, Yx[None] - ry3)
             self._gx_y, self._gy_y = kernel.magnitude_gradient(Xy[None] - rx3, Yy[None] - ry3)
-        if hidden:
+        if hidden:  # a kernel that is not separable, masked
             sx, sy = sight.face_masks(grid, self.positions)
             self._kx, self._gx_x, self._gy_x = self._kx * sx, self._gx_x * sx, self._gy_x * sx
             self._ky, self._gx_y, self._gy_y = self._ky * sy, self._gx_y * sy, self._gy_y * sy
@@ -308,13 +316,14 @@ class NavigationField:
             s0y = (Py * self._fyf).sum(1)
             s1y = (Gy * self._fyf).sum(1)
             s2y = (Py * self._gyf).sum(1)
-        else:
-            s0x = np.tensordot(self._kx, Wx, 2)
-            s1x = np.tensordot(self._gx_x, Wx, 2)
-            s2x = np.tensordot(self._gy_x, Wx, 2)
-            s0y = np.tensordot(self._ky, Wy, 2)
-            s1y = np.tensordot(self._gx_y, Wy, 2)
-            s2y = np.tensordot(self._gy_y, Wy, 2)
+        else:  # the kernels on every face (masked by walls, or not separable): one pass
+            arrays = (self._kx, self._gx_x, self._gy_x, self._ky, self._gx_y, self._gy_y, Wx, Wy)
+            out = np.empty((6, len(self.positions)), np.result_type(*arrays))
+            if out.dtype == float:
+                face_moments(*arrays, out)
+            else:  # complex steps (the tests' derivatives): the numpy twin
+                face_moments.fallback(*arrays, out)
+            s0x, s1x, s2x, s0y, s1y, s2y = out
         b = np.stack([self.cos * s1x + self.sin * s1y, self.cos * s2x + self.sin * s2y], axis=1)
         g = -self.sin * s0x + self.cos * s0y
         return b, g

@@ -25,10 +25,9 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["SightLines", "blocking_walls"]
+from meanfield.plan_loops import segments_clear
 
-_PAIRS_PER_BLOCK = 1 << 18
-"""Point pairs tested against all walls at once (bounds the temporaries to a few MB per wall)."""
+__all__ = ["SightLines", "blocking_walls"]
 
 
 def blocking_walls(region: Any) -> np.ndarray:
@@ -71,8 +70,8 @@ class SightLines:
         self._grids: dict[int, _CellSight] = {}
         self.walls = blocking_walls(region)
         a = self.walls[:, 0]
-        self._a = a
-        self._e = self.walls[:, 1] - a
+        self._a = np.ascontiguousarray(a)
+        self._e = np.ascontiguousarray(self.walls[:, 1] - a)
 
     @property
     def trivial(self) -> bool:
@@ -89,21 +88,9 @@ class SightLines:
         shape = start.shape[:-1]
         if self.trivial:
             return np.ones(shape, dtype=bool)
-        p = start.reshape(-1, 2)
-        q = end.reshape(-1, 2)
-        out = np.ones(len(p), dtype=bool)
-        a, e = self._a, self._e
-        step = max(1, _PAIRS_PER_BLOCK // len(a))
-        eps = 1e-9
-        for s in range(0, len(p), step):
-            ps, d = p[s : s + step], q[s : s + step] - p[s : s + step]
-            cross = d[:, None, 0] * e[None, :, 1] - d[:, None, 1] * e[None, :, 0]
-            w = a[None] - ps[:, None]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                t = (w[..., 0] * e[None, :, 1] - w[..., 1] * e[None, :, 0]) / cross
-                u = (w[..., 0] * d[:, None, 1] - w[..., 1] * d[:, None, 0]) / cross
-            hit = (cross != 0) & (t > eps) & (t < 1 - eps) & (u >= -eps) & (u <= 1 + eps)
-            out[s : s + step] = ~hit.any(axis=1)
+        p = np.ascontiguousarray(start.reshape(-1, 2))
+        q = np.ascontiguousarray(end.reshape(-1, 2))
+        out = segments_clear(p, q, self._a, self._e, np.empty(len(p), dtype=bool))
         return out.reshape(shape)
 
     def mask(self, robots: np.ndarray, points: np.ndarray, grid: Any = None) -> np.ndarray | None:

@@ -198,3 +198,28 @@ def test_the_fused_law_matches_the_numpy_law(schedule, gains):
     from meanfield.law_loops import paper_law
 
     assert paper_law._ready and not compiled.status()["fallbacks"]  # it did run compiled
+
+
+@needs_numba
+def test_plan_loops_match_numpy():
+    from meanfield.plan_loops import face_moments, masked_face_kernels, segments_clear
+
+    rng = np.random.default_rng(8)
+    walls = rng.uniform(0, 1, (12, 2, 2))
+    a, e = walls[:, 0].copy(), (walls[:, 1] - walls[:, 0]).copy()
+    p, q = rng.uniform(0, 1, (3000, 2)), rng.uniform(0, 1, (3000, 2))
+    q[:10] = a[:10]  # segments ending on a wall's end: touching is not crossing
+    fast, ref, _ = both(segments_clear, p, q, a, e, np.empty(3000, bool))
+    assert np.array_equal(fast, ref) and 0 < fast.sum() < 3000
+    n, nx, ny = 4, 9, 7
+    f = [rng.uniform(size=(n, m)) for m in (nx - 1, ny, nx, ny - 1, nx - 1, ny, nx, ny - 1)]
+    sx, sy = rng.uniform(size=(n, nx - 1, ny)) < 0.7, rng.uniform(size=(n, nx, ny - 1)) < 0.7
+
+    def out():
+        return tuple(np.empty((n, nx - 1, ny)) for _ in range(3)) + tuple(np.empty((n, nx, ny - 1)) for _ in range(3))
+
+    fast, ref, _ = both(masked_face_kernels, *f, sx, sy, out())
+    assert all(np.max(np.abs(x - y)) <= 1e-15 for x, y in zip(fast, ref, strict=True))
+    Wx, Wy = rng.normal(size=(nx - 1, ny)), rng.normal(size=(nx, ny - 1))
+    fast, ref, _ = both(face_moments, *fast, Wx, Wy, np.empty((6, n)))
+    assert np.max(np.abs(fast - ref)) <= 1e-13

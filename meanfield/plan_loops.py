@@ -1,0 +1,159 @@
+"""A floor plan's per-step loops, compiled: sight lines and the signs' kernels masked by walls.
+
+Each loop is paired with its numpy twin (the reference, :mod:`meanfield.compiled`):
+
+* :func:`segments_clear`: whether each segment ``p_k → q_k`` crosses none of the walls
+  (:meth:`meanfield.sight.SightLines.visible`); the compiled loop stops at the first wall hit;
+* :func:`masked_face_kernels`: robot ``i``'s kernel ``s_i K̄_i`` and its gradient on the
+  faces from the Gaussian's 1-D factors and the sight masks ``s_i`` (eq. (3) with line of
+  sight; :class:`meanfield.robots.NavigationField`);
+* :func:`face_moments`: the six face integrals behind ``b_i`` and ``g_i`` of eq. (8)
+  (:meth:`meanfield.robots.NavigationField.moments`) for those kernels.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from meanfield.compiled import compiled
+
+__all__ = ["segments_clear", "masked_face_kernels", "face_moments", "SIGHT_EPS"]
+
+SIGHT_EPS = 1e-9
+"""A segment that only touches a wall within this fraction of its ends is not hidden by it."""
+
+
+# ----------------------------------------------------------------------------- sight lines
+def _segments_clear_numpy(p, q, a, e, out):
+    step = max(1, (1 << 18) // max(len(a), 1))
+    eps = SIGHT_EPS
+    for s in range(0, len(p), step):
+        ps, d = p[s : s + step], q[s : s + step] - p[s : s + step]
+        cross = d[:, None, 0] * e[None, :, 1] - d[:, None, 1] * e[None, :, 0]
+        w = a[None] - ps[:, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (w[..., 0] * e[None, :, 1] - w[..., 1] * e[None, :, 0]) / cross
+            u = (w[..., 0] * d[:, None, 1] - w[..., 1] * d[:, None, 0]) / cross
+        hit = (cross != 0) & (t > eps) & (t < 1 - eps) & (u >= -eps) & (u <= 1 + eps)
+        out[s : s + step] = ~hit.any(axis=1)
+    return out
+
+
+@compiled(fallback=_segments_clear_numpy)
+def segments_clear(p, q, a, e, out):
+    """``out[k]``: the segment ``p[k] → q[k]`` crosses no wall ``a_w + s e_w``, ``s ∈ [0, 1]``.
+
+    A segment that only touches a wall at one of its ends is clear; one through a wall's
+    interior or one of its corners is not (:data:`SIGHT_EPS` of slack on each parameter).
+
+    Parameters
+    ----------
+    p, q : ndarray, shape (M, 2)
+        The segments' ends.
+    a, e : ndarray, shape (W, 2)
+        Each wall's start and its vector to the end.
+    out : ndarray of bool, shape (M,)
+    """
+    eps = SIGHT_EPS
+    for k in range(p.shape[0]):
+        px, py = p[k, 0], p[k, 1]
+        dx, dy = q[k, 0] - px, q[k, 1] - py
+        clear = True
+        for w in range(a.shape[0]):
+            cross = dx * e[w, 1] - dy * e[w, 0]
+            if cross == 0.0:
+                continue
+            wx, wy = a[w, 0] - px, a[w, 1] - py
+            t = (wx * e[w, 1] - wy * e[w, 0]) / cross
+            if t <= eps or t >= 1 - eps:
+                continue
+            u = (wx * dy - wy * dx) / cross
+            if u >= -eps and u <= 1 + eps:
+                clear = False
+                break
+        out[k] = clear
+    return out
+
+
+# ----------------------------------------------------------------------------- masked kernels
+def _masked_face_kernels_numpy(fxf, fyc, fxc, fyf, gxf, gyc, gxc, gyf, sx, sy, out):
+    kx, gx_x, gy_x, ky, gx_y, gy_y = out
+    np.multiply(fxf[:, :, None] * fyc[:, None, :], sx, out=kx)
+    np.multiply(gxf[:, :, None] * fyc[:, None, :], sx, out=gx_x)
+    np.multiply(fxf[:, :, None] * gyc[:, None, :], sx, out=gy_x)
+    np.multiply(fxc[:, :, None] * fyf[:, None, :], sy, out=ky)
+    np.multiply(gxc[:, :, None] * fyf[:, None, :], sy, out=gx_y)
+    np.multiply(fxc[:, :, None] * gyf[:, None, :], sy, out=gy_y)
+    return out
+
+
+@compiled(fallback=_masked_face_kernels_numpy)
+def masked_face_kernels(fxf, fyc, fxc, fyf, gxf, gyc, gxc, gyf, sx, sy, out):
+    """``s_i K̄_i`` and ``s_i ∇K̄_i`` on the x-faces and the y-faces from 1-D factors, into ``out``.
+
+    Parameters
+    ----------
+    fxf, fyc, fxc, fyf : ndarray, shape (n, ·)
+        ``c exp(-d²/η)`` along x at the faces / centres (``c`` folded in) and
+        ``exp(-d²/η)`` along y at the centres / faces.
+    gxf, gyc, gxc, gyf : ndarray
+        The same times ``-2d/η`` (the gradient's factors).
+    sx, sy : ndarray of bool, shapes (n, nx-1, ny) and (n, nx, ny-1)
+        The faces each robot sees.
+    out : tuple of 6 ndarray
+        ``(K on x-faces, ∂ₓK on x-faces, ∂ᵧK on x-faces, K on y-faces, ∂ₓK, ∂ᵧK on y-faces)``.
+    """
+    kx, gx_x, gy_x, ky, gx_y, gy_y = out
+    n, mx, my = kx.shape
+    for i in range(n):
+        for a in range(mx):
+            for b in range(my):
+                s = 1.0 if sx[i, a, b] else 0.0
+                kx[i, a, b] = fxf[i, a] * fyc[i, b] * s
+                gx_x[i, a, b] = gxf[i, a] * fyc[i, b] * s
+                gy_x[i, a, b] = fxf[i, a] * gyc[i, b] * s
+    n, mx, my = ky.shape
+    for i in range(n):
+        for a in range(mx):
+            for b in range(my):
+                s = 1.0 if sy[i, a, b] else 0.0
+                ky[i, a, b] = fxc[i, a] * fyf[i, b] * s
+                gx_y[i, a, b] = gxc[i, a] * fyf[i, b] * s
+                gy_y[i, a, b] = fxc[i, a] * gyf[i, b] * s
+    return out
+
+
+def _face_moments_numpy(kx, gx_x, gy_x, ky, gx_y, gy_y, Wx, Wy, out):
+    for row, (k, W) in enumerate(((kx, Wx), (gx_x, Wx), (gy_x, Wx), (ky, Wy), (gx_y, Wy), (gy_y, Wy))):
+        out[row] = np.tensordot(k, W, 2)
+    return out
+
+
+@compiled(fallback=_face_moments_numpy)
+def face_moments(kx, gx_x, gy_x, ky, gx_y, gy_y, Wx, Wy, out):
+    """The six integrals ``Σ_faces K W`` per robot behind ``b_i`` and ``g_i`` (eq. (8)), into ``out`` (6, n).
+
+    Rows: ``K, ∂ₓK, ∂ᵧK`` against ``Wx`` on the x-faces, then against ``Wy`` on the y-faces
+    (``W`` = face weight × the face field).
+    """
+    n, mx, my = kx.shape
+    for i in range(n):
+        s0 = s1 = s2 = 0.0
+        for a in range(mx):
+            for b in range(my):
+                w = Wx[a, b]
+                s0 += kx[i, a, b] * w
+                s1 += gx_x[i, a, b] * w
+                s2 += gy_x[i, a, b] * w
+        out[0, i], out[1, i], out[2, i] = s0, s1, s2
+    n, mx, my = ky.shape
+    for i in range(n):
+        s0 = s1 = s2 = 0.0
+        for a in range(mx):
+            for b in range(my):
+                w = Wy[a, b]
+                s0 += ky[i, a, b] * w
+                s1 += gx_y[i, a, b] * w
+                s2 += gy_y[i, a, b] * w
+        out[3, i], out[4, i], out[5, i] = s0, s1, s2
+    return out
