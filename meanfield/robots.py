@@ -234,7 +234,7 @@ class NavigationField:
                 np.empty((n, nx, ny - 1), dtype) for _ in range(3)
             )
             factors = (self._fxf, self._fyc, self._fxc, self._fyf, self._gxf, self._gyc, self._gxc, self._gyf)
-            if dtype == float:
+            if dtype.kind == "f":
                 masked_face_kernels(*factors, sx, sy, out)
             else:  # complex steps (the tests' derivatives): the numpy twin
                 masked_face_kernels.fallback(*factors, sx, sy, out)
@@ -319,7 +319,7 @@ class NavigationField:
         else:  # the kernels on every face (masked by walls, or not separable): one pass
             arrays = (self._kx, self._gx_x, self._gy_x, self._ky, self._gx_y, self._gy_y, Wx, Wy)
             out = np.empty((6, len(self.positions)), np.result_type(*arrays))
-            if out.dtype == float:
+            if out.dtype.kind == "f":
                 face_moments(*arrays, out)
             else:  # complex steps (the tests' derivatives): the numpy twin
                 face_moments.fallback(*arrays, out)
