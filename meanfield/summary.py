@@ -93,6 +93,7 @@ def run_summary(
         "python_overrides": p.overrides,
         "backend": sc.pedestrians.backend,
         "controller": sc.controller.kind,
+        "compiled_loops": _compiled_loops(),
         "field_error_bound_final": _field_error_bound(loop),
         "view_radius": sc.view.radius,
         **crowd.summary(),  # the crowd's own figures (agents: field_evaluation, seen_fraction_final, bodies)
@@ -160,3 +161,11 @@ def run_id(loop: LoopView, status: str) -> str:
     for arr in (loop.robots.positions, loop.robots.headings, loop.density):
         h.update(np.ascontiguousarray(arr, dtype=float).tobytes())
     return h.hexdigest()[:16]
+
+
+def _compiled_loops() -> dict[str, Any]:
+    """Which path ran (:mod:`meanfield.compiled`): chaotic runs agree between paths in distribution only."""
+    from meanfield import compiled
+
+    st = compiled.status()
+    return {"enabled": st["enabled"], "numba": st["numba"], "fallbacks": st["fallbacks"]}

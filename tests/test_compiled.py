@@ -223,3 +223,20 @@ def test_plan_loops_match_numpy():
     Wx, Wy = rng.normal(size=(nx - 1, ny)), rng.normal(size=(nx, ny - 1))
     fast, ref, _ = both(face_moments, *fast, Wx, Wy, np.empty((6, n)))
     assert np.max(np.abs(fast - ref)) <= 1e-13
+
+
+def test_a_process_started_with_the_variable_off_runs_and_reports_the_numpy_path():
+    import json
+    import os
+    import subprocess
+    import sys
+
+    code = (
+        "import json; from meanfield import run, paper_scenario; "
+        "s = run(paper_scenario(0).replace(t_final=0.05), progress=False).summary; "
+        "print(json.dumps(s['compiled_loops']))"
+    )
+    env = dict(os.environ, MEANFIELD_COMPILED="0")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    report = json.loads(out.stdout.strip().splitlines()[-1])
+    assert report["enabled"] is False and report["fallbacks"] == {}
