@@ -7,7 +7,8 @@ rate / anchor rate).  The benchmarks, in the order they run:
 
 ==============  ==========================================================================
 kde             KDE of 10⁴ points on 256² against ``scipy.stats.gaussian_kde``; of 10⁶
-                points against the exact sum of the same estimate (``bench_kde.py``)
+                points against the exact sum of the same estimate and against KDEpy's
+                ``FFTKDE`` (``bench_kde.py``)
 closed_loop     the paper scenario's closed loop (N = 200), steps per second, against the same
                 loop in plain numpy (``plain_loop.py``) and against ``gaussian_kde`` calls per
                 second, 200 points on the 900 cells (``bench_closed_loop.py``)
@@ -111,7 +112,7 @@ def _adapter(module: str) -> Callable[[bool], list[dict[str, Any]]]:
 BENCHMARKS: dict[str, Benchmark] = {
     name: Benchmark(name, measures, anchor, _adapter(f"bench_{name}"))
     for name, measures, anchor in (
-        ("kde", "kernel density estimate, N = 1e4 and 1e6 on 256^2", "scipy gaussian_kde; exact sum"),
+        ("kde", "kernel density estimate, N = 1e4 and 1e6 on 256^2", "scipy gaussian_kde; exact sum; KDEpy FFTKDE"),
         ("closed_loop", "closed loop, paper scenario (N = 200)", "plain numpy loop; gaussian_kde calls"),
         ("fokker_planck", "Fokker–Planck solver, 64^2 / 128^2", "py-pde and FiPy (optional)"),
         ("jupedsim", "JuPedSim crowd backend, steered every step", "JuPedSim alone (optional)"),
