@@ -10,7 +10,8 @@ Each loop here is one pass over the humans, paired with its numpy twin (the refe
   (:mod:`meanfield.sampled_field`);
 * :func:`euler_maruyama`: ``X_j += b_j dt + a ξ_j`` (eq. (1) discretized), with the box's
   reflecting walls folded in when Ω is a box (any number of bounces, as
-  :meth:`meanfield.domain.Domain.reflect` does).
+  :meth:`meanfield.domain.Domain.reflect` does);
+* :func:`saturate`: the robots' inputs within their speed limits (eq. (2)).
 
 Both field loops also flag the humans a sign *reaches* (``|v_r| >= reach``, used for the
 stragglers).  The noise ``ξ_j`` is drawn by the caller from its numpy Generator, so both
@@ -25,7 +26,7 @@ import numpy as np
 
 from meanfield.compiled import compiled
 
-__all__ = ["gaussian_field_at", "bilinear_at", "euler_maruyama"]
+__all__ = ["gaussian_field_at", "bilinear_at", "euler_maruyama", "saturate"]
 
 
 # ----------------------------------------------------------------------------- v_r, exact
@@ -198,3 +199,44 @@ def euler_maruyama(x, drift, noise, dt, amp, box):
                     v = lo + (period - s if s > hi - lo else s)
             x[j, k] = v
     return x
+
+
+# ----------------------------------------------------------------------------- the robots' limits
+def _saturate_numpy(u, omega, u_max, omega_max, shrink, u_out, w_out):
+    u_out[...] = u
+    if math.isfinite(u_max):
+        speed = np.hypot(u[:, 0], u[:, 1])
+        over = speed > u_max
+        if over.any():
+            # scaled a hair below the limit, so that round-off never puts ‖u_i‖ above it
+            u_out[over] *= (u_max / speed[over] * shrink)[:, None]
+    w_out[...] = omega
+    if math.isfinite(omega_max):
+        np.minimum(np.maximum(omega, -omega_max), omega_max, out=w_out)
+    return u_out, w_out
+
+
+@compiled(fallback=_saturate_numpy)
+def saturate(u, omega, u_max, omega_max, shrink, u_out, w_out):
+    """``u_i`` scaled to ``‖u_i‖ <= u_max`` (a hair below: ``shrink``), ``ω_i`` clipped to ``±ω_max``, into the outputs.
+
+    Parameters
+    ----------
+    u : ndarray, shape (n, 2)
+    omega : ndarray, shape (n,)
+    u_max, omega_max : float
+        The limits (``inf``: none).
+    shrink : float
+        ``1 - 4 ε``: a saturated speed lands this fraction below the limit.
+    u_out, w_out : ndarray
+    """
+    for i in range(u.shape[0]):
+        ux, uy = u[i, 0], u[i, 1]
+        speed = math.hypot(ux, uy)
+        if speed > u_max:
+            s = u_max / speed * shrink
+            ux, uy = ux * s, uy * s
+        u_out[i, 0], u_out[i, 1] = ux, uy
+        w = omega[i]
+        w_out[i] = min(max(w, -omega_max), omega_max)
+    return u_out, w_out

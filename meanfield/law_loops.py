@@ -34,7 +34,7 @@ __all__ = ["paper_law", "fused_robot_inputs"]
 
 
 @inner
-def _faces(rho, rho_t, tg, inv_h, sigma, alpha0, floor, prev, have_prev, h, vd, rf, grt, dvd, axis):
+def _faces(rho, rho_t, tg, inv_h, sigma, alpha0, floor, prev, have_prev, h, vd, rf, grt, dvd, q_out, axis):
     """Step I on the faces normal to ``axis`` (0: x-faces, 1: y-faces), into the given arrays."""
     n0, n1 = vd.shape
     for a in range(n0):
@@ -52,6 +52,7 @@ def _faces(rho, rho_t, tg, inv_h, sigma, alpha0, floor, prev, have_prev, h, vd, 
             v = -q * gr + gs / f
             rf[a, b] = f
             grt[a, b] = gr
+            q_out[a, b] = q
             vd[a, b] = v
             dvd[a, b] = (v - prev[a, b]) / h if have_prev else 0.0
 
@@ -107,10 +108,10 @@ def paper_law(
     for a in range(nx):
         for bb in range(ny):
             rho_t[a, bb] = rho[a, bb] - target[a, bb]
-    rfx, grx, dvx = np.empty((nx - 1, ny)), np.empty((nx - 1, ny)), np.empty((nx - 1, ny))
-    rfy, gry, dvy = np.empty((nx, ny - 1)), np.empty((nx, ny - 1)), np.empty((nx, ny - 1))
-    _faces(rho, rho_t, tgx, inv_dx, sigma, alpha0, floor, prev_x, have_prev, h, vdx, rfx, grx, dvx, 0)
-    _faces(rho, rho_t, tgy, inv_dy, sigma, alpha0, floor, prev_y, have_prev, h, vdy, rfy, gry, dvy, 1)
+    rfx, grx, dvx, qx = np.empty((nx - 1, ny)), np.empty((nx - 1, ny)), np.empty((nx - 1, ny)), np.empty((nx - 1, ny))
+    rfy, gry, dvy, qy = np.empty((nx, ny - 1)), np.empty((nx, ny - 1)), np.empty((nx, ny - 1)), np.empty((nx, ny - 1))
+    _faces(rho, rho_t, tgx, inv_dx, sigma, alpha0, floor, prev_x, have_prev, h, vdx, rfx, grx, dvx, qx, 0)
+    _faces(rho, rho_t, tgy, inv_dy, sigma, alpha0, floor, prev_y, have_prev, h, vdy, rfy, gry, dvy, qy, 1)
     fxf, gxf = np.empty((n, nx - 1)), np.empty((n, nx - 1))
     fxc, gxc = np.empty((n, nx)), np.empty((n, nx))
     fyf, gyf = np.empty((n, ny - 1)), np.empty((n, ny - 1))
@@ -138,8 +139,7 @@ def paper_law(
             vtx[a, bb] = vt
             Wx[a, bb] = wx[a, bb] * vt
             A += wx[a, bb] * vt * (rfx[a, bb] * grx[a, bb] - dvx[a, bb])
-            q = alpha0 / (rfx[a, bb] + floor)
-            diss += wx[a, bb] * (q * rfx[a, bb] * grx[a, bb]) * grx[a, bb]
+            diss += wx[a, bb] * (qx[a, bb] * rfx[a, bb] * grx[a, bb]) * grx[a, bb]
     Wy = np.empty((nx, ny - 1))
     for a in range(nx):
         for bb in range(ny - 1):
@@ -147,8 +147,7 @@ def paper_law(
             vty[a, bb] = vt
             Wy[a, bb] = wy[a, bb] * vt
             A += wy[a, bb] * vt * (rfy[a, bb] * gry[a, bb] - dvy[a, bb])
-            q = alpha0 / (rfy[a, bb] + floor)
-            diss += wy[a, bb] * (q * rfy[a, bb] * gry[a, bb]) * gry[a, bb]
+            diss += wy[a, bb] * (qy[a, bb] * rfy[a, bb] * gry[a, bb]) * gry[a, bb]
     # the moments b_i, g_i (NavigationField.moments, separable)
     Px = fxf @ Wx
     Gx = gxf @ Wx

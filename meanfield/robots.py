@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from meanfield.crowd_loops import saturate
 from meanfield.domain import Domain
 from meanfield.errors import ParameterError, limit_or_inf
 from meanfield.grid import FaceField, Grid
@@ -115,17 +116,19 @@ class RobotTeam:
 
 
 def saturate_inputs(u: np.ndarray, omega: np.ndarray, u_max: float, omega_max: float) -> tuple[np.ndarray, np.ndarray]:
-    """Scale each ``u_i`` down to ``‖u_i‖ <= u_max`` (direction kept) and clip ``ω_i``."""
-    if math.isfinite(u_max):
-        speed = np.hypot(u[:, 0], u[:, 1])
-        over = speed > u_max
-        if over.any():
-            u = u.copy()
-            # scaled a hair below the limit, so that round-off never puts ‖u_i‖ above it
-            u[over] *= (u_max / speed[over] * _SHRINK)[:, None]
-    if math.isfinite(omega_max):  # = np.clip(omega, -ω_max, ω_max), without its dispatch cost
-        omega = np.minimum(np.maximum(omega, -omega_max), omega_max)
-    return u, omega
+    """Scale each ``u_i`` down to ``‖u_i‖ <= u_max`` (direction kept) and clip ``ω_i`` (eq. (2)'s limits).
+
+    Returns new arrays (the inputs are not changed); one compiled pass for real inputs
+    (:func:`meanfield.crowd_loops.saturate`), its numpy twin otherwise.
+    """
+    u_out = np.empty(np.shape(u), np.result_type(u, float))
+    w_out = np.empty(np.shape(omega), np.result_type(omega, float))
+    if u_out.dtype.kind == "f" and w_out.dtype.kind == "f" and u_out.ndim == 2 and w_out.ndim == 1:
+        u, omega = np.ascontiguousarray(u, float), np.ascontiguousarray(omega, float)
+        saturate(u, omega, u_max, omega_max, _SHRINK, u_out, w_out)
+    else:
+        saturate.fallback(u, omega, u_max, omega_max, _SHRINK, u_out, w_out)
+    return u_out, w_out
 
 
 _SHRINK = 1 - 4 * np.finfo(float).eps

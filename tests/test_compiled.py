@@ -240,3 +240,17 @@ def test_a_process_started_with_the_variable_off_runs_and_reports_the_numpy_path
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     report = json.loads(out.stdout.strip().splitlines()[-1])
     assert report["enabled"] is False and report["fallbacks"] == {}
+
+
+@needs_numba
+def test_saturation_matches_numpy_and_keeps_every_input_within_its_limit():
+    from meanfield.crowd_loops import saturate
+
+    rng = np.random.default_rng(9)
+    u, w = rng.normal(scale=0.3, size=(50, 2)), rng.normal(scale=4.0, size=50)
+    for u_max, w_max in ((0.2, 3.0), (np.inf, 3.0), (0.2, np.inf)):
+        fast, ref, _ = both(saturate, u, w, u_max, w_max, 1 - 4 * np.finfo(float).eps, np.empty((50, 2)), np.empty(50))
+        assert np.max(np.abs(fast[0] - ref[0])) <= 1e-16 and np.array_equal(fast[1], ref[1])
+        assert (np.hypot(fast[0][:, 0], fast[0][:, 1]) <= u_max).all() and (np.abs(fast[1]) <= w_max).all()
+        inside = np.hypot(u[:, 0], u[:, 1]) <= u_max
+        assert np.array_equal(fast[0][inside], u[inside])  # within the limit: unchanged
