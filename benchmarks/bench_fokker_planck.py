@@ -1,24 +1,33 @@
-"""Fokker–Planck solvers side by side: meanfield, FiPy and py-pde on one drift–diffusion problem.
+"""Fokker–Planck solvers side by side: meanfield against py-pde (and FiPy) on one drift–diffusion problem.
 
-Run:  python benchmarks/bench_fokker_planck.py [--sizes 64,128,256] [--reference 512] [--json FILE]
+Run:  python benchmarks/bench_fokker_planck.py [--sizes 64,128,256,512] [--reference 2048] [--json FILE]
 
 Problem (published in ``benchmarks/fp_competitors.py``): Ω = [0, 1]², σ = 0.01, drift =
 three Gaussian arrow fields (c = 0.5, η = 0.05, fixed positions and angles), uniform
 start, zero total flux on the walls, T = 2.
 
-Measured in one run, on one core:
+Ours: :class:`~meanfield.FokkerPlanck`, ADI (Peaceman–Rachford) with the accuracy step
+``courant=COURANT`` (the drift crosses at most two cells per step, so the O(dt²) time error
+scales like the O(h²) space error).  py-pde: explicit Euler at its stability limit h²/(4σ),
+numba, one thread.  Measured in one run, on one core, per grid size n:
 
-* the L² error ``‖ρ_n - R ρ_ref‖`` against a ``--reference``² solution (meanfield, ADI at a
-  small step), restricted to the n² grid by averaging blocks of cells;
-* the wall time of the time stepping, and the set-up time (grid, first step, any
-  compilation), for every solver;
-* the cost of a time-dependent drift for meanfield's ADI: the same field re-evaluated
-  every step (``time_dependent=True``), and robots moving every step (``face_velocity``
-  from :class:`~meanfield.robots.NavigationField`), against the fixed field.
+* **time per solve**: a whole solve to T (ours: coefficients, factorisations and every
+  step; py-pde: every step), best of ``--repeats`` runs, ours and py-pde alternately;
+* **set-up**: py-pde's grid, equation, numba compilation and first step; ours: grid,
+  solver and first step in a fresh Python process, where that step imports numba and
+  loads our compiled loops from numba's on-disk cache (and, once, with an empty cache:
+  their compilation, the cost of the first run after installing);
+* both ratios (py-pde / ours), set-up excluded and included, against the goal
+  ``GOAL`` (1.5), which also requires our L² error to be at most py-pde's;
+* the L² error ``‖ρ_n - R ρ_ref‖`` of each solver against a fine reference restricted to
+  the n² grid by averaging blocks of cells.  The reference is the Richardson extrapolation
+  ``(4 ρ_N - ρ_{N/2}) / 3`` of meanfield's ADI on N² and (N/2)² cells (N = ``--reference``,
+  dt = 10⁻³), which cancels the schemes' common O(h²) term: it is no solver's own answer.
+  It is cached in ``benchmarks/.cache`` (minutes to compute; delete it to recompute).
 
-The reference is cached in ``benchmarks/.cache`` (it takes minutes); delete it to recompute.
-Ratios (py-pde time / meanfield time, FiPy time / meanfield time, moving / fixed) are
-what to compare across machines.
+Also printed, for n <= 256: our other integrators (ADI at the positivity step, split,
+explicit) and FiPy when installed; and, at the largest n, the cost of a drift that
+changes every step.  Ratios, not raw times, are what to compare across machines.
 """
 
 from __future__ import annotations
@@ -31,7 +40,9 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMB
 import argparse  # noqa: E402
 import json  # noqa: E402
 import platform  # noqa: E402
+import subprocess  # noqa: E402
 import sys  # noqa: E402
+import tempfile  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
@@ -45,6 +56,15 @@ from benchmarks.records import BENCH_INSTALL, import_error, measured, settings, 
 from meanfield import Domain, FokkerPlanck, GaussianKernel, Grid, NavigationField  # noqa: E402
 
 CACHE = Path(__file__).resolve().parent / ".cache"
+#: our accuracy step: the drift crosses at most COURANT cells per ADI step
+COURANT = 2.0
+#: speed goal against py-pde, with our L² error at most py-pde's
+GOAL = 1.5
+#: FiPy takes a minute at 256² (implicit Euler with a sparse solve per step): not run above
+FIPY_MAX_CELLS = 256
+REFERENCE_DT = 1e-3
+OURS_LABEL = f"meanfield FokkerPlanck, ADI, accuracy step courant={COURANT:g}"
+PYPDE_SCHEME = "explicit Euler, numba, one thread, dt ~ h^2/(4 sigma)"
 
 
 def grid_for(n: int) -> Grid:
@@ -66,10 +86,12 @@ def point_velocity(x, y, t):
     return comp.velocity(x, y)
 
 
-def meanfield_solve(n: int, method: str, dt: float | None, time_dependent: bool = False) -> dict:
+def meanfield_solve(
+    n: int, method: str, dt: float | None, time_dependent: bool = False, courant: float | None = None
+) -> dict:
     t0 = time.perf_counter()
     g = grid_for(n)
-    fp = FokkerPlanck(g, comp.SIGMA, point_velocity, method=method, time_dependent=time_dependent)
+    fp = FokkerPlanck(g, comp.SIGMA, point_velocity, method=method, time_dependent=time_dependent, courant=courant)
     rho0 = g.normalize(np.ones(g.shape))
     setup = time.perf_counter() - t0
     steps = [0]
@@ -84,6 +106,37 @@ def meanfield_solve(n: int, method: str, dt: float | None, time_dependent: bool 
         "min": float(rho.min()),
         "mass_drift": float(abs(g.integrate(rho) - 1.0)),
     }
+
+
+_SETUP_CHILD = """
+import json, sys, time
+sys.path[:0] = [{bench!r}, {root!r}]
+import numpy as np
+import fp_competitors as comp
+from meanfield import Domain, FokkerPlanck, Grid
+t0 = time.perf_counter()
+g = Grid(Domain.box(1.0, 1.0), cells=({n}, {n}))
+fp = FokkerPlanck(g, comp.SIGMA, lambda x, y, t: comp.velocity(x, y), method="adi", time_dependent=False,
+                  courant={courant!r})
+rho0 = g.normalize(np.ones(g.shape))
+fp.step(rho0, 0.0, fp.automatic_dt(rho0))
+print(json.dumps(time.perf_counter() - t0))
+"""
+
+
+def ours_setup(n: int, cold: bool = False) -> float:
+    """Our set-up in a fresh process: grid, solver, first step (numba import, compiled loops loaded).
+
+    ``cold``: with an empty numba cache (a temporary ``NUMBA_CACHE_DIR``), so the loops compile.
+    """
+    here = Path(__file__).resolve().parent
+    code = _SETUP_CHILD.format(bench=str(here), root=str(here.parent), n=n, courant=COURANT)
+    env = dict(os.environ)
+    with tempfile.TemporaryDirectory() as tmp:
+        if cold:
+            env["NUMBA_CACHE_DIR"] = tmp
+        out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    return float(out.stdout.strip().splitlines()[-1])
 
 
 def meanfield_moving_robots(n: int, dt: float) -> dict:
@@ -118,139 +171,208 @@ def per_step_moving(n: int, method: str, dt: float, steps: int) -> float:
     return (time.perf_counter() - t1) / steps
 
 
-def reference(n_ref: int, dt: float) -> np.ndarray:
+def reference(n_ref: int, dt: float = REFERENCE_DT) -> np.ndarray:
+    """The reference on (n_ref/2)² cells: ``(4 R ρ_{n_ref} - ρ_{n_ref/2}) / 3`` (meanfield ADI at ``dt``)."""
     CACHE.mkdir(exist_ok=True)
-    path = CACHE / f"fp_reference_{n_ref}_dt{dt:g}.npy"
+    path = CACHE / f"fp_reference_richardson_{n_ref}_dt{dt:g}.npy"
     if path.exists():
         return np.load(path)
-    print(f"computing the {n_ref}² reference (ADI, dt = {dt:g}); cached in {path}", flush=True)
-    out = meanfield_solve(n_ref, "adi", dt)["rho"]
+    print(f"computing the reference from {n_ref}² and {n_ref // 2}² (ADI, dt = {dt:g}); cached in {path}", flush=True)
+    fine = meanfield_solve(n_ref, "adi", dt)["rho"]
+    coarse = meanfield_solve(n_ref // 2, "adi", dt)["rho"]
+    out = (4.0 * restrict(fine, n_ref // 2) - coarse) / 3.0
     tmp = path.with_suffix(".tmp.npy")
     np.save(tmp, out)
     tmp.replace(path)
     return out
 
 
+def compare(n: int, ref: np.ndarray, repeats: int, pypde: dict | None) -> dict[str, Any]:
+    """Ours against py-pde (``pypde``: a prepared :func:`fp_competitors.pypde_solver`, or None) on n².
+
+    Best of ``repeats`` solves each, run alternately (py-pde stops after two once its runs
+    add up to a minute); set-up times, errors against ``ref``, both ratios and the verdict.
+    """
+    meanfield_solve(n, "adi", None, courant=COURANT)  # warm-up: this process loads our compiled loops
+    ours_runs, anchor_runs = [], []
+    for k in range(repeats):
+        ours_runs.append(meanfield_solve(n, "adi", None, courant=COURANT))
+        if pypde is not None and (k < 2 or sum(r["wall_time"] for r in anchor_runs) < 60.0):
+            anchor_runs.append(pypde["solve"]())
+    ours = min(ours_runs, key=lambda r: r["wall_time"])
+    exact = restrict(ref, n)
+    out: dict[str, Any] = {
+        "n": n,
+        "ours": {k: ours[k] for k in ("wall_time", "steps", "min", "mass_drift")},
+        "ours_rho": ours["rho"],
+    }
+    out["ours"]["setup_time"] = ours_setup(n)
+    out["ours"]["l2_error"] = l2(ours["rho"], exact)
+    if pypde is None:
+        return out
+    anchor = min(anchor_runs, key=lambda r: r["wall_time"])
+    a = {k: anchor[k] for k in ("wall_time", "setup_time", "steps", "dt", "solver")}
+    a["l2_error"] = l2(anchor["rho"], exact)
+    a["mass_drift"] = abs(comp.mass(anchor["rho"]) - 1.0)
+    a["min"] = float(anchor["rho"].min())
+    o = out["ours"]
+    out["anchor"] = a
+    out["ratio_excluded"] = a["wall_time"] / o["wall_time"]
+    out["ratio_included"] = (a["setup_time"] + a["wall_time"]) / (o["setup_time"] + o["wall_time"])
+    out["accurate"] = o["l2_error"] <= a["l2_error"]
+    out["repeats"] = {"ours": len(ours_runs), "anchor": len(anchor_runs)}
+    return out
+
+
+def _records_for(row: dict[str, Any], cold: float | None) -> list[dict[str, Any]]:
+    """The two py-pde records of one size: set-up excluded, set-up included."""
+    n, o, a = row["n"], row["ours"], row["anchor"]
+    what = (
+        f"Fokker–Planck, three Gaussian arrows, sigma={comp.SIGMA:g}, T={comp.T_FINAL:g}, {n}x{n} cells, "
+        "each solver with its own scheme and step"
+    )
+    goal = f"ratio >= {GOAL:g} and L2 error <= py-pde's"
+    errors = f"L2 error vs reference {o['l2_error']:.3g} (ours) vs {a['l2_error']:.3g} (py-pde)"
+    steps = f"steps {o['steps']} vs {a['steps']}"
+    detail = {k: row[k] for k in ("n", "ours", "anchor", "ratio_excluded", "ratio_included", "accurate", "repeats")}
+    detail["cells"] = n
+    detail["ours_cold_setup_time"] = cold
+    anchor_label = f"py-pde, {PYPDE_SCHEME}"
+    excluded = measured(
+        "fokker_planck",
+        f"fokker_planck {n}^2 vs py-pde",
+        what + "; time per solve, set-up excluded",
+        OURS_LABEL,
+        anchor_label,
+        o["wall_time"],
+        a["wall_time"],
+        "s per solve",
+        faster="lower",
+        goal=goal,
+        passed=row["ratio_excluded"] >= GOAL and row["accurate"],
+        note=f"{errors}; {steps}; set-up {o['setup_time']:.2g} s vs {a['setup_time']:.2g} s",
+        detail=detail,
+    )
+    cold_note = f"; ours with an empty numba cache (first run after install): {cold:.2g} s" if cold else ""
+    included = measured(
+        "fokker_planck",
+        f"fokker_planck {n}^2 vs py-pde, set-up included",
+        what + "; set-up (ours in a fresh process) plus one solve",
+        OURS_LABEL,
+        anchor_label,
+        o["setup_time"] + o["wall_time"],
+        a["setup_time"] + a["wall_time"],
+        "s",
+        faster="lower",
+        goal=goal,
+        passed=row["ratio_included"] >= GOAL and row["accurate"],
+        note=f"{errors}; set-up {o['setup_time']:.2g} s vs {a['setup_time']:.2g} s{cold_note}",
+        detail=detail,
+    )
+    return [excluded, included]
+
+
+def _fipy_record(n: int, ours: dict, ref: np.ndarray) -> dict[str, Any]:
+    name, label = f"fokker_planck {n}^2 vs FiPy", f"FiPy, implicit Euler, dt = {comp.FIPY_DT:g}"
+    what = f"Fokker–Planck, three Gaussian arrows, {n}x{n} cells, time per solve, set-up excluded"
+    why = import_error("fipy")
+    res = comp.run_fipy(n) if why is None else {"available": False, "reason": why}
+    if not res["available"]:
+        return skipped(
+            "fokker_planck",
+            name,
+            what,
+            OURS_LABEL,
+            label,
+            f"FiPy not available ({res['reason']}); install: {BENCH_INSTALL}",
+        )
+    err = l2(res["rho"], restrict(ref, n))
+    return measured(
+        "fokker_planck",
+        name,
+        what,
+        OURS_LABEL,
+        label,
+        ours["wall_time"],
+        res["wall_time"],
+        "s per solve",
+        faster="lower",
+        note=f"L2 error vs reference {ours['l2_error']:.3g} (ours) vs {err:.3g} (FiPy)",
+        detail={"cells": n, "ours": ours, "anchor": {k: res[k] for k in ("wall_time", "setup_time", "steps", "dt")}},
+    )
+
+
 def suite_records(quick: bool) -> list[dict[str, Any]]:
     """The ``fokker_planck`` records of ``meanfield bench`` (``docs/cli.md``): ours against py-pde and FiPy.
 
-    Our ADI solve (after one untimed warm-up) against each anchor of ``fp_competitors.py``;
-    an anchor that does not import or run gives a skipped record naming the install command.
+    For every size of :data:`benchmarks.records.SETTINGS` (``cells``: 64² quick; 64², 128²,
+    256², 512² full): two py-pde records, time per solve with set-up excluded and with it
+    included, each with the goal ratio >= 1.5 at an L² error against the reference no
+    larger than py-pde's; and a FiPy record up to 256².  An anchor that does not import
+    gives a skipped record naming the install command (and nothing is run for it).
 
     Parameters
     ----------
     quick : bool
-        The quick settings of :data:`benchmarks.records.SETTINGS` (64² cells; else 128²).
+        Quick or full settings (``cells``, ``reference``, ``repeats``).
 
     Returns
     -------
     list of dict
-        One record per anchor: py-pde, then FiPy.
+        Per size: py-pde (excluded, included), then FiPy.
     """
-    n = settings("fokker_planck", quick)["cells"]
-    what = (
-        f"Fokker–Planck, three Gaussian arrows, sigma={comp.SIGMA:g}, T={comp.T_FINAL:g}, {n}x{n} cells, "
-        "time stepping after set-up, each solver with its own scheme and step"
-    )
-    ours_label = "meanfield FokkerPlanck, ADI, automatic positivity-preserving step"
-    meanfield_solve(n, "adi", None)  # warm-up, as the anchors' first step is set-up
-    ours = meanfield_solve(n, "adi", None)
-    ours_detail = {k: ours[k] for k in ("wall_time", "setup_time", "steps", "min", "mass_drift")}
+    s = settings("fokker_planck", quick)
+    sizes = [s["cells"]] if isinstance(s["cells"], int) else list(s["cells"])
+    n_ref, repeats = s.get("reference", 512 if quick else 2048), s.get("repeats", 3)
+    pde_why, fipy_why = import_error("pde"), import_error("fipy")
+    if pde_why is not None and fipy_why is not None:  # nothing to compare with: no solve at all
+        records = []
+        for n in sizes:
+            what = f"Fokker–Planck, three Gaussian arrows, {n}x{n} cells"
+            for label, why in (("py-pde", pde_why), ("FiPy", fipy_why)):
+                note = f"{label} not available ({why}); install: {BENCH_INSTALL}"
+                records.append(
+                    skipped("fokker_planck", f"fokker_planck {n}^2 vs {label}", what, OURS_LABEL, label, note)
+                )
+        return records
+    ref = reference(n_ref)
+    cold = ours_setup(sizes[0], cold=True)
     records = []
-    for label, module, runner, scheme in (
-        ("py-pde", "pde", comp.run_pypde, "explicit Euler, numba, one thread, dt ~ h^2/(4 sigma)"),
-        ("FiPy", "fipy", comp.run_fipy, f"implicit Euler, dt = {comp.FIPY_DT:g}"),
-    ):
-        name = f"fokker_planck {n}^2 vs {label}"
-        anchor_label = f"{label}, {scheme}"
-        why = import_error(module)
-        if why is None:
-            res = runner(n)
-            if not res["available"]:
-                why = res["reason"]
-        if why is not None:
-            note = f"{label} not available ({why}); install: {BENCH_INSTALL}"
-            records.append(skipped("fokker_planck", name, what, ours_label, anchor_label, note))
-            continue
-        diff = comp.l2_difference(ours["rho"], res["rho"])
-        anchor_detail = {k: res[k] for k in ("wall_time", "setup_time", "steps", "dt", "solver")}
-        anchor_detail["mass_drift"] = abs(comp.mass(res["rho"]) - 1.0)
-        records.append(
-            measured(
-                "fokker_planck",
-                name,
-                what,
-                ours_label,
-                anchor_label,
-                ours["wall_time"],
-                res["wall_time"],
-                "s per solve",
-                faster="lower",
-                note=(
-                    f"L2 difference {diff:.1e}; steps {ours['steps']} vs {res['steps']}; "
-                    f"set-up {ours['setup_time']:.2g} s vs {res['setup_time']:.2g} s"
-                ),
-                detail={"cells": n, "l2_difference": diff, "ours": ours_detail, "anchor": anchor_detail},
-            )
-        )
+    for n in sizes:
+        prepared = comp.pypde_solver(n) if pde_why is None else None
+        if prepared is not None and not prepared["available"]:
+            pde_why, prepared = prepared["reason"], None
+        row = compare(n, ref, repeats, prepared)
+        if prepared is None:
+            note = f"py-pde not available ({pde_why}); install: {BENCH_INSTALL}"
+            what = f"Fokker–Planck, three Gaussian arrows, {n}x{n} cells"
+            records.append(skipped("fokker_planck", f"fokker_planck {n}^2 vs py-pde", what, OURS_LABEL, "py-pde", note))
+        else:
+            records += _records_for(row, cold)
+        if n <= FIPY_MAX_CELLS:
+            records.append(_fipy_record(n, row["ours"], ref))
     return records
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--sizes", default="64,128,256")
-    ap.add_argument("--reference", type=int, default=512)
-    ap.add_argument("--reference-dt", type=float, default=1e-4)
-    ap.add_argument(
-        "--adi-dt",
-        type=float,
-        default=0.01,
-        help="fixed ADI step, run besides the automatic positivity-guaranteeing one (default 0.01)",
-    )
-    ap.add_argument("--skip-competitors", action="store_true")
-    ap.add_argument("--json", type=Path, default=None)
-    args = ap.parse_args(argv)
-    sizes = [int(s) for s in args.sizes.split(",")]
-    ref = reference(args.reference, args.reference_dt)
-    rows = []
+def _variants(n: int, ref: np.ndarray) -> list[tuple[str, dict]]:
+    """Our other integrators on n² (and FiPy when installed): label, result."""
+    out = [
+        ("meanfield adi (positivity dt)", meanfield_solve(n, "adi", None)),
+        ("meanfield split dt=1e-3", meanfield_solve(n, "split", 1e-3)),
+        ("meanfield explicit (auto dt)", meanfield_solve(n, "explicit", None)),
+    ]
+    if import_error("fipy") is None:
+        out.append(("FiPy implicit", comp.run_fipy(n)))
+    return out
 
-    def add(solver: str, n: int, res: dict, note: str = "") -> None:
-        if not res.get("available", True):
-            rows.append({"solver": solver, "n": n, "note": res.get("reason", "unavailable")})
-            return
-        err = l2(res["rho"], restrict(ref, n))
-        row = {
-            "solver": solver,
-            "n": n,
-            "l2_error": err,
-            "wall_time": res["wall_time"],
-            "setup_time": res.get("setup_time"),
-            "steps": res.get("steps"),
-            "dt": res.get("dt"),
-            "note": note,
-        }
-        rows.append(row)
-        print(json.dumps({k: v for k, v in row.items() if v is not None}), flush=True)
 
-    for n in sizes:
-        add("meanfield adi (auto dt)", n, meanfield_solve(n, "adi", None))
-        if args.adi_dt:
-            add(f"meanfield adi dt={args.adi_dt:g}", n, meanfield_solve(n, "adi", args.adi_dt))
-        add("meanfield split dt=1e-3", n, meanfield_solve(n, "split", 1e-3))
-        add("meanfield explicit (auto dt)", n, meanfield_solve(n, "explicit", None))
-        if not args.skip_competitors:
-            add("py-pde explicit", n, comp.run_pypde(n))
-            add("FiPy implicit", n, comp.run_fipy(n))
-    n = sizes[-1]
-    dt = args.adi_dt or 1e-3
+def _drift_cost(n: int, dt: float) -> dict[str, Any]:
     fixed = meanfield_solve(n, "adi", dt)["wall_time"]
     redo = meanfield_solve(n, "adi", dt, time_dependent=True)["wall_time"]
     moving = meanfield_moving_robots(n, dt)["wall_time"]
-    adi_step = per_step_moving(n, "adi", dt, 50)
-    lu_step = per_step_moving(n, "implicit", dt, 5)
-    drift_cost = {
-        "seconds per step, moving drift, adi (tridiagonal sweeps)": adi_step,
-        "seconds per step, moving drift, implicit (2-D sparse LU each step)": lu_step,
+    return {
+        "seconds per step, moving drift, adi (tridiagonal sweeps)": per_step_moving(n, "adi", dt, 50),
+        "seconds per step, moving drift, implicit (2-D sparse LU each step)": per_step_moving(n, "implicit", dt, 5),
         "n": n,
         "dt": dt,
         "fixed": fixed,
@@ -259,31 +381,74 @@ def main(argv=None) -> int:
         "ratio re-evaluated/fixed": redo / fixed,
         "ratio moving/fixed": moving / fixed,
     }
-    print(json.dumps(drift_cost), flush=True)
-    print("\n| solver | n | L2 error | wall time (s) | set-up (s) | steps |")
-    print("|---|---|---|---|---|---|")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", default="64,128,256,512")
+    ap.add_argument("--reference", type=int, default=2048, help="finest grid of the Richardson reference")
+    ap.add_argument("--repeats", type=int, default=3, help="solves per solver and size, alternately (best kept)")
+    ap.add_argument("--skip-competitors", action="store_true")
+    ap.add_argument("--skip-variants", action="store_true", help="only ours (accuracy step) against py-pde")
+    ap.add_argument("--json", type=Path, default=None)
+    args = ap.parse_args(argv)
+    sizes = [int(s) for s in args.sizes.split(",")]
+    ref = reference(args.reference)
+    cold = ours_setup(sizes[0], cold=True)
+    print(json.dumps({"ours set-up with an empty numba cache (s)": cold}), flush=True)
+    rows, others = [], []
+    for n in sizes:
+        pypde = None if args.skip_competitors else comp.pypde_solver(n)
+        row = compare(n, ref, args.repeats, pypde if pypde and pypde["available"] else None)
+        row.pop("ours_rho")
+        rows.append(row)
+        print(json.dumps(row, default=float), flush=True)
+        if n <= FIPY_MAX_CELLS and not args.skip_variants:
+            for label, res in _variants(n, ref):
+                err = l2(res["rho"], restrict(ref, n))
+                others.append(
+                    {"solver": label, "n": n, "l2_error": err, "wall_time": res["wall_time"], "steps": res.get("steps")}
+                )
+                print(json.dumps(others[-1]), flush=True)
+    drift = None if args.skip_variants else _drift_cost(sizes[-1], 0.01)
+    print(f"\nours: ADI courant={COURANT:g}; py-pde: {PYPDE_SCHEME}; goal ratio >= {GOAL:g} at L2 error <= py-pde's")
+    print(
+        "| n | time per solve ours / py-pde (s) | set-up ours / py-pde (s) | ratio set-up excluded | "
+        "ratio set-up included | L2 error ours / py-pde | steps ours / py-pde | goal |"
+    )
+    print("|---|---|---|---|---|---|---|---|")
     for r in rows:
-        if "l2_error" in r:
+        o, a = r["ours"], r.get("anchor")
+        if a is None:
             print(
-                f"| {r['solver']} | {r['n']} | {r['l2_error']:.3g} | {r['wall_time']:.3g} | "
-                f"{(r['setup_time'] or 0):.3g} | {r['steps'] or ''} |"
+                f"| {r['n']} | {o['wall_time']:.3g} / - | {o['setup_time']:.2g} / - | - | - | "
+                f"{o['l2_error']:.3g} / - | {o['steps']} / - | - |"
             )
-        else:
-            print(f"| {r['solver']} | {r['n']} | {r['note']} | | | |")
-    print(
-        f"\ntime-dependent drift at {n}², ADI dt={dt:g}: re-evaluated/fixed = {redo / fixed:.2f}, "
-        f"moving robots/fixed = {moving / fixed:.2f}"
-    )
-    print(
-        f"moving drift at {n}², seconds per step: adi {adi_step:.4f}, 2-D LU refactorised each step "
-        f"{lu_step:.4f} (ratio {lu_step / adi_step:.1f})"
-    )
-    if args.json:
-        args.json.write_text(
-            json.dumps(
-                {"rows": rows, "drift_cost": drift_cost, "machine": platform.platform()}, indent=2, default=float
-            )
+            continue
+        ok = r["ratio_excluded"] >= GOAL and r["ratio_included"] >= GOAL and r["accurate"]
+        print(
+            f"| {r['n']} | {o['wall_time']:.3g} / {a['wall_time']:.3g} | {o['setup_time']:.2g} / "
+            f"{a['setup_time']:.3g} | {r['ratio_excluded']:.1f} | {r['ratio_included']:.1f} | "
+            f"{o['l2_error']:.3g} / {a['l2_error']:.3g} | {o['steps']} / {a['steps']} | {'PASS' if ok else 'FAIL'} |"
         )
+    if others:
+        print("\n| solver | n | L2 error | wall time (s) | steps |\n|---|---|---|---|---|")
+        for r in others:
+            print(f"| {r['solver']} | {r['n']} | {r['l2_error']:.3g} | {r['wall_time']:.3g} | {r['steps'] or ''} |")
+    if drift is not None:
+        print(json.dumps(drift), flush=True)
+    if args.json:
+        doc = {
+            "rows": rows,
+            "others": others,
+            "drift_cost": drift,
+            "ours_cold_setup_time": cold,
+            "courant": COURANT,
+            "goal": GOAL,
+            "reference": args.reference,
+            "machine": platform.platform(),
+        }
+        args.json.write_text(json.dumps(doc, indent=2, default=float))
     return 0
 
 

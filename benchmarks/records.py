@@ -34,11 +34,16 @@ BENCH_INSTALL = "pip install -e '.[bench]'"
 
 #: what each benchmark runs, in quick and in full mode (recorded in the JSON as ``settings``)
 SETTINGS: dict[str, dict[str, dict[str, Any]]] = {
-    # bench_kde.run(quick, repeats): quick = ours best of 3, each anchor once; full = best of 5 / 2
+    # bench_kde.run(quick, repeats): quick = ours best of 3, gaussian_kde once; full = best of 5 / 2;
+    # the exact sum once; FFTKDE best of 3 / 5
     "kde": {"quick": {"repeats": 5}, "full": {"repeats": 5}},
     # the anchor makes max(steps // 3, 100) gaussian_kde calls, as the script does
     "closed_loop": {"quick": {"steps": 1000, "repeats": 2}, "full": {"steps": 3000, "repeats": 3}},
-    "fokker_planck": {"quick": {"cells": 64}, "full": {"cells": 128}},
+    # grid sizes n (n² cells); reference: finest grid of the Richardson reference; best of `repeats` solves
+    "fokker_planck": {
+        "quick": {"cells": [64], "reference": 512, "repeats": 3},
+        "full": {"cells": [64, 128, 256, 512], "reference": 2048, "repeats": 3},
+    },
     # agents -> steps (bench_jupedsim.QUICK_STEPS / FULL_STEPS), best of `repeats`
     "jupedsim": {
         "quick": {"steps": {200: 300, 2000: 60}, "repeats": 3},

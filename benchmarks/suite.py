@@ -12,8 +12,9 @@ kde             KDE of 10⁴ points on 256² against ``scipy.stats.gaussian_kde`
 closed_loop     the paper scenario's closed loop (N = 200), steps per second, against the same
                 loop in plain numpy (``plain_loop.py``) and against ``gaussian_kde`` calls per
                 second, 200 points on the 900 cells (``bench_closed_loop.py``)
-fokker_planck   the Fokker–Planck solver (ADI, automatic step) against py-pde and FiPy on
-                one drift–diffusion problem, 64² (quick) or 128² (``bench_fokker_planck.py``)
+fokker_planck   the Fokker–Planck solver (ADI, ``courant=2``) against py-pde and FiPy on one
+                drift–diffusion problem, 64² (quick) or 64² … 512² (full), each against a
+                Richardson reference, set-up included and excluded (``bench_fokker_planck.py``)
 jupedsim        the JuPedSim crowd backend steered every step against JuPedSim alone
                 (``bench_jupedsim.py``)
 large_crowd     the closed loop at N = 10⁶ (``stadium``) against the same loop with v_r summed
@@ -114,7 +115,7 @@ BENCHMARKS: dict[str, Benchmark] = {
     for name, measures, anchor in (
         ("kde", "kernel density estimate, N = 1e4 and 1e6 on 256^2", "scipy gaussian_kde; exact sum; KDEpy FFTKDE"),
         ("closed_loop", "closed loop, paper scenario (N = 200)", "plain numpy loop; gaussian_kde calls"),
-        ("fokker_planck", "Fokker–Planck solver, 64^2 / 128^2", "py-pde and FiPy (optional)"),
+        ("fokker_planck", "Fokker–Planck solver, 64^2 / 64^2 ... 512^2", "py-pde and FiPy (optional)"),
         ("jupedsim", "JuPedSim crowd backend, steered every step", "JuPedSim alone (optional)"),
         ("large_crowd", "closed loop at N = 1e6 (stadium)", "v_r summed exactly"),
         ("bounded", "bounded beta/gamma: re-solve and closed loop", "rebuild; min-norm"),

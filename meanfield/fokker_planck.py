@@ -170,6 +170,14 @@ class FokkerPlanck(_TimeStepping):
         they are evaluated once and the face coefficients (and factorisations) reused.
     cfl : float, default 0.9
         Fraction of the positivity bound used by the automatic step (0 < cfl <= 1).
+    courant : float, optional
+        ``"adi"`` only: choose the automatic step for accuracy instead of positivity,
+        ``dt = courant · min_faces(h / |a|)`` (the drift crosses at most ``courant`` cells
+        per step), so that the O(dt²) time error of Peaceman–Rachford scales like the
+        O(h²) space error.  The step is stable whatever its size; each step's result is
+        still checked to be ``>= 0`` and the step shortened when it is not.  Without any
+        drift it falls back to the positivity step.  Default None: ``cfl`` × the
+        positivity bound, O(h²) steps.
 
     Examples
     --------
@@ -193,6 +201,7 @@ class FokkerPlanck(_TimeStepping):
         method: Method | None = None,
         time_dependent: bool = True,
         cfl: float = 0.9,
+        courant: float | None = None,
     ):
         if not isinstance(grid, Grid):
             raise ParameterError("grid", type(grid).__name__, "a meanfield.Grid")
@@ -222,6 +231,9 @@ class FokkerPlanck(_TimeStepping):
         if cfl_v > 1:
             raise ParameterError("cfl", cfl, "a number in (0, 1]")
         self.cfl = cfl_v
+        if courant is not None and method != "adi":
+            raise ParameterError("courant", courant, "None unless method='adi' (the only method it applies to)")
+        self.courant = None if courant is None else positive_number("courant", courant)
         self._static: tuple[FaceField, FaceField] | None = None  # (drift, diffusion) when cacheable
         self._potential_drift: FaceField | None = None
         self._coeff_cache: _Coefficients | None = None

@@ -15,7 +15,7 @@ docs/discretisation.md, "Time stepping"):
     is refused.
 ``"split"`` (the default on cut-cell grids)
     Directional splitting: backward-Euler sweeps along x then y (the order alternates
-    each step), each a batch of tridiagonal solves (LAPACK ``gtsv``), O(cells) per step
+    each step), each a batch of tridiagonal solves, O(cells) per step
     whatever the drift does.  Every sweep matrix is an M-matrix, so ``ρ >= 0`` for any
     ``dt``.  First order in time.
 ``"adi"`` (the default on a box)
@@ -24,12 +24,20 @@ docs/discretisation.md, "Time stepping"):
     Guaranteed positive when ``dt <= 2 min(V_c / Σ_out^x(c), V_c / Σ_out^y(c))`` (about
     four times the explicit bound), which the automatic step uses; a larger user ``dt``
     is accepted while the result stays ``>= 0`` and refused, with the bound, when it
-    does not.
+    does not.  With ``courant`` set, the automatic step is chosen for accuracy instead:
+    ``courant · min_faces(h / |a|)``, whose O(dt²) time error scales like the O(h²)
+    space error (the positivity bound scales like h²).
 ``"implicit"``
     Backward Euler on the full 2-D M-matrix (sparse LU), positive for any ``dt``, first
     order in time.  The factorisation is reused while the coefficients and ``dt`` stay
     fixed; a drift that moves every step forces a refactorisation, which is why
     ``"split"`` and ``"adi"`` exist (see ``benchmarks/bench_fokker_planck.py``).
+
+The tridiagonal sweeps of ``"split"`` and ``"adi"`` are the compiled loops of
+:mod:`meanfield.fp_compiled` (the Thomas algorithm; one fused pass down and up the grid
+per ADI step), their factors kept for a fixed drift; with ``MEANFIELD_COMPILED=0``
+(:mod:`meanfield.compiled`) they are LAPACK's ``gtsv`` / ``gttrf`` / ``gttrs`` on all
+grid lines at once, the reference the tests compare with.
 
 The interaction drift ``u_W[ρ]`` (FFT convolution on a zero-padded grid) is frozen at the
 start of each step (IMEX: nonlinear drift explicit, linear drift–diffusion implicit).
@@ -44,6 +52,7 @@ import numpy as np
 from scipy.linalg import lapack
 from scipy.sparse import linalg as splinalg
 
+from meanfield import fp_compiled
 from meanfield.errors import ParameterError, positive_number
 from meanfield.grid import FaceField, Grid
 
@@ -67,7 +76,6 @@ def _check_face_field(name: str, value, grid: Grid) -> FaceField:
     if not (np.all(np.isfinite(fx)) and np.all(np.isfinite(fy))):
         raise ParameterError(name, "non-finite values (NaN or inf)", "finite face velocities")
     return fx, fy
-
 
 
 class _Coefficients:
@@ -99,6 +107,11 @@ class _Coefficients:
             self._out_x, self._out_y = ox, oy
         return self._out_x, self._out_y
 
+
+#: factorisations kept for a fixed drift (one per step size and axis): the latest few
+_CACHED_FACTORS = 8
+
+
 class _StepTooLarge(ParameterError):
     """A step above the method's bound; ``bound`` is the bound at the offending stage."""
 
@@ -111,7 +124,7 @@ class _TimeStepping:
     """The time integrators of eq. (4), mixed into :class:`~meanfield.fokker_planck.FokkerPlanck`.
 
     The host class provides the spatial operator (docs/fokker_planck.md, "The scheme"):
-    ``grid``, ``method``, ``cfl``, ``time_dependent``, ``interaction``, the caches
+    ``grid``, ``method``, ``cfl``, ``courant``, ``time_dependent``, ``interaction``, the caches
     ``_lu_cache`` and ``_work``, and the methods ``check_density``, ``_coefficients``
     (the face coefficients of ``A(ρ, t)``), ``_apply`` (the mass rate ``A ρ``),
     ``_matrix`` (the backward-Euler matrix ``V - dt A``) and ``_buffer`` (work arrays).
@@ -133,6 +146,21 @@ class _TimeStepping:
         b = float(np.min(g.volume[mask] / out[mask])) if np.any(mask) else math.inf
         c.bounds[key] = b
         return b
+
+    def _crossing_time(self, c: _Coefficients) -> float:
+        """``min_faces h / |a|``, the time the drift takes to cross a cell (cached per coefficient set).
+
+        ``|a|`` is read off the coefficients: ``c_left - c_right = a`` times the face length.
+        """
+        if "crossing" not in c.bounds:
+            g = self.grid
+            rate = 0.0
+            for lo, hi, length, h in ((c.lx, c.rx, g._len_x, g.dx), (c.ly, c.ry, g._len_y, g.dy)):
+                open_ = length > 0
+                if np.any(open_):
+                    rate = max(rate, float(np.max(np.abs(lo - hi)[open_] / length[open_])) / h)
+            c.bounds["crossing"] = 1.0 / rate if rate > 0 else math.inf
+        return c.bounds["crossing"]
 
     def positivity_bound(self, rho: np.ndarray, t: float = 0.0, face_velocity: FaceField | None = None) -> float:
         """Largest ``dt`` for which the chosen method keeps ``ρ >= 0`` (inf if unconditional).
@@ -248,7 +276,7 @@ class _TimeStepping:
             lu = lapack.dgttrf(dl_.copy(), d_.copy(), du_.copy())
             if lu[-1] != 0:  # pragma: no cover
                 raise FloatingPointError(f"tridiagonal factorisation failed (info={lu[-1]})")
-            self._lu_cache[key] = lu
+            self._remember(key, lu)
         dl_, d_, du_, du2, ipiv, _ = lu
         x, info = lapack.dgttrs(dl_, d_, du_, du2, ipiv, b.reshape(-1, 1), overwrite_b=1)
         x = x.reshape(rows, n)
@@ -258,12 +286,43 @@ class _TimeStepping:
         cacheable = not self.time_dependent and self.interaction is None and fv is None
         return "static" if cacheable else None
 
+    def _thomas(self, c: _Coefficients, tau: float, axis: str, key) -> tuple[np.ndarray, np.ndarray]:
+        """Factors of ``V - τ A_axis`` (:func:`~meanfield.fp_compiled.tridiagonal_factor`), kept for a fixed drift."""
+        ck = ("thomas", axis, tau, key) if key is not None else None
+        if ck is not None and ck in self._lu_cache:
+            return self._lu_cache[ck]
+        shape = self.grid.shape
+        if ck is None:  # a new drift every step: factor into work arrays
+            g, rp = self._buffer("g" + axis, shape), self._buffer("rp" + axis, shape)
+        else:
+            g, rp = np.empty(shape), np.empty(shape)
+        lo, hi = (c.lx, c.rx) if axis == "x" else (c.ly, c.ry)
+        fp_compiled.tridiagonal_factor(self.grid.volume, lo, hi, tau, 0 if axis == "x" else 1, g, rp)
+        if ck is not None:
+            self._remember(ck, (g, rp))
+        return g, rp
+
+    def _remember(self, key, factors) -> None:
+        """Keep a factorisation for a fixed drift; steps of many sizes keep only the latest few."""
+        while len(self._lu_cache) >= _CACHED_FACTORS:
+            self._lu_cache.pop(next(iter(self._lu_cache)))
+        self._lu_cache[key] = factors
+
     def _split(self, rho, t, dt, fv):
         c = self._coefficients(rho, t + dt, fv)
         key = self._cache_key(fv)
         V = self.grid.volume
         self._parity = not getattr(self, "_parity", False)
         first, second = ("x", "y") if self._parity else ("y", "x")
+        if fp_compiled.enabled():
+            out = np.multiply(V, rho)
+            for axis in (first, second):
+                if axis == second:
+                    out *= V
+                g, rp = self._thomas(c, dt, axis, key)
+                hi = c.rx if axis == "x" else c.ry
+                fp_compiled.tridiagonal_solve(out, hi, dt, g, rp, 0 if axis == "x" else 1, out)
+            return out
         r = self._sweep(c, V * rho, dt, first, key)
         return np.array(self._sweep(c, V * r, dt, second, key))
 
@@ -272,6 +331,15 @@ class _TimeStepping:
         key = self._cache_key(fv)
         V = self.grid.volume
         h = 0.5 * dt
+        if fp_compiled.enabled():
+            gx, rpx = self._thomas(c, h, "x", key)
+            gy, rpy = self._thomas(c, h, "y", key)
+            out = np.empty(rho.shape)
+            work = self._buffer("r", rho.shape)
+            lowest = fp_compiled.adi_step(rho, V, c.lx, c.rx, c.ly, c.ry, h, gx, rpx, gy, rpy, work, out)
+            if check and lowest < 0:  # possible only above the positivity bound
+                raise self._too_large(dt, 2.0 * min(self._bound(c, "x"), self._bound(c, "y")), "positivity")
+            return out
         vr = self._buffer("vr", rho.shape)
         b = self._apply(c, rho, "y", self._buffer("rhs", rho.shape))
         b *= h
@@ -293,7 +361,7 @@ class _TimeStepping:
         if lu is None:
             lu = splinalg.splu(self._matrix(c, dt))
             if key is not None:
-                self._lu_cache[("2d", dt, key)] = lu
+                self._remember(("2d", dt, key), lu)
         return lu.solve((self.grid.volume * rho).ravel()).reshape(rho.shape)
 
     # ------------------------------------------------------------------ driver
@@ -304,9 +372,15 @@ class _TimeStepping:
         grids the smallest cell sets it: prefer ``"split"`` there, or pass ``dt``); for
         the unconditionally positive ``"split"`` and ``"implicit"``, ``cfl`` × four times
         the explicit bound of the cells at least half inside Ω (their error is first
-        order in ``dt``; pass a ``dt`` to go further).
+        order in ``dt``; pass a ``dt`` to go further).  With ``courant`` set (``"adi"``):
+        ``courant · min_faces(h / |a|)``, an accuracy step (:meth:`solve` then divides
+        the time left into equal steps of at most that size).
         """
         c = self._coefficients(rho, t, face_velocity)
+        if self.courant is not None:  # accuracy: the drift crosses `courant` cells per step
+            step = self.courant * self._crossing_time(c)
+            if math.isfinite(step):
+                return step
         if self.method == "explicit":
             b = self._bound(c, "xy")
         elif self.method == "adi":
@@ -374,6 +448,8 @@ class _TimeStepping:
             while t_final - t > 1e-13 * span:
                 fv = fv_const if fv_fn is None else _check_face_field("face_velocity", fv_fn(t), self.grid)
                 h = dt if dt is not None else self.automatic_dt(rho, t, fv)
+                if dt is None and self.courant is not None and math.isfinite(h):  # equal steps to t_final
+                    h = (t_final - t) / max(1, math.ceil((t_final - t) / h - 1e-9))
                 h = min(h, t_final - t)
                 for attempt in range(60):
                     try:
