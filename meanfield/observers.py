@@ -223,8 +223,16 @@ class Recorder:
             self.record_state()
 
     def finish(self) -> None:
-        """Record the final state if the last step did not."""
-        if self.last_recorded_step != self.loop.step_index:
+        """Drop a frame an interrupt cut short, then record the final state if the last step did not.
+
+        A Ctrl-C (or SIGTERM) can land between two of a frame's appends; the frames are
+        then cut to the ones every series holds, so the dataset stays whole.
+        """
+        complete = min(len(values) for values in self.frames.values())
+        cut = any(len(values) > complete for values in self.frames.values())
+        for values in self.frames.values():
+            del values[complete:]
+        if cut or self.last_recorded_step != self.loop.step_index:
             self.record_state()
 
     def _lyapunov_values(self, state: ControlState | None) -> dict[str, float]:

@@ -170,3 +170,27 @@ def test_a_new_region_is_one_class_and_one_registration_line(tmp_path):
         assert loop.grid.x[-1] > 1.9  # the grid spans the 2 m room
     finally:
         plugins.unregister("region", "square-room")
+
+
+def test_an_interrupt_inside_a_frame_leaves_a_whole_dataset(monkeypatch):
+    """Ctrl-C between two appends of a frame (the recorder's record_state) still gives a dataset."""
+    from meanfield import ClosedLoop, paper_scenario
+    from meanfield.observers import Recorder
+
+    real = Recorder.record_state
+    calls = {"n": 0}
+
+    def cut_short(self):
+        calls["n"] += 1
+        if calls["n"] == 4:  # the fourth frame: half written, then the interrupt
+            self.frames["time"].append(self.loop.t)
+            self.frames["robot_x"].append(self.loop.robots.positions[:, 0].copy())
+            raise KeyboardInterrupt
+        return real(self)
+
+    monkeypatch.setattr(Recorder, "record_state", cut_short)
+    result = ClosedLoop(paper_scenario(seed=0).replace(t_final=1.0)).run(progress=False)
+    ds = result.dataset
+    assert result.summary["status"] == "interrupted"
+    assert ds.sizes["time"] == 4 and float(ds["time"][-1]) == result.summary["time_final"]  # 3 frames + the final state
+    assert len({ds[v].sizes.get("time") for v in ds.data_vars if "time" in ds[v].dims}) == 1
