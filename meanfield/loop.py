@@ -18,8 +18,11 @@ solvers.  :meth:`ClosedLoop.run` attaches the standard observers and returns a r
 
 from __future__ import annotations
 
+import signal
+import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -189,21 +192,28 @@ class ClosedLoop:
         bar = None  # shown once the first step is done: it loads (or compiles) the compiled loops
         try:
             remaining = loop.crowd.remaining_fraction if recorder.exits else None  # only with exits
-            for _ in range(n_steps):
-                loop.step()
-                if bar is None:
-                    desc = f"meanfield run {sc.name}"
-                    bar = tqdm(total=n_steps, disable=not progress, desc=desc, unit="step", mininterval=0.5)
-                if recorder.last_recorded_step == loop.step_index:
-                    bar.update(loop.step_index - first - bar.n)
-                if callback is not None:
-                    callback(loop)
-                if remaining is not None and remaining() <= 0.0:
-                    message = f"everyone left through the exits at t = {loop.t:.4g}"
-                    break
+            with _stop_between_steps() as stop_requested:
+                for _ in range(n_steps):
+                    if stop_requested():
+                        raise KeyboardInterrupt
+                    loop.step()
+                    if bar is None:
+                        desc = f"meanfield run {sc.name}"
+                        bar = tqdm(total=n_steps, disable=not progress, desc=desc, unit="step", mininterval=0.5)
+                    if recorder.last_recorded_step == loop.step_index:
+                        bar.update(loop.step_index - first - bar.n)
+                    if callback is not None:
+                        callback(loop)
+                    if remaining is not None and remaining() <= 0.0:
+                        message = f"everyone left through the exits at t = {loop.t:.4g}"
+                        break
         except SimulationDiverged as exc:
             status, message = "diverged", str(exc)
         except KeyboardInterrupt:
+            status, message = "interrupted", f"interrupted at t = {loop.t:.4g}"
+        except SystemError as exc:  # a second Ctrl-C inside a compiled call surfaces as this
+            if not isinstance(exc.__cause__, KeyboardInterrupt):
+                raise
             status, message = "interrupted", f"interrupted at t = {loop.t:.4g}"
         finally:
             if bar is not None:
@@ -230,6 +240,34 @@ class ClosedLoop:
         summary = {"run_id": rid, **summary, "warnings": stability_warnings(sc, loop.grid, summary)}
         dataset.attrs.update(run_id=rid, status=status, message=message)
         return SimulationResult(sc, dataset, summary, p.kernel)
+
+
+@contextmanager
+def _stop_between_steps() -> Iterator[Callable[[], bool]]:
+    """While a run steps: the first Ctrl-C (SIGINT) or SIGTERM asks it to stop after the current step.
+
+    The signal only sets a flag that :meth:`ClosedLoop.run` reads between steps, so a step is
+    never cut in half (a signal landing inside a compiled call, or between two appends of a
+    recorded frame, would leave the state or the frames inconsistent).  A second signal
+    interrupts at once, as Python's default handler does.  Outside the main thread (where
+    handlers cannot be installed) signals behave as Python's defaults.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: False
+        return
+    requested: list[int] = []
+
+    def handler(signum: int, frame: object) -> None:
+        if requested:
+            raise KeyboardInterrupt(f"signal {signum}")
+        requested.append(signum)
+
+    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield lambda: bool(requested)
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
 
 
 def run(

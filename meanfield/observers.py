@@ -228,9 +228,10 @@ class Recorder:
         A Ctrl-C (or SIGTERM) can land between two of a frame's appends; the frames are
         then cut to the ones every series holds, so the dataset stays whole.
         """
-        complete = min(len(values) for values in self.frames.values())
-        cut = any(len(values) > complete for values in self.frames.values())
-        for values in self.frames.values():
+        series = [values for values in self.frames.values() if values]  # (no humans recorded: theirs stay empty)
+        complete = min(len(values) for values in series)
+        cut = any(len(values) > complete for values in series)
+        for values in series:
             del values[complete:]
         if cut or self.last_recorded_step != self.loop.step_index:
             self.record_state()

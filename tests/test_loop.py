@@ -194,3 +194,23 @@ def test_an_interrupt_inside_a_frame_leaves_a_whole_dataset(monkeypatch):
     assert result.summary["status"] == "interrupted"
     assert ds.sizes["time"] == 4 and float(ds["time"][-1]) == result.summary["time_final"]  # 3 frames + the final state
     assert len({ds[v].sizes.get("time") for v in ds.data_vars if "time" in ds[v].dims}) == 1
+
+
+def test_a_signal_during_a_run_stops_it_between_two_steps():
+    import os
+    import signal
+
+    from meanfield import ClosedLoop, paper_scenario
+
+    before = signal.getsignal(signal.SIGINT)
+
+    def ctrl_c_after_the_fifth_step(loop):
+        if loop.step_index == 5:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    result = ClosedLoop(paper_scenario(seed=0).replace(t_final=1.0)).run(
+        progress=False, callback=ctrl_c_after_the_fifth_step
+    )
+    assert result.summary["status"] == "interrupted" and result.summary["steps"] == 5
+    assert result.dataset.sizes["time"] == 2  # the initial state and the state after step 5, whole
+    assert signal.getsignal(signal.SIGINT) is before  # the handler is restored
