@@ -18,12 +18,20 @@ The optimal-control problem (every ``Δt_c = period``)::
     subject to the model above,  |u_{ik}|² <= u_max²,  |ω_{ik}| <= ω_max,  R_{ik} in the robots' region
 
 with ``‖·‖`` the coarse L² norm, ``ρ_0`` the fine-grid KDE estimate averaged onto the coarse
-cells (renormalised to unit mass) and ``ρ_*`` the target averaged likewise.  The problem is
-built once with CasADi's Opti stack (every state lifted as a decision variable: sparse
-Jacobians and Hessians), compiled to one function with ``Opti.to_function`` and solved by
-IPOPT (exact Hessian by default), warm-started from the previous solution shifted by the
-elapsed prediction steps.  Between solves the robots apply the plan open loop (with
-``period == step``, the default, the first input is held).
+cells (renormalised to unit mass) and ``ρ_*`` the target averaged likewise.  Two solvers of
+this one problem (``solver``):
+
+* ``"sqp"`` (default): the states eliminated, SQP on the robots' inputs with the exact
+  Hessian and the exact constraints, a few QPs per control period (real-time iterations),
+  optionally with move blocking (:mod:`analysis.nmpc_condensed`, :mod:`analysis.nmpc_sqp`,
+  :mod:`analysis.nmpc_qp`);
+* ``"ipopt"``: every state lifted as a decision variable, compiled once with CasADi's Opti
+  stack and solved by IPOPT to convergence (:mod:`analysis.nmpc_ipopt`).
+
+Each solve is warm-started from the previous solution shifted by the elapsed prediction
+steps.  Between solves the robots apply the plan open loop (with ``period == step``, the
+default, the first input is held).  With ``spread`` an SQP solve runs in slices, one per
+control step, and its plan is applied from the time the solve started once it is done.
 
 The inputs returned are the plan's; the other fields of the returned
 :class:`~meanfield.control.ControlState` (``v_d``, ``ṽ``, ``b``, ``g``, ``A``, dissipation)
@@ -37,15 +45,17 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Mapping
-from dataclasses import dataclass
+from collections.abc import Generator, Mapping
 from typing import Any
 
-import casadi as ca
 import numpy as np
 
+from analysis.nmpc_condensed import CondensedProblem
+from analysis.nmpc_ipopt import ipopt_arrays, ipopt_function
 from analysis.nmpc_model import CoarseFokkerPlanck
-from analysis.nmpc_options import FLUXES, HESSIANS, NMPCOptions
+from analysis.nmpc_options import FLUXES, HESSIANS, SOLVERS, NMPCOptions
+from analysis.nmpc_plan import NMPCPlan, robot_state
+from analysis.nmpc_sqp import SQPSolver
 from meanfield.control import BacksteppingController, ControlState
 from meanfield.errors import ParameterError
 from meanfield.grid import Grid
@@ -56,6 +66,7 @@ from meanfield.robots import NavigationField, RobotTeam
 __all__ = [
     "FLUXES",
     "HESSIANS",
+    "SOLVERS",
     "NMPCOptions",
     "CoarseFokkerPlanck",
     "NMPCPlan",
@@ -65,45 +76,6 @@ __all__ = [
 
 
 # ---------------------------------------------------------------------- the controller
-@dataclass
-class NMPCPlan:
-    """One solution of the optimal-control problem.
-
-    Attributes
-    ----------
-    u : ndarray (H, n, 2)
-        Planned velocities ``u_{ik}`` (within the speed limit).
-    omega : ndarray (H, n)
-        Planned turn rates.
-    positions, headings : ndarray (H+1, n, 2), (H+1, n)
-        Predicted robot states, the initial state first.
-    rho : ndarray (H+1, nx, ny)
-        Predicted coarse densities, ``ρ_0`` first.
-    cost : float
-        The optimal cost.
-    lam_g : ndarray
-        Constraint multipliers (for the next warm start).
-    status : str
-        IPOPT's return status.
-    success : bool
-    iterations : int
-    seconds : float
-        Wall time of the compiled function call (the solve).
-    """
-
-    u: np.ndarray
-    omega: np.ndarray
-    positions: np.ndarray
-    headings: np.ndarray
-    rho: np.ndarray
-    cost: float
-    lam_g: np.ndarray
-    status: str
-    success: bool
-    iterations: int
-    seconds: float
-
-
 class NMPCController:
     """Receding-horizon controller of the robots on a coarse Fokker–Planck model (see the module).
 
@@ -129,9 +101,10 @@ class NMPCController:
     Attributes
     ----------
     stats : list of dict
-        One entry per solve: ``t``, ``seconds`` (wall time of the solve), ``status`` (IPOPT),
-        ``success``, ``iterations``, ``cost``, ``max_speed_solver`` and ``max_turn_rate_solver``
-        (the largest ``‖u_ik‖``, ``|ω_ik|`` of IPOPT's solution, before projection) and
+        One entry per solve: ``t`` (when it started), ``seconds`` (its compute, all slices),
+        ``slices`` and ``slowest_slice`` (control steps it ran in, and the longest of them),
+        ``status`` (the solver's), ``success``, ``iterations``, ``cost``, ``max_speed_solver`` and
+        ``max_turn_rate_solver`` (the largest ``‖u_ik‖``, ``|ω_ik|`` of the solver's solution, before projection) and
         ``projected`` (whether the returned inputs had to be projected back onto the limits,
         which IPOPT meets only to its tolerance).
     backstepping_seconds : list of float
@@ -166,61 +139,23 @@ class NMPCController:
         self.region = tuple(float(b) for b in (region if region is not None else grid.domain.bounds))
         self._restriction = self.model.restriction(grid)
         self.target_coarse = self.restrict(np.asarray(target, float))
-        self.solver = self._build()
+        self.solver = self._build()  # a casadi.Function (IPOPT) or an SQPSolver
         self.stats: list[dict[str, Any]] = []
         self.backstepping_seconds: list[float] = []
         self.plan: NMPCPlan | None = None
         self._t_plan = 0.0
+        self._t_start: float | None = None  # when the last solve started
+        self._pending: Generator[None, None, NMPCPlan] | None = None  # a solve under way (spread)
+        self._slices: list[float] = []
 
-    # ------------------------------------------------------------------ the compiled problem
-    def _build(self) -> ca.Function:
-        o, m, n = self.options, self.model, self.n
-        H, C, h = o.horizon, m.size, m.step
-        opti = ca.Opti()
-        rho0, target = opti.parameter(C), opti.parameter(C)
-        rx0, ry0, th0 = opti.parameter(n), opti.parameter(n), opti.parameter(n)
-        Ux, Uy, W = opti.variable(n, H), opti.variable(n, H), opti.variable(n, H)
-        Rx, Ry, Th = opti.variable(n, H), opti.variable(n, H), opti.variable(n, H)
-        P = opti.variable(C, H)
-        J = 0
-        px, py, pt, pr = rx0, ry0, th0, rho0
-        for k in range(H):
-            opti.subject_to(Rx[:, k] == px + h * Ux[:, k])  # eq. (2), forward Euler
-            opti.subject_to(Ry[:, k] == py + h * Uy[:, k])
-            opti.subject_to(Th[:, k] == pt + h * W[:, k])
-            opti.subject_to(m.residual_function(P[:, k], pr, Rx[:, k], Ry[:, k], Th[:, k]) == 0)  # eq. (4)
-            e = P[:, k] - target
-            J += h * (
-                m.cell_volume * ca.sumsqr(e)
-                + o.r_u * (ca.sumsqr(Ux[:, k]) + ca.sumsqr(Uy[:, k]))
-                + o.r_omega * ca.sumsqr(W[:, k])
-            )
-            px, py, pt, pr = Rx[:, k], Ry[:, k], Th[:, k], P[:, k]
-        J += o.terminal * m.cell_volume * ca.sumsqr(P[:, H - 1] - target)
-        opti.minimize(J)
-        if math.isfinite(self.u_max):
-            opti.subject_to(ca.vec(Ux * Ux + Uy * Uy) <= self.u_max**2)
-        if math.isfinite(self.omega_max):
-            opti.subject_to(opti.bounded(-self.omega_max, ca.vec(W), self.omega_max))
-        x0, x1, y0, y1 = self.region
-        opti.subject_to(opti.bounded(x0, ca.vec(Rx), x1))
-        opti.subject_to(opti.bounded(y0, ca.vec(Ry), y1))
-        ipopt = {
-            "print_level": 0,
-            "sb": "yes",
-            "max_iter": o.max_iter,
-            "tol": o.tol,
-            "hessian_approximation": o.hessian,
-        }
-        opti.solver("ipopt", {"print_time": False, "error_on_fail": False, "expand": True}, ipopt)
-        self._shapes = {"H": H, "C": C}
-        return opti.to_function(
-            "nmpc",
-            [rho0, rx0, ry0, th0, target, Ux, Uy, W, Rx, Ry, Th, P, opti.lam_g],
-            [Ux, Uy, W, Rx, Ry, Th, P, opti.lam_g, opti.f],
-            ["rho0", "rx0", "ry0", "th0", "target", "ux", "uy", "omega", "rx", "ry", "th", "rho", "lam_g"],
-            ["ux_opt", "uy_opt", "omega_opt", "rx_opt", "ry_opt", "th_opt", "rho_opt", "lam_g_opt", "cost"],
-        )
+    # ------------------------------------------------------------------ the solver
+    def _build(self) -> Any:
+        """The compiled IPOPT function, or the SQP solver on the condensed problem."""
+        o, m = self.options, self.model
+        if o.solver == "ipopt":
+            return ipopt_function(m, o, self.n, self.u_max, self.omega_max, self.region)
+        problem = CondensedProblem(m, o.input_blocks, o.r_u, o.r_omega, o.terminal)
+        return SQPSolver(problem, self.u_max, self.omega_max, self.region, o.hessian)
 
     # ------------------------------------------------------------------ pieces
     def restrict(self, rho: np.ndarray) -> np.ndarray:
@@ -238,7 +173,8 @@ class NMPCController:
         shift: int = 0,
     ) -> dict[str, Any]:
         """Initial guess of a solve: ``previous`` shifted by ``shift`` prediction steps (the last
-        input repeated), or zero inputs; robot states rolled out from ``(positions, headings)``."""
+        input repeated), or zero inputs; robot states rolled out from ``(positions, headings)``;
+        the previous multipliers (IPOPT) and damping (SQP)."""
         H, n = self.options.horizon, self.n
         positions = np.asarray(positions, float).reshape(-1, 2)
         headings = np.asarray(headings, float).ravel()
@@ -246,13 +182,13 @@ class NMPCController:
         if previous is None:
             u = np.zeros((H, n, 2))
             w = np.zeros((H, n))
-            lam = 0.0
+            lam, damping = 0.0, 0.0
             rho_guess = np.repeat(rho_c.reshape(1, -1), H, axis=0)
         else:
             s = min(max(shift, 0), H)
             idx = np.minimum(np.arange(H) + s, H - 1)
             u, w = previous.u[idx], previous.omega[idx]
-            lam = previous.lam_g
+            lam, damping = previous.lam_g, previous.damping
             rho_guess = previous.rho[1:][idx].reshape(H, -1)
         x0, x1, y0, y1 = self.region
         h = self.model.step
@@ -267,6 +203,7 @@ class NMPCController:
             "th": T.T,
             "rho": rho_guess.T,
             "lam_g": lam,
+            "damping": damping,
         }
 
     def solve(
@@ -276,7 +213,7 @@ class NMPCController:
         headings: np.ndarray,
         guess: Mapping[str, Any] | None = None,
     ) -> NMPCPlan:
-        """Solve the optimal-control problem once (a call of the compiled function).
+        """Solve the optimal-control problem once (the SQP's QPs, or a call of the compiled IPOPT function).
 
         Parameters
         ----------
@@ -285,17 +222,26 @@ class NMPCController:
         positions, headings : ndarray (n, 2), (n,)
             Robot states ``R_i``, ``θ_i`` now.
         guess : mapping, optional
-            Initial guess (keys of the compiled function's inputs); default zero inputs.
+            Initial guess (the keys of :meth:`initial_guess`); default zero inputs.
 
         Returns
         -------
         NMPCPlan
-            With the inputs projected onto the limits (IPOPT meets them only to its tolerance).
+            The solver's inputs (:meth:`robot_inputs` projects them onto the limits).
         """
         positions = np.asarray(positions, float).reshape(-1, 2)
         headings = np.asarray(headings, float).ravel()
         rho_c = np.asarray(rho_coarse, float).reshape(self.model.shape)
         g = dict(guess) if guess is not None else self.initial_guess(rho_c, positions, headings)
+        if self.options.solver == "sqp":
+            t0, steps = time.perf_counter(), self._sqp_plan(rho_c, positions, headings, g)
+            while True:
+                try:
+                    next(steps)
+                except StopIteration as done:
+                    done.value.seconds = time.perf_counter() - t0
+                    return done.value
+        damping = g.pop("damping", 0.0)
         t0 = time.perf_counter()
         out = self.solver(
             rho0=rho_c.ravel(),
@@ -307,24 +253,50 @@ class NMPCController:
         )
         seconds = time.perf_counter() - t0
         st = self.solver.stats()
-        H, n = self.options.horizon, self.n
-        u = np.stack([np.asarray(out["ux_opt"]).reshape(n, H).T, np.asarray(out["uy_opt"]).reshape(n, H).T], axis=-1)
-        w = np.asarray(out["omega_opt"]).reshape(n, H).T
-        R = np.stack([np.asarray(out["rx_opt"]).reshape(n, H).T, np.asarray(out["ry_opt"]).reshape(n, H).T], axis=-1)
-        T = np.asarray(out["th_opt"]).reshape(n, H).T
-        P = np.asarray(out["rho_opt"]).reshape(-1, H).T.reshape(H, *self.model.shape)
+        a = ipopt_arrays(out, self.n, self.options.horizon, self.model.shape)
         return NMPCPlan(
-            u=u,
-            omega=w,
-            positions=np.concatenate([positions[None], R]),
-            headings=np.concatenate([headings[None], T]),
-            rho=np.concatenate([rho_c[None], P]),
-            cost=float(out["cost"]),
-            lam_g=np.asarray(out["lam_g_opt"]).ravel(),
+            u=a["u"],
+            omega=a["omega"],
+            positions=np.concatenate([positions[None], a["R"]]),
+            headings=np.concatenate([headings[None], a["T"]]),
+            rho=np.concatenate([rho_c[None], a["P"]]),
+            cost=a["cost"],
+            lam_g=a["lam_g"],
             status=str(st.get("return_status", "unknown")),
             success=bool(st.get("success", False)),
             iterations=int(st.get("iter_count", -1)),
             seconds=seconds,
+            damping=damping,
+        )
+
+    def _sqp_plan(
+        self, rho_c: np.ndarray, positions: np.ndarray, headings: np.ndarray, g: Mapping[str, Any]
+    ) -> Generator[None, None, NMPCPlan]:
+        """:meth:`solve` with the SQP solver, in slices: the guess's inputs at the first step of each block."""
+        p = self.solver.problem
+        starts = np.concatenate([[0], np.cumsum(p.blocks)[:-1]])
+        z0 = np.stack([np.asarray(g["ux"]), np.asarray(g["uy"]), np.asarray(g["omega"])], axis=-1)  # (n, H, 3)
+        z0 = z0.reshape(self.n, self.options.horizon, 3)[:, starts].transpose(1, 0, 2)
+        o = self.options
+        res = yield from self.solver.iterate(
+            rho_c, positions, headings, z0, self.target_coarse, o.iteration_limit, o.tol, float(g.get("damping", 0.0))
+        )
+        z = res.z[p.beta]  # (H, n, 3)
+        R, T = p.states(positions, headings, res.z)
+        _, P = p.rollout(rho_c, positions, headings, res.z, self.target_coarse)
+        return NMPCPlan(
+            u=z[..., :2],
+            omega=z[..., 2],
+            positions=np.concatenate([positions[None], R]),
+            headings=np.concatenate([headings[None], T]),
+            rho=np.concatenate([rho_c[None], P]),
+            cost=res.cost,
+            lam_g=np.empty(0),
+            status=res.status,
+            success=res.converged,
+            iterations=res.iterations,
+            seconds=math.nan,  # set by the caller (the solve may be spread over control steps)
+            damping=res.damping,
         )
 
     def project(self, u: np.ndarray, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -349,17 +321,6 @@ class NMPCController:
         stage = m.cell_volume * np.sum(e * e, axis=(1, 2)) + o.r_u * np.sum(u * u, axis=(1, 2))
         stage += o.r_omega * np.sum(np.square(omega), axis=1)
         return float(m.step * stage.sum() + o.terminal * m.cell_volume * np.sum(e[-1] ** 2))
-
-    @staticmethod
-    def _robot_state(field: NavigationField, robots: RobotTeam) -> tuple[np.ndarray, np.ndarray]:
-        """``(R, θ)`` from the navigation field, else from the robot team (same instant in the loop)."""
-        pos = getattr(field, "positions", None)
-        if pos is None:
-            pos = robots.positions
-        heads = getattr(field, "headings", None)
-        if heads is None:
-            heads = np.arctan2(field.sin, field.cos)
-        return np.array(pos, float).reshape(-1, 2), np.array(heads, float).ravel()
 
     # ------------------------------------------------------------------ the law
     def robot_inputs(
@@ -387,38 +348,66 @@ class NMPCController:
         t0 = time.perf_counter()
         state = self.backstepping.robot_inputs(rho, field, t, dt)
         self.backstepping_seconds.append(time.perf_counter() - t0)
-        o = self.options
-        h = self.model.step
-        elapsed = t - self._t_plan
-        if self.plan is None or elapsed < -1e-9 or elapsed >= o.period - 1e-9:
-            positions, headings = self._robot_state(field, self.robots)
+        o, h = self.options, self.model.step
+        since = t - self._t_start if self._t_start is not None else math.inf
+        if self._pending is None and (since < -1e-9 or since >= o.period - 1e-9):
+            positions, headings = robot_state(field, self.robots)
             rho_c = self.restrict(np.asarray(rho, float))
-            shift = int(round(elapsed / h)) if self.plan is not None and elapsed >= 0 else 0
             previous = self.plan if o.warm_start else None
-            plan = self.solve(
-                rho_c, positions, headings, self.initial_guess(rho_c, positions, headings, previous, shift)
-            )
-            u, w = self.project(plan.u, plan.omega)
-            raw_speed = float(np.hypot(plan.u[..., 0], plan.u[..., 1]).max())
-            raw_turn = float(np.abs(plan.omega).max())
-            projected = bool(np.any(np.abs(u - plan.u) > 0) or np.any(np.abs(w - plan.omega) > 0))
-            plan.u, plan.omega = u, w
-            self.plan, self._t_plan, elapsed = plan, t, 0.0
-            self.stats.append(
-                {
-                    "t": float(t),
-                    "seconds": plan.seconds,
-                    "status": plan.status,
-                    "success": plan.success,
-                    "iterations": plan.iterations,
-                    "cost": plan.cost,
-                    "max_speed_solver": raw_speed,
-                    "max_turn_rate_solver": raw_turn,
-                    "projected": projected,
-                }
-            )
-        k = min(int(math.floor(elapsed / h + 1e-9)), o.horizon - 1)
+            elapsed = t - self._t_plan
+            shift = int(round(elapsed / h)) if previous is not None and elapsed >= 0 else 0
+            guess = self.initial_guess(rho_c, positions, headings, previous, shift)
+            self._pending, self._t_start, self._slices = self._plan_steps(rho_c, positions, headings, guess), t, []
+        if self._pending is not None:
+            t1 = time.perf_counter()
+            plan = None
+            while plan is None:  # one slice when spreading the solve, else all of them
+                try:
+                    next(self._pending)
+                except StopIteration as done:
+                    plan = done.value
+                if o.spread:
+                    break
+            self._slices.append(time.perf_counter() - t1)
+            if plan is not None:
+                self._adopt(plan, self._t_start)
+        if self.plan is None:  # spreading the first solve: stand still until its plan is ready
+            return dataclasses.replace(state, u=np.zeros((self.n, 2)), omega=np.zeros(self.n), shortfall=math.nan)
+        k = min(int(math.floor((t - self._t_plan) / h + 1e-9)), o.horizon - 1)
         return dataclasses.replace(state, u=self.plan.u[k].copy(), omega=self.plan.omega[k].copy(), shortfall=math.nan)
+
+    def _plan_steps(
+        self, rho_c: np.ndarray, positions: np.ndarray, headings: np.ndarray, guess: Mapping[str, Any]
+    ) -> Generator[None, None, NMPCPlan]:
+        """A solve as a generator: the SQP's slices (:meth:`SQPSolver.iterate`), or IPOPT's one call."""
+        if self.options.solver == "sqp":
+            plan = yield from self._sqp_plan(rho_c, positions, headings, guess)
+            return plan
+        return self.solve(rho_c, positions, headings, guess)
+
+    def _adopt(self, plan: NMPCPlan, t_start: float) -> None:
+        """Make ``plan`` (solved from the state at ``t_start``) the current one, projected onto the limits."""
+        u, w = self.project(plan.u, plan.omega)
+        raw_speed = float(np.hypot(plan.u[..., 0], plan.u[..., 1]).max())
+        raw_turn = float(np.abs(plan.omega).max())
+        projected = bool(np.any(np.abs(u - plan.u) > 0) or np.any(np.abs(w - plan.omega) > 0))
+        plan.u, plan.omega, plan.seconds = u, w, float(sum(self._slices))
+        self.plan, self._t_plan, self._pending = plan, t_start, None
+        self.stats.append(
+            {
+                "t": float(t_start),
+                "seconds": plan.seconds,
+                "slices": len(self._slices),
+                "slowest_slice": max(self._slices),
+                "status": plan.status,
+                "success": plan.success,
+                "iterations": plan.iterations,
+                "cost": plan.cost,
+                "max_speed_solver": raw_speed,
+                "max_turn_rate_solver": raw_turn,
+                "projected": projected,
+            }
+        )
 
     def act(self, observation: Observation) -> Command:
         """The :class:`~meanfield.interfaces.Controller` interface: :meth:`robot_inputs` at the observation.
@@ -432,7 +421,7 @@ class NMPCController:
     def reset(self) -> None:
         """Forget the plan (next call re-solves from zero inputs), the statistics and the
         backstepping diagnostics' memory."""
-        self.plan = None
+        self.plan, self._pending, self._t_start = None, None, None
         self._t_plan = 0.0
         self.stats = []
         self.backstepping_seconds = []

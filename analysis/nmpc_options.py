@@ -3,8 +3,8 @@
 :class:`NMPCOptions` parses and validates the options of
 :class:`~analysis.nmpc.NMPCController` (docs/nmpc.md, "Options"); a bad key or value
 raises :class:`~meanfield.errors.ParameterError` naming ``controller.options.<key>``.
-:data:`FLUXES` and :data:`HESSIANS` are the allowed values of ``flux`` (the advective
-fluxes of :class:`~analysis.nmpc_model.CoarseFokkerPlanck`) and ``hessian`` (IPOPT's).
+:data:`FLUXES`, :data:`HESSIANS` and :data:`SOLVERS` are the allowed values of ``flux`` (the
+advective fluxes of :class:`~analysis.nmpc_model.CoarseFokkerPlanck`), ``hessian`` and ``solver``.
 Everything here is re-exported by :mod:`analysis.nmpc`.
 """
 
@@ -20,13 +20,19 @@ import numpy as np
 
 from meanfield.errors import ParameterError
 
-__all__ = ["FLUXES", "HESSIANS", "NMPCOptions"]
+__all__ = ["FLUXES", "HESSIANS", "SOLVERS", "NMPCOptions"]
 
 FLUXES = ("upwind", "central")
 """Advective fluxes of the coarse model: upwind (positive, first order) or central (second order)."""
 
-HESSIANS = ("exact", "limited-memory")
-"""IPOPT's Hessian: exact (CasADi's automatic differentiation) or L-BFGS."""
+HESSIANS = ("exact", "limited-memory", "gauss-newton")
+"""The Hessian: exact (both solvers), L-BFGS (IPOPT only) or Gauss–Newton (SQP only)."""
+
+SOLVERS = ("sqp", "ipopt")
+"""The NLP solvers: SQP on the inputs (:mod:`analysis.nmpc_sqp`) or IPOPT on all states (:mod:`analysis.nmpc_ipopt`)."""
+
+DEFAULT_ITERATIONS = {"sqp": 3, "ipopt": 50}
+"""``max_iter`` when not given: QPs per solve (SQP; real-time iterations) or IPOPT iterations."""
 
 
 def _opt_name(key: str) -> str:
@@ -79,14 +85,27 @@ class NMPCOptions:
         ``q_T`` (>= 0, a time): weight of the terminal error ``‖ρ_H - ρ_*‖²``.
     flux : {"upwind", "central"}
         Advective fluxes of the coarse model.
-    max_iter : int
-        IPOPT iteration limit per solve (>= 1).
+    max_iter : int or None
+        Iteration limit per solve (>= 1): QPs (SQP) or IPOPT iterations; None means
+        :data:`DEFAULT_ITERATIONS` of the solver.
     tol : float
-        IPOPT tolerance (> 0).
-    hessian : {"exact", "limited-memory"}
-        IPOPT's Hessian.
+        Tolerance (> 0): IPOPT's, or the SQP's bound on the predicted decrease relative to ``1 + J``.
+    hessian : {"exact", "limited-memory", "gauss-newton"}
+        The Hessian (L-BFGS only with IPOPT, Gauss–Newton only with SQP).
     warm_start : bool
         Start each solve from the previous solution shifted (otherwise from zero inputs).
+    solver : {"sqp", "ipopt"}
+        SQP on the inputs with the exact Hessian (:mod:`analysis.nmpc_sqp`), or IPOPT on the
+        full space (:mod:`analysis.nmpc_ipopt`).  Same problem, same minimisers.
+    blocks : list of int or None
+        Move blocking (SQP only): prediction steps per input block, summing to ``horizon``; an
+        input is held over its block, ``[1] * horizon`` is no blocking.  None: the first two
+        steps free, the rest one block (``[1, 1, horizon - 2]``; no blocking for ``horizon <= 3``).
+    spread : bool or None
+        Spread each solve over the control steps that follow it (SQP only): one slice per step
+        (a derivative evaluation, or a QP), the plan adopted when done and applied from the
+        time the solve started; the robots hold still until the first plan.  Bounds the compute
+        of every step by a slice instead of a whole solve.  None: true with SQP, false with IPOPT.
     """
 
     horizon: int = 5
@@ -97,10 +116,13 @@ class NMPCOptions:
     r_omega: float = 1e-3
     terminal: float = 1.0
     flux: str = "upwind"
-    max_iter: int = 50
+    max_iter: int | None = None
     tol: float = 1e-6
     hessian: str = "exact"
     warm_start: bool = True
+    solver: str = "sqp"
+    blocks: tuple[int, ...] | None = None
+    spread: bool | None = None
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -120,13 +142,46 @@ class NMPCOptions:
             set_(self, key, _float_option(key, getattr(self, key), positive=False))
         if self.flux not in FLUXES:
             raise ParameterError(_opt_name("flux"), self.flux, " or ".join(map(repr, FLUXES)))
-        set_(self, "max_iter", _int_option("max_iter", self.max_iter, 1))
+        if self.max_iter is not None:
+            set_(self, "max_iter", _int_option("max_iter", self.max_iter, 1))
         set_(self, "tol", _float_option("tol", self.tol, positive=True))
-        if self.hessian not in HESSIANS:
-            raise ParameterError(_opt_name("hessian"), self.hessian, " or ".join(map(repr, HESSIANS)))
-        if not isinstance(self.warm_start, (bool, np.bool_)):
-            raise ParameterError(_opt_name("warm_start"), self.warm_start, "true or false")
-        set_(self, "warm_start", bool(self.warm_start))
+        if self.solver not in SOLVERS:
+            raise ParameterError(_opt_name("solver"), self.solver, " or ".join(map(repr, SOLVERS)))
+        allowed = [h for h in HESSIANS if h != ("gauss-newton" if self.solver == "ipopt" else "limited-memory")]
+        if self.hessian not in allowed:
+            raise ParameterError(_opt_name("hessian"), self.hessian, f"with solver {self.solver!r}: {allowed}")
+        if self.blocks is not None:
+            try:
+                blocks = tuple(_int_option("blocks", b, 1) for b in self.blocks)
+            except TypeError:
+                raise ParameterError(_opt_name("blocks"), self.blocks, "a list of integers >= 1") from None
+            if sum(blocks) != self.horizon or self.solver != "sqp":
+                raise ParameterError(
+                    _opt_name("blocks"),
+                    self.blocks,
+                    f"integers >= 1 summing to horizon = {self.horizon} (solver 'sqp')",
+                )
+            set_(self, "blocks", blocks)
+        if self.spread is None:
+            set_(self, "spread", self.solver == "sqp")
+        for key in ("warm_start", "spread"):
+            if not isinstance(getattr(self, key), (bool, np.bool_)):
+                raise ParameterError(_opt_name(key), getattr(self, key), "true or false")
+            set_(self, key, bool(getattr(self, key)))
+        if self.spread and self.solver != "sqp":
+            raise ParameterError(_opt_name("spread"), self.spread, "false with solver 'ipopt' (one call, not sliced)")
+
+    @property
+    def iteration_limit(self) -> int:
+        """``max_iter``, or the solver's default (:data:`DEFAULT_ITERATIONS`)."""
+        return DEFAULT_ITERATIONS[self.solver] if self.max_iter is None else self.max_iter
+
+    @property
+    def input_blocks(self) -> tuple[int, ...]:
+        """``blocks``, or by default ``(1, 1, horizon - 2)`` (one block per step for ``horizon <= 3``)."""
+        if self.blocks is not None:
+            return self.blocks
+        return (1, 1, self.horizon - 2) if self.horizon > 3 else (1,) * self.horizon
 
     @property
     def prediction_step(self) -> float:
