@@ -187,8 +187,9 @@ def fused_robot_inputs(law: Any, rho: np.ndarray, field: NavigationField, t: flo
     g, k = law.grid, field.kernel
     n = len(field.positions)
     cache = law._fused_state
-    if cache.get("n") != n:  # the gains per robot, once per team size
-        cache.update(n=n, k_u=np.broadcast_to(law.k_u, (n,)).astype(float))
+    key = (n, id(law.k_u), id(law.k_omega))  # the gains per robot, once per team size and gain arrays
+    if cache.get("key") != key:
+        cache.update(key=key, k_u=np.broadcast_to(law.k_u, (n,)).astype(float))
         cache["k_w"] = np.broadcast_to(law.k_omega, (n,)).astype(float)
     prev = law._previous_vd
     have_prev = prev is not None and t > prev[0]
