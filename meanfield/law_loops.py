@@ -187,9 +187,9 @@ def fused_robot_inputs(law: Any, rho: np.ndarray, field: NavigationField, t: flo
     g, k = law.grid, field.kernel
     n = len(field.positions)
     cache = law._fused_state
-    key = (n, id(law.k_u), id(law.k_omega))  # the gains per robot, once per team size and gain arrays
-    if cache.get("key") != key:
-        cache.update(key=key, k_u=np.broadcast_to(law.k_u, (n,)).astype(float))
+    source = cache.get("source", (None, None, None))  # the gains per robot, once per team size and gain arrays
+    if source[0] != n or source[1] is not law.k_u or source[2] is not law.k_omega:
+        cache.update(source=(n, law.k_u, law.k_omega), k_u=np.broadcast_to(law.k_u, (n,)).astype(float))
         cache["k_w"] = np.broadcast_to(law.k_omega, (n,)).astype(float)
     prev = law._previous_vd
     have_prev = prev is not None and t > prev[0]
