@@ -32,34 +32,18 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import json  # noqa: E402
-import resource  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from typing import Any  # noqa: E402
 
-from benchmarks.reporting import emit, machine_line  # noqa: E402
+from benchmarks.reporting import emit, machine_line, peak_resident_mb  # noqa: E402
 
 GOAL_STEPS_PER_SECOND = 4.0
 GOAL_PEAK_MB = 1536.0
 GOAL_RATIO = 15.0  # anchor µs per human-step / ours (issue 19)
 GOAL_PEAK_MB_1E7 = 2048.0  # peak at N = 10⁷ (issue 19)
 TEN_MILLION = 10_000_000
-
-
-def _peak_mb() -> float:
-    """Peak resident memory of this process alone, in MB.
-
-    ``VmHWM`` from ``/proc/self/status`` is reset by ``exec``; ``ru_maxrss`` is not (a child
-    started by a large process inherits its parent's peak), so it is only the fallback.
-    """
-    try:
-        for line in open("/proc/self/status"):
-            if line.startswith("VmHWM:"):
-                return int(line.split()[1]) / 1024.0  # kB
-    except OSError:
-        pass
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # kB on Linux
 
 
 def child(mode: str, steps: int) -> dict:
@@ -93,7 +77,7 @@ def child(mode: str, steps: int) -> dict:
             "frames_recorded": int(result.dataset.sizes["time"]),
             "humans_recorded": int(result.dataset.sizes["human"]),
             "humans": n,
-            "peak_mb": _peak_mb(),
+            "peak_mb": peak_resident_mb(),
         }
     sc = sc.with_values({"crowd.field_evaluation": "exact"})
     loop = ClosedLoop(sc)
@@ -106,7 +90,7 @@ def child(mode: str, steps: int) -> dict:
         "steps": steps,
         "steps_per_second": steps / wall,
         "us_per_human_step": wall / steps / n * 1e6,
-        "peak_mb": _peak_mb(),
+        "peak_mb": peak_resident_mb(),
     }
 
 

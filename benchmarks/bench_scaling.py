@@ -36,20 +36,13 @@ from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from benchmarks.reporting import emit, machine_line  # noqa: E402
+from benchmarks.reporting import emit, machine_line, peak_resident_mb  # noqa: E402
 
 CROWDS = (100, 1_000, 10_000, 100_000, 1_000_000, 10_000_000)
 GRIDS = (30, 64, 128, 256, 512)
 CROWD_GRID = 128
 GRID_CROWD = 10_000
 CELLS_PER_BANDWIDTH = 3.84  # stadium: 0.03 on the unit square's 128 cells
-
-
-def _peak_mb() -> float:
-    for line in open("/proc/self/status"):
-        if line.startswith("VmHWM:"):
-            return int(line.split()[1]) / 1024.0
-    return float("nan")
 
 
 def child(n: int, cells: int) -> dict[str, Any]:
@@ -82,7 +75,7 @@ def child(n: int, cells: int) -> dict[str, Any]:
         "block_seconds_per_step": blocks,
         "field_evaluation": loop.crowd.field_evaluation,
         "build_seconds": build,
-        "peak_mb": _peak_mb(),
+        "peak_mb": peak_resident_mb(),
     }
 
 

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["machine_line", "emit", "write_files"]
+__all__ = ["machine_line", "emit", "write_files", "peak_resident_mb"]
 
 
 def machine_line(extra: str = "") -> str:
@@ -39,3 +39,20 @@ def write_files(
         atomic_write_json(Path(json_path), record)
     if report_path:
         atomic_write_text(Path(report_path), report + "\n")
+
+
+def peak_resident_mb() -> float:
+    """Peak resident memory of this process alone, in MB.
+
+    ``VmHWM`` from ``/proc/self/status`` is reset by ``exec``; ``ru_maxrss`` is not (a child
+    started by a large process inherits its parent's peak), so it is only the fallback.
+    """
+    import resource
+
+    try:
+        for line in open("/proc/self/status"):
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024.0  # kB
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # kB on Linux

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from meanfield.compiled import compiled
+from meanfield.compiled import compiled, inner
 
 __all__ = ["segments_clear", "masked_face_kernels", "face_moments", "SIGHT_EPS"]
 
@@ -87,6 +87,19 @@ def _masked_face_kernels_numpy(fxf, fyc, fxc, fyf, gxf, gyc, gxc, gyf, sx, sy, o
     return out
 
 
+@inner
+def _masked_family(fa, fb, ga, gb, mask, k, gx, gy):
+    """One family of faces: ``k = fa fb s``, ``gx = ga fb s``, ``gy = fa gb s`` per robot and face."""
+    n, ma, mb = k.shape
+    for i in range(n):
+        for a in range(ma):
+            for b in range(mb):
+                s = 1.0 if mask[i, a, b] else 0.0
+                k[i, a, b] = fa[i, a] * fb[i, b] * s
+                gx[i, a, b] = ga[i, a] * fb[i, b] * s
+                gy[i, a, b] = fa[i, a] * gb[i, b] * s
+
+
 @compiled(fallback=_masked_face_kernels_numpy)
 def masked_face_kernels(fxf, fyc, fxc, fyf, gxf, gyc, gxc, gyf, sx, sy, out):
     """``s_i K̄_i`` and ``s_i ∇K̄_i`` on the x-faces and the y-faces from 1-D factors, into ``out``.
@@ -104,22 +117,8 @@ def masked_face_kernels(fxf, fyc, fxc, fyf, gxf, gyc, gxc, gyf, sx, sy, out):
         ``(K on x-faces, ∂ₓK on x-faces, ∂ᵧK on x-faces, K on y-faces, ∂ₓK, ∂ᵧK on y-faces)``.
     """
     kx, gx_x, gy_x, ky, gx_y, gy_y = out
-    n, mx, my = kx.shape
-    for i in range(n):
-        for a in range(mx):
-            for b in range(my):
-                s = 1.0 if sx[i, a, b] else 0.0
-                kx[i, a, b] = fxf[i, a] * fyc[i, b] * s
-                gx_x[i, a, b] = gxf[i, a] * fyc[i, b] * s
-                gy_x[i, a, b] = fxf[i, a] * gyc[i, b] * s
-    n, mx, my = ky.shape
-    for i in range(n):
-        for a in range(mx):
-            for b in range(my):
-                s = 1.0 if sy[i, a, b] else 0.0
-                ky[i, a, b] = fxc[i, a] * fyf[i, b] * s
-                gx_y[i, a, b] = gxc[i, a] * fyf[i, b] * s
-                gy_y[i, a, b] = fxc[i, a] * gyf[i, b] * s
+    _masked_family(fxf, fyc, gxf, gyc, sx, kx, gx_x, gy_x)
+    _masked_family(fxc, fyf, gxc, gyf, sy, ky, gx_y, gy_y)
     return out
 
 
@@ -129,6 +128,21 @@ def _face_moments_numpy(kx, gx_x, gy_x, ky, gx_y, gy_y, Wx, Wy, out):
     return out
 
 
+@inner
+def _family_moments(k, gx, gy, W, out, row):
+    """``Σ_faces K W``, ``Σ ∂ₓK W``, ``Σ ∂ᵧK W`` per robot into ``out[row:row + 3]``."""
+    n, ma, mb = k.shape
+    for i in range(n):
+        s0 = s1 = s2 = 0.0
+        for a in range(ma):
+            for b in range(mb):
+                w = W[a, b]
+                s0 += k[i, a, b] * w
+                s1 += gx[i, a, b] * w
+                s2 += gy[i, a, b] * w
+        out[row, i], out[row + 1, i], out[row + 2, i] = s0, s1, s2
+
+
 @compiled(fallback=_face_moments_numpy)
 def face_moments(kx, gx_x, gy_x, ky, gx_y, gy_y, Wx, Wy, out):
     """The six integrals ``Σ_faces K W`` per robot behind ``b_i`` and ``g_i`` (eq. (8)), into ``out`` (6, n).
@@ -136,24 +150,6 @@ def face_moments(kx, gx_x, gy_x, ky, gx_y, gy_y, Wx, Wy, out):
     Rows: ``K, ∂ₓK, ∂ᵧK`` against ``Wx`` on the x-faces, then against ``Wy`` on the y-faces
     (``W`` = face weight × the face field).
     """
-    n, mx, my = kx.shape
-    for i in range(n):
-        s0 = s1 = s2 = 0.0
-        for a in range(mx):
-            for b in range(my):
-                w = Wx[a, b]
-                s0 += kx[i, a, b] * w
-                s1 += gx_x[i, a, b] * w
-                s2 += gy_x[i, a, b] * w
-        out[0, i], out[1, i], out[2, i] = s0, s1, s2
-    n, mx, my = ky.shape
-    for i in range(n):
-        s0 = s1 = s2 = 0.0
-        for a in range(mx):
-            for b in range(my):
-                w = Wy[a, b]
-                s0 += ky[i, a, b] * w
-                s1 += gx_y[i, a, b] * w
-                s2 += gy_y[i, a, b] * w
-        out[3, i], out[4, i], out[5, i] = s0, s1, s2
+    _family_moments(kx, gx_x, gy_x, Wx, out, 0)
+    _family_moments(ky, gx_y, gy_y, Wy, out, 3)
     return out

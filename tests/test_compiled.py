@@ -28,6 +28,7 @@ def both(kernel, *args):
     """The loop's result on the compiled path and on the numpy path (arguments copied for each)."""
     fresh = [a.copy() if isinstance(a, np.ndarray) else a for a in args]
     fast = kernel(*fresh)
+    assert kernel._ready, f"{kernel.name} did not run compiled"  # else both sides would be numpy
     with compiled.numpy_path():
         ref = kernel(*[a.copy() if isinstance(a, np.ndarray) else a for a in args])
     return fast, ref, fresh
