@@ -146,7 +146,7 @@ def _compile_inner_helpers(loop: Callable[..., Any], nb: Any) -> None:
     space = loop.__globals__
     for name, value in list(space.items()):
         if getattr(value, "_compiled_inner", False) and not hasattr(value, "py_func"):
-            space[name] = nb.njit(cache=True)(value)
+            space[name] = nb.njit(cache=True, error_model="numpy")(value)
 
 
 class CompiledKernel:
@@ -166,7 +166,7 @@ class CompiledKernel:
         if isinstance(nb, Exception):
             return None
         _compile_inner_helpers(self.loop, nb)
-        return nb.njit(cache=True, **self._options)(self.loop)
+        return nb.njit(cache=True, **{"error_model": "numpy", **self._options})(self.loop)
 
     def _fail(self, exc: BaseException) -> None:
         cause = f"{type(exc).__name__}: {str(exc).strip().splitlines()[0] if str(exc).strip() else ''}"

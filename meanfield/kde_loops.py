@@ -258,11 +258,10 @@ def separable_sum(
                     for j in range(cnt):
                         fac[a, j] = w * ext[r, j]
         np.dot(fac_x, fac_y.T, part)
-        if not single:
-            if first == 0:
-                out[:, :] = part
-            else:
-                out += part
+        if not single:  # element loops: an array slice assignment costs seconds of compilation
+            for a in range(nx):
+                for b in range(ny):
+                    out[a, b] = part[a, b] if first == 0 else out[a, b] + part[a, b]
     return out
 
 

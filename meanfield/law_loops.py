@@ -110,8 +110,11 @@ def paper_law(
             rho_t[a, bb] = rho[a, bb] - target[a, bb]
     rfx, grx, dvx, qx = np.empty((nx - 1, ny)), np.empty((nx - 1, ny)), np.empty((nx - 1, ny)), np.empty((nx - 1, ny))
     rfy, gry, dvy, qy = np.empty((nx, ny - 1)), np.empty((nx, ny - 1)), np.empty((nx, ny - 1)), np.empty((nx, ny - 1))
-    _faces(rho, rho_t, tgx, inv_dx, sigma, alpha0, floor, prev_x, have_prev, h, vdx, rfx, grx, dvx, qx, 0)
-    _faces(rho, rho_t, tgy, inv_dy, sigma, alpha0, floor, prev_y, have_prev, h, vdy, rfy, gry, dvy, qy, 1)
+    for axis in range(2):  # (a loop variable: one compiled _faces, where literal 0 and 1 would make two)
+        if axis == 0:
+            _faces(rho, rho_t, tgx, inv_dx, sigma, alpha0, floor, prev_x, have_prev, h, vdx, rfx, grx, dvx, qx, axis)
+        else:
+            _faces(rho, rho_t, tgy, inv_dy, sigma, alpha0, floor, prev_y, have_prev, h, vdy, rfy, gry, dvy, qy, axis)
     fxf, gxf = np.empty((n, nx - 1)), np.empty((n, nx - 1))
     fxc, gxc = np.empty((n, nx)), np.empty((n, nx))
     fyf, gyf = np.empty((n, ny - 1)), np.empty((n, ny - 1))
