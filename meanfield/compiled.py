@@ -84,21 +84,27 @@ def _from_environment() -> bool:
 _environment = _from_environment()  # read at import, and again by use_compiled(None)
 
 
+_selected: bool | None = None  # enabled(), remembered until the selection changes
+
+
 def enabled() -> bool:
     """Whether the compiled path is selected: numba imports, and neither :func:`use_compiled`
     nor ``MEANFIELD_COMPILED=0`` (read at import, and again by ``use_compiled(None)``) turned it off."""
-    on = _environment if _override is None else _override
-    return on and numba_available()
+    global _selected
+    if _selected is None:
+        on = _environment if _override is None else _override
+        _selected = on and numba_available()
+    return _selected
 
 
 def use_compiled(on: bool | None) -> None:
     """Select the compiled path (True), the numpy path (False), or follow ``MEANFIELD_COMPILED`` (None, read now)."""
-    global _override, _environment
+    global _override, _environment, _selected
     if on is not None and not isinstance(on, bool):
         from meanfield.errors import ParameterError
 
         raise ParameterError("on", on, "True, False or None")
-    _override = on
+    _override, _selected = on, None
     if on is None:
         _environment = _from_environment()
 
@@ -106,13 +112,13 @@ def use_compiled(on: bool | None) -> None:
 @contextmanager
 def numpy_path() -> Iterator[None]:
     """Run the block on the numpy path (the reference), then restore the previous choice."""
-    global _override
+    global _override, _selected
     before = _override
-    _override = False
+    _override, _selected = False, None
     try:
         yield
     finally:
-        _override = before
+        _override, _selected = before, None
 
 
 def status() -> dict[str, Any]:
@@ -181,10 +187,10 @@ class CompiledKernel:
         return UNAVAILABLE if self.fallback is None else self.fallback(*args)
 
     def __call__(self, *args: Any) -> Any:
+        if self._ready and (_selected if _selected is not None else enabled()):
+            return self._jitted(*args)  # the common case first: a few hundred ns per call matter here
         if self.name in _failures or not enabled():
             return self._numpy(*args)
-        if self._ready:
-            return self._jitted(*args)
         try:  # the first call compiles (or loads the cache); a failure there falls back, once
             self._jitted = self._jitted or self._compile()
             if self._jitted is None:

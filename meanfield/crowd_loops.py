@@ -11,7 +11,9 @@ Each loop here is one pass over the humans, paired with its numpy twin (the refe
 * :func:`euler_maruyama`: ``X_j += b_j dt + a ξ_j`` (eq. (1) discretized), with the box's
   reflecting walls folded in when Ω is a box (any number of bounces, as
   :meth:`meanfield.domain.Domain.reflect` does);
-* :func:`saturate`: the robots' inputs within their speed limits (eq. (2)).
+* :func:`saturate`: the robots' inputs within their speed limits (eq. (2)), and
+  :func:`input_report`: what the limits did to a step's commands (for the observers);
+* :func:`count_in_disk`: how many humans are in the target disk (the fraction in the target).
 
 Both field loops also flag the humans a sign *reaches* (``|v_r| >= reach``, used for the
 stragglers).  The noise ``ξ_j`` is drawn by the caller from its numpy Generator, so both
@@ -25,8 +27,12 @@ import math
 import numpy as np
 
 from meanfield.compiled import compiled
+from meanfield.vector_exp import exp_inplace
 
-__all__ = ["gaussian_field_at", "bilinear_at", "euler_maruyama", "saturate"]
+__all__ = ["gaussian_field_at", "bilinear_at", "euler_maruyama", "saturate", "input_report", "count_in_disk"]
+
+_FIELD_BLOCK = 256
+"""Humans per block of :func:`gaussian_field_at` (its buffers stay in L1)."""
 
 
 # ----------------------------------------------------------------------------- v_r, exact
@@ -69,22 +75,34 @@ def gaussian_field_at(points, rx, ry, ex, ey, inv_eta, visible, reach, out, reac
     n = rx.shape[0]
     masked = visible.shape[1] > 0
     r2 = reach * reach
-    for j in range(points.shape[0]):
-        x = points[j, 0]
-        y = points[j, 1]
-        vx = 0.0
-        vy = 0.0
+    block = _FIELD_BLOCK
+    xs, ys = np.empty(block), np.empty(block)
+    sx, sy = np.empty(block), np.empty(block)
+    k, bits = np.empty(block), np.empty(block, np.int64)
+    for first in range(0, points.shape[0], block):  # blocks of humans, robot by robot: the exp vectorises
+        m = min(block, points.shape[0] - first)
+        for j in range(m):
+            xs[j] = points[first + j, 0]
+            ys[j] = points[first + j, 1]
+            sx[j] = 0.0
+            sy[j] = 0.0
         for i in range(n):
-            if masked and not visible[i, j]:
-                continue
-            dx = x - rx[i]
-            dy = y - ry[i]
-            k = math.exp(-(dx * dx + dy * dy) * inv_eta)
-            vx += ex[i] * k
-            vy += ey[i] * k
-        out[j, 0] = vx
-        out[j, 1] = vy
-        reached[j] = vx * vx + vy * vy >= r2
+            for j in range(m):
+                dx = xs[j] - rx[i]
+                dy = ys[j] - ry[i]
+                k[j] = -(dx * dx + dy * dy) * inv_eta
+            exp_inplace(k, bits, m)
+            if masked:
+                for j in range(m):
+                    if not visible[i, first + j]:
+                        k[j] = 0.0
+            for j in range(m):
+                sx[j] += ex[i] * k[j]
+                sy[j] += ey[i] * k[j]
+        for j in range(m):
+            out[first + j, 0] = sx[j]
+            out[first + j, 1] = sy[j]
+            reached[first + j] = sx[j] * sx[j] + sy[j] * sy[j] >= r2
     return out
 
 
@@ -240,3 +258,78 @@ def saturate(u, omega, u_max, omega_max, shrink, u_out, w_out):
         w = omega[i]
         w_out[i] = min(max(w, -omega_max), omega_max)
     return u_out, w_out
+
+
+def _input_report_numpy(u_cmd, w_cmd, u, w, u_max, omega_max, rtol):
+    asked = np.hypot(u_cmd[:, 0], u_cmd[:, 1])
+    speed = np.hypot(u[:, 0], u[:, 1])
+    cut = bool((asked > speed).any() or (np.abs(w_cmd) > np.abs(w)).any())
+    limit = np.zeros(len(w_cmd), dtype=bool)
+    if math.isfinite(u_max):
+        limit |= asked >= (1 - rtol) * u_max
+    if math.isfinite(omega_max):
+        limit |= np.abs(w_cmd) >= (1 - rtol) * omega_max
+    return float(speed.max()), float(np.abs(w).max()), cut, int(limit.sum())
+
+
+@compiled(fallback=_input_report_numpy)
+def input_report(u_cmd, w_cmd, u, w, u_max, omega_max, rtol):
+    """What the speed limits did to one step's commands: ``(max ‖u_i‖, max |ω_i|, cut, at_limit)``.
+
+    ``cut``: some command was reduced (``‖u_cmd,i‖ > ‖u_i‖`` or ``|ω_cmd,i| > |ω_i|``);
+    ``at_limit``: how many robots' commands reach a limit, ``‖u_cmd,i‖ >= (1 - rtol) u_max`` or
+    ``|ω_cmd,i| >= (1 - rtol) ω_max`` (as :meth:`meanfield.robots.RobotTeam.at_limit`); the
+    maxima are over the applied inputs ``u``, ``w`` (eq. (2)'s limits, docs page *Robots*).
+
+    Parameters
+    ----------
+    u_cmd, w_cmd : ndarray, shapes (n, 2), (n,)
+        The commanded inputs.
+    u, w : ndarray, shapes (n, 2), (n,)
+        The applied ones (:func:`saturate`).
+    u_max, omega_max : float
+        The limits (``inf``: none).
+    rtol : float
+    """
+    top_speed = 0.0
+    top_turn = 0.0
+    cut = False
+    count = 0
+    u_lim = (1 - rtol) * u_max
+    w_lim = (1 - rtol) * omega_max
+    for i in range(w_cmd.shape[0]):
+        asked = np.hypot(u_cmd[i, 0], u_cmd[i, 1])
+        speed = np.hypot(u[i, 0], u[i, 1])
+        turn = abs(w[i])
+        top_speed = max(top_speed, speed)
+        top_turn = max(top_turn, turn)
+        if asked > speed or abs(w_cmd[i]) > turn:
+            cut = True
+        if (math.isfinite(u_max) and asked >= u_lim) or (math.isfinite(omega_max) and abs(w_cmd[i]) >= w_lim):
+            count += 1
+    return top_speed, top_turn, cut, count
+
+
+def _count_in_disk_numpy(points, cx, cy, radius):
+    dx = points[:, 0] - cx
+    dy = points[:, 1] - cy
+    return int(np.count_nonzero(dx * dx + dy * dy <= radius * radius))
+
+
+@compiled(fallback=_count_in_disk_numpy)
+def count_in_disk(points, cx, cy, radius):
+    """How many of ``points`` (N, 2) lie within ``radius`` of ``(cx, cy)`` (NaN rows: none).
+
+    Parameters
+    ----------
+    points : ndarray, shape (N, 2)
+    cx, cy, radius : float
+    """
+    r2 = radius * radius
+    count = 0
+    for j in range(points.shape[0]):
+        dx = points[j, 0] - cx
+        dy = points[j, 1] - cy
+        if dx * dx + dy * dy <= r2:
+            count += 1
+    return count

@@ -26,6 +26,7 @@ import numpy as np
 
 from meanfield.compiled import compiled
 from meanfield.grid import linear_binning
+from meanfield.vector_exp import ARG_MAX, exp_inplace
 
 __all__ = ["axis_factors", "separable_sum", "linear_binning_into", "IMAGE_REACH"]
 
@@ -35,15 +36,6 @@ _SEGMENT_BANDWIDTHS = 16.0
 """The recurrence restarts from exact exponentials every ``16 h`` (at most 64 cells, at least 1)."""
 _POINTS_PER_PASS = 32768
 """The loop treats points in passes whose lattice buffers hold about this many entries (L2-sized)."""
-# exp(v) = 2^k p(r), v = k ln2 + r, |r| <= ln2/2: Cody-Waite split of ln 2 and the Taylor
-# polynomial of degree 13 (truncation < 5e-18 relative); arguments below -708 give 0
-_LOG2E = 1.4426950408889634
-_LN2_HI = 0.693145751953125
-_LN2_LO = 1.4286068203094173e-06
-_ARG_MIN = -708.0
-_ARG_MAX = 700.0
-_C3, _C4, _C5, _C6, _C7, _C8 = 1 / 6, 1 / 24, 1 / 120, 1 / 720, 1 / 5040, 1 / 40320
-_C9, _C10, _C11, _C12, _C13 = 1 / 362880, 1 / 3628800, 1 / 39916800, 1 / 479001600, 1 / 6227020800
 
 
 # ----------------------------------------------------------------------------- axis factors
@@ -127,7 +119,7 @@ def separable_sum(
     (1 to 64) bounds the error by a few hundred ulps: the start's argument ``(d/h)²/2 <= 128``
     where the values matter, and at most ``1.5 S + (SΔ/h)²/4`` from the steps.  A start below
     ``exp(-708)`` is zero: the point is ``37 h`` away, ``21 h`` at least over the segment.
-    The exponentials are the vectorisable ``2^k p(r)`` above (within 1 ulp of ``exp``).
+    The exponentials are :func:`meanfield.vector_exp.exp_inplace` (vectorised, within 1 ulp of ``exp``).
     Mirror cells are folded back onto the cells they mirror, then ``out = norm Fx Fyᵀ`` by BLAS.
 
     Parameters
@@ -194,8 +186,8 @@ def separable_sum(
                     d = ck - points[first + j, ax]
                     aq = -(2.0 * d * step + step * step) * a2
                     ag = -d * d * a2
-                    if aq > _ARG_MAX:  # the start is zero then (d < -37 h): keep the ratio finite
-                        aq = _ARG_MAX
+                    if aq > ARG_MAX:  # the start is zero then (d < -37 h): keep the ratio finite
+                        aq = ARG_MAX
                         ag = -math.inf
                     vals[t * cnt + j] = ag
                     vals[(ns + t) * cnt + j] = aq
@@ -203,29 +195,7 @@ def separable_sum(
             for i in range(seg):
                 vals[base + i] = -i * g2
             total = base + seg
-            for i in range(total):  # exp, vectorised: 2^k p(r)
-                v = min(max(vals[i], _ARG_MIN), _ARG_MAX)
-                kf = math.floor(v * _LOG2E + 0.5)
-                r = (v - kf * _LN2_HI) - kf * _LN2_LO
-                p = _C13  # Horner, degree 13
-                p = p * r + _C12
-                p = p * r + _C11
-                p = p * r + _C10
-                p = p * r + _C9
-                p = p * r + _C8
-                p = p * r + _C7
-                p = p * r + _C6
-                p = p * r + _C5
-                p = p * r + _C4
-                p = p * r + _C3
-                p = p * r + 0.5
-                p = p * r + 1.0
-                p = p * r + 1.0
-                vals[i] = p if vals[i] >= _ARG_MIN else 0.0  # (the argument, read before it is overwritten)
-                bits[i] = (np.int64(kf) + 1023) << 52
-            scale = bits[:total].view(np.float64)
-            for i in range(total):
-                vals[i] *= scale[i]
+            exp_inplace(vals, bits, total)  # vectorised (meanfield.vector_exp)
             # the recurrence (K1), segment by segment, on the extended lattice (2-D indexing:
             # a row view per cell would cost two reference-count updates)
             for t in range(ns):

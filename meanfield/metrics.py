@@ -57,10 +57,13 @@ def target_region_radius(
 
 
 def fraction_in_disk(points: np.ndarray, center: tuple[float, float], radius: float) -> float:
-    """Fraction of ``points`` (N, 2) within ``radius`` of ``center``."""
-    dx = points[:, 0] - center[0]
-    dy = points[:, 1] - center[1]
-    return float(np.count_nonzero(dx * dx + dy * dy <= radius * radius)) / len(points)
+    """Fraction of ``points`` (N, 2) within ``radius`` of ``center`` (one compiled pass for float points)."""
+    from meanfield.crowd_loops import count_in_disk
+
+    points = np.asarray(points)
+    if points.dtype != float:
+        return float(count_in_disk.fallback(points, center[0], center[1], radius)) / len(points)
+    return float(count_in_disk(points, float(center[0]), float(center[1]), float(radius))) / len(points)
 
 
 def wasserstein2_to_grid_density(

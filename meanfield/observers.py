@@ -20,8 +20,9 @@ from typing import Any, Protocol
 import numpy as np
 
 from meanfield.assembly import Parts
+from meanfield.crowd_loops import input_report
 from meanfield.interfaces import Command, ControlState, Crowd, Observation
-from meanfield.robots import RobotTeam
+from meanfield.robots import AT_LIMIT_RTOL, RobotTeam
 from meanfield.scenario import Scenario
 
 __all__ = [
@@ -80,16 +81,22 @@ class StepRecord:
     robots: RobotTeam
 
     @cached_property
+    def limits(self) -> tuple[float, float, bool, int]:
+        """``(max ‖u_i‖, max |ω_i|, saturated, at_limit)`` of this step, in one pass
+        (:func:`meanfield.crowd_loops.input_report`)."""
+        c, r = self.command, self.robots
+        u_cmd, w_cmd = np.asarray(c.u, float), np.asarray(c.omega, float)
+        return input_report(u_cmd, w_cmd, self.u, self.omega, float(r.u_max), float(r.omega_max), AT_LIMIT_RTOL)
+
+    @property
     def saturated(self) -> bool:
         """Whether the limits cut the command (some robot's speed or turn rate reduced)."""
-        c = self.command
-        speed = np.hypot(self.u[:, 0], self.u[:, 1])
-        return bool((np.hypot(c.u[:, 0], c.u[:, 1]) > speed).any() or (np.abs(c.omega) > np.abs(self.omega)).any())
+        return bool(self.limits[2])
 
-    @cached_property
+    @property
     def at_limit(self) -> int:
-        """How many robots' commands reached a speed or turn-rate limit."""
-        return int(self.robots.at_limit(self.command.u, self.command.omega).sum())
+        """How many robots' commands reached a speed or turn-rate limit (:meth:`RobotTeam.at_limit`)."""
+        return int(self.limits[3])
 
     @cached_property
     def shortfall_applied(self) -> float:
@@ -145,11 +152,11 @@ class InputStatistics:
         pass
 
     def step(self, loop: LoopView, record: StepRecord) -> None:
-        u, w = record.u, record.omega
-        self.max_speed = max(self.max_speed, float(np.hypot(u[:, 0], u[:, 1]).max()))
-        self.max_turn_rate = max(self.max_turn_rate, float(np.abs(w).max()))
-        self.saturated_steps += record.saturated
-        self.binding_steps += record.at_limit > 0
+        top_speed, top_turn, saturated, at_limit = record.limits
+        self.max_speed = max(self.max_speed, float(top_speed))
+        self.max_turn_rate = max(self.max_turn_rate, float(top_turn))
+        self.saturated_steps += bool(saturated)
+        self.binding_steps += at_limit > 0
         self.steps += 1
 
 

@@ -30,7 +30,10 @@ from meanfield.kernels import NavigationKernel
 from meanfield.plan_loops import face_moments, masked_face_kernels
 from meanfield.sight import SightLines
 
-__all__ = ["RobotTeam", "NavigationField", "navigation_velocity", "saturate_inputs"]
+__all__ = ["RobotTeam", "NavigationField", "navigation_velocity", "saturate_inputs", "AT_LIMIT_RTOL"]
+
+AT_LIMIT_RTOL = 1e-6
+"""A command within this relative tolerance of a speed or turn-rate limit counts as at the limit."""
 
 
 @dataclass
@@ -80,7 +83,7 @@ class RobotTeam:
             k = int(np.flatnonzero(~inside)[0])
             raise ParameterError(f"robots.positions[{k}]", self.positions[k].tolist(), "a point inside the domain")
 
-    def at_limit(self, u: np.ndarray, omega: np.ndarray, rtol: float = 1e-6) -> np.ndarray:
+    def at_limit(self, u: np.ndarray, omega: np.ndarray, rtol: float = AT_LIMIT_RTOL) -> np.ndarray:
         """Robots whose commanded input reaches a limit: ``‖u_i‖ >= (1 - rtol) u_max`` or
         ``|ω_i| >= (1 - rtol) ω_max`` (a saturated command counts); bool array of shape (n,)."""
         out = np.zeros(len(omega), dtype=bool)

@@ -255,3 +255,34 @@ def test_saturation_matches_numpy_and_keeps_every_input_within_its_limit():
         assert (np.hypot(fast[0][:, 0], fast[0][:, 1]) <= u_max).all() and (np.abs(fast[1]) <= w_max).all()
         inside = np.hypot(u[:, 0], u[:, 1]) <= u_max
         assert np.array_equal(fast[0][inside], u[inside])  # within the limit: unchanged
+
+
+@needs_numba
+def test_input_report_matches_numpy_and_counts_what_the_limits_did():
+    from meanfield.crowd_loops import input_report, saturate
+    from meanfield.robots import RobotTeam
+
+    rng = np.random.default_rng(10)
+    u, w = rng.normal(scale=0.3, size=(40, 2)), rng.normal(scale=4.0, size=40)
+    for u_max, w_max in ((0.2, 3.0), (np.inf, 3.0), (0.2, np.inf), (np.inf, np.inf)):
+        ua, wa = saturate(u, w, u_max, w_max, 1 - 4 * np.finfo(float).eps, np.empty((40, 2)), np.empty(40))
+        fast, ref, _ = both(input_report, u, w, ua, wa, u_max, w_max, 1e-6)
+        assert fast == ref
+        team = RobotTeam(positions=np.zeros((40, 2)), headings=np.zeros(40), u_max=u_max, omega_max=w_max)
+        # exact answers: the counts from their definitions, the maxima from the applied inputs
+        assert fast[3] == int(team.at_limit(u, w).sum())
+        cut = (np.hypot(u[:, 0], u[:, 1]) > u_max).any() or (np.abs(w) > w_max).any()
+        assert fast[2] == cut
+        assert fast[0] == np.hypot(ua[:, 0], ua[:, 1]).max() and fast[1] == np.abs(wa).max()
+
+
+@needs_numba
+def test_count_in_disk_matches_numpy_and_skips_those_who_left():
+    from meanfield.crowd_loops import count_in_disk
+
+    pts = np.array([[0.0, 0.0], [1.0, 0.0], [0.6, 0.8], [0.5, 0.5], [np.nan, np.nan], [2.0, 2.0]])
+    fast, ref, _ = both(count_in_disk, pts, 0.0, 0.0, 1.0)
+    assert fast == ref == 4  # the boundary counts (1, 0), (0.6, 0.8); the NaN row does not
+    big = np.random.default_rng(11).uniform(-1, 1, (5000, 2))
+    fast, ref, _ = both(count_in_disk, big, 0.1, -0.2, 0.7)
+    assert fast == ref
