@@ -23,6 +23,7 @@ import numpy as np
 
 from meanfield.errors import ParameterError
 from meanfield.region import BoundaryPart, sample_by_rejection, square_lattice
+from meanfield.wall_loops import reflect_steps, robot_steps
 
 __all__ = ["Plan", "plan_from_table"]
 
@@ -167,44 +168,40 @@ class Plan:
             vecs.append(np.diff(c, axis=0))
         return np.vstack(starts), np.vstack(vecs)
 
-    def _first_hit(self, start: np.ndarray, end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """For each step ``start → end``: the fraction ``t`` of it at the first wall met (``inf``:
-        none) and that wall's index (only the walls near a short step are tested,
-        :class:`~meanfield.wall_index.WallIndex`)."""
+    def _index(self) -> Any:
+        """The plan's :class:`~meanfield.wall_index.WallIndex` (built at the first step)."""
         if self._walls is None:
             from meanfield.wall_index import WallIndex
 
             self._walls = WallIndex(*self._edges, self.bounds)
-        return self._walls.first_hit(start, end)
+        return self._walls
+
+    def _first_hit(self, start: np.ndarray, end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """For each step ``start → end``: the fraction ``t`` of it at the first wall met (``inf``:
+        none) and that wall's index (only the walls near a short step are tested,
+        :class:`~meanfield.wall_index.WallIndex`)."""
+        return self._index().first_hit(start, end)
+
+    def _walk(self, loop: Any, start: np.ndarray, end: np.ndarray, *options: Any) -> np.ndarray:
+        """Run a loop of :mod:`meanfield.wall_loops` on the steps ``start → end``, ``end`` changed in place."""
+        work = end if end.dtype == np.float64 and end.flags.c_contiguous else np.ascontiguousarray(end, float)
+        loop(np.ascontiguousarray(start, float), work, *self._index().tables(), *options)
+        if work is not end:
+            end[...] = work
+        return end
 
     def reflect(self, points: np.ndarray, previous: np.ndarray | None = None) -> np.ndarray:
         """Mirror, in place, every step that met a wall: followed from ``previous`` to ``points``.
 
         Each step is a segment; at its first crossing with a wall (outline or hole) the rest
         of the step is mirrored across that wall, and the mirrored remainder is followed
-        again (up to 8 bounces, then the point is projected).  Without ``previous`` only the
-        points outside are projected onto the plan.
+        again (up to 8 bounces, then the point is projected); one compiled pass per step,
+        :func:`meanfield.wall_loops.reflect_steps` (docs/buildings.md: walls reflect).
+        Without ``previous`` only the points outside are projected onto the plan.
         """
         if previous is None:
             return self.project(points)
-        e = self._edges[1]
-        start = previous.copy()
-        for _ in range(8):
-            moved = np.flatnonzero(np.any(points != start, axis=1))
-            if not len(moved):
-                break
-            first, k = self._first_hit(start[moved], points[moved])
-            bounce = np.isfinite(first)
-            start[moved[~bounce]] = points[moved[~bounce]]  # those steps are done
-            if not bounce.any():
-                break
-            rows, k, tb = moved[bounce], k[bounce], first[bounce]
-            impact = start[rows] + tb[:, None] * (points[rows] - start[rows])
-            n = np.stack([-e[k, 1], e[k, 0]], axis=1)
-            n /= np.hypot(n[:, 0], n[:, 1])[:, None]
-            rest = points[rows] - impact
-            points[rows] = impact + rest - 2.0 * (rest * n).sum(1)[:, None] * n
-            start[rows] = impact
+        self._walk(reflect_steps, previous, points)
         outside = ~self.contains(points[:, 0], points[:, 1])
         if outside.any():  # a corner hit twice in a row, or a step of more than 8 bounces
             points[outside] = self.project(points[outside].copy())
@@ -212,13 +209,8 @@ class Plan:
 
     def stop_at_walls(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
         """Cut, in place, each step ``start → end`` just before the first wall it meets (robots:
-        no robot goes through a wall or a pillar)."""
-        first, _ = self._first_hit(start, end)
-        hit = np.isfinite(first)
-        if hit.any():
-            t = np.maximum(first[hit] - 1e-9, 0.0)[:, None]
-            end[hit] = start[hit] + t * (end[hit] - start[hit])
-        return end
+        no robot goes through a wall or a pillar; :func:`meanfield.wall_loops.robot_steps`)."""
+        return self._walk(robot_steps, start, end, False)
 
     def slide_along_walls(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
         """Follow, in place, each step ``start → end`` up to the first wall, then along it.
@@ -227,22 +219,10 @@ class Plan:
         followed again (stopping at the next wall), so that a robot driven into a pillar
         or a wall at an angle goes round it instead of stopping dead; a slide whose straight
         chord would cut a corner is not taken (the step stops at the wall), so no robot's
-        step ever crosses a wall (robots, :meth:`~meanfield.robots.RobotTeam.advance`).
+        step ever crosses a wall (robots, :meth:`~meanfield.robots.RobotTeam.advance`; one
+        compiled pass per step, :func:`meanfield.wall_loops.robot_steps`).
         """
-        e = self._edges[1]
-        first, k = self._first_hit(start, end)
-        hit = np.flatnonzero(np.isfinite(first))
-        if not len(hit):
-            return end
-        t = np.maximum(first[hit] - 1e-9, 0.0)[:, None]
-        stop = start[hit] + t * (end[hit] - start[hit])
-        along = e[k[hit]] / np.hypot(e[k[hit], 0], e[k[hit], 1])[:, None]
-        rest = ((end[hit] - stop) * along).sum(1)[:, None] * along
-        slid = self.stop_at_walls(stop, stop + rest)
-        # keep a slide only if the straight move to it crosses no wall either (past a corner it may)
-        clear = ~np.isfinite(self._first_hit(start[hit], slid)[0])
-        end[hit] = np.where(clear[:, None], slid, stop)
-        return end
+        return self._walk(robot_steps, start, end, True)
 
     def project(self, points: np.ndarray) -> np.ndarray:
         """Nearest point of the plan, in place, for the points outside."""
@@ -251,7 +231,7 @@ class Plan:
         out = ~self.contains(points[:, 0], points[:, 1])
         if out.any():
             lines = shapely.shortest_line(self.polygon, shapely.points(points[out]))
-            points[out] = np.array([ln.coords[0] for ln in lines])
+            points[out] = shapely.get_coordinates(lines)[::2]  # each line's first point: on the plan
         return points
 
     def sample_uniform(self, n: int, rng: np.random.Generator) -> np.ndarray:

@@ -129,6 +129,7 @@ def test_a_loop_that_does_not_compile_falls_back_with_one_warning(monkeypatch):
     kernel = compiled.compiled(fallback=_fallback_of)(_never_compiles)
     monkeypatch.setattr(compiled, "_failures", {})
     monkeypatch.setattr(compiled, "_override", True)
+    monkeypatch.setattr(compiled, "_selected", None)  # (the remembered selection follows _override)
     if not compiled.numba_available():
         pytest.skip("numba is not installed: nothing compiles, nothing to warn about")
     with pytest.warns(compiled.CompiledFallbackWarning, match="_never_compiles") as record:
@@ -142,6 +143,7 @@ def test_a_loop_that_does_not_compile_falls_back_with_one_warning(monkeypatch):
 
 def test_the_environment_variable_selects_the_numpy_path(monkeypatch):
     monkeypatch.setattr(compiled, "_override", True)
+    monkeypatch.setattr(compiled, "_selected", None)
     monkeypatch.setattr(compiled, "_environment", True)
     monkeypatch.setenv("MEANFIELD_COMPILED", "0")
     compiled.use_compiled(None)  # follow the environment, read now
