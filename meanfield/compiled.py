@@ -212,7 +212,9 @@ def compiled(fallback: Callable[..., Any] | None, **options: Any) -> Callable[[C
         The numpy implementation, same arguments, same result (to round-off).  None: the
         caller has its own numpy path and takes it when the call returns :data:`UNAVAILABLE`.
     **options
-        Passed to ``numba.njit`` (``fastmath`` is left off: the two paths must agree).
+        Passed to ``numba.njit`` (``fastmath`` is left off: the two paths must agree).  Loops
+        use numpy's error model (``error_model="numpy"``: a division by zero gives inf/nan as
+        in the numpy twin, and the loop carries no exception checks) unless told otherwise.
     """
 
     def wrap(loop: Callable[..., Any]) -> CompiledKernel:
