@@ -25,6 +25,7 @@ difference of successive ``v_d``.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Literal
@@ -45,7 +46,7 @@ from meanfield.interfaces import (
     Observation,
 )
 from meanfield.kernels import GaussianKernel
-from meanfield.law_loops import fused_robot_inputs
+from meanfield.law_loops import PAPER_STEP_ONE, fused_robot_inputs
 from meanfield.robots import NavigationField
 
 DVD_DT_OPTIONS = ("model", "fokker-planck", "finite-difference")
@@ -387,8 +388,9 @@ class BacksteppingController:
         dt : float, optional
             Step since the previous call (needed by ``dvd_dt="finite-difference"``).
         """
-        if self._fusable(rho, field):  # the paper's common case: one compiled call, same numbers
-            state = fused_robot_inputs(self, rho, field, t)
+        fused = self._fused_law(rho, field)
+        if fused is not None:  # the common cases: one compiled call, the same numbers to round-off
+            state = fused_robot_inputs(self, rho, field, t, fused[1])
             if state is not None:
                 return state
         g = self.grid
@@ -415,39 +417,48 @@ class BacksteppingController:
         A = g.face_inner(vt, (p.rf[0] * p.grt[0] - dvd[0], p.rf[1] * p.grt[1] - dvd[1]))
         extra = self.strategy(b, gg, A)
         return ControlState(
-            v_d=v_d,
-            v_tilde=vt,
-            rho_tilde=p.rho_t,
-            b=b,
-            g=gg,
-            A=A,
-            u=k_u * b + extra.du,
-            omega=-self.k_omega * gg + extra.domega,
-            shortfall=extra.shortfall,
-            dissipation=self._dissipation(p),
-            k_u=self.k_u,
-            k_omega=self.k_omega,
-        )
+            v_d=v_d, v_tilde=vt, rho_tilde=p.rho_t, b=b, g=gg, A=A,
+            u=k_u * b + extra.du, omega=-self.k_omega * gg + extra.domega, shortfall=extra.shortfall,
+            dissipation=self._dissipation(p), k_u=self.k_u, k_omega=self.k_omega,
+        )  # fmt: skip
 
     def _fusable(self, rho: np.ndarray, field: NavigationField) -> bool:
-        """Whether :func:`meanfield.law_loops.fused_robot_inputs` computes this law (checked every call:
-        a schedule or strategy may be replaced between calls)."""
-        return (
-            self.grid.is_box
-            and not callable(self.sigma)
-            and self.interaction is None
-            and type(self.alpha) in (ConstantAlpha, SaturatingAlpha)
-            and type(self.strategy) is MinimumNormBetaGamma
-            and self.dvd_dt == "finite-difference"
-            and self.scales is None
-            and self.k_u.ndim <= 1
-            and self.k_omega.ndim <= 1
-            and field.separable
-            and type(field.kernel) is GaussianKernel
-            and rho.dtype == float
-            and field.positions.dtype == float
-            and field.headings.dtype == float
-        )
+        """Whether one compiled call (:func:`meanfield.law_loops.fused_robot_inputs`) computes this law now."""
+        return self._fused_law(rho, field) is not None
+
+    def _fused_law(self, rho: np.ndarray, field: NavigationField) -> tuple[str, tuple | None] | None:
+        """Which compiled call computes this law, checked at every call (a schedule or strategy may change).
+
+        ``("paper", None)``: :func:`~meanfield.law_loops.paper_law`, the paper's Step I (eq. (6)) on a
+        box, every sign seen; ``("faces", step_one)``: :func:`~meanfield.law_loops.face_law`, any grid
+        (cut cells, signs hidden by walls), Step I as :meth:`_compiled_step_one` says; None: numpy.
+        Both need a constant σ, ``W = 0``, min-norm β/γ, ``∂_t v_d`` by a backward difference, the
+        paper's units, gains per robot at most, the Gaussian kernel on this grid, real C arrays.
+        """
+        if not (
+            not callable(self.sigma) and self.interaction is None and type(self.strategy) is MinimumNormBetaGamma
+            and self.dvd_dt == "finite-difference" and self.scales is None and self.k_u.ndim <= 1
+            and self.k_omega.ndim <= 1 and type(field.kernel) is GaussianKernel and field.grid is self.grid
+            and rho.dtype == float and rho.shape == self.grid.shape and rho.flags.c_contiguous
+            and field.positions.dtype == float and field.headings.dtype == float
+        ):  # fmt: skip
+            return None
+        step_one = self._compiled_step_one()
+        if step_one is None:
+            return None
+        box = step_one[0] == PAPER_STEP_ONE and self.grid.is_box and field.separable
+        return ("paper", None) if box else ("faces", step_one)
+
+    def _compiled_step_one(self) -> tuple[int, float, float, FaceField | None] | None:
+        """Step I as :func:`~meanfield.law_loops.face_law` computes it, ``(step, v_free, ρ_max, ∇φ)``, or None.
+
+        The paper's (eq. (6)) for this class itself with the constant or saturating α.  A subclass
+        that changes Step I, its rate or the dissipation gets None (the numpy path) unless it says
+        here which compiled Step I it is (:class:`~meanfield.evacuation.EvacuationController`: Hughes').
+        """
+        if type(self) is BacksteppingController and type(self.alpha) in (ConstantAlpha, SaturatingAlpha):
+            return PAPER_STEP_ONE, 0.0, math.inf, None
+        return None
 
     def _scaled_inputs(self, p: _Prepared, v_d: FaceField, vt: FaceField, b, gg, dvd, k_u) -> ControlState:
         """Step II in the units ``ℓ``, ``c`` (``scales``): the law run on ``x/ℓ``, ``t c/ℓ``, ``ρℓ²``, ``v/c``.
@@ -464,21 +475,11 @@ class BacksteppingController:
         b, gg = b / (c * c * ell), gg / (c * c * ell * ell)
         extra = self.strategy(b, gg, A)
         return ControlState(
-            v_d=v_d,
-            v_tilde=vt,
-            rho_tilde=p.rho_t,
-            b=b,
-            g=gg,
-            A=A,
-            u=c * (k_u * b + extra.du),
-            omega=c / ell * (-self.k_omega * gg + extra.domega),
-            shortfall=extra.shortfall,
-            dissipation=ell**3 / c * self._dissipation(p),
-            k_u=self.k_u,
-            k_omega=self.k_omega,
-            input_scale=(c, c / ell),
-            v2_weights=(ell * ell, 1.0 / (c * ell) ** 2),
-        )
+            v_d=v_d, v_tilde=vt, rho_tilde=p.rho_t, b=b, g=gg, A=A,
+            u=c * (k_u * b + extra.du), omega=c / ell * (-self.k_omega * gg + extra.domega), shortfall=extra.shortfall,
+            dissipation=ell**3 / c * self._dissipation(p), k_u=self.k_u, k_omega=self.k_omega,
+            input_scale=(c, c / ell), v2_weights=(ell * ell, 1.0 / (c * ell) ** 2),
+        )  # fmt: skip
 
     def reset(self) -> None:
         """Forget the previous ``v_d`` (finite-difference mode)."""

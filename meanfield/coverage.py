@@ -38,6 +38,7 @@ import numpy as np
 
 from meanfield.errors import ParameterError
 from meanfield.interfaces import Command, ControllerParts, ControlState, Observation
+from meanfield.plan_loops import owners as nearest_owners
 
 __all__ = ["CoverageController", "WEIGHTS", "V_D"]
 
@@ -48,6 +49,7 @@ HEADING_GAIN_FACTOR = 3.0
 seed's fraction in target was 0.845, 0.93, 0.94, 0.935 for 1, 2, 3, 5 times)."""
 V_D = ("auto", "safe-zone", "exits")
 """Which Step I the headings track: the exits' when the region has exits (``auto``)."""
+_NOTHING_HIDDEN = np.ones((0, 0), dtype=bool)
 
 
 class CoverageController:
@@ -126,14 +128,16 @@ class CoverageController:
 
     # ------------------------------------------------------------------ positions
     def owners(self, robots: np.ndarray) -> np.ndarray:
-        """For each active cell, the robot it belongs to: the nearest that sees it, else the nearest."""
-        d2 = ((self._xy[None, :, :] - robots[:, None, :]) ** 2).sum(-1)  # (n, cells)
+        """For each active cell, the robot it belongs to: the nearest that sees it, else the nearest.
+
+        One compiled pass over the cells (:func:`meanfield.plan_loops.owners`) with the cells each
+        robot sees (:meth:`meanfield.sight.SightLines.cell_rows`).
+        """
+        robots = np.ascontiguousarray(robots, float)
+        seen, hidden = _NOTHING_HIDDEN, False
         if self.sight is not None:
-            seen = self.sight.cell_rows(self.grid, robots).reshape(len(robots), -1)[:, self._cells]
-            hidden = np.where(seen, d2, np.inf)
-            nearest_seen = np.argmin(hidden, axis=0)
-            return np.where(seen.any(axis=0), nearest_seen, np.argmin(d2, axis=0))
-        return np.argmin(d2, axis=0)
+            seen, hidden = np.ascontiguousarray(self.sight.cell_rows(self.grid, robots)).reshape(len(robots), -1), True
+        return nearest_owners(self._xy, robots, seen, self._cells, hidden, np.empty(len(self._cells), np.intp))
 
     def centroids(self, robots: np.ndarray, weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The weighted centroid of each robot's cells, and which robots' cells hold no weight."""

@@ -23,6 +23,7 @@ from meanfield.errors import ParameterError
 from meanfield.geodesic import exit_distance
 from meanfield.grid import FaceField
 from meanfield.interfaces import ControllerParts
+from meanfield.law_loops import HUGHES_STEP_ONE
 
 __all__ = ["exit_distance", "EvacuationController"]
 
@@ -75,6 +76,13 @@ class EvacuationController(BacksteppingController):
         moving = np.real(rf) < self.rho_max
         f = np.where(moving, self.v_free * (1 - rf / self.rho_max), 0 * rf)
         return f, np.where(moving, -self.v_free / self.rho_max + 0 * rf, 0 * rf)
+
+    def _compiled_step_one(self) -> tuple[int, float, float, Any] | None:
+        """Hughes' Step I for :func:`~meanfield.law_loops.face_law` (this class exactly: a subclass
+        may change Step I again, and then takes the numpy path)."""
+        if type(self) is not EvacuationController:
+            return None
+        return HUGHES_STEP_ONE, self.v_free, self.rho_max, self.grad_phi
 
     def _virtual_velocity(self, p: _Prepared) -> FaceField:
         out = [-self._speed(p.rf[k])[0] * self.grad_phi[k] for k in range(2)]

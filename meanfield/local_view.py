@@ -24,6 +24,7 @@ import numpy as np
 
 from meanfield.domain import Domain
 from meanfield.errors import ParameterError
+from meanfield.plan_loops import in_view, turn_walkers
 
 __all__ = ["LocalView", "robots_in_view"]
 
@@ -76,15 +77,12 @@ def robots_in_view(humans: np.ndarray, robots: np.ndarray, radius: float) -> np.
 
 
 def _in_view_direct(humans: np.ndarray, robots: np.ndarray, radius: float) -> np.ndarray:
-    seen = np.zeros(len(humans), dtype=bool)
-    r2 = radius * radius
-    for rx, ry in robots:  # n is small: n passes over N beat one (N, n) temporary
-        dx = humans[:, 0] - rx
-        dy = humans[:, 1] - ry
-        seen |= dx * dx + dy * dy <= r2
-    return seen
+    """Every human against every robot: one compiled pass (:func:`meanfield.plan_loops.in_view`)."""
+    humans, robots = np.ascontiguousarray(humans, float), np.ascontiguousarray(robots, float)
+    return in_view(humans, robots, radius * radius, _NOTHING_HIDDEN, False, np.empty(len(humans), dtype=bool))
 
 
+_NOTHING_HIDDEN = np.ones((0, 0), dtype=bool)
 _DIRECT_PAIRS = 200_000
 """Below this many human-robot pairs :func:`robots_in_view` compares every pair."""
 _VIEW_CELLS = 65_536
@@ -178,7 +176,9 @@ class LocalView:
         """Walking velocity at ``positions`` (rows ``which`` of the crowd), turned away from walls.
 
         A heading whose step of length ``s dt + clearance`` would leave Ω is replaced by
-        the direction to that step's mirror image in the wall (a specular turn).
+        the direction to that step's mirror image in the wall (a specular turn).  In a plan
+        (a region that ``reflects_along_paths``) the step is followed from the walker and
+        mirrored at the first wall it meets, a thin wall or a pillar included.
 
         Parameters
         ----------
@@ -194,6 +194,11 @@ class LocalView:
         reach = self.walk_speed * dt + self.clearance
         if reach > 0 and len(idx):
             ahead = positions + reach * e
+            if getattr(self.domain, "reflects_along_paths", False):  # a plan: each step followed, mirrored at its wall
+                start = np.ascontiguousarray(positions, float)
+                mirrored = self.domain.reflect(ahead.copy(), start)
+                turn_walkers(start, ahead, mirrored, e, self.headings, np.ascontiguousarray(idx, np.intp))
+                return self.walk_speed * e
             out = ~self.domain.contains(ahead[:, 0], ahead[:, 1])
             if out.any():
                 d = self.domain.reflect(ahead[out].copy()) - positions[out]
@@ -234,11 +239,13 @@ class LocalView:
         if not self.gated:
             return v_r
         self.headings  # noqa: B018 -- the walkers' initial headings are drawn here, at the first step
-        self.seen = robots_in_view(positions, robots, self.radius)
-        if visible is not None and self.seen.any():  # a robot in reach but behind a wall is not seen
-            rows = np.flatnonzero(self.seen)
-            near = ((positions[rows, None, :] - robots[None, :, :]) ** 2).sum(-1) <= self.radius**2
-            self.seen[rows] = (near & visible[:, rows].T).any(axis=1)
+        if visible is None:
+            self.seen = robots_in_view(positions, robots, self.radius)
+        else:  # a robot in reach but behind a wall is not seen: one pass over the pairs (n × N, as visible)
+            humans, robots = np.ascontiguousarray(positions, float), np.ascontiguousarray(robots, float)
+            visible = np.ascontiguousarray(visible, bool)
+            r2 = self.radius * self.radius
+            self.seen = in_view(humans, robots, r2, visible, True, np.empty(len(humans), dtype=bool))
         walkers = np.flatnonzero(~self.seen)
         if len(walkers):
             v_r[walkers] = self.walk_velocity(positions[walkers], dt, walkers)

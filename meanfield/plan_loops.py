@@ -1,14 +1,23 @@
-"""A floor plan's per-step loops, compiled: sight lines and the signs' kernels masked by walls.
+"""A floor plan's per-step loops, compiled: sight lines, the signs' kernels masked by walls, and the
+coverage's and the view's loops that take line of sight into account (a box runs them with nothing hidden).
 
 Each loop is paired with its numpy twin (the reference, :mod:`meanfield.compiled`):
 
 * :func:`segments_clear`: whether each segment ``p_k → q_k`` crosses none of the walls
   (:meth:`meanfield.sight.SightLines.visible`); the compiled loop stops at the first wall hit;
+  :func:`sight_row` the same from one point (a row of the sight table), nearest walls first;
 * :func:`masked_face_kernels`: robot ``i``'s kernel ``s_i K̄_i`` and its gradient on the
   faces from the Gaussian's 1-D factors and the sight masks ``s_i`` (eq. (3) with line of
   sight; :class:`meanfield.robots.NavigationField`);
 * :func:`face_moments`: the six face integrals behind ``b_i`` and ``g_i`` of eq. (8)
-  (:meth:`meanfield.robots.NavigationField.moments`) for those kernels.
+  (:meth:`meanfield.robots.NavigationField.moments`) for those kernels;
+* :func:`cell_index`: the cell (with volume) of each point, whose row of the sight table
+  says what it sees (:class:`meanfield.sight.SightLines`);
+* :func:`owners`: the robot each cell belongs to in the coverage controller's partition, the
+  nearest that sees it (:meth:`meanfield.coverage.CoverageController.owners`);
+* :func:`in_view`: which humans have a robot within their view radius (and in sight, in a
+  plan: :meth:`meanfield.local_view.LocalView.gate`); :func:`turn_walkers`: the walkers whom
+  a wall turns (:meth:`meanfield.local_view.LocalView.walk_velocity`).
 """
 
 from __future__ import annotations
@@ -17,7 +26,10 @@ import numpy as np
 
 from meanfield.compiled import compiled, inner
 
-__all__ = ["segments_clear", "masked_face_kernels", "face_moments", "SIGHT_EPS"]
+__all__ = [
+    "segments_clear", "sight_row", "masked_face_kernels", "face_moments", "cell_index", "owners", "in_view",
+    "turn_walkers", "SIGHT_EPS",
+]  # fmt: skip
 
 SIGHT_EPS = 1e-9
 """A segment that only touches a wall within this fraction of its ends is not hidden by it."""
@@ -65,6 +77,86 @@ def segments_clear(p, q, a, e, out):
                 continue
             wx, wy = a[w, 0] - px, a[w, 1] - py
             t = (wx * e[w, 1] - wy * e[w, 0]) / cross
+            if t <= eps or t >= 1 - eps:
+                continue
+            u = (wx * dy - wy * dx) / cross
+            if u >= -eps and u <= 1 + eps:
+                clear = False
+                break
+        out[k] = clear
+    return out
+
+
+def _sight_row_numpy(p, q, a, e, order, wall, out):
+    start = np.empty_like(q)
+    start[:] = p
+    return _segments_clear_numpy(start, q, a, e, out)
+
+
+@compiled(fallback=_sight_row_numpy)
+def sight_row(p, q, a, e, order, wall, out):
+    """``out[k]``: the segment ``p → q[k]`` crosses no wall (:func:`segments_clear` from one point).
+
+    From one point two things are cheap: the walls are tried nearest first (the nearest hides
+    most), and a wall whose line has ``p`` and ``q[k]`` well on the same side cannot be crossed,
+    which two products decide before any division (well: by ``10⁻⁶`` of the products' size,
+    far above their round-off, so that the answer is :func:`segments_clear`'s).
+
+    Parameters
+    ----------
+    p : ndarray, shape (2,)
+    q : ndarray, shape (M, 2)
+    a, e : ndarray, shape (W, 2)
+        Each wall's start and its vector to the end.
+    order, wall : ndarray, shapes (W,) of int and (W, 7)
+        Work arrays (the walls sorted; allocations inside would add to the first call's compilation).
+    out : ndarray of bool, shape (M,)
+    """
+    eps = SIGHT_EPS
+    nw = a.shape[0]
+    px, py = p[0], p[1]
+    for w in range(nw):  # the squared distance from p to each wall, in column 6 of wall
+        ee = e[w, 0] * e[w, 0] + e[w, 1] * e[w, 1]
+        s = ((px - a[w, 0]) * e[w, 0] + (py - a[w, 1]) * e[w, 1]) / ee if ee > 0 else 0.0
+        s = min(max(s, 0.0), 1.0)
+        dx, dy = a[w, 0] + s * e[w, 0] - px, a[w, 1] + s * e[w, 1] - py
+        wall[w, 6] = dx * dx + dy * dy
+    for w in range(nw):  # by insertion (a few dozen walls; np.argsort costs a second of compilation)
+        k = w
+        while k > 0 and wall[order[k - 1], 6] > wall[w, 6]:
+            order[k] = order[k - 1]
+            k -= 1
+        order[k] = w
+    lo_x, hi_x, lo_y, hi_y = px, px, py, py  # the box of the points and walls: the margin's scale
+    for k in range(q.shape[0]):
+        lo_x, hi_x = min(lo_x, q[k, 0]), max(hi_x, q[k, 0])
+        lo_y, hi_y = min(lo_y, q[k, 1]), max(hi_y, q[k, 1])
+    for w in range(nw):
+        bx, by = a[w, 0] + e[w, 0], a[w, 1] + e[w, 1]
+        lo_x, hi_x = min(lo_x, min(a[w, 0], bx)), max(hi_x, max(a[w, 0], bx))
+        lo_y, hi_y = min(lo_y, min(a[w, 1], by)), max(hi_y, max(a[w, 1], by))
+    span = max(hi_x - lo_x, hi_y - lo_y)
+    # columns 0-5 of wall: a, e, the side of p, the margin (column 6, the distances, is read no more)
+    for k in range(nw):
+        w = order[k]
+        ax, ay, ex, ey = a[w, 0], a[w, 1], e[w, 0], e[w, 1]
+        wall[k, 0], wall[k, 1], wall[k, 2], wall[k, 3] = ax, ay, ex, ey
+        wall[k, 4] = ex * (py - ay) - ey * (px - ax)
+        wall[k, 5] = 1e-6 * (abs(ex) + abs(ey)) * 6.0 * span  # ≥ 10⁻⁶ of every product below
+    for k in range(q.shape[0]):
+        qx, qy = q[k, 0], q[k, 1]
+        dx, dy = qx - px, qy - py
+        clear = True
+        for w in range(nw):
+            ax, ay, ex, ey, side_p, tol = wall[w, 0], wall[w, 1], wall[w, 2], wall[w, 3], wall[w, 4], wall[w, 5]
+            side_q = ex * (qy - ay) - ey * (qx - ax)
+            if (side_p > tol and side_q > tol) or (side_p < -tol and side_q < -tol):
+                continue  # p and q on the same side of the wall's line
+            cross = dx * ey - dy * ex
+            if cross == 0.0:
+                continue
+            wx, wy = ax - px, ay - py
+            t = (wx * ey - wy * ex) / cross
             if t <= eps or t >= 1 - eps:
                 continue
             u = (wx * dy - wy * dx) / cross
@@ -153,3 +245,161 @@ def face_moments(kx, gx_x, gy_x, ky, gx_y, gy_y, Wx, Wy, out):
     _family_moments(kx, gx_x, gy_x, Wx, out, 0)
     _family_moments(ky, gx_y, gy_y, Wy, out, 3)
     return out
+
+
+# ----------------------------------------------------------------------------- cells and owners
+def _cell_index_numpy(points, x0, y0, dx, dy, ii, jj, out):
+    nx, ny = ii.shape
+    s = (points[:, 0] - x0) / dx
+    t = (points[:, 1] - y0) / dy
+    i = np.where(s >= 0, np.minimum(s, nx - 1), 0).astype(np.intp)  # NaN: 0 (some cell, never read)
+    j = np.where(t >= 0, np.minimum(t, ny - 1), 0).astype(np.intp)
+    out[:, 0] = ii[i, j]
+    out[:, 1] = jj[i, j]
+    return out
+
+
+@compiled(fallback=_cell_index_numpy)
+def cell_index(points, x0, y0, dx, dy, ii, jj, out):
+    """The cell with volume of each point into ``out`` (M, 2): its grid cell, or the nearest edge cell outside the grid.
+
+    Parameters
+    ----------
+    points : ndarray, shape (M, 2)
+    x0, y0, dx, dy : float
+        The grid's lower-left corner and cell sizes.
+    ii, jj : ndarray of int, shape (nx, ny)
+        The cell with volume that stands for each cell (itself when it has some volume).
+    out : ndarray of int, shape (M, 2)
+    """
+    nx, ny = ii.shape
+    for k in range(points.shape[0]):
+        s = (points[k, 0] - x0) / dx
+        t = (points[k, 1] - y0) / dy
+        i = int(min(s, nx - 1.0)) if s >= 0 else 0  # NaN: 0 (some cell, never read)
+        j = int(min(t, ny - 1.0)) if t >= 0 else 0
+        out[k, 0] = ii[i, j]
+        out[k, 1] = jj[i, j]
+    return out
+
+
+def _owners_numpy(xy, robots, seen, cells, hidden, out):
+    d2 = (xy[None, :, 0] - robots[:, 0, None]) ** 2 + (xy[None, :, 1] - robots[:, 1, None]) ** 2  # (n, M)
+    if not hidden:
+        out[:] = np.argmin(d2, axis=0)
+        return out
+    seen = seen[:, cells]
+    nearest_seen = np.argmin(np.where(seen, d2, np.inf), axis=0)
+    out[:] = np.where(seen.any(axis=0), nearest_seen, np.argmin(d2, axis=0))
+    return out
+
+
+@compiled(fallback=_owners_numpy)
+def owners(xy, robots, seen, cells, hidden, out):
+    """For each cell, the nearest robot that sees it (when ``hidden``), else the nearest robot; ties: the first.
+
+    Robot by robot over all cells (the inner loop runs along the cells).
+
+    Parameters
+    ----------
+    xy : ndarray, shape (M, 2)
+        The cells' centres.
+    robots : ndarray, shape (n, 2)
+    seen : ndarray of bool, shape (n, K)
+        Which cells of the grid (flat) each robot sees (read when ``hidden``).
+    cells : ndarray of int, shape (M,)
+        Each cell's column in ``seen``.
+    hidden : bool
+        Whether a wall may hide a cell from a robot.
+    out : ndarray of int, shape (M,)
+    """
+    m = xy.shape[0]
+    best, best_seen, k_seen = np.empty(m), np.empty(m), np.empty(m, np.intp)
+    for c in range(m):
+        best[c] = best_seen[c] = np.inf
+        out[c] = 0
+        k_seen[c] = -1
+    for i in range(robots.shape[0]):
+        rx, ry = robots[i, 0], robots[i, 1]
+        for c in range(m):
+            dx = xy[c, 0] - rx
+            dy = xy[c, 1] - ry
+            d2 = dx * dx + dy * dy
+            if d2 < best[c]:
+                best[c] = d2
+                out[c] = i
+            if hidden and d2 < best_seen[c] and seen[i, cells[c]]:
+                best_seen[c] = d2
+                k_seen[c] = i
+    if hidden:
+        for c in range(m):
+            if k_seen[c] >= 0:
+                out[c] = k_seen[c]
+    return out
+
+
+def _in_view_numpy(humans, robots, r2, visible, hidden, out):
+    out[:] = False
+    for i in range(len(robots)):  # n is small: n passes over N
+        dx = humans[:, 0] - robots[i, 0]
+        dy = humans[:, 1] - robots[i, 1]
+        near = dx * dx + dy * dy <= r2
+        out |= near & visible[i] if hidden else near
+    return out
+
+
+@compiled(fallback=_in_view_numpy)
+def in_view(humans, robots, r2, visible, hidden, out):
+    """``out[j]``: some robot ``i`` is within ``sqrt(r2)`` of human ``j`` (and, if ``hidden``, ``visible[i, j]``).
+
+    Parameters
+    ----------
+    humans : ndarray, shape (N, 2)
+    robots : ndarray, shape (n, 2)
+    r2 : float
+        The view radius squared.
+    visible : ndarray of bool, shape (n, N)
+        Which robot each human sees (:meth:`meanfield.sight.SightLines.mask`; read when ``hidden``).
+    hidden : bool
+        Whether a wall may hide a robot.
+    out : ndarray of bool, shape (N,)
+    """
+    for j in range(humans.shape[0]):
+        seen = False
+        for i in range(robots.shape[0]):
+            if not hidden or visible[i, j]:
+                dx = humans[j, 0] - robots[i, 0]
+                dy = humans[j, 1] - robots[i, 1]
+                if dx * dx + dy * dy <= r2:
+                    seen = True
+                    break
+        out[j] = seen
+    return out
+
+
+def _turn_walkers_numpy(start, ahead, mirrored, e, headings, idx):
+    out = (mirrored[:, 0] != ahead[:, 0]) | (mirrored[:, 1] != ahead[:, 1])
+    d = mirrored[out] - start[out]
+    norm = np.hypot(d[:, 0], d[:, 1])
+    ok = norm > 0
+    rows = np.flatnonzero(out)[ok]
+    e[rows] = d[ok] / norm[ok, None]
+    headings[idx[rows]] = np.arctan2(d[ok, 1], d[ok, 0])
+    return e
+
+
+@compiled(fallback=_turn_walkers_numpy)
+def turn_walkers(start, ahead, mirrored, e, headings, idx):
+    """Turn, in place, each walker whose step ``start → ahead`` a wall mirrored to ``mirrored``.
+
+    Its direction ``e`` (M, 2) becomes the unit vector to the mirror image and its heading
+    ``headings[idx[k]]`` that vector's angle (:meth:`meanfield.local_view.LocalView.walk_velocity`).
+    """
+    for k in range(start.shape[0]):
+        if mirrored[k, 0] != ahead[k, 0] or mirrored[k, 1] != ahead[k, 1]:
+            dx, dy = mirrored[k, 0] - start[k, 0], mirrored[k, 1] - start[k, 1]
+            norm = np.hypot(dx, dy)
+            if norm > 0:
+                e[k, 0], e[k, 1] = dx / norm, dy / norm
+                headings[idx[k]] = np.arctan2(dy, dx)
+    return e

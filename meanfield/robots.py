@@ -206,6 +206,18 @@ class NavigationField:
         self.separable = bool(getattr(kernel, "separable", False)) and not hidden
         self._built = False  # the kernels on the faces: computed on first use (_build)
 
+    def cell_sight(self) -> np.ndarray | None:
+        """Which cells each robot sees, bool ``(n, nx, ny)`` (:meth:`meanfield.sight.SightLines.cell_rows`).
+
+        A face is seen when both its cells are (as in :meth:`_build`'s masks); None when no wall
+        can hide a sign.  The compiled law (:func:`meanfield.law_loops.face_law`) reads this
+        instead of the masked kernels.
+        """
+        sight = self._sight
+        if sight is None or sight.trivial:
+            return None
+        return sight.cell_rows(self.grid, self.positions)
+
     def _build(self) -> None:
         """The kernels and their gradients on the faces (from 1-D factors when the kernel is separable)."""
         if self._built:

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from meanfield.plan_loops import segments_clear
+from meanfield.plan_loops import cell_index, segments_clear, sight_row
 
 __all__ = ["SightLines", "blocking_walls"]
 
@@ -93,6 +93,18 @@ class SightLines:
         out = segments_clear(p, q, self._a, self._e, np.empty(len(p), dtype=bool))
         return out.reshape(shape)
 
+    def visible_from(self, point: np.ndarray, ends: np.ndarray) -> np.ndarray:
+        """Whether each segment ``point → ends[k]`` (``ends`` (M, 2)) crosses no wall: :meth:`visible` from one point.
+
+        One compiled pass (:func:`meanfield.plan_loops.sight_row`: the nearest walls first).
+        """
+        ends = np.ascontiguousarray(ends, float).reshape(-1, 2)
+        if self.trivial:
+            return np.ones(len(ends), dtype=bool)
+        point = np.ascontiguousarray(point, float).reshape(2)
+        work = np.empty(len(self._a), np.intp), np.empty((len(self._a), 7))
+        return sight_row(point, ends, self._a, self._e, *work, np.empty(len(ends), dtype=bool))
+
     def mask(self, robots: np.ndarray, points: np.ndarray, grid: Any = None) -> np.ndarray | None:
         """``s_i(x)``: shape ``(n, M)``, True where robot ``i`` sees point ``x`` (None: all visible).
 
@@ -153,36 +165,69 @@ class _CellSight:
             points[~inside] = grid.domain.project(points[~inside].copy())
         self.points = points
         self.active = grid.active
+        self._active_points = np.ascontiguousarray(points[grid.active])
         # a point in a cell without volume looks from the nearest cell that has some
-        _, (self._ii, self._jj) = ndimage.distance_transform_edt(~grid.active, return_indices=True)
-        self._rows: dict[tuple[int, int], np.ndarray] = {}
+        _, (ii, jj) = ndimage.distance_transform_edt(~grid.active, return_indices=True)
+        self._ii, self._jj = np.ascontiguousarray(ii, np.intp), np.ascontiguousarray(jj, np.intp)
+        self._table = np.zeros((8, *grid.shape), dtype=bool)  # the rows computed so far, in the order computed
+        self._row_of = np.full(grid.shape, -1, dtype=np.intp)  # each cell's row in the table (-1: not yet)
+        self._count = 0
         x0, _, y0, _ = grid.domain.bounds
-        self._origin = np.array([x0, y0])
-        self._size = np.array([grid.dx, grid.dy])
+        self._frame = (float(x0), float(y0), float(grid.dx), float(grid.dy))
         self._last = np.zeros((0, 2), dtype=np.intp), np.zeros((0, *grid.shape), dtype=bool)
+        self._last_robots = b""  # the robots' positions (bytes) of the last answer of rows()
+
+    def cells(self, points: np.ndarray) -> np.ndarray:
+        """The cell (with volume) of each point, ``(M, 2)`` ints; a point outside the grid takes the nearest edge cell.
+
+        One compiled pass (:func:`meanfield.plan_loops.cell_index`); a NaN point gets some cell, never read.
+        """
+        points = np.ascontiguousarray(points, float)
+        return cell_index(points, *self._frame, self._ii, self._jj, np.empty((len(points), 2), np.intp))
 
     def index(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The cell (with volume) of each point; a point outside the grid takes the nearest edge cell."""
-        ij = ((points - self._origin) / self._size).astype(np.intp)  # NaN rows: some cell, never read
-        i = np.clip(ij[:, 0], 0, self.grid.cells[0] - 1)
-        j = np.clip(ij[:, 1], 0, self.grid.cells[1] - 1)
-        return self._ii[i, j], self._jj[i, j]
+        """The cell (with volume) of each point as ``(i, j)``: :meth:`cells`."""
+        ij = self.cells(points)
+        return ij[:, 0], ij[:, 1]
 
     def rows(self, robots: np.ndarray) -> np.ndarray:
-        """The cells seen from the cell of each robot: bool, ``(n, nx, ny)`` (the last answer reused)."""
-        i, j = self.index(robots)
-        keys = np.column_stack([i, j])
+        """The cells seen from the cell of each robot: bool, ``(n, nx, ny)`` (the last answer reused).
+
+        Robots at the positions of the last call (the law, the coverage and the crowd ask within a
+        step) get the last answer without a look-up; robots in the cells of the last call, too.
+        """
+        robots = np.ascontiguousarray(robots, float)
+        key = robots.tobytes()
+        if key == self._last_robots:
+            return self._last[1]
+        keys = self.cells(robots)
         last_keys, last_rows = self._last
-        if np.array_equal(keys, last_keys):
-            return last_rows
-        out = np.stack([self._row((int(a), int(b))) for a, b in keys])
-        self._last = keys, out
-        return out
+        if not np.array_equal(keys, last_keys):
+            ids = self._row_of[keys[:, 0], keys[:, 1]]
+            for k in np.flatnonzero(ids < 0):  # cells no robot stood in before
+                ids[k] = self._add((int(keys[k, 0]), int(keys[k, 1])))
+            last_rows = self._table[ids]
+            self._last = keys, last_rows
+        self._last_robots = key
+        return last_rows
 
     def _row(self, key: tuple[int, int]) -> np.ndarray:
-        row = self._rows.get(key)
-        if row is None:
-            row = self.sight.visible(self.points[key], self.points) & self.active
-            row[key] = True
-            self._rows[key] = row
-        return row
+        """The cells seen from the cell ``key`` (which has volume): bool, ``grid.shape``."""
+        k = self._add(key)  # (which may grow the table)
+        return self._table[k]
+
+    def _add(self, key: tuple[int, int]) -> int:
+        """The row of ``key`` in the table, computed and appended the first time."""
+        k = int(self._row_of[key])
+        if k >= 0:
+            return k
+        if self._count == len(self._table):  # grown by half (the rows of a large grid are large)
+            more = np.zeros((max(8, len(self._table) // 2), *self._table.shape[1:]), dtype=bool)
+            self._table = np.concatenate([self._table, more])
+        k = self._count
+        row = self._table[k]  # only the cells with volume can be seen
+        row[self.active] = self.sight.visible_from(self.points[key], self._active_points)
+        row[key] = True
+        self._row_of[key] = k
+        self._count += 1
+        return k
