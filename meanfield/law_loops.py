@@ -34,7 +34,6 @@ The numpy path of the controller is the reference; the two agree to round-off (t
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -42,6 +41,7 @@ import numpy as np
 from meanfield.compiled import UNAVAILABLE, compiled, inner
 from meanfield.interfaces import ControlState
 from meanfield.robots import NavigationField
+from meanfield.vector_exp import exp_inplace
 
 __all__ = ["paper_law", "face_law", "fused_robot_inputs", "PAPER_STEP_ONE", "HUGHES_STEP_ONE"]
 
@@ -77,14 +77,20 @@ def _faces(rho, rho_t, tg, inv_h, sigma, alpha0, floor, prev, have_prev, h, vd, 
 
 @inner
 def _factors(coords, r, c, eta, out_f, out_g):
-    """1-D kernel factors ``c exp(-d²/η)`` (``c`` = 1 for the y factors) and their ``-2d/η`` multiples."""
+    """1-D kernel factors ``c exp(-d²/η)`` (``c`` = 1 for the y factors) and their ``-2d/η`` multiples
+    (the exponentials vectorised, :func:`meanfield.vector_exp.exp_inplace`)."""
     s = -2.0 / eta
+    m = coords.shape[0]
+    vals, bits = np.empty(m), np.empty(m, np.int64)
     for i in range(r.shape[0]):
-        for a in range(coords.shape[0]):
+        for a in range(m):
             d = coords[a] - r[i]
-            f = c * math.exp(-(d * d) / eta)
+            vals[a] = -(d * d) / eta
+        exp_inplace(vals, bits, m)
+        for a in range(m):
+            f = c * vals[a]
             out_f[i, a] = f
-            out_g[i, a] = s * d * f
+            out_g[i, a] = s * (coords[a] - r[i]) * f
 
 
 @compiled(fallback=None)
