@@ -51,6 +51,21 @@ def _segments_clear_numpy(p, q, a, e, out):
     return out
 
 
+@inner
+def _crosses(px, py, dx, dy, ax, ay, ex, ey, eps):
+    """Whether the segment ``p + t d`` crosses the wall ``a + s e`` inside both: ``eps < t < 1 - eps``
+    and ``-eps <= s <= 1 + eps`` (a touch at either end of the segment does not count)."""
+    cross = dx * ey - dy * ex
+    if cross == 0.0:
+        return False
+    wx, wy = ax - px, ay - py
+    t = (wx * ey - wy * ex) / cross
+    if t <= eps or t >= 1 - eps:
+        return False
+    u = (wx * dy - wy * dx) / cross
+    return u >= -eps and u <= 1 + eps
+
+
 @compiled(fallback=_segments_clear_numpy)
 def segments_clear(p, q, a, e, out):
     """``out[k]``: the segment ``p[k] → q[k]`` crosses no wall ``a_w + s e_w``, ``s ∈ [0, 1]``.
@@ -72,15 +87,7 @@ def segments_clear(p, q, a, e, out):
         dx, dy = q[k, 0] - px, q[k, 1] - py
         clear = True
         for w in range(a.shape[0]):
-            cross = dx * e[w, 1] - dy * e[w, 0]
-            if cross == 0.0:
-                continue
-            wx, wy = a[w, 0] - px, a[w, 1] - py
-            t = (wx * e[w, 1] - wy * e[w, 0]) / cross
-            if t <= eps or t >= 1 - eps:
-                continue
-            u = (wx * dy - wy * dx) / cross
-            if u >= -eps and u <= 1 + eps:
+            if _crosses(px, py, dx, dy, a[w, 0], a[w, 1], e[w, 0], e[w, 1], eps):
                 clear = False
                 break
         out[k] = clear
@@ -152,15 +159,7 @@ def sight_row(p, q, a, e, order, wall, out):
             side_q = ex * (qy - ay) - ey * (qx - ax)
             if (side_p > tol and side_q > tol) or (side_p < -tol and side_q < -tol):
                 continue  # p and q on the same side of the wall's line
-            cross = dx * ey - dy * ex
-            if cross == 0.0:
-                continue
-            wx, wy = ax - px, ay - py
-            t = (wx * ey - wy * ex) / cross
-            if t <= eps or t >= 1 - eps:
-                continue
-            u = (wx * dy - wy * dx) / cross
-            if u >= -eps and u <= 1 + eps:
+            if _crosses(px, py, dx, dy, ax, ay, ex, ey, eps):
                 clear = False
                 break
         out[k] = clear
