@@ -93,21 +93,6 @@ def _factors(coords, r, c, eta, out_f, out_g):
             out_g[i, a] = s * (coords[a] - r[i]) * f
 
 
-@inner
-def _all_factors(xf, xc, yf, yc, rx, ry, c, eta):
-    """The kernel's 1-D factors and their derivatives along x (faces, centres) and y (faces, centres)."""
-    n = rx.shape[0]
-    fxf, gxf = np.empty((n, xf.shape[0])), np.empty((n, xf.shape[0]))
-    fxc, gxc = np.empty((n, xc.shape[0])), np.empty((n, xc.shape[0]))
-    fyf, gyf = np.empty((n, yf.shape[0])), np.empty((n, yf.shape[0]))
-    fyc, gyc = np.empty((n, yc.shape[0])), np.empty((n, yc.shape[0]))
-    _factors(xf, rx, c, eta, fxf, gxf)
-    _factors(xc, rx, c, eta, fxc, gxc)
-    _factors(yf, ry, 1.0, eta, fyf, gyf)
-    _factors(yc, ry, 1.0, eta, fyc, gyc)
-    return fxf, gxf, fxc, gxc, fyf, gyf, fyc, gyc
-
-
 @compiled(fallback=None)
 def paper_law(
     rho, target, tgx, tgy, inv_dx, inv_dy, wx, wy, sigma, alpha0, floor,
@@ -154,7 +139,14 @@ def paper_law(
             _faces(rho, rho_t, tgx, inv_dx, sigma, alpha0, floor, prev_x, have_prev, h, vdx, rfx, grx, dvx, qx, axis)
         else:
             _faces(rho, rho_t, tgy, inv_dy, sigma, alpha0, floor, prev_y, have_prev, h, vdy, rfy, gry, dvy, qy, axis)
-    fxf, gxf, fxc, gxc, fyf, gyf, fyc, gyc = _all_factors(xf, xc, yf, yc, rx, ry, c, eta)
+    fxf, gxf = np.empty((n, nx - 1)), np.empty((n, nx - 1))
+    fxc, gxc = np.empty((n, nx)), np.empty((n, nx))
+    fyf, gyf = np.empty((n, ny - 1)), np.empty((n, ny - 1))
+    fyc, gyc = np.empty((n, ny)), np.empty((n, ny))
+    _factors(xf, rx, c, eta, fxf, gxf)
+    _factors(xc, rx, c, eta, fxc, gxc)
+    _factors(yf, ry, 1.0, eta, fyf, gyf)
+    _factors(yc, ry, 1.0, eta, fyc, gyc)
     # v_r on the faces (x-faces: factors x at faces, y at centres; y-faces: the converse), ṽ
     ax = np.empty((n, nx - 1))
     ay = np.empty((n, nx))
@@ -320,7 +312,15 @@ def face_law(
     for a in range(nx):
         for bb in range(ny):
             rho_t[a, bb] = rho[a, bb] - target[a, bb]
-    fxf, gxf, fxc, gxc, fyf, gyf, fyc, gyc = _all_factors(xf, xc, yf, yc, rx, ry, c, eta)
+    # (as in paper_law; a shared helper returning the eight arrays cost 0.3-0.5 s more compilation)
+    fxf, gxf = np.empty((n, nx - 1)), np.empty((n, nx - 1))
+    fxc, gxc = np.empty((n, nx)), np.empty((n, nx))
+    fyf, gyf = np.empty((n, ny - 1)), np.empty((n, ny - 1))
+    fyc, gyc = np.empty((n, ny)), np.empty((n, ny))
+    _factors(xf, rx, c, eta, fxf, gxf)
+    _factors(xc, rx, c, eta, fxc, gxc)
+    _factors(yf, ry, 1.0, eta, fyf, gyf)
+    _factors(yc, ry, 1.0, eta, fyc, gyc)
     mom = np.empty((6, n))
     A = 0.0
     diss = 0.0
