@@ -24,11 +24,10 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import statistics  # noqa: E402
-import time  # noqa: E402
 from typing import Any  # noqa: E402
 
 from benchmarks.records import measured, settings  # noqa: E402
-from benchmarks.reporting import emit, machine_line  # noqa: E402
+from benchmarks.reporting import emit, machine_line, time_act_calls  # noqa: E402
 from meanfield import ClosedLoop, paper_scenario  # noqa: E402
 from meanfield.controller_study import LAW, candidates  # noqa: E402
 
@@ -40,17 +39,7 @@ def act_times(overrides: dict[str, Any], steps: int, seed: int) -> list[float]:
     """Seconds of each ``act`` call in a closed loop of ``steps`` steps with ``overrides``."""
     sc = paper_scenario(seed=seed).with_values({**overrides, "t_final": (steps + 1) * 0.01})
     loop = ClosedLoop(sc)
-    controller = loop.parts.controller
-    inner = controller.act
-    times: list[float] = []
-
-    def timed(observation: Any) -> Any:
-        t0 = time.perf_counter()
-        out = inner(observation)
-        times.append(time.perf_counter() - t0)
-        return out
-
-    controller.act = timed
+    times = time_act_calls(loop.parts.controller)
     for _ in range(steps):
         loop.step()
     return times[1:]  # the first call builds what is built once

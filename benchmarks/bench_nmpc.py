@@ -44,7 +44,7 @@ import casadi  # noqa: E402
 import numpy as np  # noqa: E402
 
 from benchmarks.records import measured, settings  # noqa: E402
-from benchmarks.reporting import write_files  # noqa: E402
+from benchmarks.reporting import time_act_calls, write_files  # noqa: E402
 from meanfield import ClosedLoop, paper_scenario  # noqa: E402
 from meanfield.cli import parse_set  # noqa: E402
 
@@ -60,15 +60,7 @@ def one_run(seed: int, t_final: float, sets: dict) -> dict:
     loop = ClosedLoop(sc)
     build = time.perf_counter() - t0
     c = loop.controller
-    inner, acts = c.act, []
-
-    def timed(observation: Any) -> Any:
-        t1 = time.perf_counter()
-        out = inner(observation)
-        acts.append(time.perf_counter() - t1)
-        return out
-
-    c.act = timed
+    acts = time_act_calls(c)
     result = loop.run(progress=False)
     steps = result.summary["steps"]
     act = np.array(acts[1:steps])  # the first call (one-off start-up costs) apart, the final frame's excluded

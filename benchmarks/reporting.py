@@ -56,3 +56,23 @@ def peak_resident_mb() -> float:
     except OSError:
         pass
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # kB on Linux
+
+
+def time_act_calls(controller: Any) -> list[float]:
+    """Wrap ``controller.act`` with a clock; the returned list receives the seconds of each call.
+
+    The wrapper replaces the bound method on this controller only; the list grows as the
+    loop runs (the first call, which builds what is built once, is the caller's to drop).
+    """
+    import time
+
+    inner, times = controller.act, []
+
+    def timed(observation: Any) -> Any:
+        t0 = time.perf_counter()
+        out = inner(observation)
+        times.append(time.perf_counter() - t0)
+        return out
+
+    controller.act = timed
+    return times

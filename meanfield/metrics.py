@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from meanfield.crowd_loops import count_in_disk
 from meanfield.domain import Domain
 from meanfield.grid import Grid
 
@@ -58,8 +59,6 @@ def target_region_radius(
 
 def fraction_in_disk(points: np.ndarray, center: tuple[float, float], radius: float) -> float:
     """Fraction of ``points`` (N, 2) within ``radius`` of ``center`` (one compiled pass for float points)."""
-    from meanfield.crowd_loops import count_in_disk
-
     points = np.asarray(points)
     if points.dtype != float:
         return float(count_in_disk.fallback(points, center[0], center[1], radius)) / len(points)

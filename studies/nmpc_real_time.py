@@ -36,6 +36,7 @@ from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from benchmarks.reporting import time_act_calls  # noqa: E402
 from meanfield import ClosedLoop, paper_scenario  # noqa: E402
 from meanfield.cli import parse_set  # noqa: E402
 
@@ -58,16 +59,7 @@ def one_run(seed: int, t_final: float, options: dict[str, Any]) -> dict[str, Any
     loop = ClosedLoop(sc)
     build = time.perf_counter() - t0
     controller = loop.parts.controller
-    inner = controller.act
-    times: list[float] = []
-
-    def timed(observation: Any) -> Any:
-        t = time.perf_counter()
-        out = inner(observation)
-        times.append(time.perf_counter() - t)
-        return out
-
-    controller.act = timed
+    times = time_act_calls(controller)
     result = loop.run(progress=False)
     s = result.summary
     # the final frame's diagnostics-only call excluded; the first call (one-off start-up costs:
