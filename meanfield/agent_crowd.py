@@ -184,7 +184,7 @@ class AgentCrowd:
                 drift, self.reached = self._work(len(positions))
                 k, theta = self.kernel, robots.headings
                 seen = _EVERYONE if visible is None else visible
-                rx, ry = robots.positions[:, 0].copy(), robots.positions[:, 1].copy()
+                rx, ry = np.ascontiguousarray(robots.positions.T, dtype=float)
                 ex, ey = k.c * np.cos(theta), k.c * np.sin(theta)
                 gaussian_field_at(positions, rx, ry, ex, ey, 1.0 / k.eta, seen, self._reach_speed, drift, self.reached)
             else:

@@ -64,6 +64,7 @@ class Crowd:
         # a region whose walls are not all convex follows each step from its start (Plan.reflect)
         self._path_reflection = bool(getattr(domain, "reflects_along_paths", False))
         self._noise = np.empty_like(positions)  # work array, reused every step
+        self._amp_key: tuple | None = None
         box = getattr(domain, "kind", None) == "box" and not self._path_reflection
         self._box = np.asarray(domain.bounds, float) if box else _NO_BOX
 
@@ -86,7 +87,7 @@ class Crowd:
                 raise ParameterError("crowd.sigma", "negative or non-finite σ(x, t)", "σ(x, t) >= 0")
             amp = np.sqrt(2.0 * s * dt)[:, None]
         else:
-            amp = np.full((1, 1), math.sqrt(2.0 * self.sigma * dt))
+            amp = self._constant_amplitude(dt)
         previous = x.copy() if self._path_reflection or len(self.exits) else None
         # a box without exits folds its walls into the same pass (meanfield.crowd_loops)
         folded = self._box if previous is None else _NO_BOX
@@ -98,6 +99,13 @@ class Crowd:
                 self.domain.reflect(x)
             return
         self._leave_and_reflect(previous, t, dt)
+
+    def _constant_amplitude(self, dt: float) -> np.ndarray:
+        """``sqrt(2 σ dt)``, the (1, 1) array :func:`~meanfield.crowd_loops.euler_maruyama` takes, kept per (σ, dt)."""
+        key = (self.sigma, dt)
+        if self._amp_key != key:
+            self._amp_key, self._amp = key, np.full((1, 1), math.sqrt(2.0 * self.sigma * dt))
+        return self._amp
 
     def _leave_and_reflect(self, previous: np.ndarray, t: float, dt: float) -> None:
         """The humans whose step reached an exit leave (position NaN); the others reflect at the walls."""

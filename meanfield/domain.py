@@ -161,6 +161,14 @@ class Domain:
         v = self.vertices
         return (float(v[:, 0].min()), float(v[:, 0].max()), float(v[:, 1].min()), float(v[:, 1].max()))
 
+    @functools.cached_property
+    def _corners(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(xmin, ymin)`` and ``(xmax, ymax)`` as arrays (read-only), for :meth:`project`."""
+        x0, x1, y0, y1 = self.bounds
+        lo, hi = np.array([x0, y0]), np.array([x1, y1])
+        lo.flags.writeable = hi.flags.writeable = False
+        return lo, hi
+
     @property
     def area(self) -> float:
         """Area |Ω|."""
@@ -259,10 +267,10 @@ class Domain:
 
     def project(self, points: np.ndarray) -> np.ndarray:
         """Nearest point of Ω for each row of ``points`` (in place); inside points unchanged."""
-        if self.kind == "box":
-            x0, x1, y0, y1 = self.bounds
-            np.clip(points[:, 0], x0, x1, out=points[:, 0])
-            np.clip(points[:, 1], y0, y1, out=points[:, 1])
+        if self.kind == "box":  # the corners as rows: two broadcast ufuncs (np.clip per column costs 3x)
+            lo, hi = self._corners
+            np.maximum(points, lo, out=points)
+            np.minimum(points, hi, out=points)
             return points
         if self.kind == "disk":
             cx, cy = self.center

@@ -124,8 +124,11 @@ def saturate_inputs(u: np.ndarray, omega: np.ndarray, u_max: float, omega_max: f
     Returns new arrays (the inputs are not changed); one compiled pass for real inputs
     (:func:`meanfield.crowd_loops.saturate`), its numpy twin otherwise.
     """
-    u_out = np.empty(np.shape(u), np.result_type(u, float))
-    w_out = np.empty(np.shape(omega), np.result_type(omega, float))
+    if type(u) is np.ndarray and type(omega) is np.ndarray and u.dtype == float and omega.dtype == float:
+        u_out, w_out = np.empty_like(u, order="C"), np.empty_like(omega, order="C")  # the common case, fast
+    else:
+        u_out = np.empty(np.shape(u), np.result_type(u, float))
+        w_out = np.empty(np.shape(omega), np.result_type(omega, float))
     if u_out.dtype.kind == "f" and w_out.dtype.kind == "f" and u_out.ndim == 2 and w_out.ndim == 1:
         u, omega = np.ascontiguousarray(u, float), np.ascontiguousarray(omega, float)
         saturate(u, omega, u_max, omega_max, _SHRINK, u_out, w_out)
