@@ -177,7 +177,8 @@ class AgentCrowd:
             (x0, y0), (hx, hy) = f.origin, f.spacing
             bilinear_at(f.vx, f.vy, x0, y0, 1.0 / hx, 1.0 / hy, positions, self._reach_speed, drift, self.reached)
             self.view.gate(drift, positions, robots.positions, dt)
-            self.reached &= self.view.seen
+            if self.view.gated:  # (otherwise everyone sees a robot)
+                self.reached &= self.view.seen
         else:
             visible = None if self.sight is None else self.sight.mask(robots.positions, positions, self.kde.grid)
             if isinstance(self.kernel, GaussianKernel):  # one compiled pass (meanfield.crowd_loops)
@@ -191,7 +192,8 @@ class AgentCrowd:
                 drift = navigation_velocity(self.kernel, robots.positions, robots.headings, positions, visible)
                 self.reached = np.hypot(drift[:, 0], drift[:, 1]) >= self._reach_speed
             self.view.gate(drift, positions, robots.positions, dt, visible)
-            self.reached &= self.view.seen
+            if self.view.gated:  # (otherwise everyone sees a robot)
+                self.reached &= self.view.seen
         if self.interaction is not None:
             drift += self.interaction.at_points(positions)
         if self.disturbance is not None:
