@@ -13,7 +13,10 @@ with the mirror images across the walls within ``IMAGE_REACH`` bandwidths of the
   point; the loop walks the Gaussian along the cell lattice, ``g(c + Δ) = g(c) q(c)`` with
   ``q(c + iΔ) = q(c) exp(-iΔ²/h²)`` (eq. (K1) of :func:`separable_sum`): two multiplications
   per cell, restarted from exact exponentials every ``S`` cells so that the round-off stays
-  a few hundred ulps.
+  a few hundred ulps.  Each mirrored cell is added onto the cell it stands for as the walk
+  reaches it, and the product ``Fx Fyᵀ`` is one BLAS ``dgemm`` per pass of points, straight
+  into the output (:func:`meanfield.blas.gemm`: some hundredths of a second to compile,
+  where numba's ``np.dot`` takes a few tenths).
 * :func:`linear_binning_into`: cloud-in-cell weights of the points on a lattice, one pass
   per point (numpy: :func:`meanfield.grid.linear_binning`, four ``bincount`` scatters).
 """
@@ -24,6 +27,7 @@ import math
 
 import numpy as np
 
+from meanfield.blas import gemm
 from meanfield.compiled import compiled
 from meanfield.grid import linear_binning
 from meanfield.vector_exp import ARG_MAX, exp_inplace
@@ -35,7 +39,7 @@ IMAGE_REACH = 8.0
 _SEGMENT_BANDWIDTHS = 16.0
 """The recurrence restarts from exact exponentials every ``16 h`` (at most 64 cells, at least 1)."""
 _POINTS_PER_PASS = 32768
-"""The loop treats points in passes whose lattice buffers hold about this many entries (L2-sized)."""
+"""Points per pass: this many entries over the longer extended axis (the factors stay L2-sized)."""
 
 
 # ----------------------------------------------------------------------------- axis factors
@@ -119,12 +123,15 @@ def separable_sum(
     (1 to 64) bounds the error by a few hundred ulps: the start's argument ``(d/h)²/2 <= 128``
     where the values matter, and at most ``1.5 S + (SΔ/h)²/4`` from the steps.  A start below
     ``exp(-708)`` is zero: the point is ``37 h`` away, ``21 h`` at least over the segment.
-    The exponentials are :func:`meanfield.vector_exp.exp_inplace` (vectorised, within 1 ulp of ``exp``).
-    Mirror cells are folded back onto the cells they mirror, then ``out = norm Fx Fyᵀ`` by BLAS.
+    The exponentials are :func:`meanfield.vector_exp.exp_inplace` (vectorised, within 1 ulp of
+    ``exp``); the x starts carry the normalisation, ``exp(ln(norm) - (d/h)²/2)``.  Each cell of
+    the extended lattice is added onto the cell it stands for as soon as the recurrence reaches
+    it (its mirror beyond ``lo`` first, then the cell, then its mirror beyond ``hi``), then
+    ``out = Fx Fyᵀ``, accumulated over the passes, by BLAS :func:`meanfield.blas.gemm`.
 
     Parameters
     ----------
-    points : ndarray, shape (N, 2)
+    points : ndarray, shape (N, 2), N >= 1
     x0, x1, y0, y1 : float
         The box's walls; the grid has ``nx`` × ``ny`` cells between them.
     nx, ny : int
@@ -134,41 +141,51 @@ def separable_sum(
         Add the mirror images across the walls (within ``IMAGE_REACH`` h of them).
     block : int
         At most this many points per pass (the numpy twin's memory bound; the loop also
-        keeps its lattice buffers L2-sized).
-    out : ndarray, shape (nx, ny)
+        keeps its factors L2-sized, ``_POINTS_PER_PASS``).
+    out : ndarray, shape (nx, ny), C-contiguous
         ``ρ̂`` at the cell centres, ``1/(2π h² N) Σ_j Fx[:, j] Fy[:, j]ᵀ``.
     """
     n_pts = points.shape[0]
+    if out.shape[0] != nx or out.shape[1] != ny or out.strides[1] != 8 or out.strides[0] != 8 * ny:
+        raise ValueError("separable_sum: out must be a C-contiguous float64 array of shape (nx, ny)")
     norm = 1.0 / (2.0 * math.pi * h * h * n_pts)
+    a2 = 0.5 / (h * h)
     sizes = (nx, ny)
     los = (x0, y0)
     his = (x1, y1)
-    dx = (x1 - x0) / nx
-    dy = (y1 - y0) / ny
+    # per axis: P mirrored cells beyond each wall, segments of S cells (conditional expressions
+    # rather than min/max/int, whose overloads numba compiles for each new combination of types)
+    wx = IMAGE_REACH * h / ((x1 - x0) / nx)
+    wy = IMAGE_REACH * h / ((y1 - y0) / ny)
     pads = (
-        min(nx, int(math.ceil(IMAGE_REACH * h / dx))) if reflect else 0,
-        min(ny, int(math.ceil(IMAGE_REACH * h / dy))) if reflect else 0,
+        (nx if wx >= nx else math.ceil(wx)) if reflect else 0,
+        (ny if wy >= ny else math.ceil(wy)) if reflect else 0,
     )
+    sx = _SEGMENT_BANDWIDTHS / IMAGE_REACH * wx
+    sy = _SEGMENT_BANDWIDTHS / IMAGE_REACH * wy
     segs = (
-        int(min(64.0, max(1.0, math.floor(_SEGMENT_BANDWIDTHS * h / dx)))),
-        int(min(64.0, max(1.0, math.floor(_SEGMENT_BANDWIDTHS * h / dy)))),
+        64 if sx >= 64.0 else (1 if sx < 1.0 else math.floor(sx)),
+        64 if sy >= 64.0 else (1 if sy < 1.0 else math.floor(sy)),
     )
-    n_ext = max(nx + 2 * pads[0], ny + 2 * pads[1])
-    per_pass = max(1, min(block, _POINTS_PER_PASS // n_ext))
-    m = min(per_pass, n_pts)
-    ext = np.empty((n_ext, m))
-    fac_x = np.empty((nx, m))
-    fac_y = np.empty((ny, m))
-    n_seg = (n_ext + min(segs) - 1) // min(segs)
-    vals = np.empty(2 * n_seg * m + 64)  # the exponentials' arguments, then (in place) their values
-    bits = np.empty(2 * n_seg * m + 64, np.int64)
-    single = m == n_pts  # one pass: the product goes straight into out
-    part = out if single else np.empty((nx, ny))
+    rx = nx + 2 * pads[0]
+    ry = ny + 2 * pads[1]
+    per_pass = _POINTS_PER_PASS // (rx if rx > ry else ry)
+    per_pass = 1 if per_pass < 1 else (block if per_pass > block else per_pass)
+    m = n_pts if n_pts < per_pass else per_pass
+    width = m if m > 64 else 64
+    n_seg_x = (rx + segs[0] - 1) // segs[0]
+    n_seg_y = (ry + segs[1] - 1) // segs[1]
+    n_seg = n_seg_x if n_seg_x > n_seg_y else n_seg_y
+    # one scratch, by rows: the x factors (nx rows, point j in column j), the y factors (ny),
+    # the segments' starts g (n_seg) and ratios q (n_seg), the running row, the table C (2-D
+    # indexing: an offset into a flat buffer could be negative for numba, and would not vectorise)
+    row_g = nx + ny
+    row_cur = row_g + 2 * n_seg
+    row_c = row_cur + 1
+    work = np.empty((row_c + 1, width))
+    bits = np.empty(width, np.int64)  # exp_inplace's scratch
     for first in range(0, n_pts, per_pass):
-        cnt = min(per_pass, n_pts - first)
-        if cnt < m:  # the last, shorter pass
-            fac_x = np.empty((nx, cnt))
-            fac_y = np.empty((ny, cnt))
+        cnt = n_pts - first if n_pts - first < per_pass else per_pass
         for ax in range(2):
             n = sizes[ax]
             lo = los[ax]
@@ -177,61 +194,57 @@ def separable_sum(
             seg = segs[ax]
             rows = n + 2 * pad
             ns = (rows + seg - 1) // seg
-            a2 = 0.5 / (h * h)
+            row_q = row_g + ns
             g2 = step * step / (h * h)
-            # arguments: segment starts g (ns × cnt), ratios q (ns × cnt), then the table C (seg)
+            lnw = math.log(norm) if ax == 0 else 0.0  # the x factors carry the normalisation
+            # the exponentials' arguments, segment by segment, then the exponentials in place
+            for j in range(cnt):  # the coordinates, contiguous (in the running row, free until the walk)
+                work[row_cur, j] = points[first + j, ax]
             for t in range(ns):
                 ck = lo + (t * seg - pad + 0.5) * step
                 for j in range(cnt):
-                    d = ck - points[first + j, ax]
+                    d = ck - work[row_cur, j]
                     aq = -(2.0 * d * step + step * step) * a2
-                    ag = -d * d * a2
-                    if aq > ARG_MAX:  # the start is zero then (d < -37 h): keep the ratio finite
-                        aq = ARG_MAX
-                        ag = -math.inf
-                    vals[t * cnt + j] = ag
-                    vals[(ns + t) * cnt + j] = aq
-            base = 2 * ns * cnt
+                    far = aq > ARG_MAX  # the start is zero then (d < -37 h): keep the ratio finite
+                    work[row_g + t, j] = -math.inf if far else lnw - d * d * a2
+                    work[row_q + t, j] = ARG_MAX if far else aq
+                exp_inplace(work[row_g + t], bits, cnt)
+                exp_inplace(work[row_q + t], bits, cnt)
             for i in range(seg):
-                vals[base + i] = -i * g2
-            total = base + seg
-            exp_inplace(vals, bits, total)  # vectorised (meanfield.vector_exp)
-            # the recurrence (K1), segment by segment, on the extended lattice (2-D indexing:
-            # a row view per cell would cost two reference-count updates)
+                work[row_c, i] = -i * g2
+            exp_inplace(work[row_c], bits, seg)
+            # the recurrence (K1) along the extended lattice; row r is cell a's mirror beyond lo
+            # (r < pad: the first term of a), the cell itself, or its mirror beyond hi (the last)
+            base = 0 if ax == 0 else nx
             for t in range(ns):
-                r0 = t * seg
-                for j in range(cnt):
-                    ext[r0, j] = vals[t * cnt + j]
-                qb = (ns + t) * cnt
-                for i in range(1, min(seg, rows - r0)):
-                    ci = vals[base + i - 1]
-                    r = r0 + i
-                    for j in range(cnt):
-                        ext[r, j] = ext[r - 1, j] * (vals[qb + j] * ci)
-            # fold the mirrored cells back (norm folded into the x factor)
-            fac = fac_x if ax == 0 else fac_y
-            w = norm if ax == 0 else 1.0
-            for a in range(n):  # cell a: itself, its mirror beyond lo (a < pad), beyond hi (a >= n - pad)
-                r = pad + a
-                left = pad - 1 - a
-                right = pad + 2 * n - 1 - a
-                if a < pad and a >= n - pad:
-                    for j in range(cnt):
-                        fac[a, j] = w * (ext[r, j] + ext[left, j] + ext[right, j])
-                elif a < pad:
-                    for j in range(cnt):
-                        fac[a, j] = w * (ext[r, j] + ext[left, j])
-                elif a >= n - pad:
-                    for j in range(cnt):
-                        fac[a, j] = w * (ext[r, j] + ext[right, j])
-                else:
-                    for j in range(cnt):
-                        fac[a, j] = w * ext[r, j]
-        np.dot(fac_x, fac_y.T, part)
-        if not single:  # element loops: an array slice assignment costs seconds of compilation
-            for a in range(nx):
-                for b in range(ny):
-                    out[a, b] = part[a, b] if first == 0 else out[a, b] + part[a, b]
+                for j in range(cnt):  # a segment's first cell is its exact start, 1 × (g × 1)
+                    work[row_cur, j] = 1.0
+                for i in range(seg if (t + 1) * seg <= rows else rows - t * seg):
+                    r = t * seg + i
+                    if r < pad:
+                        a = pad - 1 - r
+                        add = False
+                    elif r < pad + n:
+                        a = r - pad
+                        add = a < pad
+                    else:
+                        a = pad + 2 * n - 1 - r
+                        add = True
+                    a += base
+                    mr = row_g + t if i == 0 else row_q + t
+                    c = 1.0 if i == 0 else work[row_c, i - 1]
+                    if add:  # (two loops: a branch inside one would keep it from vectorising)
+                        for j in range(cnt):
+                            v = work[row_cur, j] * (work[mr, j] * c)
+                            work[row_cur, j] = v
+                            work[a, j] += v
+                    else:
+                        for j in range(cnt):
+                            v = work[row_cur, j] * (work[mr, j] * c)
+                            work[row_cur, j] = v
+                            work[a, j] = v
+        # out = Fx Fyᵀ on the first pass, += on the others (BLAS dgemm)
+        gemm(False, True, nx, ny, cnt, work, width, work[nx:], width, out, ny, first > 0)
     return out
 
 
