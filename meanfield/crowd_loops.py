@@ -80,7 +80,7 @@ def gaussian_field_at(points, rx, ry, ex, ey, inv_eta, visible, reach, out, reac
     sx, sy = np.empty(block), np.empty(block)
     k, bits = np.empty(block), np.empty(block, np.int64)
     for first in range(0, points.shape[0], block):  # blocks of humans, robot by robot: the exp vectorises
-        m = min(block, points.shape[0] - first)
+        m = block if points.shape[0] - first > block else points.shape[0] - first
         for j in range(m):
             xs[j] = points[first + j, 0]
             ys[j] = points[first + j, 1]
@@ -255,8 +255,9 @@ def saturate(u, omega, u_max, omega_max, shrink, u_out, w_out):
             s = u_max / speed * shrink
             ux, uy = ux * s, uy * s
         u_out[i, 0], u_out[i, 1] = ux, uy
-        w = omega[i]
-        w_out[i] = min(max(w, -omega_max), omega_max)
+        w = omega[i]  # (conditional expressions: numba compiles min and max anew for each signature)
+        w = -omega_max if w < -omega_max else w
+        w_out[i] = omega_max if w > omega_max else w
     return u_out, w_out
 
 
@@ -298,11 +299,11 @@ def input_report(u_cmd, w_cmd, u, w, u_max, omega_max, rtol):
     u_lim = (1 - rtol) * u_max
     w_lim = (1 - rtol) * omega_max
     for i in range(w_cmd.shape[0]):
-        asked = np.hypot(u_cmd[i, 0], u_cmd[i, 1])
-        speed = np.hypot(u[i, 0], u[i, 1])
+        asked = math.hypot(u_cmd[i, 0], u_cmd[i, 1])
+        speed = math.hypot(u[i, 0], u[i, 1])
         turn = abs(w[i])
-        top_speed = max(top_speed, speed)
-        top_turn = max(top_turn, turn)
+        top_speed = speed if speed > top_speed else top_speed
+        top_turn = turn if turn > top_turn else top_turn
         if asked > speed or abs(w_cmd[i]) > turn:
             cut = True
         if (math.isfinite(u_max) and asked >= u_lim) or (math.isfinite(omega_max) and abs(w_cmd[i]) >= w_lim):
