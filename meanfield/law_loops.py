@@ -5,16 +5,18 @@
 box grid, with a constant σ, no interaction (``W = 0``), the constant or saturating α
 schedule, the minimum-norm β/γ, ``∂_t v_d`` by a backward difference, the paper's units and
 the separable Gaussian kernel seen everywhere (the ``paper`` scenario and its relatives),
-:func:`paper_law` does the same arithmetic in one compiled call with no temporaries:
+:func:`paper_law` does the same arithmetic in one compiled call:
 
+* the kernel's 1-D factors ``c exp(-d²/η)`` (eq. (3)) at the centres and faces along x and y,
+  walked along each lattice by the recurrence (L1) of :func:`paper_law` (two exponentials per
+  robot and segment, as the KDE's (K1) in :func:`meanfield.kde_loops.separable_sum`);
 * Step I, per face: ``ρ_f`` (face average), ``∇ρ̃``, ``∇(σρ) = σ(∇ρ̃ + ∇ρ_*)``,
-  ``α/ρ_f``, ``v_d = -(α/ρ_f) ∇ρ̃ + ∇(σρ)/ρ_f`` and ``∂_t v_d = (v_d - v_d^prev)/h``;
-* the signs on the faces from the kernel's 1-D factors ``c exp(-d²/η)`` (eq. (3)),
-  ``ṽ = v_r - v_d``;
+  ``α/ρ_f``, ``v_d = -(α/ρ_f) ∇ρ̃ + ∇(σρ)/ρ_f`` and ``∂_t v_d = (v_d - v_d^prev)/h``, and
+  ``ṽ = v_r - v_d`` over the signs ``v_r`` (the factors' product), in flat loops that vectorise;
 * Step II: ``b_i``, ``g_i`` by the factors' matrix products (as
   :meth:`~meanfield.robots.NavigationField.moments`), ``A = ⟨ṽ, ρ_f ∇ρ̃ - ∂_t v_d⟩``,
   ``Z = Σ|b_i|² + Σ g_i²``, ``u_i = k_u b_i + (A/Z) b_i``, ``ω_i = -k_ω g_i - (A/Z) g_i``,
-  and the dissipation ``∫ α|∇ρ̃|²``.
+  and the dissipation ``∫ α|∇ρ̃|²``; the four products are BLAS calls (:func:`meanfield.blas.gemm`).
 
 Any grid, line of sight, the exits' Step I: :func:`face_law` is the same law face by face on a
 cut-cell grid (a floor plan: closed faces carry nothing, ``ρ_f = 1`` there as in the
@@ -34,10 +36,12 @@ The numpy path of the controller is the reference; the two agree to round-off (t
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
 
+from meanfield.blas import gemm
 from meanfield.compiled import UNAVAILABLE, compiled, inner
 from meanfield.interfaces import ControlState
 from meanfield.robots import NavigationField
@@ -49,30 +53,13 @@ PAPER_STEP_ONE = 0
 """``face_law``'s ``step``: the paper's Step I, eq. (6)."""
 HUGHES_STEP_ONE = 1
 """``face_law``'s ``step``: Hughes' field towards the exits, ``v_d = -f(ρ) ∇φ``."""
-
-
-@inner
-def _faces(rho, rho_t, tg, inv_h, sigma, alpha0, floor, prev, have_prev, h, vd, rf, grt, dvd, q_out, axis):
-    """Step I on the faces normal to ``axis`` (0: x-faces, 1: y-faces), into the given arrays."""
-    n0, n1 = vd.shape
-    for a in range(n0):
-        for b in range(n1):
-            if axis == 0:
-                lo, hi = rho[a, b], rho[a + 1, b]
-                dlo, dhi = rho_t[a, b], rho_t[a + 1, b]
-            else:
-                lo, hi = rho[a, b], rho[a, b + 1]
-                dlo, dhi = rho_t[a, b], rho_t[a, b + 1]
-            f = 0.5 * (hi + lo)
-            gr = (dhi - dlo) * inv_h
-            gs = sigma * (gr + tg[a, b])
-            q = alpha0 / (f + floor)
-            v = -q * gr + gs / f
-            rf[a, b] = f
-            grt[a, b] = gr
-            q_out[a, b] = q
-            vd[a, b] = v
-            dvd[a, b] = (v - prev[a, b]) / h if have_prev else 0.0
+_SEGMENT_BANDWIDTHS = 16.0
+"""(L1) restarts from exact exponentials every ``16 h`` (``η = 2h²``; 1 to 64 points), as the KDE's (K1)."""
+_LANES = 64
+"""Step I sums ``A`` and the dissipation in this many partial sums per family of faces (so the loop vectorises)."""
+_U = np.uint64
+"""paper_law indexes its flat buffers by unsigned integers: numba then adds no negative-index wrap-around, and the
+loops over the robots and over the faces vectorise."""
 
 
 @inner
@@ -94,113 +81,192 @@ def _factors(coords, r, c, eta, out_f, out_g):
 
 
 @compiled(fallback=None)
-def paper_law(
-    rho, target, tgx, tgy, inv_dx, inv_dy, wx, wy, sigma, alpha0, floor,
-    xf, xc, yf, yc, rx, ry, cos, sin, c, eta, k_u, k_w,
-    prev_x, prev_y, have_prev, h,
-    rho_t, vdx, vdy, vtx, vty, b, g, u, omega,
-):  # fmt: skip
+def paper_law(rho, target, cst, pos, cos, sin, prev_x, prev_y, have_prev, h, rho_t, vdx, vdy, vtx, vty, b, g, u, omega):
     """Steps I and II of the paper's law (eqs. (6), (8)) in one pass; returns ``(A, shortfall, dissipation)``.
+
+    The kernel's 1-D factors: on a lattice ``x_k = x_0 + kΔ`` (the centres or the faces along an axis), robot
+    ``i``'s factor ``f_k = c exp(-d_k²/η)`` (``d_k = x_k - r_i``; ``c`` = 1 along y) obeys::
+
+        f_{k+1} = f_k q_k,   q_k = exp(-(2 d_k Δ + Δ²)/η) = q_{k0} C[k - k0],   C[j] = exp(-2jΔ²/η)      (L1)
+
+    ((K1) of :func:`meanfield.kde_loops.separable_sum` with ``η = 2h²``): per segment of ``S = ⌊16 h/Δ⌋``
+    points (1 to 64) the start ``f_{k0}`` and ratio ``q_{k0}`` are exponentials (within 1 ulp), then each point
+    takes two multiplications.  The relative round-off grows along a segment from the start's (``d²/η`` ulps, as
+    ``exp(-d²/η)`` evaluated directly): a few hundred ulps where the factors matter (tests: a product of two within
+    1,024 ulps above ``1e-20 c``, within ``2⁻⁴² c`` everywhere).  A start below ``e^{-708}`` is 0 (the segment's points
+    are then more than 21 h away, ``f < c e^{-233}``; a ratio's exponent beyond 700, clamped by
+    :func:`~meanfield.vector_exp.exp_inplace`, only occurs in such segments).  The derivatives are ``-2 d_k/η f_k``.
 
     Parameters
     ----------
     rho, target : ndarray, shape (nx, ny)
         The density (positive) and ``ρ_*``.
-    tgx, tgy : ndarray
-        ``∇ρ_*`` on the x-faces (nx-1, ny) and the y-faces (nx, ny-1).
-    inv_dx, inv_dy : float
-        Inverse cell sizes.
-    wx, wy : ndarray
-        The face weights of the grid's face inner product.
-    sigma, alpha0, floor : float
-        Constant σ; α/ρ_f = α₀ / (ρ_f + floor) (floor 0: the constant schedule).
-    xf, xc, yf, yc : ndarray
-        Face and centre coordinates along x and y.
-    rx, ry, cos, sin : ndarray, shape (n,)
+    cst : ndarray
+        The run's constants, flat (``_paper_constants``): ``∇ρ_*`` on the x-faces (nx-1, ny) and on the y-faces
+        (nx, ny-1), the face weights of the grid's face inner product (the same shapes), the centre and face
+        coordinates along x (nx, nx-1) and along y (ny, ny-1), uniform; the gains ``k_u``, ``k_ω`` (n each); then
+        ``1/Δx``, ``1/Δy``, the constant σ, ``α₀`` and ``floor`` (α/ρ_f = α₀ / (ρ_f + floor); floor 0: the constant
+        schedule), the Gaussian kernel's strength ``c`` and range ``η``.
+    pos, cos, sin : ndarray, shape (n, 2), (n,), (n,)
         The robots' positions and headings' cosines and sines.
-    c, eta : float
-        The Gaussian kernel's strength and range.
-    k_u, k_w : ndarray, shape (n,)
-        The gains.
     prev_x, prev_y : ndarray
         The previous call's ``v_d`` (used when ``have_prev``), ``h`` the time since.
     rho_t, vdx, vdy, vtx, vty, b, g, u, omega : ndarray
         Outputs: ``ρ̃``, ``v_d``, ``ṽ``, ``b`` (n, 2), ``g`` (n,), ``u`` (n, 2), ``ω`` (n,).
     """
     nx, ny = rho.shape
-    n = rx.shape[0]
+    n = pos.shape[0]
+    nfx, nfy = (nx - 1) * ny, nx * (ny - 1)
+    oxc = 2 * (nfx + nfy)  # cst: the coordinates (x centres, x faces, y centres, y faces), the gains, the numbers
+    oyc, oku = oxc + 2 * nx - 1, oxc + 2 * (nx + ny - 1)
+    oc = oku + 2 * n
+    inv_dx, inv_dy, sigma, alpha0, floor, c, eta = cst[oc], cst[oc + 1], cst[oc + 2], cst[oc + 3], cst[oc + 4], \
+        cst[oc + 5], cst[oc + 6]  # fmt: skip
+    nr, nxr = 2 * (nx + ny - 1), 2 * nx - 1  # the points of the four lattices, those along x
+    # the buffer w: the kernel's 1-D factors f = c exp(-d²/η) (c = 1 along y) and their -2d/η multiples g at the
+    # x centres, x faces, y centres, y faces, [f | g] per point (the robot index last); the signs' x factors
+    # (sin_i f at the x centres, cos_i f at the x faces); the robots' x and y; the six moments; Wᵀ [f | g] of x
+    # per family of faces; the exponents; then per family ρ_f, ∇ρ̃ and W = w ṽ
+    oax = 2 * nr * n
+    orr = oax + nxr * n
+    oq = orr + 8 * n
+    ov = oq + 2 * (2 * ny - 1) * n
+    ofam = ov + 2 * nr * n + 2 * 64 + n
+    w = np.empty(ofam + 3 * (nfx + nfy))
+    bits = np.empty(2 * nr * n + 2 * 64, np.int64)
+    for i in range(n):
+        w[_U(orr + i)] = pos[i, 0]
+        w[_U(orr + n + i)] = pos[i, 1]
+    # (L1) on each lattice: per segment, the start g = c e^{-d²/η} and the ratio q = e^{-(2dΔ + Δ²)/η} (d = x - r_i at
+    # the segment's first point; c = 1 along y), then the tables C of x and y, exponentiated at once; then the walk
+    dx = (cst[oxc + nx - 1] - cst[oxc]) / (nx - 1) if nx > 1 else 0.0
+    dy = (cst[oyc + ny - 1] - cst[oyc]) / (ny - 1) if ny > 1 else 0.0
+    reach = _SEGMENT_BANDWIDTHS * math.sqrt(0.5 * eta)  # 16 h, with η = 2h²
+    seg = 64
+    for d in (dx, dy):
+        if d > 0.0 and reach < seg * d:
+            seg = max(1, int(reach / d))
+    ns = 0  # segments so far
+    for k in range(nr):
+        lat = (k >= nx) + (k >= nxr) + (k >= nxr + ny)  # x centres, x faces, y centres, y faces
+        p = k - (k >= nx) * nx - (k >= nxr) * (nx - 1) - (k >= nxr + ny) * ny  # the point on its lattice
+        if p % seg == 0:
+            x = cst[_U(oxc + k)]
+            d = dx if lat < 2 else dy
+            ro = orr if lat < 2 else orr + n
+            for i in range(n):
+                r = x - w[_U(ro + i)]
+                w[_U(ov + 2 * ns * n + i)] = -(r * r) / eta
+                w[_U(ov + (2 * ns + 1) * n + i)] = -(2.0 * r * d + d * d) / eta
+            ns += 1
+    otab = ov + 2 * ns * n
+    for j in range(seg):
+        w[_U(otab + j)] = -(2.0 * j * dx * dx) / eta
+        w[_U(otab + seg + j)] = -(2.0 * j * dy * dy) / eta
+    exp_inplace(w[ov:], bits, 2 * ns * n + 2 * seg)
+    one = otab + 2 * seg  # a row of ones: a segment's start is f = g × (1 × c)
+    for i in range(n):
+        w[_U(one + i)] = 1.0
+    s = -2.0 / eta
+    ns = -1
+    for k in range(nr):
+        lat = (k >= nx) + (k >= nxr) + (k >= nxr + ny)
+        p = (k - (k >= nx) * nx - (k >= nxr) * (nx - 1) - (k >= nxr + ny) * ny) % seg
+        x = cst[_U(oxc + k)]
+        ro = orr if lat < 2 else orr + n
+        if p == 0:
+            ns += 1
+            fa, fb, mult = ov + 2 * ns * n, one, c if lat < 2 else 1.0
+        else:
+            fa, fb, mult = 2 * (k - 1) * n, ov + (2 * ns + 1) * n, w[_U(otab + (lat // 2) * seg + p - 1)]
+        for i in range(n):
+            v = w[_U(fa + i)] * (w[_U(fb + i)] * mult)
+            w[_U(2 * k * n + i)] = v
+            w[_U(2 * k * n + n + i)] = s * (x - w[_U(ro + i)]) * v
+    for k in range(nxr):
+        e = sin if k < nx else cos
+        for i in range(n):
+            w[_U(oax + k * n + i)] = e[i] * w[_U(2 * k * n + i)]
+    # v_r on the faces (x-faces: factors x at faces, y at centres; y-faces: the converse), into vtx, vty (dgemm)
+    n2, yc, yf = 2 * n, 2 * nxr * n, 2 * (nxr + ny) * n
+    no, yes = nx < 0, nx > 0  # (not literals: one compilation of gemm)
+    gemm(no, yes, nx - 1, ny, n, w[oax + nx * n :], n, w[yc:], n2, vtx.reshape(nfx), ny, no)
+    gemm(no, yes, nx, ny - 1, n, w[oax:], n, w[yf:], n2, vty.reshape(nfy), ny - 1, no)
     for a in range(nx):
         for bb in range(ny):
             rho_t[a, bb] = rho[a, bb] - target[a, bb]
-    rfx, grx, dvx, qx = np.empty((nx - 1, ny)), np.empty((nx - 1, ny)), np.empty((nx - 1, ny)), np.empty((nx - 1, ny))
-    rfy, gry, dvy, qy = np.empty((nx, ny - 1)), np.empty((nx, ny - 1)), np.empty((nx, ny - 1)), np.empty((nx, ny - 1))
-    for axis in range(2):  # (a loop variable: one compiled _faces, where literal 0 and 1 would make two)
-        if axis == 0:
-            _faces(rho, rho_t, tgx, inv_dx, sigma, alpha0, floor, prev_x, have_prev, h, vdx, rfx, grx, dvx, qx, axis)
-        else:
-            _faces(rho, rho_t, tgy, inv_dy, sigma, alpha0, floor, prev_y, have_prev, h, vdy, rfy, gry, dvy, qy, axis)
-    fxf, gxf = np.empty((n, nx - 1)), np.empty((n, nx - 1))
-    fxc, gxc = np.empty((n, nx)), np.empty((n, nx))
-    fyf, gyf = np.empty((n, ny - 1)), np.empty((n, ny - 1))
-    fyc, gyc = np.empty((n, ny)), np.empty((n, ny))
-    _factors(xf, rx, c, eta, fxf, gxf)
-    _factors(xc, rx, c, eta, fxc, gxc)
-    _factors(yf, ry, 1.0, eta, fyf, gyf)
-    _factors(yc, ry, 1.0, eta, fyc, gyc)
-    # v_r on the faces (x-faces: factors x at faces, y at centres; y-faces: the converse), ṽ
-    ax = np.empty((n, nx - 1))
-    ay = np.empty((n, nx))
-    for i in range(n):
-        for a in range(nx - 1):
-            ax[i, a] = cos[i] * fxf[i, a]
-        for a in range(nx):
-            ay[i, a] = sin[i] * fxc[i, a]
-    vrx = ax.T.copy() @ fyc
-    vry = ay.T.copy() @ fyf
+    rr, rt = rho.reshape(nx * ny), rho_t.reshape(nx * ny)
     A = 0.0
     diss = 0.0
-    Wx = np.empty((nx - 1, ny))
-    for a in range(nx - 1):
-        for bb in range(ny):
-            vt = vrx[a, bb] - vdx[a, bb]
-            vtx[a, bb] = vt
-            Wx[a, bb] = wx[a, bb] * vt
-            A += wx[a, bb] * vt * (rfx[a, bb] * grx[a, bb] - dvx[a, bb])
-            diss += wx[a, bb] * (qx[a, bb] * rfx[a, bb] * grx[a, bb]) * grx[a, bb]
-    Wy = np.empty((nx, ny - 1))
-    for a in range(nx):
-        for bb in range(ny - 1):
-            vt = vry[a, bb] - vdy[a, bb]
-            vty[a, bb] = vt
-            Wy[a, bb] = wy[a, bb] * vt
-            A += wy[a, bb] * vt * (rfy[a, bb] * gry[a, bb] - dvy[a, bb])
-            diss += wy[a, bb] * (qy[a, bb] * rfy[a, bb] * gry[a, bb]) * gry[a, bb]
-    # the moments b_i, g_i (NavigationField.moments, separable)
-    Px = fxf @ Wx
-    Gx = gxf @ Wx
-    Py = fxc @ Wy
-    Gy = gxc @ Wy
+    inv_h = 1.0 / h
+    for fam in range(2):  # Step I (eq. (6)), one family of faces at a time, flat: face (a, b) is entry a n1 + b and
+        if fam == 0:  # lies between the cells a rs + b and a rs + b + off (x-faces: one row, off = ny; y-faces: nx
+            n0, n1, rs, off, inv_d, prv, vd, vt = 1, nfx, 0, ny, inv_dx, prev_x, vdx, vtx  # rows, off = 1)
+        else:
+            n0, n1, rs, off, inv_d, prv, vd, vt = nx, ny - 1, ny, 1, inv_dy, prev_y, vdy, vty
+        N = n0 * n1
+        otg = fam * nfx  # cst: ∇ρ_* and the weights of this family; w: ρ_f, ∇ρ̃, W
+        ot = ofam + 3 * otg
+        ow = otg + nfx + nfy
+        for a in range(n0):
+            for bb in range(n1):
+                lo = a * rs + bb
+                w[_U(ot + a * n1 + bb)] = 0.5 * (rr[_U(lo + off)] + rr[_U(lo)])
+                w[_U(ot + N + a * n1 + bb)] = (rt[_U(lo + off)] - rt[_U(lo)]) * inv_d
+        p1, d1, t1 = prv.reshape(N), vd.reshape(N), vt.reshape(N)
+        lanes = np.empty((2, _LANES))
+        for j in range(_LANES):
+            lanes[0, j] = 0.0
+            lanes[1, j] = 0.0
+        for k0 in range(0, N, _LANES):
+            for j in range(min(_LANES, N - k0)):
+                k = _U(k0 + j)
+                f = w[_U(ot) + k]
+                gr = w[_U(ot + N) + k]
+                gs = sigma * (gr + cst[_U(otg) + k])
+                q = alpha0 / (f + floor)
+                v = -q * gr + gs / f
+                dv = (v - p1[k]) * inv_h if have_prev else 0.0
+                tv = t1[k] - v
+                wk = cst[_U(ow) + k]
+                d1[k] = v
+                t1[k] = tv
+                w[_U(ot + 2 * N) + k] = wk * tv
+                lanes[0, j] += wk * tv * (f * gr - dv)
+                lanes[1, j] += wk * (q * f * gr) * gr
+        for j in range(_LANES):
+            A += lanes[0, j]
+            diss += lanes[1, j]
+    # the moments b_i, g_i (NavigationField.moments, separable): Wᵀ f and Wᵀ g of x, against y's f and g
+    qy = oq + 2 * ny * n
+    gemm(yes, no, ny, n2, nx - 1, w[ofam + 2 * nfx :], ny, w[2 * nx * n :], n2, w[oq:], n2, no)
+    gemm(yes, no, ny - 1, n2, nx, w[ofam + 3 * nfx + 2 * nfy :], ny - 1, w[0:], n2, w[qy:], n2, no)
+    for fam in range(2):
+        qf = oq if fam == 0 else qy  # Wᵀ [f | g] of x (m rows of 2n)
+        yo = yc if fam == 0 else yf  # y's [f | g] at the centres (x-faces) or the faces (y-faces)
+        for i in range(n):
+            s0 = s1 = s2 = 0.0
+            for bb in range(ny - fam):
+                iq = _U(qf + n2 * bb + i)
+                iy = _U(yo + n2 * bb + i)
+                s0 += w[iq] * w[iy]
+                s1 += w[iq + _U(n)] * w[iy]
+                s2 += w[iq] * w[iy + _U(n)]
+            w[_U(orr + (2 + 3 * fam) * n + i)] = s0
+            w[_U(orr + (3 + 3 * fam) * n + i)] = s1
+            w[_U(orr + (4 + 3 * fam) * n + i)] = s2
     Z = 0.0
     for i in range(n):
-        s0x = s1x = s2x = 0.0
-        for bb in range(ny):
-            s0x += Px[i, bb] * fyc[i, bb]
-            s1x += Gx[i, bb] * fyc[i, bb]
-            s2x += Px[i, bb] * gyc[i, bb]
-        s0y = s1y = s2y = 0.0
-        for bb in range(ny - 1):
-            s0y += Py[i, bb] * fyf[i, bb]
-            s1y += Gy[i, bb] * fyf[i, bb]
-            s2y += Py[i, bb] * gyf[i, bb]
-        b[i, 0] = cos[i] * s1x + sin[i] * s1y
-        b[i, 1] = cos[i] * s2x + sin[i] * s2y
-        g[i] = -sin[i] * s0x + cos[i] * s0y
+        sm = orr + 2 * n + i
+        b[i, 0] = cos[i] * w[_U(sm + n)] + sin[i] * w[_U(sm + 4 * n)]
+        b[i, 1] = cos[i] * w[_U(sm + 2 * n)] + sin[i] * w[_U(sm + 5 * n)]
+        g[i] = -sin[i] * w[_U(sm)] + cos[i] * w[_U(sm + 3 * n)]
         Z += b[i, 0] * b[i, 0] + b[i, 1] * b[i, 1] + g[i] * g[i]
     s = A / Z if Z != 0.0 else 0.0
     for i in range(n):
-        u[i, 0] = k_u[i] * b[i, 0] + s * b[i, 0]
-        u[i, 1] = k_u[i] * b[i, 1] + s * b[i, 1]
-        omega[i] = -k_w[i] * g[i] + (-s * g[i])
+        u[i, 0] = cst[_U(oku + i)] * b[i, 0] + s * b[i, 0]
+        u[i, 1] = cst[_U(oku + i)] * b[i, 1] + s * b[i, 1]
+        omega[i] = -cst[_U(oku + n + i)] * g[i] + (-s * g[i])
     shortfall = A if Z == 0.0 else 0.0
     return A, shortfall, diss
 
@@ -355,6 +421,24 @@ def face_law(
 _NOTHING_HIDDEN = np.ones((0, 0, 0), dtype=bool)
 
 
+def _paper_constants(law: Any, g: Any, k: Any, n: int) -> np.ndarray:
+    """:func:`paper_law`'s ``cst``, packed once and kept in ``law._fused_state`` while its sources are the same
+    objects (the grid, ``∇ρ_*``, the gains, the schedule, σ) and the kernel's numbers the same."""
+    c = law._fused_state.get("paper")
+    tg = law._target_gradient
+    if (
+        c is None or c[0] is not g or c[1] is not tg or c[2] is not law.k_u or c[3] is not law.k_omega or c[4] != n
+        or c[5] is not law.alpha or c[6] is not law.sigma or c[7] != k.c or c[8] != k.eta
+    ):  # fmt: skip
+        alpha, floor = getattr(law.alpha, "alpha0", 1.0), getattr(law.alpha, "rho_floor", 0.0)  # constant: floor 0
+        gains = [np.broadcast_to(law.k_u, (n,)), np.broadcast_to(law.k_omega, (n,))]
+        numbers = [1.0 / g.dx, 1.0 / g.dy, float(law.sigma), alpha, floor, k.c, k.eta]
+        cst = np.concatenate([tg[0].ravel(), tg[1].ravel(), g.weight_x.ravel(), g.weight_y.ravel(), g.x, g.x_faces,
+                              g.y, g.y_faces, *gains, numbers], dtype=float)  # fmt: skip
+        c = law._fused_state["paper"] = (g, tg, law.k_u, law.k_omega, n, law.alpha, law.sigma, k.c, k.eta, cst)
+    return c[9]
+
+
 def fused_robot_inputs(
     law: Any, rho: np.ndarray, field: NavigationField, t: float, step_one: tuple | None = None
 ) -> ControlState | None:
@@ -364,60 +448,45 @@ def fused_robot_inputs(
     the paper's law on a box with the signs seen everywhere (:func:`paper_law`); otherwise it is
     ``(step, v_free, rho_max, ∇φ)`` for :func:`face_law` (``step`` :data:`PAPER_STEP_ONE` or
     :data:`HUGHES_STEP_ONE`; ``∇φ`` None for the paper's).  The previous ``v_d`` is read from
-    and stored in ``law._previous_vd``, as the numpy path does.
+    and stored in ``law._previous_vd``, as the numpy path does.  The outputs are new arrays at
+    every call (the state is kept by observers).
     """
-    g, k = law.grid, field.kernel
+    g = law.grid
     n = len(field.positions)
-    cache = law._fused_state
-    source = cache.get("source", (None, None, None))  # the gains per robot, once per team size and gain arrays
-    if source[0] != n or source[1] is not law.k_u or source[2] is not law.k_omega:
-        cache.update(source=(n, law.k_u, law.k_omega), k_u=np.broadcast_to(law.k_u, (n,)).astype(float))
-        cache["k_w"] = np.broadcast_to(law.k_omega, (n,)).astype(float)
-    prev = law._previous_vd
-    have_prev = prev is not None and t > prev[0]
-    tg = law._target_gradient
-    px, py = prev[1] if have_prev else tg  # (unused without a previous v_d)
-    h = (t - prev[0]) if have_prev else 1.0
     nx, ny = g.cells
     vd = (np.empty((nx - 1, ny)), np.empty((nx, ny - 1)))
     vt = (np.empty((nx - 1, ny)), np.empty((nx, ny - 1)))
     rho_t, b, gg, u, w = np.empty((nx, ny)), np.empty((n, 2)), np.empty(n), np.empty((n, 2)), np.empty(n)
-    rx, ry = np.ascontiguousarray(field.positions.T)
-    alpha = getattr(law.alpha, "alpha0", 1.0)
-    floor = getattr(law.alpha, "rho_floor", 0.0)  # the constant schedule: α/ρ = α₀/(ρ + 0)
-    outputs = (rho_t, vd[0], vd[1], vt[0], vt[1], b, gg, u, w)
+    prev = law._previous_vd
+    have_prev = prev is not None and t > prev[0]
+    h = (t - prev[0]) if have_prev else 1.0
     if step_one is None:
-        out = paper_law(
-            rho, law.target, tg[0], tg[1], 1.0 / g.dx, 1.0 / g.dy, g.weight_x, g.weight_y, float(law.sigma),
-            alpha, floor, g.x_faces, g.x, g.y_faces, g.y,
-            rx, ry, field.cos, field.sin, k.c, k.eta, cache["k_u"], cache["k_w"], px, py, have_prev, h, *outputs,
-        )  # fmt: skip
+        px, py = prev[1] if have_prev else vd  # (unused without a previous v_d)
+        out = paper_law(rho, law.target, _paper_constants(law, g, field.kernel, n), field.positions, field.cos,
+                        field.sin, px, py, have_prev, h, rho_t, vd[0], vd[1], vt[0], vt[1], b, gg, u, w)  # fmt: skip
     else:
+        k, tg, cache = field.kernel, law._target_gradient, law._fused_state
+        source = cache.get("source", (None, None, None))  # the gains per robot, once per team size and gain arrays
+        if source[0] != n or source[1] is not law.k_u or source[2] is not law.k_omega:
+            cache.update(source=(n, law.k_u, law.k_omega), k_u=np.broadcast_to(law.k_u, (n,)).astype(float))
+            cache["k_w"] = np.broadcast_to(law.k_omega, (n,)).astype(float)
+        px, py = prev[1] if have_prev else tg  # (unused without a previous v_d)
+        alpha = getattr(law.alpha, "alpha0", 1.0)
+        floor = getattr(law.alpha, "rho_floor", 0.0)  # the constant schedule: α/ρ = α₀/(ρ + 0)
         step, v_free, rho_max, phi = step_one
         ph = tg if phi is None else phi  # (unused by the paper's Step I)
         seen = field.cell_sight()
+        rx, ry = np.ascontiguousarray(field.positions.T)
         out = face_law(
             rho, law.target, tg[0], tg[1], 1.0 / g.dx, 1.0 / g.dy, g.aperture_x, g.aperture_y, g.weight_x,
             g.weight_y, step, float(law.sigma), alpha, floor, v_free, rho_max, ph[0], ph[1],
             g.x_faces, g.x, g.y_faces, g.y, rx, ry, field.cos, field.sin, k.c, k.eta,
             _NOTHING_HIDDEN if seen is None else seen, seen is not None, cache["k_u"], cache["k_w"],
-            px, py, have_prev, h, *outputs,
+            px, py, have_prev, h, rho_t, vd[0], vd[1], vt[0], vt[1], b, gg, u, w,
         )  # fmt: skip
     if out is UNAVAILABLE:
         return None
     law._previous_vd = (t, vd)
     A, shortfall, dissipation = out
-    return ControlState(
-        v_d=vd,
-        v_tilde=vt,
-        rho_tilde=rho_t,
-        b=b,
-        g=gg,
-        A=A,
-        u=u,
-        omega=w,
-        shortfall=shortfall,
-        dissipation=dissipation,
-        k_u=law.k_u,
-        k_omega=law.k_omega,
-    )
+    return ControlState(v_d=vd, v_tilde=vt, rho_tilde=rho_t, b=b, g=gg, A=A, u=u, omega=w, shortfall=shortfall,
+                        dissipation=dissipation, k_u=law.k_u, k_omega=law.k_omega)  # fmt: skip
