@@ -13,6 +13,7 @@ Each loop here is one pass over the humans, paired with its numpy twin (the refe
   :meth:`meanfield.domain.Domain.reflect` does);
 * :func:`saturate`: the robots' inputs within their speed limits (eq. (2)), and
   :func:`input_report`: what the limits did to a step's commands (for the observers);
+  :func:`limit_inputs`: both in one pass, with the commands' finiteness (the closed loop's step);
 * :func:`count_in_disk`: how many humans are in the target disk (the fraction in the target).
 
 Both field loops also flag the humans a sign *reaches* (``|v_r| >= reach``, used for the
@@ -29,7 +30,15 @@ import numpy as np
 from meanfield.compiled import compiled
 from meanfield.vector_exp import exp_inplace
 
-__all__ = ["gaussian_field_at", "bilinear_at", "euler_maruyama", "saturate", "input_report", "count_in_disk"]
+__all__ = [
+    "gaussian_field_at",
+    "bilinear_at",
+    "euler_maruyama",
+    "saturate",
+    "input_report",
+    "limit_inputs",
+    "count_in_disk",
+]
 
 _FIELD_BLOCK = 256
 """Humans per block of :func:`gaussian_field_at` (its buffers stay in L1)."""
@@ -309,6 +318,71 @@ def input_report(u_cmd, w_cmd, u, w, u_max, omega_max, rtol):
         if (math.isfinite(u_max) and asked >= u_lim) or (math.isfinite(omega_max) and abs(w_cmd[i]) >= w_lim):
             count += 1
     return top_speed, top_turn, cut, count
+
+
+def _limit_numpy(u, omega, u_max, omega_max, shrink, rtol, u_out, w_out):
+    finite = bool(np.isfinite(u).all() and np.isfinite(omega).all())
+    _saturate_numpy(u, omega, u_max, omega_max, shrink, u_out, w_out)
+    if not len(omega):
+        return 0.0, 0.0, False, 0, finite
+    return (*_input_report_numpy(u, omega, u_out, w_out, u_max, omega_max, rtol), finite)
+
+
+@compiled(fallback=_limit_numpy)
+def limit_inputs(u, omega, u_max, omega_max, shrink, rtol, u_out, w_out):
+    """:func:`saturate` and :func:`input_report` in one pass over the robots, and whether the commands are finite.
+
+    The outputs ``u_out``, ``w_out`` are :func:`saturate`'s, the first four returned values
+    :func:`input_report`'s for these commands and outputs, the last ``True`` when every command
+    is finite (the closed loop's divergence check, eq. (2)'s limits: docs page *Robots*).
+
+    Parameters
+    ----------
+    u, omega : ndarray, shapes (n, 2), (n,)
+        The commands.
+    u_max, omega_max : float
+        The limits (``inf``: none).
+    shrink : float
+        As :func:`saturate`.
+    rtol : float
+        As :func:`input_report`.
+    u_out, w_out : ndarray
+        The applied inputs.
+
+    Returns
+    -------
+    tuple
+        ``(max ‖u_i‖, max |ω_i|, cut, at_limit, finite)``.
+    """
+    top_speed = 0.0
+    top_turn = 0.0
+    cut = False
+    count = 0
+    finite = True
+    u_lim = (1 - rtol) * u_max
+    w_lim = (1 - rtol) * omega_max
+    for i in range(omega.shape[0]):
+        ux, uy = u[i, 0], u[i, 1]
+        asked = math.hypot(ux, uy)
+        speed = asked
+        if asked > u_max:
+            s = u_max / asked * shrink
+            ux, uy = ux * s, uy * s
+            speed = math.hypot(ux, uy)
+        u_out[i, 0], u_out[i, 1] = ux, uy
+        wc = omega[i]
+        w = -omega_max if wc < -omega_max else wc
+        w = omega_max if w > omega_max else w
+        w_out[i] = w
+        finite = finite and math.isfinite(u[i, 0]) and math.isfinite(u[i, 1]) and math.isfinite(wc)
+        turn = abs(w)
+        top_speed = speed if speed > top_speed else top_speed
+        top_turn = turn if turn > top_turn else top_turn
+        if asked > speed or abs(wc) > turn:
+            cut = True
+        if (math.isfinite(u_max) and asked >= u_lim) or (math.isfinite(omega_max) and abs(wc) >= w_lim):
+            count += 1
+    return top_speed, top_turn, cut, count, finite
 
 
 def _count_in_disk_numpy(points, cx, cy, radius):

@@ -34,7 +34,7 @@ from meanfield.evacuation_measures import EvacuationTracker
 from meanfield.interfaces import Observation
 from meanfield.observers import InputStatistics, Observer, Recorder, StepRecord, TargetTracker
 from meanfield.result import SimulationResult
-from meanfield.robots import NavigationField, saturate_inputs
+from meanfield.robots import NavigationField, limited_inputs
 from meanfield.scenario import Scenario, load_scenario
 from meanfield.stragglers import StragglerTracker
 from meanfield.summary import run_id, run_summary
@@ -132,11 +132,11 @@ class ClosedLoop:
         k, dt = self.step_index, self.dt
         observation = self.observe()
         command = self.controller.act(observation)
-        if not (np.isfinite(command.u).all() and np.isfinite(command.omega).all()):
+        u, w, report = limited_inputs(command.u, command.omega, self.robots.u_max, self.robots.omega_max)
+        if not report[4]:
             raise SimulationDiverged(
                 f"non-finite robot inputs at t = {self.t:.4g} (step {k}); the state is kept at the last good step", k
             )
-        u, w = saturate_inputs(command.u, command.omega, self.robots.u_max, self.robots.omega_max)
         try:
             self.crowd.advance(self.robots, self.t, dt)
         except SimulationDiverged as exc:
@@ -147,7 +147,7 @@ class ClosedLoop:
         self.density = self.crowd.density()
         if not np.isfinite(self.density).all():
             raise SimulationDiverged(f"non-finite density at t = {self.t:.4g}", self.step_index)
-        record = self.last = StepRecord(k, observation, command, u, w, self.robots)
+        record = self.last = StepRecord(k, observation, command, u, w, self.robots, report)
         for obs in self.observers:
             obs.step(self, record)
         return record

@@ -71,6 +71,8 @@ class StepRecord:
         The inputs applied (within the speed limits).
     robots : RobotTeam
         The robots (their limits).
+    report : tuple, optional
+        What the limits did, as :func:`~meanfield.robots.limited_inputs` returns it.
     """
 
     index: int
@@ -79,11 +81,14 @@ class StepRecord:
     u: np.ndarray
     omega: np.ndarray
     robots: RobotTeam
+    report: tuple | None = None
 
     @cached_property
     def limits(self) -> tuple[float, float, bool, int]:
-        """``(max ‖u_i‖, max |ω_i|, saturated, at_limit)`` of this step, in one pass
-        (:func:`meanfield.crowd_loops.input_report`)."""
+        """``(max ‖u_i‖, max |ω_i|, saturated, at_limit)`` of this step: the ``report`` the loop's
+        :func:`~meanfield.robots.limited_inputs` made, else one pass (:func:`meanfield.crowd_loops.input_report`)."""
+        if self.report is not None:
+            return self.report[:4]
         c, r = self.command, self.robots
         u_cmd, w_cmd = np.asarray(c.u, float), np.asarray(c.omega, float)
         return input_report(u_cmd, w_cmd, self.u, self.omega, float(r.u_max), float(r.omega_max), AT_LIMIT_RTOL)

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from meanfield.crowd_loops import saturate
+from meanfield.crowd_loops import limit_inputs, saturate
 from meanfield.domain import Domain
 from meanfield.errors import ParameterError, limit_or_inf
 from meanfield.grid import FaceField, Grid
@@ -30,7 +30,14 @@ from meanfield.kernels import NavigationKernel
 from meanfield.plan_loops import face_moments, masked_face_kernels
 from meanfield.sight import SightLines
 
-__all__ = ["RobotTeam", "NavigationField", "navigation_velocity", "saturate_inputs", "AT_LIMIT_RTOL"]
+__all__ = [
+    "RobotTeam",
+    "NavigationField",
+    "navigation_velocity",
+    "saturate_inputs",
+    "limited_inputs",
+    "AT_LIMIT_RTOL",
+]
 
 AT_LIMIT_RTOL = 1e-6
 """A command within this relative tolerance of a speed or turn-rate limit counts as at the limit."""
@@ -138,6 +145,22 @@ def saturate_inputs(u: np.ndarray, omega: np.ndarray, u_max: float, omega_max: f
 
 
 _SHRINK = 1 - 4 * np.finfo(float).eps
+
+
+def limited_inputs(
+    u: np.ndarray, omega: np.ndarray, u_max: float, omega_max: float
+) -> tuple[np.ndarray, np.ndarray, tuple[float, float, bool, int, bool]]:
+    """:func:`saturate_inputs` and what the limits did, ``(max ‖u_i‖, max |ω_i|, cut, at_limit, finite)``.
+
+    The report is :func:`meanfield.crowd_loops.input_report`'s (``at_limit`` with
+    :data:`AT_LIMIT_RTOL`), ``finite`` whether every command is finite: one compiled pass
+    (:func:`meanfield.crowd_loops.limit_inputs`).  The closed loop's step calls this.
+    """
+    u, omega = np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(omega, dtype=float)
+    u_out, w_out = np.empty_like(u), np.empty_like(omega)
+    run = limit_inputs if u.ndim == 2 and omega.ndim == 1 else limit_inputs.fallback  # (numpy says what is wrong)
+    report = run(u, omega, float(u_max), float(omega_max), _SHRINK, AT_LIMIT_RTOL, u_out, w_out)
+    return u_out, w_out, report
 
 
 def navigation_velocity(

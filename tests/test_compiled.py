@@ -279,6 +279,32 @@ def test_input_report_matches_numpy_and_counts_what_the_limits_did():
 
 
 @needs_numba
+def test_limit_inputs_is_saturation_and_report_in_one_pass_and_flags_non_finite_commands():
+    from meanfield.crowd_loops import input_report, limit_inputs, saturate
+
+    rng = np.random.default_rng(12)
+    u, w = rng.normal(scale=0.3, size=(40, 2)), rng.normal(scale=4.0, size=40)
+    shrink = 1 - 4 * np.finfo(float).eps
+    for u_max, w_max in ((0.2, 3.0), (np.inf, 3.0), (0.2, np.inf), (np.inf, np.inf)):
+        fast, ref, (_, _, _, _, _, _, u_out, w_out) = both(
+            limit_inputs, u, w, u_max, w_max, shrink, 1e-6, np.empty((40, 2)), np.empty(40)
+        )
+        assert fast == ref and fast[4] is True
+        ua, wa = saturate(u, w, u_max, w_max, shrink, np.empty((40, 2)), np.empty(40))
+        assert np.array_equal(u_out, ua) and np.array_equal(w_out, wa)  # the same arithmetic as the two loops
+        assert fast[:4] == input_report(u, w, ua, wa, u_max, w_max, 1e-6)
+    for bad in ((0, 1), (3, 0)):
+        ub, wb = u.copy(), w.copy()
+        ub[bad] = np.nan
+        fast, ref, _ = both(limit_inputs, ub, wb, 0.2, 3.0, shrink, 1e-6, np.empty((40, 2)), np.empty(40))
+        assert fast[4] is False and ref[4] is False
+    wb = w.copy()
+    wb[5] = np.inf
+    fast, ref, _ = both(limit_inputs, u, wb, 0.2, 3.0, shrink, 1e-6, np.empty((40, 2)), np.empty(40))
+    assert fast[4] is False and ref[4] is False
+
+
+@needs_numba
 def test_count_in_disk_matches_numpy_and_skips_those_who_left():
     from meanfield.crowd_loops import count_in_disk
 
