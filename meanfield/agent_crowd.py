@@ -183,11 +183,9 @@ class AgentCrowd:
             visible = None if self.sight is None else self.sight.mask(robots.positions, positions, self.kde.grid)
             if isinstance(self.kernel, GaussianKernel):  # one compiled pass (meanfield.crowd_loops)
                 drift, self.reached = self._work(len(positions))
-                k, theta = self.kernel, robots.headings
-                seen = _EVERYONE if visible is None else visible
-                rx, ry = np.ascontiguousarray(robots.positions.T, dtype=float)
-                ex, ey = k.c * np.cos(theta), k.c * np.sin(theta)
-                gaussian_field_at(positions, rx, ry, ex, ey, 1.0 / k.eta, seen, self._reach_speed, drift, self.reached)
+                k, seen = self.kernel, _EVERYONE if visible is None else visible
+                r, theta = np.asarray(robots.positions, float), np.asarray(robots.headings, float)
+                gaussian_field_at(positions, r, theta, k.c, 1.0 / k.eta, seen, self._reach_speed, drift, self.reached)
             else:
                 drift = navigation_velocity(self.kernel, robots.positions, robots.headings, positions, visible)
                 self.reached = np.hypot(drift[:, 0], drift[:, 1]) >= self._reach_speed

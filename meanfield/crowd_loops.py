@@ -45,7 +45,9 @@ _FIELD_BLOCK = 256
 
 
 # ----------------------------------------------------------------------------- v_r, exact
-def _gaussian_field_numpy(points, rx, ry, ex, ey, inv_eta, visible, reach, out, reached):
+def _gaussian_field_numpy(points, robots, headings, c, inv_eta, visible, reach, out, reached):
+    rx, ry = robots[:, 0], robots[:, 1]
+    ex, ey = c * np.cos(headings), c * np.sin(headings)
     block = max(1, (1 << 20) // max(len(rx), 1))
     for a in range(0, len(points), block):
         p = points[a : a + block]
@@ -61,17 +63,19 @@ def _gaussian_field_numpy(points, rx, ry, ex, ey, inv_eta, visible, reach, out, 
 
 
 @compiled(fallback=_gaussian_field_numpy)
-def gaussian_field_at(points, rx, ry, ex, ey, inv_eta, visible, reach, out, reached):
+def gaussian_field_at(points, robots, headings, c, inv_eta, visible, reach, out, reached):
     """``v_r`` of eq. (3) at every human for the Gaussian kernel, into ``out`` (N, 2).
 
     Parameters
     ----------
     points : ndarray, shape (N, 2)
         The humans.
-    rx, ry : ndarray, shape (n,)
-        The robots' positions.
-    ex, ey : ndarray, shape (n,)
-        ``c cos θ_i`` and ``c sin θ_i`` (the kernel's strength folded in).
+    robots : ndarray, shape (n, 2)
+        The robots' positions ``R_i``.
+    headings : ndarray, shape (n,)
+        Their headings ``θ_i``.
+    c : float
+        The kernel's strength.
     inv_eta : float
         ``1 / η``.
     visible : ndarray of bool, shape (n, N) or (n, 0)
@@ -81,7 +85,13 @@ def gaussian_field_at(points, rx, ry, ex, ey, inv_eta, visible, reach, out, reac
     out : ndarray, shape (N, 2)
     reached : ndarray of bool, shape (N,)
     """
-    n = rx.shape[0]
+    n = robots.shape[0]
+    rx, ry, ex, ey = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    for i in range(n):
+        rx[i] = robots[i, 0]
+        ry[i] = robots[i, 1]
+        ex[i] = c * math.cos(headings[i])
+        ey[i] = c * math.sin(headings[i])
     masked = visible.shape[1] > 0
     r2 = reach * reach
     block = _FIELD_BLOCK
