@@ -190,6 +190,8 @@ class KernelDensityEstimator:
         if method == "auto":
             method = "separable" if len(points) * g.shape[0] * g.shape[1] <= 5e7 else "binned"
         if method == "separable":
+            if self.normalize and g.is_box and self.boundary != "renormalize":  # _finish's one step, in the call
+                return self._separable(points, h, g.dx * g.dy)
             rho = self._separable(points, h)
         else:
             rho = self._binned(points, h)
@@ -241,14 +243,16 @@ class KernelDensityEstimator:
         """``exp(-(x_i - X_j)²/(2h²))`` for cell centres ``x_i``, plus the wall images (numpy, dense)."""
         return axis_factors(centres, coords, h, lo, hi, self.boundary == "reflect")
 
-    def _separable(self, points: np.ndarray, h: float) -> np.ndarray:
-        """The exact sum (:func:`meanfield.kde_loops.separable_sum`), in blocks of points."""
+    def _separable(self, points: np.ndarray, h: float, cell_area: float = 0.0) -> np.ndarray:
+        """The exact sum (:func:`meanfield.kde_loops.separable_sum`), in blocks of points; with ``cell_area`` > 0
+        scaled to unit mass on a box of cells of that area."""
         g = self.grid
         x0, x1, y0, y1 = g.domain.bounds
         # points in blocks, so the axis factors never hold more than _SEPARABLE_CHUNK entries
         block = max(1, _SEPARABLE_CHUNK // max(g.shape))
         reflect = self.boundary == "reflect"
-        return separable_sum(points, x0, x1, g.shape[0], y0, y1, g.shape[1], h, reflect, block, np.empty(g.shape))
+        out = np.empty(g.shape)
+        return separable_sum(points, x0, x1, g.shape[0], y0, y1, g.shape[1], h, reflect, block, out, cell_area)
 
     def oversample_for(self, h: float) -> int:
         """The binning refinement ``r`` used at bandwidth ``h``."""

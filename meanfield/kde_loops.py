@@ -84,7 +84,7 @@ def axis_factors(centres: np.ndarray, coords: np.ndarray, h: float, lo: float, h
 
 
 # ----------------------------------------------------------------------------- the exact sum
-def _separable_numpy(points, x0, x1, nx, y0, y1, ny, h, reflect, block, out):
+def _separable_numpy(points, x0, x1, nx, y0, y1, ny, h, reflect, block, out, cell_area=0.0):
     cx = x0 + (np.arange(nx) + 0.5) * ((x1 - x0) / nx)
     cy = y0 + (np.arange(ny) + 0.5) * ((y1 - y0) / ny)
     out[...] = 0.0
@@ -92,6 +92,9 @@ def _separable_numpy(points, x0, x1, nx, y0, y1, ny, h, reflect, block, out):
         part = points[k : k + block]
         out += axis_factors(cx, part[:, 0], h, x0, x1, reflect) @ axis_factors(cy, part[:, 1], h, y0, y1, reflect).T
     out *= 1.0 / (2 * math.pi * h * h * len(points))
+    mass = cell_area * out.sum()
+    if mass > 0:
+        out *= 1.0 / mass
     return out
 
 
@@ -108,6 +111,7 @@ def separable_sum(
     reflect: bool,
     block: int,
     out: np.ndarray,
+    cell_area: float = 0.0,
 ) -> np.ndarray:
     """The paper's KDE on the cell centres, summed exactly over the points, into ``out`` (nx, ny).
 
@@ -144,6 +148,9 @@ def separable_sum(
         keeps its factors L2-sized, ``_POINTS_PER_PASS``).
     out : ndarray, shape (nx, ny), C-contiguous
         ``ρ̂`` at the cell centres, ``1/(2π h² N) Σ_j Fx[:, j] Fy[:, j]ᵀ``.
+    cell_area : float
+        When > 0, ``out`` is then scaled to unit mass, ``cell_area Σ out = 1`` (the estimator's
+        ``normalize`` on a box, folded into the same call; a zero sum stays as it is).
     """
     n_pts = points.shape[0]
     if out.shape[0] != nx or out.shape[1] != ny or out.strides[1] != 8 or out.strides[0] != 8 * ny:
@@ -245,6 +252,17 @@ def separable_sum(
                             work[a, j] = v
         # out = Fx Fyᵀ on the first pass, += on the others (BLAS dgemm)
         gemm(False, True, nx, ny, cnt, work, width, work[nx:], width, out, ny, first > 0)
+    if cell_area > 0.0:
+        total = 0.0
+        for a in range(nx):
+            for b in range(ny):
+                total += out[a, b]
+        mass = cell_area * total
+        if mass > 0.0:
+            scale = 1.0 / mass
+            for a in range(nx):
+                for b in range(ny):
+                    out[a, b] *= scale
     return out
 
 
