@@ -19,8 +19,11 @@ Tested with JuPedSim 1.4.2.  Install (see the README for why ``--no-deps``)::
 
 from __future__ import annotations
 
+import gc
 import importlib
 import itertools
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -67,6 +70,25 @@ class JuPedSimUnavailable(ParameterError):
     def __init__(self, reason: str):
         allowed = f"an installed JuPedSim ({reason}); install: {INSTALL_HINT}"
         super().__init__("pedestrians.backend", "jupedsim", allowed)
+
+
+@contextmanager
+def _collector_paused() -> Iterator[None]:
+    """Pause Python's cyclic garbage collector over a per-agent loop, then restore it.
+
+    Steering and reading 10,000 agents creates some 20,000 short-lived lists and tuples per
+    step; each is freed by its reference count (none is in a cycle), but their creation
+    triggers collections, and a full one walks every object of the process.  In a process
+    that holds many (measured after the Fokker–Planck benchmarks: 377,000), that doubled the
+    adapter's cost per agent-step at 10,000 agents (2.9 µs against 1.5 µs paused).
+    """
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was_enabled:
+            gc.enable()
 
 
 def load_jupedsim() -> Any:
@@ -233,14 +255,16 @@ class JuPedSimAdapter:
             self._switch(np.flatnonzero(self.alive & (routes != self.route)), routes)
         handles = self._handles
         direct = np.flatnonzero(self.alive & (self.route < 0))
-        if len(direct) == len(handles):  # everyone here and steered directly (no exits, or none near)
-            list(map(self._set_target, handles, targets.tolist()))
-        else:
-            list(map(self._set_target, [handles[i] for i in direct], targets[direct].tolist()))
+        with _collector_paused():
+            if len(direct) == len(handles):  # everyone here and steered directly (no exits, or none near)
+                list(map(self._set_target, handles, targets.tolist()))
+            else:
+                list(map(self._set_target, [handles[i] for i in direct], targets[direct].tolist()))
         changed = np.flatnonzero(self.alive & (speeds != self._speeds))
         if len(changed):
             states = self._states
-            list(map(self._set_speed, [states[i] for i in changed], speeds[changed].tolist()))
+            with _collector_paused():
+                list(map(self._set_speed, [states[i] for i in changed], speeds[changed].tolist()))
             self._speeds[changed] = speeds[changed]
 
     def _switch(self, rows: np.ndarray, routes: np.ndarray) -> None:
@@ -260,12 +284,14 @@ class JuPedSimAdapter:
         n = len(self._ids)
         out = np.empty((n, 2)) if out is None else out
         if self.alive.all():
-            flat = np.fromiter(itertools.chain.from_iterable(map(self._get_position, self._handles)), float, 2 * n)
+            with _collector_paused():
+                flat = np.fromiter(itertools.chain.from_iterable(map(self._get_position, self._handles)), float, 2 * n)
             out[:] = flat.reshape(n, 2)
             return out
         here = np.flatnonzero(self.alive)
         handles = [self._handles[i] for i in here]
-        flat = np.fromiter(itertools.chain.from_iterable(map(self._get_position, handles)), float, 2 * len(here))
+        with _collector_paused():
+            flat = np.fromiter(itertools.chain.from_iterable(map(self._get_position, handles)), float, 2 * len(here))
         out[:] = np.nan
         out[here] = flat.reshape(-1, 2)
         return out

@@ -121,3 +121,25 @@ def test_short_closed_loop_run_with_bodies_and_view():
     assert ((x > 0) & (x < 150) & (y > 0) & (y < 150)).all()  # walls are soft in the model, but hold
     assert a.dataset["seen_fraction"].values.min() < 1.0  # somebody walked out of view
     np.testing.assert_array_equal(x, b.dataset["human_x"].values)  # same seed, same run
+
+
+def test_the_adapters_per_agent_loops_restore_the_garbage_collector():
+    import gc
+
+    from meanfield.jupedsim_api import _collector_paused
+
+    assert gc.isenabled()
+    with _collector_paused():
+        assert not gc.isenabled()
+    assert gc.isenabled()  # restored
+    gc.disable()
+    try:
+        with _collector_paused():
+            pass
+        assert not gc.isenabled()  # a caller's choice is kept
+    finally:
+        gc.enable()
+    with pytest.raises(RuntimeError, match="inside"):
+        with _collector_paused():
+            raise RuntimeError("inside")
+    assert gc.isenabled()  # restored after an error too
