@@ -11,9 +11,9 @@ Each loop here is one pass over the humans, paired with its numpy twin (the refe
 * :func:`euler_maruyama`: ``X_j += b_j dt + a ξ_j`` (eq. (1) discretized), with the box's
   reflecting walls folded in when Ω is a box (any number of bounces, as
   :meth:`meanfield.domain.Domain.reflect` does);
-* :func:`saturate`: the robots' inputs within their speed limits (eq. (2)), and
-  :func:`input_report`: what the limits did to a step's commands (for the observers);
-  :func:`limit_inputs`: both in one pass, with the commands' finiteness (the closed loop's step);
+* :func:`limit_inputs`: the robots' inputs within their speed limits (eq. (2)), what the
+  limits did to the commands (for the observers) and whether they are finite, in one pass;
+  :func:`input_report`: that report alone, for commands and inputs given apart;
 * :func:`count_in_disk`: how many humans are in the target disk (the fraction in the target).
 
 Both field loops also flag the humans a sign *reaches* (``|v_r| >= reach``, used for the
@@ -34,7 +34,6 @@ __all__ = [
     "gaussian_field_at",
     "bilinear_at",
     "euler_maruyama",
-    "saturate",
     "input_report",
     "limit_inputs",
     "count_in_disk",
@@ -253,33 +252,6 @@ def _saturate_numpy(u, omega, u_max, omega_max, shrink, u_out, w_out):
     return u_out, w_out
 
 
-@compiled(fallback=_saturate_numpy)
-def saturate(u, omega, u_max, omega_max, shrink, u_out, w_out):
-    """``u_i`` scaled to ``‖u_i‖ <= u_max`` (a hair below: ``shrink``), ``ω_i`` clipped to ``±ω_max``, into the outputs.
-
-    Parameters
-    ----------
-    u : ndarray, shape (n, 2)
-    omega : ndarray, shape (n,)
-    u_max, omega_max : float
-        The limits (``inf``: none).
-    shrink : float
-        ``1 - 4 ε``: a saturated speed lands this fraction below the limit.
-    u_out, w_out : ndarray
-    """
-    for i in range(u.shape[0]):
-        ux, uy = u[i, 0], u[i, 1]
-        speed = math.hypot(ux, uy)
-        if speed > u_max:
-            s = u_max / speed * shrink
-            ux, uy = ux * s, uy * s
-        u_out[i, 0], u_out[i, 1] = ux, uy
-        w = omega[i]  # (conditional expressions: numba compiles min and max anew for each signature)
-        w = -omega_max if w < -omega_max else w
-        w_out[i] = omega_max if w > omega_max else w
-    return u_out, w_out
-
-
 def _input_report_numpy(u_cmd, w_cmd, u, w, u_max, omega_max, rtol):
     asked = np.hypot(u_cmd[:, 0], u_cmd[:, 1])
     speed = np.hypot(u[:, 0], u[:, 1])
@@ -306,7 +278,7 @@ def input_report(u_cmd, w_cmd, u, w, u_max, omega_max, rtol):
     u_cmd, w_cmd : ndarray, shapes (n, 2), (n,)
         The commanded inputs.
     u, w : ndarray, shapes (n, 2), (n,)
-        The applied ones (:func:`saturate`).
+        The applied ones (as :func:`limit_inputs` makes them).
     u_max, omega_max : float
         The limits (``inf``: none).
     rtol : float
@@ -340,11 +312,13 @@ def _limit_numpy(u, omega, u_max, omega_max, shrink, rtol, u_out, w_out):
 
 @compiled(fallback=_limit_numpy)
 def limit_inputs(u, omega, u_max, omega_max, shrink, rtol, u_out, w_out):
-    """:func:`saturate` and :func:`input_report` in one pass over the robots, and whether the commands are finite.
+    """The robots' inputs within their limits, what the limits did, and whether the commands are finite: one pass.
 
-    The outputs ``u_out``, ``w_out`` are :func:`saturate`'s, the first four returned values
-    :func:`input_report`'s for these commands and outputs, the last ``True`` when every command
-    is finite (the closed loop's divergence check, eq. (2)'s limits: docs page *Robots*).
+    ``u_i`` is scaled to ``‖u_i‖ <= u_max`` (a hair below: ``shrink``, so that round-off never
+    puts it above) and ``ω_i`` clipped to ``±ω_max`` into ``u_out``, ``w_out`` (eq. (2)'s limits,
+    docs page *Robots*); the first four returned values are :func:`input_report`'s for these
+    commands and outputs, the last ``True`` when every command is finite (the closed loop's
+    divergence check).
 
     Parameters
     ----------
@@ -353,7 +327,7 @@ def limit_inputs(u, omega, u_max, omega_max, shrink, rtol, u_out, w_out):
     u_max, omega_max : float
         The limits (``inf``: none).
     shrink : float
-        As :func:`saturate`.
+        ``1 - 4 ε``: a saturated speed lands this fraction below the limit.
     rtol : float
         As :func:`input_report`.
     u_out, w_out : ndarray

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from meanfield.crowd_loops import limit_inputs, saturate
+from meanfield.crowd_loops import limit_inputs
 from meanfield.domain import Domain
 from meanfield.errors import ParameterError, limit_or_inf
 from meanfield.grid import FaceField, Grid
@@ -128,19 +128,9 @@ class RobotTeam:
 def saturate_inputs(u: np.ndarray, omega: np.ndarray, u_max: float, omega_max: float) -> tuple[np.ndarray, np.ndarray]:
     """Scale each ``u_i`` down to ``‖u_i‖ <= u_max`` (direction kept) and clip ``ω_i`` (eq. (2)'s limits).
 
-    Returns new arrays (the inputs are not changed); one compiled pass for real inputs
-    (:func:`meanfield.crowd_loops.saturate`), its numpy twin otherwise.
+    Returns new arrays (the inputs are not changed): :func:`limited_inputs` without its report.
     """
-    if type(u) is np.ndarray and type(omega) is np.ndarray and u.dtype == float and omega.dtype == float:
-        u_out, w_out = np.empty_like(u, order="C"), np.empty_like(omega, order="C")  # the common case, fast
-    else:
-        u_out = np.empty(np.shape(u), np.result_type(u, float))
-        w_out = np.empty(np.shape(omega), np.result_type(omega, float))
-    if u_out.dtype.kind == "f" and w_out.dtype.kind == "f" and u_out.ndim == 2 and w_out.ndim == 1:
-        u, omega = np.ascontiguousarray(u, float), np.ascontiguousarray(omega, float)
-        saturate(u, omega, u_max, omega_max, _SHRINK, u_out, w_out)
-    else:
-        saturate.fallback(u, omega, u_max, omega_max, _SHRINK, u_out, w_out)
+    u_out, w_out, _ = limited_inputs(u, omega, u_max, omega_max)
     return u_out, w_out
 
 
@@ -150,7 +140,8 @@ _SHRINK = 1 - 4 * np.finfo(float).eps
 def limited_inputs(
     u: np.ndarray, omega: np.ndarray, u_max: float, omega_max: float
 ) -> tuple[np.ndarray, np.ndarray, tuple[float, float, bool, int, bool]]:
-    """:func:`saturate_inputs` and what the limits did, ``(max ‖u_i‖, max |ω_i|, cut, at_limit, finite)``.
+    """The inputs within eq. (2)'s limits (each ``u_i`` scaled to ``‖u_i‖ <= u_max``, direction kept; ``ω_i``
+    clipped) and what the limits did, ``(max ‖u_i‖, max |ω_i|, cut, at_limit, finite)``.
 
     The report is :func:`meanfield.crowd_loops.input_report`'s (``at_limit`` with
     :data:`AT_LIMIT_RTOL`), ``finite`` whether every command is finite: one compiled pass

@@ -247,12 +247,18 @@ def test_a_process_started_with_the_variable_off_runs_and_reports_the_numpy_path
 
 @needs_numba
 def test_saturation_matches_numpy_and_keeps_every_input_within_its_limit():
-    from meanfield.crowd_loops import saturate
+    from meanfield.crowd_loops import limit_inputs
 
     rng = np.random.default_rng(9)
     u, w = rng.normal(scale=0.3, size=(50, 2)), rng.normal(scale=4.0, size=50)
     for u_max, w_max in ((0.2, 3.0), (np.inf, 3.0), (0.2, np.inf)):
-        fast, ref, _ = both(saturate, u, w, u_max, w_max, 1 - 4 * np.finfo(float).eps, np.empty((50, 2)), np.empty(50))
+        _, _, (*_, u_fast, w_fast) = both(
+            limit_inputs, u, w, u_max, w_max, 1 - 4 * np.finfo(float).eps, 1e-6, np.empty((50, 2)), np.empty(50)
+        )
+        u_ref, w_ref = np.empty((50, 2)), np.empty(50)
+        with compiled.numpy_path():
+            limit_inputs(u, w, u_max, w_max, 1 - 4 * np.finfo(float).eps, 1e-6, u_ref, w_ref)
+        fast, ref = (u_fast, w_fast), (u_ref, w_ref)
         assert np.max(np.abs(fast[0] - ref[0])) <= 1e-16 and np.array_equal(fast[1], ref[1])
         assert (np.hypot(fast[0][:, 0], fast[0][:, 1]) <= u_max).all() and (np.abs(fast[1]) <= w_max).all()
         inside = np.hypot(u[:, 0], u[:, 1]) <= u_max
@@ -261,13 +267,13 @@ def test_saturation_matches_numpy_and_keeps_every_input_within_its_limit():
 
 @needs_numba
 def test_input_report_matches_numpy_and_counts_what_the_limits_did():
-    from meanfield.crowd_loops import input_report, saturate
-    from meanfield.robots import RobotTeam
+    from meanfield.crowd_loops import input_report
+    from meanfield.robots import RobotTeam, saturate_inputs
 
     rng = np.random.default_rng(10)
     u, w = rng.normal(scale=0.3, size=(40, 2)), rng.normal(scale=4.0, size=40)
     for u_max, w_max in ((0.2, 3.0), (np.inf, 3.0), (0.2, np.inf), (np.inf, np.inf)):
-        ua, wa = saturate(u, w, u_max, w_max, 1 - 4 * np.finfo(float).eps, np.empty((40, 2)), np.empty(40))
+        ua, wa = saturate_inputs(u, w, u_max, w_max)
         fast, ref, _ = both(input_report, u, w, ua, wa, u_max, w_max, 1e-6)
         assert fast == ref
         team = RobotTeam(positions=np.zeros((40, 2)), headings=np.zeros(40), u_max=u_max, omega_max=w_max)
@@ -280,7 +286,7 @@ def test_input_report_matches_numpy_and_counts_what_the_limits_did():
 
 @needs_numba
 def test_limit_inputs_is_saturation_and_report_in_one_pass_and_flags_non_finite_commands():
-    from meanfield.crowd_loops import input_report, limit_inputs, saturate
+    from meanfield.crowd_loops import _saturate_numpy, input_report, limit_inputs
 
     rng = np.random.default_rng(12)
     u, w = rng.normal(scale=0.3, size=(40, 2)), rng.normal(scale=4.0, size=40)
@@ -290,8 +296,8 @@ def test_limit_inputs_is_saturation_and_report_in_one_pass_and_flags_non_finite_
             limit_inputs, u, w, u_max, w_max, shrink, 1e-6, np.empty((40, 2)), np.empty(40)
         )
         assert fast == ref and fast[4] is True
-        ua, wa = saturate(u, w, u_max, w_max, shrink, np.empty((40, 2)), np.empty(40))
-        assert np.array_equal(u_out, ua) and np.array_equal(w_out, wa)  # the same arithmetic as the two loops
+        ua, wa = _saturate_numpy(u, w, u_max, w_max, shrink, np.empty((40, 2)), np.empty(40))
+        assert np.array_equal(u_out, ua) and np.array_equal(w_out, wa)  # the same arithmetic as the numpy twin
         assert fast[:4] == input_report(u, w, ua, wa, u_max, w_max, 1e-6)
     for bad in ((0, 1), (3, 0)):
         ub, wb = u.copy(), w.copy()
