@@ -57,6 +57,8 @@ SETTINGS: dict[str, dict[str, dict[str, Any]]] = {
     },
     "nmpc": {"quick": {"t_final": 1.0, "repeats": 1}, "full": {"t_final": 4.0, "repeats": 3}},
     "startup": {"quick": {"repeats": 5}, "full": {"repeats": 11}},
+    # each repeat: a cold and a warm first run with the parallel compile, and the same without
+    "compile": {"quick": {"repeats": 1}, "full": {"repeats": 3}},
     "plan": {"quick": {"window": 30, "seeds": 4, "repeats": 2}, "full": {"window": 30, "seeds": 10, "repeats": 3}},
     "controllers": {"quick": {"steps": 60, "repeats": 1}, "full": {"steps": 300, "repeats": 2}},
     # bench_scaling.CROWDS / GRIDS: quick stops at N = 1e6 and 256^2

@@ -23,6 +23,9 @@ bounded         the bounded β/γ program re-solved (cvxpy DPP) against rebuilt 
                 its closed loop against min-norm's (``bench_bounded.py``)
 nmpc            NMPC solve per control step against the backstepping law (``bench_nmpc.py``)
 startup         ``import meanfield`` and ``meanfield --help`` against ``python -c pass``
+compile         the paper's first run as a fresh process on an empty numba cache against the
+                same on the filled cache: what compiling costs the first time; goal ≤ 3 s
+                (``bench_compile.py``)
 plan            a closed-loop step on the ``office`` plan against the same loop on a box of
                 the same grid and crowd; goal: at most 1.5× (``bench_plan.py``)
 controllers     each installed controller's ``act`` per control step against the paper's law,
@@ -121,6 +124,7 @@ BENCHMARKS: dict[str, Benchmark] = {
         ("bounded", "bounded beta/gamma: re-solve and closed loop", "rebuild; min-norm"),
         ("nmpc", "NMPC solve per control step", "backstepping law"),
         ("startup", "import meanfield; meanfield --help (whole processes)", "python -c pass"),
+        ("compile", "the paper's first run on an empty numba cache (whole processes)", "the same, cache filled"),
         ("plan", "closed-loop step on the office plan", "the same loop on a box"),
         ("controllers", "act() per step of every installed controller", "the paper's law"),
         ("scaling", "closed-loop step against N and the grid (log-log, fitted exponents)", "linear extrapolation"),

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import functools
 import os
+import struct
 import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -48,6 +49,8 @@ __all__ = [
     "UNAVAILABLE",
     "CompiledKernel",
     "CompiledFallbackWarning",
+    "bits_as_float",
+    "compile_inner",
 ]
 
 ENV = "MEANFIELD_COMPILED"
@@ -131,6 +134,40 @@ def status() -> dict[str, Any]:
     }
 
 
+_before_cold_compile: list[Callable[[], None]] = []
+"""At most one callable, run (and removed) just before a loop compiles with nothing in numba's
+on-disk cache: how :func:`meanfield.warmup.compile_in_parallel` learns that the cache is cold."""
+
+
+def prepare_compiler() -> None:
+    """Load numba's typing and lowering registries now (about 0.3 s, which the first compile pays otherwise).
+
+    Done before forking processes that compile (:mod:`meanfield.warmup`), so that each child
+    starts from the loaded registries instead of loading its own.
+    """
+    nb = _numba()
+    if isinstance(nb, Exception):
+        return
+    from numba.core.registry import cpu_target
+
+    cpu_target.target_context.refresh()
+    cpu_target.typing_context.refresh()
+
+
+def cached_on_disk(dispatcher: Any) -> bool:
+    """Whether numba's on-disk cache holds a fresh entry for this dispatcher's loop (any signature).
+
+    Reads numba's cache index (``dispatcher._cache``, a private attribute of numba's
+    dispatchers; the ``numba`` pin in ``pyproject.toml`` covers it).  An index that is missing,
+    from another numba or older than the loop's source file counts as empty; anything this
+    cannot read counts as cached, so that nothing is started on a guess.
+    """
+    try:
+        return bool(dispatcher._cache._cache_file._load_index())
+    except Exception:
+        return True
+
+
 UNAVAILABLE = object()
 """What a kernel without a numpy twin (``fallback=None``) returns when it cannot run compiled:
 the caller then takes its own numpy path."""
@@ -147,12 +184,70 @@ def inner(loop: Callable[..., Any]) -> Callable[..., Any]:
     return loop
 
 
+def bits_as_float(bits: int) -> float:
+    """The float64 whose IEEE-754 bits are the int64 ``bits`` (e.g. ``(k + 1023) << 52`` is ``2.0**k``).
+
+    Inside a compiled loop this is one LLVM ``bitcast``, which costs nothing and vectorises
+    (a numba intrinsic, put in place of this function when a loop of the module compiles, as
+    :func:`inner` helpers are); called from Python it unpacks the bits with :mod:`struct`.
+    """
+    return struct.unpack("<d", struct.pack("<q", bits))[0]
+
+
+@functools.cache
+def _bitcast_intrinsic() -> Any:
+    from llvmlite import ir
+    from numba.core import types
+    from numba.extending import intrinsic
+
+    @intrinsic
+    def bits_as_float(typingctx: Any, bits: Any) -> Any:
+        def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+            return builder.bitcast(args[0], ir.DoubleType())
+
+        return types.float64(types.int64), codegen
+
+    return bits_as_float
+
+
+def _is_pending_helper(value: Any) -> bool:
+    return getattr(value, "_compiled_inner", False) and not hasattr(value, "py_func")
+
+
+_helper_dispatchers: dict[Callable[..., Any], Any] = {}  # one per helper, whichever modules import it
+
+
+def _resolve_helpers(space: dict[str, Any], nb: Any) -> None:
+    """In one module's namespace: each :func:`inner` helper by its dispatcher, :func:`bits_as_float` by
+    its intrinsic; then the same in the modules the helpers come from (before anything compiles)."""
+    homes = []
+    for name, value in list(space.items()):
+        if value is bits_as_float:
+            space[name] = _bitcast_intrinsic()
+        elif _is_pending_helper(value):
+            if value not in _helper_dispatchers:
+                _helper_dispatchers[value] = nb.njit(cache=True, error_model="numpy")(value)
+            space[name] = _helper_dispatchers[value]
+            if value.__globals__ is not space:
+                homes.append(value.__globals__)
+    for home in homes:
+        _resolve_helpers(home, nb)
+
+
 def _compile_inner_helpers(loop: Callable[..., Any], nb: Any) -> None:
     """Replace the :func:`inner` helpers of ``loop``'s module by their compiled versions (once)."""
-    space = loop.__globals__
-    for name, value in list(space.items()):
-        if getattr(value, "_compiled_inner", False) and not hasattr(value, "py_func"):
-            space[name] = nb.njit(cache=True, error_model="numpy")(value)
+    _resolve_helpers(loop.__globals__, nb)
+
+
+def compile_inner(helper: Callable[..., Any]) -> Any:
+    """The numba-compiled version of an :func:`inner` helper, its own helpers resolved (for tests)."""
+    if hasattr(helper, "py_func"):
+        return helper
+    nb = _numba()
+    if isinstance(nb, Exception):
+        raise nb
+    _resolve_helpers(helper.__globals__, nb)
+    return _helper_dispatchers[helper]
 
 
 class CompiledKernel:
@@ -195,6 +290,8 @@ class CompiledKernel:
             self._jitted = self._jitted or self._compile()
             if self._jitted is None:
                 return self._numpy(*args)
+            if _before_cold_compile and not cached_on_disk(self._jitted):
+                _before_cold_compile.pop()()  # (meanfield.warmup: other processes start compiling too)
             out = self._jitted(*args)
         except Exception as exc:  # numba's typing/lowering errors, a cache it cannot write
             self._fail(exc)

@@ -96,7 +96,7 @@ def gaussian_field_at(points, robots, headings, c, inv_eta, visible, reach, out,
     block = _FIELD_BLOCK
     xs, ys = np.empty(block), np.empty(block)
     sx, sy = np.empty(block), np.empty(block)
-    k, bits = np.empty(block), np.empty(block, np.int64)
+    k = np.empty(block)
     for first in range(0, points.shape[0], block):  # blocks of humans, robot by robot: the exp vectorises
         m = block if points.shape[0] - first > block else points.shape[0] - first
         for j in range(m):
@@ -109,7 +109,7 @@ def gaussian_field_at(points, robots, headings, c, inv_eta, visible, reach, out,
                 dx = xs[j] - rx[i]
                 dy = ys[j] - ry[i]
                 k[j] = -(dx * dx + dy * dy) * inv_eta
-            exp_inplace(k, bits, m)
+            exp_inplace(k, m)
             if masked:
                 for j in range(m):
                     if not visible[i, first + j]:

@@ -190,7 +190,6 @@ def separable_sum(
     row_cur = row_g + 2 * n_seg
     row_c = row_cur + 1
     work = np.empty((row_c + 1, width))
-    bits = np.empty(width, np.int64)  # exp_inplace's scratch
     for first in range(0, n_pts, per_pass):
         cnt = n_pts - first if n_pts - first < per_pass else per_pass
         for ax in range(2):
@@ -215,11 +214,11 @@ def separable_sum(
                     far = aq > ARG_MAX  # the start is zero then (d < -37 h): keep the ratio finite
                     work[row_g + t, j] = -math.inf if far else lnw - d * d * a2
                     work[row_q + t, j] = ARG_MAX if far else aq
-                exp_inplace(work[row_g + t], bits, cnt)
-                exp_inplace(work[row_q + t], bits, cnt)
+                exp_inplace(work[row_g + t], cnt)
+                exp_inplace(work[row_q + t], cnt)
             for i in range(seg):
                 work[row_c, i] = -i * g2
-            exp_inplace(work[row_c], bits, seg)
+            exp_inplace(work[row_c], seg)
             # the recurrence (K1) along the extended lattice; row r is cell a's mirror beyond lo
             # (r < pad: the first term of a), the cell itself, or its mirror beyond hi (the last)
             base = 0 if ax == 0 else nx

@@ -68,12 +68,12 @@ def _factors(coords, r, c, eta, out_f, out_g):
     (the exponentials vectorised, :func:`meanfield.vector_exp.exp_inplace`)."""
     s = -2.0 / eta
     m = coords.shape[0]
-    vals, bits = np.empty(m), np.empty(m, np.int64)
+    vals = np.empty(m)
     for i in range(r.shape[0]):
         for a in range(m):
             d = coords[a] - r[i]
             vals[a] = -(d * d) / eta
-        exp_inplace(vals, bits, m)
+        exp_inplace(vals, m)
         for a in range(m):
             f = c * vals[a]
             out_f[i, a] = f
@@ -133,7 +133,6 @@ def paper_law(rho, target, cst, pos, cos, sin, prev_x, prev_y, have_prev, h, rho
     ov = oq + 2 * (2 * ny - 1) * n
     ofam = ov + 2 * nr * n + 2 * 64 + n
     w = np.empty(ofam + 3 * (nfx + nfy))
-    bits = np.empty(2 * nr * n + 2 * 64, np.int64)
     for i in range(n):
         w[_U(orr + i)] = pos[i, 0]
         w[_U(orr + n + i)] = pos[i, 1]
@@ -163,7 +162,7 @@ def paper_law(rho, target, cst, pos, cos, sin, prev_x, prev_y, have_prev, h, rho
     for j in range(seg):
         w[_U(otab + j)] = -(2.0 * j * dx * dx) / eta
         w[_U(otab + seg + j)] = -(2.0 * j * dy * dy) / eta
-    exp_inplace(w[ov:], bits, 2 * ns * n + 2 * seg)
+    exp_inplace(w[ov:], 2 * ns * n + 2 * seg)
     one = otab + 2 * seg  # a row of ones: a segment's start is f = g × (1 × c)
     for i in range(n):
         w[_U(one + i)] = 1.0

@@ -38,6 +38,7 @@ from meanfield.robots import NavigationField, limited_inputs
 from meanfield.scenario import Scenario, load_scenario
 from meanfield.stragglers import StragglerTracker
 from meanfield.summary import run_id, run_summary
+from meanfield.warmup import compile_in_parallel
 
 __all__ = ["ClosedLoop", "Observer", "StepRecord", "run"]  # Observer, StepRecord: from meanfield.observers
 
@@ -82,9 +83,32 @@ class ClosedLoop:
         self.observers = list(observers)
         self.t = 0.0
         self.step_index = 0
-        self.density: np.ndarray = self.crowd.density()
+        with compile_in_parallel(self._first_step_halves()):  # (only on a cold cache: meanfield.warmup)
+            self.density: np.ndarray = self.crowd.density()
         self.last: StepRecord | None = None  # the latest step, as observers saw it
         self._started = False
+
+    def _first_step_halves(self) -> list[Callable[[], Any]]:
+        """The first step in two halves, the controller's and the plant's, for
+        :func:`~meanfield.warmup.compile_in_parallel`.
+
+        Each runs in a forked child, on the child's copy of the loop, only to compile (and
+        cache) the loops it calls: the controller acts on a stand-in density (zeros: which
+        loops compile depends on the arrays' types, not their values); the crowd takes one
+        step under the robots as they are, and zero robot inputs go through the saturation.
+        """
+
+        def controller_half() -> None:
+            r = self.robots
+            field = NavigationField(self.parts.kernel, self.grid, r.positions, r.headings, self.parts.sight)
+            self.controller.act(Observation(np.zeros(self.grid.shape), field, self.t, self.dt))
+
+        def plant_half() -> None:
+            self.crowd.advance(self.robots, self.t, self.dt)
+            r = self.robots
+            limited_inputs(np.zeros((len(r.positions), 2)), np.zeros(len(r.positions)), r.u_max, r.omega_max)
+
+        return [controller_half, plant_half]  # the law compiles longest (about 2 s): first
 
     # the parts, by name (read-only conveniences)
     @property

@@ -18,7 +18,7 @@ from meanfield import ParameterError, plugins
 from meanfield.cli import main
 
 EXPECTED = {
-    *("kde", "closed_loop", "fokker_planck", "jupedsim", "large_crowd", "bounded", "nmpc", "startup"),
+    *("kde", "closed_loop", "fokker_planck", "jupedsim", "large_crowd", "bounded", "nmpc", "startup", "compile"),
     *("plan", "controllers", "scaling"),
 }
 TOP_KEYS = {

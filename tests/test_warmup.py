@@ -1,0 +1,117 @@
+"""The first compile on two cores (``meanfield.warmup``): forked children fill numba's cache.
+
+Each test runs a fresh Python process on its own empty ``NUMBA_CACHE_DIR``, the only way to
+see a cold cache. What is checked: the children compile and cache the loops the parent does
+not call itself; the run's numbers are the same with and without them; nothing is forked on
+a warm cache or when ``MEANFIELD_PARALLEL_COMPILE=0``; a task that fails or hangs costs the
+parent nothing but the wait (bounded by ``timeout``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from meanfield import compiled, warmup
+
+pytestmark = pytest.mark.skipif(
+    not (compiled.numba_available() and sys.platform.startswith("linux") and warmup._usable_cpus() >= 2),
+    reason="the parallel compile needs numba, Linux and two usable CPUs",
+)
+
+BUILD = textwrap.dedent(
+    """
+    import json, sys
+    import numpy as np
+    from meanfield import ClosedLoop, paper_scenario, warmup
+    from meanfield import law_loops
+    loop = ClosedLoop(paper_scenario(seed=3).replace(t_final=0.05))
+    forked, law_called = warmup._used, law_loops.paper_law._jitted is not None
+    law_cached = law_loops.paper_law._compile()._cache._cache_file._load_index() != {}
+    for _ in range(5):
+        loop.step()
+    print(json.dumps({"forked": forked, "law_called_here": law_called, "law_cached": law_cached,
+                      "density": loop.density.ravel().tolist(), "robots": loop.robots.positions.ravel().tolist()}))
+    """
+)
+
+
+def _python(code: str, cache: str, **env: str) -> dict:
+    environment = {**os.environ, "NUMBA_CACHE_DIR": cache, "MEANFIELD_COMPILED": "1", **env}
+    environment.pop(warmup.ENV, None)
+    environment.update(env)
+    out = subprocess.run([sys.executable, "-c", code], env=environment, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_children_cache_the_law_the_parent_has_not_called_and_the_numbers_do_not_change(tmp_path):
+    parallel = _python(BUILD, str(tmp_path / "a"))
+    assert parallel["forked"]
+    # the parent has not called the law yet, but its compiled code is already on disk: a child wrote it
+    assert not parallel["law_called_here"] and parallel["law_cached"]
+    serial = _python(BUILD, str(tmp_path / "b"), MEANFIELD_PARALLEL_COMPILE="0")
+    assert not serial["forked"] and not serial["law_cached"]
+    assert parallel["density"] == serial["density"]  # bit for bit: the children change nothing here
+    assert parallel["robots"] == serial["robots"]
+
+
+def test_nothing_is_forked_on_a_warm_cache(tmp_path):
+    cache = str(tmp_path / "c")
+    assert _python(BUILD, cache)["forked"]
+    assert not _python(BUILD, cache)["forked"]
+
+
+TASKS = textwrap.dedent(
+    """
+    import json, os, sys, time
+    import numpy as np
+    from meanfield import warmup
+    from meanfield.compiled import compiled
+
+    def _twice(x):
+        return 2.0 * x
+
+    @compiled(fallback=_twice)
+    def twice(x):
+        out = np.empty_like(x)
+        for i in range(x.shape[0]):
+            out[i] = 2.0 * x[i]
+        return out
+
+    def fails():
+        raise RuntimeError("a task that fails")
+
+    def hangs():
+        time.sleep(600)
+
+    t0 = time.perf_counter()
+    with warmup.compile_in_parallel([fails, hangs], timeout=float(sys.argv[1])):
+        y = twice(np.arange(3.0))
+    print(json.dumps({"forked": warmup._used, "y": y.tolist(), "seconds": time.perf_counter() - t0}))
+    """
+)
+
+
+def test_a_task_that_fails_or_hangs_costs_only_the_bounded_wait(tmp_path):
+    script = tmp_path / "tasks.py"
+    script.write_text(TASKS)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "d"), "MEANFIELD_COMPILED": "1"}
+    env.pop(warmup.ENV, None)
+    out = subprocess.run([sys.executable, str(script), "2.0"], env=env, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout.strip().splitlines()[-1])
+    assert doc["forked"] and doc["y"] == [0.0, 2.0, 4.0]
+    assert doc["seconds"] < 60  # the hanging child was killed at the 2 s timeout, not waited for (600 s)
+    assert "a task that fails" not in out.stderr  # the children's output goes nowhere
+
+
+def test_the_switch_and_the_conditions():
+    assert warmup.ENV == "MEANFIELD_PARALLEL_COMPILE"
+    with compiled.numpy_path():
+        assert not warmup.parallel_compile_possible()  # nothing compiles on the numpy path
