@@ -95,7 +95,8 @@ class ClosedLoop:
         Each runs in a forked child, on the child's copy of the loop, only to compile (and
         cache) the loops it calls: the controller acts on a stand-in density (zeros: which
         loops compile depends on the arrays' types, not their values); the crowd takes one
-        step under the robots as they are, and zero robot inputs go through the saturation.
+        step under the robots as they are, and the robots one with zero inputs, through the
+        saturation.
         """
 
         def controller_half() -> None:
@@ -106,7 +107,8 @@ class ClosedLoop:
         def plant_half() -> None:
             self.crowd.advance(self.robots, self.t, self.dt)
             r = self.robots
-            limited_inputs(np.zeros((len(r.positions), 2)), np.zeros(len(r.positions)), r.u_max, r.omega_max)
+            u, w, _ = limited_inputs(np.zeros((len(r.positions), 2)), np.zeros(len(r.positions)), r.u_max, r.omega_max)
+            r.advance(u, w, self.dt, self.parts.robot_region)
 
         return [controller_half, plant_half]  # the law compiles longest (about 2 s): first
 
