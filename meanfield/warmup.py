@@ -19,10 +19,12 @@ without this.
 
 Nothing is forked (and the block runs as before) unless all of these hold: the block
 compiles a loop whose cache is empty (a warm cache costs one index read), the platform is
-Linux (``os.fork``), at least two CPUs are usable, this is the main thread, the compiled
-path is on, and ``MEANFIELD_PARALLEL_COMPILE`` is not ``0``. It happens at most once per
-process. A child that fails or takes longer than ``timeout`` seconds is dropped (killed if
-need be); whatever it did not cache, the parent compiles when it needs it, as without this.
+Linux (``os.fork``), at least two CPUs are usable, this is the main thread and no other
+Python thread runs (a fork copies only the calling thread: a lock another thread held, numba's
+compiler lock say, would stay held in the child), the compiled path is on, and
+``MEANFIELD_PARALLEL_COMPILE`` is not ``0``. It happens at most once per process. A child
+that fails or takes longer than ``timeout`` seconds is dropped (killed if need be); whatever
+it did not cache, the parent compiles when it needs it, as without this.
 """
 
 from __future__ import annotations
@@ -61,6 +63,7 @@ def parallel_compile_possible() -> bool:
         and sys.platform.startswith("linux")
         and hasattr(os, "fork")
         and threading.current_thread() is threading.main_thread()
+        and threading.active_count() == 1
         and _usable_cpus() >= 2
         and compiled.enabled()
     )
@@ -85,7 +88,10 @@ def _fork(task: Callable[[], Any], niceness: int = 0) -> int | None:
         os.dup2(devnull, 2)
         warnings.simplefilter("ignore")
         if niceness:
-            os.nice(niceness)
+            try:
+                os.nice(niceness)
+            except OSError:
+                pass
         task()
         status = 0
     finally:
@@ -116,7 +122,7 @@ def _await(pids: list[int], timeout: float) -> None:
 
 
 @contextmanager
-def compile_in_parallel(tasks: Sequence[Callable[[], Any]], timeout: float = 120.0) -> Iterator[None]:
+def compile_in_parallel(tasks: Sequence[Callable[[], Any]], timeout: float = 60.0) -> Iterator[None]:
     """Run the block; if it meets a loop with an empty cache, compile ``tasks`` in forked children meanwhile.
 
     Parameters

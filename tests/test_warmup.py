@@ -14,6 +14,7 @@ import os
 import subprocess
 import sys
 import textwrap
+import threading
 
 import pytest
 
@@ -115,3 +116,21 @@ def test_the_switch_and_the_conditions():
     assert warmup.ENV == "MEANFIELD_PARALLEL_COMPILE"
     with compiled.numpy_path():
         assert not warmup.parallel_compile_possible()  # nothing compiles on the numpy path
+    release = threading.Event()
+    other = threading.Thread(target=release.wait)
+    other.start()
+    try:  # another thread could hold a lock the child would need: no fork
+        assert not warmup.parallel_compile_possible()
+    finally:
+        release.set()
+        other.join()
+
+
+def test_the_switch_turns_it_off(tmp_path):
+    script = tmp_path / "off.py"
+    script.write_text(TASKS)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "e"), "MEANFIELD_COMPILED": "1", warmup.ENV: "0"}
+    out = subprocess.run([sys.executable, str(script), "2.0"], env=env, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout.strip().splitlines()[-1])
+    assert not doc["forked"] and doc["y"] == [0.0, 2.0, 4.0]
