@@ -96,7 +96,9 @@ class ClosedLoop:
         cache) the loops it calls: the controller acts on a stand-in density (zeros: which
         loops compile depends on the arrays' types, not their values); the crowd takes one
         step under the robots as they are, and the robots one with zero inputs, through the
-        saturation.
+        saturation. Only the toolkit's own parts are called in a child: a plug-in's part might
+        act on the world (a real robot taking its command), so its loops compile here, in
+        this process, when it first runs.
         """
 
         def controller_half() -> None:
@@ -110,7 +112,10 @@ class ClosedLoop:
             u, w, _ = limited_inputs(np.zeros((len(r.positions), 2)), np.zeros(len(r.positions)), r.u_max, r.omega_max)
             r.advance(u, w, self.dt, self.parts.robot_region)
 
-        return [controller_half, plant_half]  # the law compiles longest (about 2 s): first
+        halves = [controller_half] if _toolkit_part(self.controller) else []  # the law compiles longest: first
+        if _toolkit_part(self.crowd) and _toolkit_part(self.robots):
+            halves.append(plant_half)
+        return halves
 
     # the parts, by name (read-only conveniences)
     @property
@@ -266,6 +271,12 @@ class ClosedLoop:
         summary = {"run_id": rid, **summary, "warnings": stability_warnings(sc, loop.grid, summary)}
         dataset.attrs.update(run_id=rid, status=status, message=message)
         return SimulationResult(sc, dataset, summary, p.kernel)
+
+
+def _toolkit_part(part: Any) -> bool:
+    """Whether ``part`` is one of the toolkit's own (``meanfield`` or ``analysis``): calling it has no effect
+    outside this process."""
+    return type(part).__module__.partition(".")[0] in ("meanfield", "analysis")
 
 
 @contextmanager

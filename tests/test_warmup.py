@@ -134,3 +134,38 @@ def test_the_switch_turns_it_off(tmp_path):
     assert out.returncode == 0, out.stderr
     doc = json.loads(out.stdout.strip().splitlines()[-1])
     assert not doc["forked"] and doc["y"] == [0.0, 2.0, 4.0]
+
+
+PLUGIN = textwrap.dedent(
+    """
+    import dataclasses, json, os, sys
+    from meanfield import ClosedLoop, paper_scenario, warmup
+    from meanfield.assembly import assemble
+
+    class Relay:  # a plug-in controller that could drive real robots: each call leaves a trace
+        def __init__(self, inner):
+            self.inner = inner
+
+        def act(self, observation):
+            with open(sys.argv[1], "a") as f:
+                f.write(f"{os.getpid()}\\n")
+            return self.inner.act(observation)
+
+    parts = assemble(paper_scenario(seed=0).replace(t_final=0.05))
+    loop = ClosedLoop(dataclasses.replace(parts, controller=Relay(parts.controller)))
+    loop.step()
+    print(json.dumps({"forked": warmup._used, "pid": os.getpid()}))
+    """
+)
+
+
+def test_a_plugin_controller_is_never_called_in_a_child(tmp_path):
+    script, trace = tmp_path / "plugin.py", tmp_path / "calls.txt"
+    script.write_text(PLUGIN)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "f"), "MEANFIELD_COMPILED": "1"}
+    env.pop(warmup.ENV, None)
+    out = subprocess.run([sys.executable, str(script), str(trace)], env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout.strip().splitlines()[-1])
+    assert doc["forked"]  # the toolkit's crowd still compiled in a child
+    assert trace.read_text().split() == [str(doc["pid"])]  # one call, the step's, in this process
