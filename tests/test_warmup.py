@@ -164,7 +164,8 @@ def test_a_plugin_controller_is_never_called_in_a_child(tmp_path):
     script.write_text(PLUGIN)
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "f"), "MEANFIELD_COMPILED": "1"}
     env.pop(warmup.ENV, None)
-    out = subprocess.run([sys.executable, str(script), str(trace)], env=env, capture_output=True, text=True, timeout=300)
+    command = [sys.executable, str(script), str(trace)]
+    out = subprocess.run(command, env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     doc = json.loads(out.stdout.strip().splitlines()[-1])
     assert doc["forked"]  # the toolkit's crowd still compiled in a child
