@@ -222,12 +222,24 @@ def run_artifacts(figures: bool = True, animate: bool = False, progress: bool = 
     return out
 
 
+def _say_compiling() -> None:
+    print(
+        "meanfield: compiling the toolkit's loops for this machine (the first run only, a few seconds; "
+        "numba caches them)",
+        file=sys.stderr,
+        flush=True,
+    )
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
+    from meanfield import compiled
     from meanfield.budget import check_fits
     from meanfield.loop import ClosedLoop
 
     sc = scenario_from_args(args)
     check_fits(sc, args.out)  # memory and the output's disk, before anything is allocated
+    if not args.quiet:
+        compiled.before_cold_compile(_say_compiling)
     loop = ClosedLoop(sc)
     result = loop.run(progress=not args.quiet)
     artifacts = run_artifacts(figures=not args.no_figures, animate=args.animate, progress=not args.quiet)

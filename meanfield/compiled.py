@@ -51,6 +51,7 @@ __all__ = [
     "CompiledFallbackWarning",
     "bits_as_float",
     "compile_inner",
+    "before_cold_compile",
 ]
 
 ENV = "MEANFIELD_COMPILED"
@@ -134,9 +135,23 @@ def status() -> dict[str, Any]:
     }
 
 
-_before_cold_compile: list[Callable[[], None]] = []
-"""At most one callable, run (and removed) just before a loop compiles with nothing in numba's
-on-disk cache: how :func:`meanfield.warmup.compile_in_parallel` learns that the cache is cold."""
+_before_cold_compile: list[Callable[[], None]] = []  # see before_cold_compile
+
+
+def before_cold_compile(callback: Callable[[], None]) -> Callable[[], None]:
+    """Call ``callback()`` once, just before the next loop compiles with nothing in numba's on-disk cache.
+
+    How :func:`meanfield.warmup.compile_in_parallel` learns that the cache is cold, and how
+    ``meanfield run`` says that the first run on a machine compiles. A warm cache never
+    calls it. Returns a function that unregisters it (a no-op once it has run).
+    """
+    _before_cold_compile.append(callback)
+
+    def unregister() -> None:
+        if callback in _before_cold_compile:
+            _before_cold_compile.remove(callback)
+
+    return unregister
 
 
 def prepare_compiler() -> None:
@@ -291,7 +306,8 @@ class CompiledKernel:
             if self._jitted is None:
                 return self._numpy(*args)
             if _before_cold_compile and not cached_on_disk(self._jitted):
-                _before_cold_compile.pop()()  # (meanfield.warmup: other processes start compiling too)
+                while _before_cold_compile:  # (meanfield.warmup: other processes start compiling too)
+                    _before_cold_compile.pop(0)()
             out = self._jitted(*args)
         except Exception as exc:  # numba's typing/lowering errors, a cache it cannot write
             self._fail(exc)

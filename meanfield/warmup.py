@@ -158,10 +158,10 @@ def compile_in_parallel(tasks: Sequence[Callable[[], Any]], timeout: float = 60.
             if pid is not None:
                 pids.append(pid)
 
-    compiled._before_cold_compile[:] = [fork_tasks]
+    unregister = compiled.before_cold_compile(fork_tasks)
     try:
         yield
     finally:
-        compiled._before_cold_compile.clear()
+        unregister()
         if pids:
             _await(pids, timeout)

@@ -170,3 +170,25 @@ def test_a_plugin_controller_is_never_called_in_a_child(tmp_path):
     doc = json.loads(out.stdout.strip().splitlines()[-1])
     assert doc["forked"]  # the toolkit's crowd still compiled in a child
     assert trace.read_text().split() == [str(doc["pid"])]  # one call, the step's, in this process
+
+
+def test_meanfield_run_says_when_its_first_run_compiles(tmp_path):
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "g"), "MEANFIELD_COMPILED": "1"}
+    command = [sys.executable, "-m", "meanfield.cli", "run", "paper", "--set", "t_final=0.05", "--no-figures"]
+
+    def stderr(out: str) -> str:
+        done = subprocess.run([*command, "--out", str(tmp_path / out)], env=env, capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr
+        return done.stderr
+
+    assert "compiling the toolkit's loops for this machine" in stderr("cold")
+    assert "compiling" not in stderr("warm")  # numba's cache serves the second run
+
+
+def test_a_cold_compile_callback_can_be_withdrawn():
+    calls = []
+    unregister = compiled.before_cold_compile(lambda: calls.append(1))
+    assert compiled._before_cold_compile
+    unregister()
+    unregister()  # twice: no error
+    assert not compiled._before_cold_compile and not calls
