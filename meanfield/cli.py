@@ -238,10 +238,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     sc = scenario_from_args(args)
     check_fits(sc, args.out)  # memory and the output's disk, before anything is allocated
-    if not args.quiet:
-        compiled.before_cold_compile(_say_compiling)
-    loop = ClosedLoop(sc)
-    result = loop.run(progress=not args.quiet)
+    unregister = compiled.before_cold_compile(_say_compiling) if not args.quiet else None
+    try:
+        loop = ClosedLoop(sc)
+        result = loop.run(progress=not args.quiet)
+    finally:
+        if unregister is not None:
+            unregister()
     artifacts = run_artifacts(figures=not args.no_figures, animate=args.animate, progress=not args.quiet)
     result.save(args.out, artifacts=artifacts)
     s = result.summary

@@ -187,8 +187,19 @@ def test_meanfield_run_says_when_its_first_run_compiles(tmp_path):
 
 def test_a_cold_compile_callback_can_be_withdrawn():
     calls = []
-    unregister = compiled.before_cold_compile(lambda: calls.append(1))
-    assert compiled._before_cold_compile
+
+    def callback() -> None:
+        calls.append(1)
+
+    unregister = compiled.before_cold_compile(callback)
+    assert callback in compiled._before_cold_compile
     unregister()
     unregister()  # twice: no error
-    assert not compiled._before_cold_compile and not calls
+    assert callback not in compiled._before_cold_compile and not calls
+
+
+def test_meanfield_run_leaves_no_callback_behind(tmp_path):
+    from meanfield.cli import _say_compiling, main
+
+    assert main(["run", "paper", "--set", "t_final=0.05", "--no-figures", "--out", str(tmp_path / "r")]) == 0
+    assert _say_compiling not in compiled._before_cold_compile  # (a warm cache never called it)
