@@ -36,6 +36,7 @@ __all__ = [
     "euler_maruyama",
     "input_report",
     "limit_inputs",
+    "robot_euler",
     "count_in_disk",
 ]
 
@@ -367,6 +368,34 @@ def limit_inputs(u, omega, u_max, omega_max, shrink, rtol, u_out, w_out):
         if (math.isfinite(u_max) and asked >= u_lim) or (math.isfinite(omega_max) and abs(wc) >= w_lim):
             count += 1
     return top_speed, top_turn, cut, count, finite
+
+
+def _robot_euler_numpy(positions, headings, u, omega, dt, headings_out):
+    positions += dt * u
+    np.mod(headings + dt * omega, 2 * np.pi, out=headings_out)
+
+
+@compiled(fallback=_robot_euler_numpy)
+def robot_euler(positions, headings, u, omega, dt, headings_out):
+    """One explicit Euler step of eq. (2): ``R_i += dt u_i`` in place, ``θ_i + dt ω_i`` wrapped to ``[0, 2π)``.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (n, 2)
+        The robots' positions, updated in place.
+    headings : ndarray, shape (n,)
+        Their headings (read).
+    u, omega : ndarray, shapes (n, 2) and (n,)
+        The applied inputs.
+    dt : float
+    headings_out : ndarray, shape (n,)
+        The new headings (``np.mod`` semantics, bit for bit).
+    """
+    two_pi = 2 * np.pi
+    for i in range(positions.shape[0]):
+        positions[i, 0] += dt * u[i, 0]
+        positions[i, 1] += dt * u[i, 1]
+        headings_out[i] = np.mod(headings[i] + dt * omega[i], two_pi)
 
 
 def _count_in_disk_numpy(points, cx, cy, radius):

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from meanfield.crowd_loops import limit_inputs
+from meanfield.crowd_loops import limit_inputs, robot_euler
 from meanfield.domain import Domain
 from meanfield.errors import ParameterError, limit_or_inf
 from meanfield.grid import FaceField, Grid
@@ -118,11 +118,14 @@ class RobotTeam:
         """
         stop = getattr(domain, "slide_along_walls", None)
         start = self.positions.copy() if stop is not None else None
-        self.positions += dt * u
+        u, omega = np.asarray(u, float), np.asarray(omega, float)
+        headings = np.empty_like(self.headings)
+        fits = u.shape == self.positions.shape and omega.shape == headings.shape  # (else numpy broadcasts)
+        (robot_euler if fits else robot_euler.fallback)(self.positions, self.headings, u, omega, float(dt), headings)
         if stop is not None:
             stop(start, self.positions)
         domain.project(self.positions)
-        self.headings = np.mod(self.headings + dt * omega, 2 * np.pi)
+        self.headings = headings
 
 
 def saturate_inputs(u: np.ndarray, omega: np.ndarray, u_max: float, omega_max: float) -> tuple[np.ndarray, np.ndarray]:

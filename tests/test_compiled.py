@@ -323,6 +323,34 @@ def test_count_in_disk_matches_numpy_and_skips_those_who_left():
 
 
 @needs_numba
+def test_the_robots_euler_step_is_numpys_bit_for_bit_and_wraps_headings_into_0_2pi():
+    from meanfield.crowd_loops import robot_euler
+
+    rng = np.random.default_rng(13)
+    n = 500
+    pos, u = rng.uniform(-3, 3, (n, 2)), rng.uniform(-1, 1, (n, 2))
+    heads = np.concatenate([rng.uniform(-20, 20, n - 4), [0.0, -1e-18, 2 * np.pi, -2 * np.pi]])
+    omega = rng.uniform(-50, 50, n)
+    fast_out, ref_out = np.empty(n), np.empty(n)
+    _, _, fresh = both(robot_euler, pos, heads, u, omega, 0.01, fast_out)
+    with compiled.numpy_path():
+        ref_pos = pos.copy()
+        robot_euler(ref_pos, heads, u, omega, 0.01, ref_out)
+    assert np.array_equal(fresh[0], ref_pos)  # the positions, moved in place
+    assert np.array_equal(fresh[5], ref_out)  # the headings, np.mod's to the bit
+    assert np.all((ref_out >= 0) & (ref_out <= 2 * np.pi))
+
+
+def test_robot_team_advance_still_broadcasts_a_single_input():
+    from meanfield.domain import Domain
+    from meanfield.robots import RobotTeam
+
+    team = RobotTeam(np.array([[0.2, 0.2], [0.5, 0.5]]), np.array([0.0, 1.0]))
+    team.advance(np.array([0.1, 0.0]), 0.5, 0.1, Domain.box(1.0, 1.0))  # one u and one ω for every robot
+    assert np.allclose(team.positions, [[0.21, 0.2], [0.51, 0.5]]) and np.allclose(team.headings, [0.05, 1.05])
+
+
+@needs_numba
 def test_the_vectorised_exponential_is_within_one_ulp_of_exp():
     from meanfield.compiled import compile_inner
     from meanfield.vector_exp import exp_inplace
