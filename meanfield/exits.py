@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from meanfield.exit_loops import bridge_exits, first_exit_crossed, segment_distances
+
 __all__ = ["exit_segments", "distance_to_segments", "leaving", "ExitSink"]
 
 
@@ -35,18 +37,16 @@ def exit_segments(region: Any) -> np.ndarray:
 
 def distance_to_segments(points: np.ndarray, segs: np.ndarray) -> np.ndarray:
     """Distance ``(N, E)`` from each point ``(N, 2)`` to each segment ``(E, 2, 2)``."""
-    a, b = segs[:, 0], segs[:, 1]
-    ab = b - a
-    t = ((points[:, None, :] - a[None]) * ab[None]).sum(-1) / (ab * ab).sum(-1)[None]
-    t = np.clip(t, 0.0, 1.0)
-    q = a[None] + t[..., None] * ab[None]
-    return np.hypot(*(points[:, None, :] - q).transpose(2, 0, 1))
+    return segment_distances(points, segs)
 
 
 def leaving(
     start: np.ndarray, end: np.ndarray, segs: np.ndarray, sigma: float, dt: float, rng: np.random.Generator
 ) -> np.ndarray:
     """The exit each step leaves through (its index), or ``-1`` for the humans who stay.
+
+    Two compiled passes over the humans (:mod:`meanfield.exit_loops`): the first exit each
+    step crosses, then, for the others, the Brownian-bridge test with one uniform draw each.
 
     Parameters
     ----------
@@ -58,31 +58,19 @@ def leaving(
         The diffusion σ of the noise ``sqrt(2σ) dB`` (0: crossings only).
     dt : float
     rng : numpy.random.Generator
-        One uniform draw per human near an exit (the Brownian-bridge test).
+        One uniform draw per human whose step crosses no exit (the Brownian-bridge test).
     """
     n = len(start)
     out = np.full(n, -1, dtype=np.intp)
     if not len(segs) or not n:
         return out
-    d = end - start
-    a, e = segs[:, 0], segs[:, 1] - segs[:, 0]
-    cross = d[:, None, 0] * e[None, :, 1] - d[:, None, 1] * e[None, :, 0]
-    w = a[None] - start[:, None, :]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = (w[..., 0] * e[None, :, 1] - w[..., 1] * e[None, :, 0]) / cross
-        u = (w[..., 0] * d[:, None, 1] - w[..., 1] * d[:, None, 0]) / cross
-    hit = (cross != 0) & (t > 0) & (t <= 1) & (u >= 0) & (u <= 1)
-    crossed = hit.any(axis=1)
-    out[crossed] = np.argmax(np.where(hit, -t, -np.inf), axis=1)[crossed]  # the first exit on the way
+    start, end = np.ascontiguousarray(start, float), np.ascontiguousarray(end, float)
+    segs = np.ascontiguousarray(segs, float)
+    first_exit_crossed(start, end, segs, out)
     if sigma > 0:
-        near = np.flatnonzero(~crossed)
+        near = np.flatnonzero(out < 0)
         if len(near):
-            d0 = distance_to_segments(start[near], segs)
-            d1 = distance_to_segments(end[near], segs)
-            p = np.exp(-d0 * d1 / (sigma * dt))  # (M, E): the bridge touched exit e
-            k = np.argmax(p, axis=1)
-            touched = rng.random(len(near)) < p[np.arange(len(near)), k]
-            out[near[touched]] = k[touched]
+            bridge_exits(start, end, segs, near, rng.random(len(near)), sigma * dt, out)
     return out
 
 

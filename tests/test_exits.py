@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from meanfield import ClosedLoop, Domain, FokkerPlanck, Grid, ParameterError, paper_scenario
+from meanfield import ClosedLoop, Domain, FokkerPlanck, Grid, ParameterError, compiled, paper_scenario
 from meanfield.crowd import Crowd
 from meanfield.exits import ExitSink, exit_segments, leaving
 
@@ -131,3 +131,30 @@ def test_a_plan_with_a_door_evacuates_and_refuses_a_door_off_its_walls():
     with pytest.raises(ParameterError) as exc:
         Plan(plan.polygon, [((0.5, 0.1), (0.6, 0.1))])  # inside the room, not on a wall
     assert exc.value.name == "exits[0]"
+
+
+@pytest.mark.skipif(not compiled.numba_available(), reason="numba is not installed")
+def test_the_compiled_exit_passes_match_their_numpy_twins():
+    from meanfield.exit_loops import bridge_exits, first_exit_crossed
+
+    rng = np.random.default_rng(5)
+    segs = np.array(
+        [[[1.0, 0.2], [1.0, 0.4]], [[0.3, 1.0], [0.6, 1.0]], [[1.0, 0.4], [1.0, 0.5]], [[0.0, 0.0], [0.0, 0.3]]]
+    )
+    start = rng.uniform(-0.05, 1.05, (4000, 2))
+    end = start + rng.normal(0, 0.08, (4000, 2))
+    end[:10] = start[:10]  # steps of length 0 cross nothing
+    start[10], end[10] = (0.9, 0.4), (1.1, 0.4)  # through the end point exits 0 and 2 share
+    fast = first_exit_crossed(start, end, segs, np.full(4000, -1, np.intp))
+    assert first_exit_crossed._ready
+    with compiled.numpy_path():
+        ref = first_exit_crossed(start, end, segs, np.full(4000, -1, np.intp))
+    np.testing.assert_array_equal(fast, ref)
+    assert 100 < np.count_nonzero(ref >= 0) < 3990 and ref[10] in (0, 2) and (ref[:10] == -1).all()
+    near = np.flatnonzero(ref < 0)
+    draws = rng.random(len(near))
+    fast = bridge_exits(start, end, segs, near, draws, 0.05 * 0.01, ref.copy())
+    with compiled.numpy_path():
+        slow = bridge_exits(start, end, segs, near, draws, 0.05 * 0.01, ref.copy())
+    np.testing.assert_array_equal(fast, slow)
+    assert np.count_nonzero(slow != ref) > 10  # the bridge test took some who crossed nothing
