@@ -30,6 +30,7 @@ it did not cache, the parent compiles when it needs it, as without this.
 from __future__ import annotations
 
 import os
+import signal
 import sys
 import threading
 import time
@@ -115,7 +116,7 @@ def _await(pids: list[int], timeout: float) -> None:
     finally:  # a timeout, or Ctrl-C while waiting: no child outlives the wait
         for pid in waiting:
             try:
-                os.kill(pid, 9)
+                os.kill(pid, signal.SIGKILL)
                 os.waitpid(pid, 0)
             except (ProcessLookupError, ChildProcessError):
                 pass
