@@ -249,11 +249,6 @@ def _resolve_helpers(space: dict[str, Any], nb: Any) -> None:
         _resolve_helpers(home, nb)
 
 
-def _compile_inner_helpers(loop: Callable[..., Any], nb: Any) -> None:
-    """Replace the :func:`inner` helpers of ``loop``'s module by their compiled versions (once)."""
-    _resolve_helpers(loop.__globals__, nb)
-
-
 def compile_inner(helper: Callable[..., Any]) -> Any:
     """The numba-compiled version of an :func:`inner` helper, its own helpers resolved (for tests)."""
     if hasattr(helper, "py_func"):
@@ -281,7 +276,7 @@ class CompiledKernel:
         nb = _numba()
         if isinstance(nb, Exception):
             return None
-        _compile_inner_helpers(self.loop, nb)
+        _resolve_helpers(self.loop.__globals__, nb)  # the module's @inner helpers, compiled versions
         return nb.njit(cache=True, **{"error_model": "numpy", **self._options})(self.loop)
 
     def _fail(self, exc: BaseException) -> None:

@@ -21,7 +21,8 @@ from typing import Any
 
 import numpy as np
 
-from meanfield.exit_loops import bridge_exits, first_exit_crossed, segment_distances
+from meanfield.exit_loops import bridge_exits, first_exit_crossed
+from meanfield.exit_loops import segment_distances as distance_to_segments
 
 __all__ = ["exit_segments", "distance_to_segments", "leaving", "ExitSink"]
 
@@ -33,11 +34,6 @@ def exit_segments(region: Any) -> np.ndarray:
     parts = [p.points for p in (boundary() if boundary else ()) if p.kind == "exit"]
     segs = [np.stack([pts[k], pts[k + 1]]) for pts in parts for k in range(len(pts) - 1)]
     return np.array(segs, float).reshape(-1, 2, 2)
-
-
-def distance_to_segments(points: np.ndarray, segs: np.ndarray) -> np.ndarray:
-    """Distance ``(N, E)`` from each point ``(N, 2)`` to each segment ``(E, 2, 2)``."""
-    return segment_distances(points, segs)
 
 
 def leaving(
