@@ -15,13 +15,13 @@ from typing import Any
 
 import numpy as np
 
+from meanfield.crowd_loops import NO_BOX as _NO_BOX
 from meanfield.crowd_loops import euler_maruyama
-from meanfield.errors import ParameterError, SigmaLike, check_sigma
+from meanfield.errors import ParameterError, SigmaLike, SimulationDiverged, check_sigma
 from meanfield.region import Region
 
 __all__ = ["Crowd"]
 
-_NO_BOX = np.empty(0)
 
 
 class Crowd:
@@ -74,7 +74,10 @@ class Crowd:
         return len(self.positions)
 
     def step(self, drift: np.ndarray, t: float, dt: float) -> None:
-        """One Euler–Maruyama step of eq. (1) with drift (N, 2), then reflect at the walls."""
+        """One Euler–Maruyama step of eq. (1) with drift (N, 2), then reflect at the walls.
+
+        Raises :class:`~meanfield.errors.SimulationDiverged`, the positions unchanged, if the drift is not finite.
+        """
         x = self.positions
         if self._noise.shape != x.shape:  # positions replaced by an array of another size
             self._noise = np.empty_like(x)
@@ -91,7 +94,9 @@ class Crowd:
         previous = x.copy() if self._path_reflection or len(self.exits) else None
         # a box without exits folds its walls into the same pass (meanfield.crowd_loops)
         folded = self._box if previous is None else _NO_BOX
-        euler_maruyama(x, drift, self._noise, dt, amp, folded)
+        if not euler_maruyama(x, drift, self._noise, dt, amp, folded):
+            msg = f"non-finite human drift at t = {t:.4g}; the crowd is kept at the last good step"
+            raise SimulationDiverged(msg, -1)
         if not len(self.exits):
             if previous is not None:
                 self.domain.reflect(x, previous)

@@ -37,6 +37,7 @@ __all__ = [
     "input_report",
     "limit_inputs",
     "robot_euler",
+    "NO_BOX",
     "count_in_disk",
 ]
 
@@ -193,17 +194,20 @@ def _fold_numpy(col, lo, hi):
 
 
 def _euler_maruyama_numpy(x, drift, noise, dt, amp, box):
+    if not np.isfinite(drift).all():
+        return False
     x += drift * dt
     x += noise * amp
     if box.shape[0]:
         _fold_numpy(x[:, 0], box[0], box[1])
         _fold_numpy(x[:, 1], box[2], box[3])
-    return x
+    return True
 
 
 @compiled(fallback=_euler_maruyama_numpy)
 def euler_maruyama(x, drift, noise, dt, amp, box):
-    """One Euler–Maruyama step of eq. (1), in place: ``X_j += b_j dt + a_j ξ_j``, then the box's walls.
+    """One Euler–Maruyama step of eq. (1), in place: ``X_j += b_j dt + a_j ξ_j``, then the box's walls;
+    returns False, ``x`` untouched, when some drift is not finite (else True).
 
     Parameters
     ----------
@@ -220,6 +224,9 @@ def euler_maruyama(x, drift, noise, dt, amp, box):
         ``(x0, x1, y0, y1)``: fold each coordinate back into the box (reflecting walls, any
         number of bounces); empty: no walls here (the caller reflects).
     """
+    for j in range(x.shape[0]):  # every drift finite, or nothing moves (the caller keeps the last good state)
+        if not (math.isfinite(drift[j, 0]) and math.isfinite(drift[j, 1])):
+            return False
     walls = box.shape[0] == 4
     one = amp.shape[0] == 1
     for j in range(x.shape[0]):
@@ -235,7 +242,7 @@ def euler_maruyama(x, drift, noise, dt, amp, box):
                     s = (v - lo) % period
                     v = lo + (period - s if s > hi - lo else s)
             x[j, k] = v
-    return x
+    return True
 
 
 # ----------------------------------------------------------------------------- the robots' limits
@@ -370,13 +377,20 @@ def limit_inputs(u, omega, u_max, omega_max, shrink, rtol, u_out, w_out):
     return top_speed, top_turn, cut, count, finite
 
 
-def _robot_euler_numpy(positions, headings, u, omega, dt, headings_out):
+NO_BOX = np.empty(0)
+"""The ``box`` of :func:`euler_maruyama` and :func:`robot_euler` that folds no walls into the pass."""
+
+
+def _robot_euler_numpy(positions, headings, u, omega, dt, box, headings_out):
     positions += dt * u
     np.mod(headings + dt * omega, 2 * np.pi, out=headings_out)
+    if box.shape[0]:
+        np.maximum(positions, (box[0], box[2]), out=positions)
+        np.minimum(positions, (box[1], box[3]), out=positions)
 
 
 @compiled(fallback=_robot_euler_numpy)
-def robot_euler(positions, headings, u, omega, dt, headings_out):
+def robot_euler(positions, headings, u, omega, dt, box, headings_out):
     """One explicit Euler step of eq. (2): ``R_i += dt u_i`` in place, ``θ_i + dt ω_i`` wrapped to ``[0, 2π)``.
 
     Parameters
@@ -388,13 +402,25 @@ def robot_euler(positions, headings, u, omega, dt, headings_out):
     u, omega : ndarray, shapes (n, 2) and (n,)
         The applied inputs.
     dt : float
+    box : ndarray, shape (4,) or (0,)
+        ``(x0, x1, y0, y1)``: a box's walls, the positions then clamped into it in the same pass, as
+        :meth:`meanfield.domain.Domain.project` does (``np.maximum`` then ``np.minimum``: NaN stays NaN);
+        empty: no clamp.
     headings_out : ndarray, shape (n,)
         The new headings (``np.mod`` semantics, bit for bit).
     """
     two_pi = 2 * np.pi
+    clamp = box.shape[0] > 0
     for i in range(positions.shape[0]):
-        positions[i, 0] += dt * u[i, 0]
-        positions[i, 1] += dt * u[i, 1]
+        x = positions[i, 0] + dt * u[i, 0]
+        y = positions[i, 1] + dt * u[i, 1]
+        if clamp:  # (a NaN compares false: it stays, as np.maximum/np.minimum keep it)
+            x = box[0] if x < box[0] else x
+            x = box[1] if x > box[1] else x
+            y = box[2] if y < box[2] else y
+            y = box[3] if y > box[3] else y
+        positions[i, 0] = x
+        positions[i, 1] = y
         headings_out[i] = np.mod(headings[i] + dt * omega[i], two_pi)
 
 

@@ -157,9 +157,11 @@ class InputStatistics:
         pass
 
     def step(self, loop: LoopView, record: StepRecord) -> None:
-        top_speed, top_turn, saturated, at_limit = record.limits
-        self.max_speed = max(self.max_speed, float(top_speed))
-        self.max_turn_rate = max(self.max_turn_rate, float(top_turn))
+        top_speed, top_turn, saturated, at_limit = record.limits if record.report is None else record.report[:4]
+        if top_speed > self.max_speed:  # (NaN never is: a diverged step does not reach the observers)
+            self.max_speed = float(top_speed)
+        if top_turn > self.max_turn_rate:
+            self.max_turn_rate = float(top_turn)
         self.saturated_steps += bool(saturated)
         self.binding_steps += at_limit > 0
         self.steps += 1
@@ -220,6 +222,7 @@ class Recorder:
 
     def start(self, loop: LoopView) -> None:
         self.loop = loop
+        self._every = (loop.scenario.record_every, loop.scenario.steps)  # the run's settings, read once
         region_has_exits = any(p.kind == "exit" for p in loop.parts.region.boundary_parts())
         self.exits = region_has_exits and hasattr(loop.crowd, "remaining_fraction")
         if loop.crowd.positions is not None:
@@ -227,11 +230,11 @@ class Recorder:
         self.record_state()
 
     def step(self, loop: LoopView, record: StepRecord) -> None:
-        every = loop.scenario.record_every
+        every, last = self._every
         self.last_state = record.command.state
         if record.index % every == 0:
             self.record_control(record)
-        if loop.step_index % every == 0 or loop.step_index == loop.scenario.steps:
+        if loop.step_index % every == 0 or loop.step_index == last:
             self.record_state()
 
     def finish(self) -> None:

@@ -18,11 +18,12 @@ Gaussian kernel all of this reduces to small matrix products.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
-from meanfield.crowd_loops import limit_inputs, robot_euler
+from meanfield.crowd_loops import NO_BOX, limit_inputs, robot_euler
 from meanfield.domain import Domain
 from meanfield.errors import ParameterError, limit_or_inf
 from meanfield.grid import FaceField, Grid
@@ -63,6 +64,7 @@ class RobotTeam:
     headings: np.ndarray
     u_max: float | None = None
     omega_max: float | None = None
+    _clamp: tuple[Any, np.ndarray] = field(default=(None, NO_BOX), init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self.positions = np.array(self.positions, dtype=float).reshape(-1, 2)
@@ -121,11 +123,22 @@ class RobotTeam:
         u, omega = np.asarray(u, float), np.asarray(omega, float)
         headings = np.empty_like(self.headings)
         fits = u.shape == self.positions.shape and omega.shape == headings.shape  # (else numpy broadcasts)
-        (robot_euler if fits else robot_euler.fallback)(self.positions, self.headings, u, omega, float(dt), headings)
+        box = NO_BOX if stop is not None else self._box_of(domain)  # a box's walls: clamped in the same pass
+        step = robot_euler if fits else robot_euler.fallback
+        step(self.positions, self.headings, u, omega, float(dt), box, headings)
         if stop is not None:
             stop(start, self.positions)
-        domain.project(self.positions)
+        if not box.shape[0]:
+            domain.project(self.positions)
         self.headings = headings
+
+    def _box_of(self, domain: Domain) -> np.ndarray:
+        """``(x0, x1, y0, y1)`` when ``domain`` is a box (its :meth:`~meanfield.domain.Domain.project` is that
+        clamp), else :data:`~meanfield.crowd_loops.NO_BOX`; kept for the last domain seen."""
+        if self._clamp[0] is not domain:
+            box = getattr(domain, "kind", None) == "box"
+            self._clamp = (domain, np.asarray(domain.bounds, float) if box else NO_BOX)
+        return self._clamp[1]
 
 
 def saturate_inputs(u: np.ndarray, omega: np.ndarray, u_max: float, omega_max: float) -> tuple[np.ndarray, np.ndarray]:
@@ -217,8 +230,9 @@ class NavigationField:
     ):
         self.kernel = kernel
         self.grid = grid
-        self.positions = np.array(positions).reshape(-1, 2)  # the robots it was built for (dtype kept)
-        self.headings = np.array(headings).reshape(-1)
+        positions, headings = np.array(positions), np.array(headings)  # the robots it was built for (dtype kept)
+        self.positions = positions if positions.ndim == 2 else positions.reshape(-1, 2)
+        self.headings = headings if headings.ndim == 1 else headings.reshape(-1)
         self.cos = np.cos(headings)
         self.sin = np.sin(headings)
         self._sight = sight

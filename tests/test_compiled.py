@@ -84,7 +84,9 @@ def test_euler_maruyama_matches_numpy_and_the_domain_reflection(walls):
     drift, noise = rng.normal(size=(400, 2)), rng.normal(size=(400, 2))
     amp = np.full((1, 1), 1.7)  # long steps: several bounces
     box = np.array([0.0, 1.0, 0.0, 2.0]) if walls else np.empty(0)
-    fast, ref, _ = both(euler_maruyama, x, drift, noise, 0.3, amp, box)
+    moved, moved_ref, fresh = both(euler_maruyama, x, drift, noise, 0.3, amp, box)
+    assert moved is True and moved_ref is True
+    fast, ref = fresh[0], _numpy_result(euler_maruyama, x, drift, noise, 0.3, amp, box)
     assert np.max(np.abs(fast - ref)) <= 1e-14
     free = x + 0.3 * drift + 1.7 * noise
     if walls:
@@ -93,8 +95,29 @@ def test_euler_maruyama_matches_numpy_and_the_domain_reflection(walls):
     else:
         assert np.max(np.abs(fast - free)) <= 1e-15
     per_human = rng.uniform(0, 1, (400, 1))
-    fast, ref, _ = both(euler_maruyama, x, drift, noise, 0.3, per_human, box)
-    assert np.max(np.abs(fast - ref)) <= 1e-14
+    _, _, fresh = both(euler_maruyama, x, drift, noise, 0.3, per_human, box)
+    assert np.max(np.abs(fresh[0] - _numpy_result(euler_maruyama, x, drift, noise, 0.3, per_human, box))) <= 1e-14
+
+
+def _numpy_result(kernel, x, *args):
+    """``x`` after the numpy twin of an in-place loop."""
+    x = x.copy()
+    with compiled.numpy_path():
+        kernel(x, *args)
+    return x
+
+
+@needs_numba
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_euler_maruyama_moves_nobody_when_a_drift_is_not_finite(bad):
+    rng = np.random.default_rng(7)
+    x = rng.uniform(0, 1, (50, 2))
+    drift, noise = rng.normal(size=(50, 2)), rng.normal(size=(50, 2))
+    drift[37, 1] = bad  # one value, late in the array: the rows before it must not have moved either
+    box = np.array([0.0, 1.0, 0.0, 1.0])
+    moved, moved_ref, fresh = both(euler_maruyama, x, drift, noise, 0.01, np.full((1, 1), 0.1), box)
+    assert moved is False and moved_ref is False
+    assert np.array_equal(fresh[0], x)
 
 
 @needs_numba
@@ -323,22 +346,34 @@ def test_count_in_disk_matches_numpy_and_skips_those_who_left():
 
 
 @needs_numba
-def test_the_robots_euler_step_is_numpys_bit_for_bit_and_wraps_headings_into_0_2pi():
-    from meanfield.crowd_loops import robot_euler
+@pytest.mark.parametrize("clamp", [False, True])
+def test_the_robots_euler_step_is_numpys_bit_for_bit_and_wraps_headings_into_0_2pi(clamp):
+    from meanfield.crowd_loops import NO_BOX, robot_euler
 
     rng = np.random.default_rng(13)
     n = 500
     pos, u = rng.uniform(-3, 3, (n, 2)), rng.uniform(-1, 1, (n, 2))
+    pos[7] = np.nan  # stays NaN, clamped or not (as np.maximum/np.minimum keep it)
     heads = np.concatenate([rng.uniform(-20, 20, n - 4), [0.0, -1e-18, 2 * np.pi, -2 * np.pi]])
     omega = rng.uniform(-50, 50, n)
+    box = np.array([-1.0, 2.0, -2.5, 0.5]) if clamp else NO_BOX
     fast_out, ref_out = np.empty(n), np.empty(n)
-    _, _, fresh = both(robot_euler, pos, heads, u, omega, 0.01, fast_out)
+    _, _, fresh = both(robot_euler, pos, heads, u, omega, 0.01, box, fast_out)
     with compiled.numpy_path():
         ref_pos = pos.copy()
-        robot_euler(ref_pos, heads, u, omega, 0.01, ref_out)
-    assert np.array_equal(fresh[0], ref_pos)  # the positions, moved in place
-    assert np.array_equal(fresh[5], ref_out)  # the headings, np.mod's to the bit
+        robot_euler(ref_pos, heads, u, omega, 0.01, box, ref_out)
+    assert np.array_equal(fresh[0], ref_pos, equal_nan=True)  # the positions, moved in place
+    assert np.array_equal(fresh[6], ref_out)  # the headings, np.mod's to the bit
     assert np.all((ref_out >= 0) & (ref_out <= 2 * np.pi))
+    moved = pos + 0.01 * u
+    if clamp:  # Domain.project's clamp, to the bit
+        from meanfield.domain import Domain
+
+        expected = Domain.box(3.0, 3.0, origin=(-1.0, -2.5)).project(moved.copy())
+        assert np.array_equal(fresh[0], expected, equal_nan=True)
+        assert np.nanmin(fresh[0][:, 0]) == -1.0 and np.nanmax(fresh[0][:, 1]) == 0.5  # some were outside
+    else:
+        assert np.array_equal(fresh[0], moved, equal_nan=True)
 
 
 def test_robot_team_advance_still_broadcasts_a_single_input():
