@@ -60,7 +60,6 @@ def _gaussian_field_numpy(points, robots, headings, c, inv_eta, visible, reach, 
         out[a : a + block, 0] = ex @ k
         out[a : a + block, 1] = ey @ k
     np.greater_equal(out[:, 0] * out[:, 0] + out[:, 1] * out[:, 1], reach * reach, out=reached)
-    return out
 
 
 @compiled(fallback=_gaussian_field_numpy)
@@ -123,7 +122,6 @@ def gaussian_field_at(points, robots, headings, c, inv_eta, visible, reach, out,
             out[first + j, 0] = sx[j]
             out[first + j, 1] = sy[j]
             reached[first + j] = sx[j] * sx[j] + sy[j] * sy[j] >= r2
-    return out
 
 
 # ----------------------------------------------------------------------------- v_r, sampled

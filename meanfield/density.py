@@ -188,7 +188,7 @@ class KernelDensityEstimator:
         g = self.grid
         method = self.method
         if method == "auto":
-            method = "separable" if len(points) * g.shape[0] * g.shape[1] <= 5e7 else "binned"
+            method = "separable" if len(points) * g.cells[0] * g.cells[1] <= 5e7 else "binned"
         if method == "separable":
             if self.normalize and g.is_box and self.boundary != "renormalize":  # _finish's one step, in the call
                 return self._separable(points, h, g.dx * g.dy)
@@ -248,11 +248,12 @@ class KernelDensityEstimator:
         scaled to unit mass on a box of cells of that area."""
         g = self.grid
         x0, x1, y0, y1 = g.domain.bounds
+        nx, ny = g.cells
         # points in blocks, so the axis factors never hold more than _SEPARABLE_CHUNK entries
-        block = max(1, _SEPARABLE_CHUNK // max(g.shape))
-        reflect = self.boundary == "reflect"
-        out = np.empty(g.shape)
-        return separable_sum(points, x0, x1, g.shape[0], y0, y1, g.shape[1], h, reflect, block, out, cell_area)
+        block = max(1, _SEPARABLE_CHUNK // max(nx, ny))
+        out = np.empty((nx, ny))
+        separable_sum(points, x0, x1, nx, y0, y1, ny, h, self.boundary == "reflect", block, out, cell_area)
+        return out
 
     def oversample_for(self, h: float) -> int:
         """The binning refinement ``r`` used at bandwidth ``h``."""

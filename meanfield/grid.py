@@ -28,6 +28,7 @@ paper (Theorems 1–3) hold to round-off.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -205,7 +206,7 @@ class Grid:
 
     def inner(self, f: np.ndarray, g: np.ndarray) -> float:
         """Cell inner product ``∫_Ω f g dx``."""
-        return (self.volume * f * g).sum()
+        return _weighted_dot(self.volume, f, g)
 
     def norm(self, f: np.ndarray) -> float:
         """``‖f‖_{L²(Ω)}``."""
@@ -213,7 +214,7 @@ class Grid:
 
     def face_inner(self, F: FaceField, G: FaceField) -> float:
         """Face inner product ``∫_Ω F·G dx`` of two face fields."""
-        return (self.weight_x * F[0] * G[0]).sum() + (self.weight_y * F[1] * G[1]).sum()
+        return _weighted_dot(self.weight_x, F[0], G[0]) + _weighted_dot(self.weight_y, F[1], G[1])
 
     def face_norm(self, F: FaceField) -> float:
         """``‖F‖_{L²(Ω)}`` of a face field."""
@@ -285,3 +286,11 @@ class Grid:
         if not np.isfinite(m) or m <= 0:
             raise ParameterError("density", f"mass {m}", "a non-negative field of positive mass")
         return f / m
+
+
+def _weighted_dot(w: np.ndarray, f: np.ndarray, g: np.ndarray) -> Any:
+    """``Σ w f g``: one product and a dot (half the cost of ``(w * f * g).sum()``), any shapes that broadcast."""
+    a, g = w * f, np.asarray(g)
+    if a.shape != g.shape:
+        return (a * g).sum()
+    return np.dot(a.ravel(), g.ravel())  # (dot, not vdot: a complex step must not be conjugated)

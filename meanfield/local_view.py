@@ -165,7 +165,7 @@ class LocalView:
     @property
     def gated(self) -> bool:
         """True when the view radius is finite (the Unity study's behaviour)."""
-        return not math.isinf(self.radius)
+        return self.radius != math.inf  # (radius > 0, inf without gating, 0 when blind: never NaN)
 
     def advance(self, dt: float) -> None:
         """One Euler–Maruyama step of the heading diffusion ``dθ = sqrt(2 D_r) dW``."""

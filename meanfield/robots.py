@@ -121,7 +121,7 @@ class RobotTeam:
         stop = getattr(domain, "slide_along_walls", None)
         start = self.positions.copy() if stop is not None else None
         u, omega = np.asarray(u, float), np.asarray(omega, float)
-        headings = np.empty_like(self.headings)
+        headings = np.empty(self.headings.shape)  # (float: __post_init__ made it so)
         fits = u.shape == self.positions.shape and omega.shape == headings.shape  # (else numpy broadcasts)
         box = NO_BOX if stop is not None else self._box_of(domain)  # a box's walls: clamped in the same pass
         step = robot_euler if fits else robot_euler.fallback
@@ -164,7 +164,7 @@ def limited_inputs(
     (:func:`meanfield.crowd_loops.limit_inputs`).  The closed loop's step calls this.
     """
     u, omega = np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(omega, dtype=float)
-    u_out, w_out = np.empty_like(u), np.empty_like(omega)
+    u_out, w_out = np.empty(u.shape), np.empty(omega.shape)  # (float, as u and omega now are)
     run = limit_inputs if u.ndim == 2 and omega.ndim == 1 else limit_inputs.fallback  # (numpy says what is wrong)
     report = run(u, omega, float(u_max), float(omega_max), _SHRINK, AT_LIMIT_RTOL, u_out, w_out)
     return u_out, w_out, report
