@@ -38,7 +38,7 @@ from meanfield.robots import NavigationField, limited_inputs
 from meanfield.scenario import Scenario, load_scenario
 from meanfield.stragglers import StragglerTracker
 from meanfield.summary import run_id, run_summary
-from meanfield.warmup import compile_in_parallel
+from meanfield.warmup import compile_in_parallel, parallel_compile_possible
 
 __all__ = ["ClosedLoop", "Observer", "StepRecord", "run"]  # Observer, StepRecord: from meanfield.observers
 
@@ -83,14 +83,19 @@ class ClosedLoop:
         self.observers = list(observers)
         self.t = 0.0
         self.step_index = 0
-        with compile_in_parallel(self._first_step_halves()):  # (only on a cold cache: meanfield.warmup)
+        controller_half, plant_half = self._first_step_halves()
+        halves = [h for h in (controller_half, plant_half) if h is not None]  # the law compiles longest: first
+        with compile_in_parallel(halves):  # (only on a cold cache: meanfield.warmup)
             self.density: np.ndarray = self.crowd.density()
+        # a density that compiled nothing (the Fokker-Planck crowd's) forked nothing: then the plant's half
+        # compiles in a child beside the first step's act, which compiles the law here (_act)
+        self._plant_beside_first_act = [plant_half] if plant_half and parallel_compile_possible() else None
         self.last: StepRecord | None = None  # the latest step, as observers saw it
         self._started = False
 
-    def _first_step_halves(self) -> list[Callable[[], Any]]:
+    def _first_step_halves(self) -> tuple[Callable[[], Any] | None, Callable[[], Any] | None]:
         """The first step in two halves, the controller's and the plant's, for
-        :func:`~meanfield.warmup.compile_in_parallel`.
+        :func:`~meanfield.warmup.compile_in_parallel` (None: a half that may not run in a child).
 
         Each runs in a forked child, on the child's copy of the loop, only to compile (and
         cache) the loops it calls: the controller acts on a stand-in density (zeros: which
@@ -112,10 +117,8 @@ class ClosedLoop:
             u, w, _ = limited_inputs(np.zeros((len(r.positions), 2)), np.zeros(len(r.positions)), r.u_max, r.omega_max)
             r.advance(u, w, self.dt, self.parts.robot_region)
 
-        halves = [controller_half] if _toolkit_part(self.controller) else []  # the law compiles longest: first
-        if _toolkit_part(self.crowd) and _toolkit_part(self.robots):
-            halves.append(plant_half)
-        return halves
+        plant = _toolkit_part(self.crowd) and _toolkit_part(self.robots)
+        return (controller_half if _toolkit_part(self.controller) else None), (plant_half if plant else None)
 
     # the parts, by name (read-only conveniences)
     @property
@@ -146,6 +149,12 @@ class ClosedLoop:
         field = NavigationField(self.parts.kernel, self.grid, r.positions, r.headings, self.parts.sight)
         return Observation(self.density, field, self.t, self.dt)
 
+    def _act(self, observation: Observation) -> Any:
+        """The first step's act, the plant's half compiling in a child meanwhile if the cache is cold (once)."""
+        tasks, self._plant_beside_first_act = self._plant_beside_first_act, None
+        with compile_in_parallel(tasks):
+            return self.controller.act(observation)
+
     def start(self) -> None:
         """Show the initial state to the observers (once; :meth:`step` calls it if needed)."""
         if not self._started:
@@ -162,7 +171,7 @@ class ClosedLoop:
         self.start()
         k, dt = self.step_index, self.dt
         observation = self.observe()
-        command = self.controller.act(observation)
+        command = self.controller.act(observation) if self._plant_beside_first_act is None else self._act(observation)
         u, w, report = limited_inputs(command.u, command.omega, self.robots.u_max, self.robots.omega_max)
         if not report[4]:
             raise SimulationDiverged(

@@ -144,6 +144,9 @@ def compile_in_parallel(tasks: Sequence[Callable[[], Any]], timeout: float = 60.
 
         with compile_in_parallel([controller_first_call, crowd_first_step]):
             density = crowd.density()
+
+    When that density compiled nothing (the Fokker-Planck crowd's), it forked nothing, and the
+    first step's act (the law, here) runs as ``with compile_in_parallel([crowd_first_step])``.
     """
     if not tasks or not parallel_compile_possible():
         yield

@@ -62,6 +62,30 @@ def test_children_cache_the_law_the_parent_has_not_called_and_the_numbers_do_not
     assert parallel["robots"] == serial["robots"]
 
 
+FOKKER_PLANCK = textwrap.dedent(
+    """
+    import json
+    from meanfield import ClosedLoop, paper_scenario, warmup
+    sc = paper_scenario(seed=3).with_values({"pedestrians.backend": "fokker-planck"}).replace(t_final=0.05)
+    loop = ClosedLoop(sc)
+    forked_at_build = warmup._used
+    for _ in range(5):
+        loop.step()
+    print(json.dumps({"forked_at_build": forked_at_build, "forked": warmup._used,
+                      "density": loop.density.ravel().tolist(), "robots": loop.robots.positions.ravel().tolist()}))
+    """
+)
+
+
+def test_a_density_that_compiles_nothing_forks_the_plant_beside_the_first_act(tmp_path):
+    parallel = _python(FOKKER_PLANCK, str(tmp_path / "fp"))
+    # the PDE's first density compiles nothing, so nothing forks then; the first step's act does
+    assert not parallel["forked_at_build"] and parallel["forked"]
+    serial = _python(FOKKER_PLANCK, str(tmp_path / "fp1"), MEANFIELD_PARALLEL_COMPILE="0")
+    assert not serial["forked"]
+    assert parallel["density"] == serial["density"] and parallel["robots"] == serial["robots"]  # bit for bit
+
+
 def test_nothing_is_forked_on_a_warm_cache(tmp_path):
     cache = str(tmp_path / "c")
     assert _python(BUILD, cache)["forked"]
