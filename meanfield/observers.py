@@ -372,19 +372,19 @@ class Recorder:
             },
         )
         if self.humans is not None:
-            ds["human"].attrs["description"] = (
+            ds.variables["human"].attrs["description"] = (
                 "index of the human in the crowd (a spaced subset when record_humans < humans_total)"
             )
         _label_variables(ds, loop.scenario.units)
-        ds["robot_speed"].attrs["description"] = "applied (saturated) speed |u_i| during the step from this frame"
-        ds["shortfall"].attrs["description"] = "A minus what the strategy's (unclipped) extra inputs cancel"
-        ds["shortfall_applied"].attrs["description"] = (
+        ds.variables["robot_speed"].attrs["description"] = "applied (saturated) speed |u_i| during the step from this frame"
+        ds.variables["shortfall"].attrs["description"] = "A minus what the strategy's (unclipped) extra inputs cancel"
+        ds.variables["shortfall_applied"].attrs["description"] = (
             "A minus what the applied (saturated) inputs cancel: dV2/dt = -diss - sum k_u|b|^2 - sum k_w g^2 + this"
         )
-        ds["seen_fraction"].attrs["description"] = (
+        ds.variables["seen_fraction"].attrs["description"] = (
             "fraction of humans with a robot within the view radius (1 without gating); recorded at the frame's step"
         )
-        ds["robots_at_limit"].attrs["description"] = (
+        ds.variables["robots_at_limit"].attrs["description"] = (
             "robots whose commanded input reached a speed or turn-rate limit in the step from this frame"
             " (-1: none recorded)"
         )
@@ -423,8 +423,8 @@ def _label_variables(ds: Any, units: str) -> None:
     """
     for name, (unit, long_name) in _CF.items():
         if name in ds.variables:
-            ds[name].attrs.setdefault("long_name", long_name)
-            ds[name].attrs["units"] = unit if units == "SI" else "1"
+            ds.variables[name].attrs.setdefault("long_name", long_name)
+            ds.variables[name].attrs["units"] = unit if units == "SI" else "1"
     for name, long_name in (
         ("V2", "V2 = integral of rho_tilde^2/2 + |v_tilde|^2/2 (mixes 1/L^2 and L^4/T^2)"),
         ("A", "cross term A of the robot law, eq. (8)"),
@@ -435,4 +435,4 @@ def _label_variables(ds: Any, units: str) -> None:
         ("robots_at_limit", "robots whose command reached a limit"),
     ):
         if name in ds.variables:
-            ds[name].attrs.setdefault("long_name", long_name)
+            ds.variables[name].attrs.setdefault("long_name", long_name)
