@@ -376,7 +376,9 @@ class Recorder:
                 "index of the human in the crowd (a spaced subset when record_humans < humans_total)"
             )
         _label_variables(ds, loop.scenario.units)
-        ds.variables["robot_speed"].attrs["description"] = "applied (saturated) speed |u_i| during the step from this frame"
+        ds.variables["robot_speed"].attrs["description"] = (
+            "applied (saturated) speed |u_i| during the step from this frame"
+        )
         ds.variables["shortfall"].attrs["description"] = "A minus what the strategy's (unclipped) extra inputs cancel"
         ds.variables["shortfall_applied"].attrs["description"] = (
             "A minus what the applied (saturated) inputs cancel: dV2/dt = -diss - sum k_u|b|^2 - sum k_w g^2 + this"
