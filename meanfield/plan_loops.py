@@ -22,6 +22,8 @@ Each loop is paired with its numpy twin (the reference, :mod:`meanfield.compiled
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from meanfield.compiled import compiled, inner
@@ -104,10 +106,17 @@ def _sight_row_numpy(p, q, a, e, order, wall, out):
 def sight_row(p, q, a, e, order, wall, out):
     """``out[k]``: the segment ``p → q[k]`` crosses no wall (:func:`segments_clear` from one point).
 
-    From one point two things are cheap: the walls are tried nearest first (the nearest hides
-    most), and a wall whose line has ``p`` and ``q[k]`` well on the same side cannot be crossed,
-    which two products decide before any division (well: by ``10⁻⁶`` of the products' size,
-    far above their round-off, so that the answer is :func:`segments_clear`'s).
+    From one point four things are cheap: the wall that hid the previous point is tried first
+    (neighbouring cells are mostly hidden by the same wall), then the walls nearest first (the
+    nearest hides most); a wall whose line has ``p`` and ``q[k]`` well on the same side cannot be crossed,
+    which two products decide before any division; and a wall farther from ``p`` than ``q[k]``
+    is, by a margin ``M``, cannot be reached by the segment, so the walls beyond are not tried
+    at all. "Well" and ``M`` are ``10⁻⁶`` of the products' and the lengths' size, far above their
+    round-off, so that the answer is :func:`segments_clear`'s: the walls whose line passes within
+    that of ``p`` (``p`` on a wall's line, a cut cell's point on its wall) are always tried, since
+    there a nearly parallel segment's crossing rests on round-off, and for every other wall a
+    crossing :func:`segments_clear` finds lies within ``|q - p| + ε|e|`` of ``p`` to ``10⁻⁸`` of the
+    size (the divisor of its parameters is then at least the margin).
 
     Parameters
     ----------
@@ -134,33 +143,64 @@ def sight_row(p, q, a, e, order, wall, out):
             order[k] = order[k - 1]
             k -= 1
         order[k] = w
-    lo_x, hi_x, lo_y, hi_y = px, px, py, py  # the box of the points and walls: the margin's scale
+    lo_x, hi_x, lo_y, hi_y = px, px, py, py  # the box of the points and walls: the margins' scale
     for k in range(q.shape[0]):
         lo_x, hi_x = min(lo_x, q[k, 0]), max(hi_x, q[k, 0])
         lo_y, hi_y = min(lo_y, q[k, 1]), max(hi_y, q[k, 1])
+    e_max = 0.0
     for w in range(nw):
         bx, by = a[w, 0] + e[w, 0], a[w, 1] + e[w, 1]
         lo_x, hi_x = min(lo_x, min(a[w, 0], bx)), max(hi_x, max(a[w, 0], bx))
         lo_y, hi_y = min(lo_y, min(a[w, 1], by)), max(hi_y, max(a[w, 1], by))
+        e_max = max(e_max, abs(e[w, 0]) + abs(e[w, 1]))
     span = max(hi_x - lo_x, hi_y - lo_y)
-    # columns 0-5 of wall: a, e, the side of p, the margin (column 6, the distances, is read no more)
+    reach = 1e-6 * span + 2.0 * eps * e_max  # M: a wall this much farther than q is out of the segment's reach
+    # columns 0-5 of wall: a, e, the side of p, the margin; column 6: the squared distance beyond which q is
+    # out of reach (-1: never). Rows: first the walls whose line passes by p (always tried), then the others,
+    # nearest first (their column 6 grows)
+    near = 0
     for k in range(nw):
         w = order[k]
+        ex, ey = e[w, 0], e[w, 1]
+        side = ex * (py - a[w, 1]) - ey * (px - a[w, 0])
+        near += abs(side) <= 1e-6 * (abs(ex) + abs(ey)) * 6.0 * span
+    i_near, i_far = 0, near
+    for k in range(nw):  # (rows are overwritten in sorted order: the distance is computed again, not read)
+        w = order[k]
         ax, ay, ex, ey = a[w, 0], a[w, 1], e[w, 0], e[w, 1]
-        wall[k, 0], wall[k, 1], wall[k, 2], wall[k, 3] = ax, ay, ex, ey
-        wall[k, 4] = ex * (py - ay) - ey * (px - ax)
-        wall[k, 5] = 1e-6 * (abs(ex) + abs(ey)) * 6.0 * span  # ≥ 10⁻⁶ of every product below
+        side = ex * (py - ay) - ey * (px - ax)
+        tol = 1e-6 * (abs(ex) + abs(ey)) * 6.0 * span  # ≥ 10⁻⁶ of every product below
+        if abs(side) <= tol:
+            r, i_near = i_near, i_near + 1
+            key = -1.0
+        else:
+            r, i_far = i_far, i_far + 1
+            ee = ex * ex + ey * ey
+            s = ((px - ax) * ex + (py - ay) * ey) / ee if ee > 0 else 0.0
+            s = min(max(s, 0.0), 1.0)
+            gap = math.hypot(ax + s * ex - px, ay + s * ey - py) - reach
+            key = gap * gap if gap > 0.0 else -1.0
+        wall[r, 0], wall[r, 1], wall[r, 2], wall[r, 3], wall[r, 4], wall[r, 5], wall[r, 6] = ax, ay, ex, ey, side, \
+            tol, key  # fmt: skip
+    last = -1  # the wall that hid the previous point: neighbouring points are mostly hidden by the same
     for k in range(q.shape[0]):
         qx, qy = q[k, 0], q[k, 1]
         dx, dy = qx - px, qy - py
+        if last >= 0 and _crosses(px, py, dx, dy, wall[last, 0], wall[last, 1], wall[last, 2], wall[last, 3], eps):
+            out[k] = False
+            continue
+        d2 = dx * dx + dy * dy
         clear = True
         for w in range(nw):
+            if w >= near and wall[w, 6] > d2:
+                break  # this wall and every later one lie beyond the segment's reach
             ax, ay, ex, ey, side_p, tol = wall[w, 0], wall[w, 1], wall[w, 2], wall[w, 3], wall[w, 4], wall[w, 5]
             side_q = ex * (qy - ay) - ey * (qx - ax)
             if (side_p > tol and side_q > tol) or (side_p < -tol and side_q < -tol):
                 continue  # p and q on the same side of the wall's line
             if _crosses(px, py, dx, dy, ax, ay, ex, ey, eps):
                 clear = False
+                last = w
                 break
         out[k] = clear
     return out
