@@ -15,13 +15,11 @@ from typing import Any
 
 import numpy as np
 
-from meanfield.crowd_loops import NO_BOX as _NO_BOX
-from meanfield.crowd_loops import euler_maruyama
+from meanfield.crowd_loops import NO_BOX, euler_maruyama
 from meanfield.errors import ParameterError, SigmaLike, SimulationDiverged, check_sigma
 from meanfield.region import Region
 
 __all__ = ["Crowd"]
-
 
 
 class Crowd:
@@ -66,7 +64,7 @@ class Crowd:
         self._noise = np.empty_like(positions)  # work array, reused every step
         self._amp_key: tuple | None = None
         box = getattr(domain, "kind", None) == "box" and not self._path_reflection
-        self._box = np.asarray(domain.bounds, float) if box else _NO_BOX
+        self._box = np.asarray(domain.bounds, float) if box else NO_BOX
 
     @property
     def n(self) -> int:
@@ -93,7 +91,7 @@ class Crowd:
             amp = self._constant_amplitude(dt)
         previous = x.copy() if self._path_reflection or len(self.exits) else None
         # a box without exits folds its walls into the same pass (meanfield.crowd_loops)
-        folded = self._box if previous is None else _NO_BOX
+        folded = self._box if previous is None else NO_BOX
         if not euler_maruyama(x, drift, self._noise, dt, amp, folded):
             msg = f"non-finite human drift at t = {t:.4g}; the crowd is kept at the last good step"
             raise SimulationDiverged(msg, -1)

@@ -106,15 +106,15 @@ def _sight_row_numpy(p, q, a, e, order, wall, out):
 def sight_row(p, q, a, e, order, wall, out):
     """``out[k]``: the segment ``p → q[k]`` crosses no wall (:func:`segments_clear` from one point).
 
-    From one point four things are cheap: the wall that hid the previous point is tried first
+    From one point four things are cheap. The wall that hid the previous point is tried first
     (neighbouring cells are mostly hidden by the same wall), then the walls nearest first (the
-    nearest hides most); a wall whose line has ``p`` and ``q[k]`` well on the same side cannot be crossed,
-    which two products decide before any division; and a wall farther from ``p`` than ``q[k]``
-    is, by a margin ``M``, cannot be reached by the segment, so the walls beyond are not tried
-    at all. "Well" and ``M`` are ``10⁻⁶`` of the products' and the lengths' size, far above their
+    nearest hides most). A wall whose line has ``p`` and ``q[k]`` well on the same side cannot be
+    crossed, which two products decide before any division. A wall more than ``|q - p| + M``
+    from ``p`` is out of the segment's reach, and so are the walls after it: they are not tried.
+    "Well" and ``M`` are ``10⁻⁶`` of the products' and the lengths' size, far above their
     round-off, so that the answer is :func:`segments_clear`'s: the walls whose line passes within
     that of ``p`` (``p`` on a wall's line, a cut cell's point on its wall) are always tried, since
-    there a nearly parallel segment's crossing rests on round-off, and for every other wall a
+    there a nearly parallel segment's crossing rests on round-off; for every other wall, a
     crossing :func:`segments_clear` finds lies within ``|q - p| + ε|e|`` of ``p`` to ``10⁻⁸`` of the
     size (the divisor of its parameters is then at least the margin).
 
