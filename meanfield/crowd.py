@@ -63,8 +63,7 @@ class Crowd:
         self._path_reflection = bool(getattr(domain, "reflects_along_paths", False))
         self._noise = np.empty_like(positions)  # work array, reused every step
         self._amp_key: tuple | None = None
-        box = getattr(domain, "kind", None) == "box" and not self._path_reflection
-        self._box = np.asarray(domain.bounds, float) if box else NO_BOX
+        self._box = NO_BOX if self._path_reflection else getattr(domain, "box_walls", NO_BOX)
 
     @property
     def n(self) -> int:

@@ -162,6 +162,14 @@ class Domain:
         return (float(v[:, 0].min()), float(v[:, 0].max()), float(v[:, 1].min()), float(v[:, 1].max()))
 
     @functools.cached_property
+    def box_walls(self) -> np.ndarray:
+        """``(x0, x1, y0, y1)`` of a box, empty for any other shape: the ``box`` of the compiled passes that
+        fold a box's walls into a step (:func:`meanfield.crowd_loops.euler_maruyama`,
+        :func:`~meanfield.crowd_loops.robot_euler`). Not to be changed; left writable, since numba compiles a
+        read-only array as another type (a second compilation of each pass)."""
+        return np.array(self.bounds if self.kind == "box" else (), float)
+
+    @functools.cached_property
     def _corners(self) -> tuple[np.ndarray, np.ndarray]:
         """``(xmin, ymin)`` and ``(xmax, ymax)`` as arrays (read-only), for :meth:`project`."""
         x0, x1, y0, y1 = self.bounds

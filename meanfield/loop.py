@@ -107,9 +107,7 @@ class ClosedLoop:
         """
 
         def controller_half() -> None:
-            r = self.robots
-            field = NavigationField(self.parts.kernel, self.grid, r.positions, r.headings, self.parts.sight)
-            self.controller.act(Observation(np.zeros(self.grid.shape), field, self.t, self.dt))
+            self.controller.act(Observation(np.zeros(self.grid.shape), self._field(), self.t, self.dt))
 
         def plant_half() -> None:
             self.crowd.advance(self.robots, self.t, self.dt)
@@ -145,9 +143,12 @@ class ClosedLoop:
 
     def observe(self) -> Observation:
         """What the robots know now: the density on the grid, their kernels, the time."""
+        return Observation(self.density, self._field(), self.t, self.dt)
+
+    def _field(self) -> NavigationField:
+        """The robots' kernels on the grid at their current states."""
         r = self.robots
-        field = NavigationField(self.parts.kernel, self.grid, r.positions, r.headings, self.parts.sight)
-        return Observation(self.density, field, self.t, self.dt)
+        return NavigationField(self.parts.kernel, self.grid, r.positions, r.headings, self.parts.sight)
 
     def _act(self, observation: Observation) -> Any:
         """The first step's act, the plant's half compiling in a child meanwhile if the cache is cold (once)."""

@@ -157,7 +157,7 @@ class InputStatistics:
         pass
 
     def step(self, loop: LoopView, record: StepRecord) -> None:
-        top_speed, top_turn, saturated, at_limit = record.limits if record.report is None else record.report[:4]
+        top_speed, top_turn, saturated, at_limit = record.limits
         if top_speed > self.max_speed:  # (NaN never is: a diverged step does not reach the observers)
             self.max_speed = float(top_speed)
         if top_turn > self.max_turn_rate:

@@ -18,8 +18,7 @@ Gaussian kernel all of this reduces to small matrix products.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -64,7 +63,6 @@ class RobotTeam:
     headings: np.ndarray
     u_max: float | None = None
     omega_max: float | None = None
-    _clamp: tuple[Any, np.ndarray] = field(default=(None, NO_BOX), init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self.positions = np.array(self.positions, dtype=float).reshape(-1, 2)
@@ -123,7 +121,7 @@ class RobotTeam:
         u, omega = np.asarray(u, float), np.asarray(omega, float)
         headings = np.empty(self.headings.shape)  # (float: __post_init__ made it so)
         fits = u.shape == self.positions.shape and omega.shape == headings.shape  # (else numpy broadcasts)
-        box = NO_BOX if stop is not None else self._box_of(domain)  # a box's walls: clamped in the same pass
+        box = NO_BOX if stop is not None else getattr(domain, "box_walls", NO_BOX)  # a box's: clamped in the pass
         step = robot_euler if fits else robot_euler.fallback
         step(self.positions, self.headings, u, omega, float(dt), box, headings)
         if stop is not None:
@@ -131,14 +129,6 @@ class RobotTeam:
         if not box.shape[0]:
             domain.project(self.positions)
         self.headings = headings
-
-    def _box_of(self, domain: Domain) -> np.ndarray:
-        """``(x0, x1, y0, y1)`` when ``domain`` is a box (its :meth:`~meanfield.domain.Domain.project` is that
-        clamp), else :data:`~meanfield.crowd_loops.NO_BOX`; kept for the last domain seen."""
-        if self._clamp[0] is not domain:
-            box = getattr(domain, "kind", None) == "box"
-            self._clamp = (domain, np.asarray(domain.bounds, float) if box else NO_BOX)
-        return self._clamp[1]
 
 
 def saturate_inputs(u: np.ndarray, omega: np.ndarray, u_max: float, omega_max: float) -> tuple[np.ndarray, np.ndarray]:
