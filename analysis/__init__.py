@@ -20,7 +20,7 @@ Example::
     mu2 = neumann_eigenvalue(Domain.disk(1.0), cells=(128, 128))
 """
 
-from meanfield.lazy import lazy_namespace
+from meanfield._namespace import lazy_namespace
 
 _LAZY = {
     "BoundedBetaGamma": "analysis.bounded",

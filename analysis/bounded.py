@@ -39,7 +39,7 @@ Three solvers of the same program, chosen by ``method``:
   the reference formulation.
 
 The interior-point solvers agree with the exact dual to their tolerance (about 1e-6 of the
-limits at the paper's scale; ``tests/test_bounded.py``, ``benchmarks/bench_bounded.py``).
+limits at the paper's scale; ``tests/analysis/test_bounded.py``, ``benchmarks/bench_bounded.py``).
 """
 
 from __future__ import annotations
@@ -52,9 +52,9 @@ from typing import Literal
 import numpy as np
 
 from analysis.bounded_cone import SOLVER_OPTIONS, ClarabelProgram, CvxpyProgram
-from meanfield.control import ExtraInputs
+from meanfield.controllers.backstepping import ExtraInputs
 from meanfield.errors import ParameterError, limit_or_inf
-from meanfield.scenario import Scenario
+from meanfield.scenarios.scenario import Scenario
 
 __all__ = [
     "CONDITIONS",
@@ -80,7 +80,7 @@ class BoundedInputs(ExtraInputs):
     Attributes
     ----------
     du, domega, shortfall
-        As :class:`~meanfield.control.ExtraInputs`; ``shortfall`` is ``A`` minus what the
+        As :class:`~meanfield.controllers.backstepping.ExtraInputs`; ``shortfall`` is ``A`` minus what the
         inputs achieve (``> 0`` only when the limits make ``A`` unreachable, or, with
         condition ``"equality"``, ``< 0`` when ``A`` lies below the reachable range).
     feasible : bool

@@ -20,8 +20,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from meanfield.cli import add_scenario_arguments, float_list, int_list, scenario_from_args
+from meanfield.cli.arguments import add_scenario_arguments, scenario_from_args
 from meanfield.errors import ParameterError
+from meanfield.scenarios.overrides import float_list, int_list
 
 __all__ = ["register", "analyze"]
 
@@ -142,9 +143,9 @@ def analyze(
     from analysis.poincare import exact_neumann_eigenvalue, neumann_eigenvalue, payne_weinberger_bound
     from analysis.rates import gains_for_scenario, gains_from_run
     from analysis.robot_count import coverage_estimate, empirical_robot_count
-    from meanfield.grid import Grid
-    from meanfield.io import atomic_write_json
-    from meanfield.loop import ClosedLoop
+    from meanfield.geometry.grid import Grid
+    from meanfield.io.atomic import atomic_write_json
+    from meanfield.simulation.loop import ClosedLoop
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -12,16 +12,16 @@ from analysis.limits import LimitsStudy
 from analysis.poincare import NOT_CONVEX
 from analysis.robot_count import RobotCountStudy
 from analysis.robot_count_sweep import RobotCountSweep
-from meanfield.domain import Domain
-from meanfield.grid import Grid
-from meanfield.io import subplots
+from meanfield.geometry.domain import Domain
+from meanfield.geometry.grid import Grid
+from meanfield.io.atomic import subplots
 
 __all__ = ["plot_poincare_mode", "plot_robot_count", "plot_robot_count_sweep", "plot_limits", "save_figure"]
 
 
 def save_figure(fig: Any, path: Path) -> Path:
-    """Save a figure atomically as PNG and close it (:func:`meanfield.io.save_figure` at 130 dpi, tight)."""
-    from meanfield import io
+    """Save a figure atomically as PNG and close it (:func:`meanfield.io.atomic.save_figure` at 130 dpi, tight)."""
+    from meanfield.io import atomic as io
 
     return io.save_figure(fig, path, dpi=130, bbox_inches="tight", format="png")
 

@@ -19,7 +19,7 @@ import numpy as np
 
 from analysis.parallel import map_jobs
 from meanfield.errors import ParameterError
-from meanfield.scenario import Scenario
+from meanfield.scenarios.scenario import Scenario
 
 __all__ = ["LimitRun", "LimitsStudy", "limits_study"]
 
@@ -99,7 +99,7 @@ class LimitsStudy:
 
 
 def _run_one(args: tuple[dict, str, float, int]) -> LimitRun:
-    from meanfield.loop import ClosedLoop
+    from meanfield.simulation.loop import ClosedLoop
 
     d, strategy, u_max, seed = args
     sc = Scenario.from_dict(d).with_values({"robots.u_max": u_max, "controller.beta_gamma": strategy, "seed": seed})

@@ -34,8 +34,8 @@ default, the first input is held).  With ``spread`` an SQP solve runs in slices,
 control step, and its plan is applied from the time the solve started once it is done.
 
 The inputs returned are the plan's; the other fields of the returned
-:class:`~meanfield.control.ControlState` (``v_d``, ``ṽ``, ``b``, ``g``, ``A``, dissipation)
-are those of the loop's :class:`~meanfield.control.BacksteppingController` at the same
+:class:`~meanfield.controllers.backstepping.ControlState` (``v_d``, ``ṽ``, ``b``, ``g``, ``A``, dissipation)
+are those of the loop's :class:`~meanfield.controllers.backstepping.BacksteppingController` at the same
 state, so that ``V₂ = ∫½ρ̃² + ½|ṽ|²`` is comparable between the two controllers
 (``shortfall`` is NaN: NMPC does not cancel ``A``).
 """
@@ -56,12 +56,12 @@ from analysis.nmpc_model import CoarseFokkerPlanck
 from analysis.nmpc_options import FLUXES, HESSIANS, SOLVERS, NMPCOptions
 from analysis.nmpc_plan import NMPCPlan, robot_state
 from analysis.nmpc_sqp import SQPSolver
-from meanfield.control import BacksteppingController, ControlState
+from meanfield.controllers.backstepping import BacksteppingController, ControlState
 from meanfield.errors import ParameterError
-from meanfield.grid import Grid
+from meanfield.geometry.grid import Grid
 from meanfield.interfaces import Command, ControllerParts, Observation
-from meanfield.kernels import NavigationKernel
-from meanfield.robots import NavigationField, RobotTeam
+from meanfield.signs.kernels import NavigationKernel
+from meanfield.signs.robots import NavigationField, RobotTeam
 
 __all__ = [
     "FLUXES",
@@ -455,7 +455,7 @@ def nmpc_controller_for(parts: ControllerParts) -> NMPCController:
 
     The options come from ``parts.options`` (``controller.options`` of the scenario; see
     :class:`NMPCOptions`); the backstepping law it reports beside its plan is built from the
-    same parts (:meth:`~meanfield.control.BacksteppingController.from_parts`).
+    same parts (:meth:`~meanfield.controllers.backstepping.BacksteppingController.from_parts`).
 
     Raises
     ------

@@ -30,8 +30,8 @@ import numpy as np
 
 from analysis.nmpc_options import FLUXES, _opt_name
 from meanfield.errors import ParameterError
-from meanfield.grid import Grid
-from meanfield.kernels import GaussianKernel
+from meanfield.geometry.grid import Grid
+from meanfield.signs.kernels import GaussianKernel
 
 __all__ = ["CoarseFokkerPlanck"]
 
@@ -40,7 +40,7 @@ class CoarseFokkerPlanck:
     """Coarse finite-volume Fokker–Planck model of eq. (4) driven by the robots' Gaussian kernels.
 
     Cells ``(nx, ny)`` tile the box ``bounds``; fields are arrays of shape ``(nx, ny)``
-    (``x`` along the first axis, as :class:`~meanfield.grid.Grid`) or their C-order
+    (``x`` along the first axis, as :class:`~meanfield.geometry.grid.Grid`) or their C-order
     flattening of length ``nx·ny``.  The x-velocity lives on the ``(nx-1, ny)`` interior
     x-faces, the y-velocity on the ``(nx, ny-1)`` interior y-faces; wall faces carry no flux.
 

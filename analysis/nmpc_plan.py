@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from meanfield.robots import NavigationField, RobotTeam
+from meanfield.signs.robots import NavigationField, RobotTeam
 
 __all__ = ["NMPCPlan", "robot_state"]
 

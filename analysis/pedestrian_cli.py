@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from meanfield.cli import output_dir
+from meanfield.cli.arguments import output_dir
 from meanfield.errors import ParameterError
 
 __all__ = ["register"]
@@ -50,7 +50,7 @@ def _labels(run_dirs: list[Path]) -> list[str]:
 
 def _handle(args: argparse.Namespace) -> int:
     from analysis.pedestrian_metrics import _pedpy, pedestrian_metrics
-    from meanfield.io import atomic_write_json
+    from meanfield.io.atomic import atomic_write_json
 
     if not 0 < args.window <= 1:
         raise ParameterError("--window", args.window, "a fraction in (0, 1]")

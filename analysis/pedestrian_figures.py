@@ -4,7 +4,7 @@
 :class:`~analysis.pedestrian_metrics.PedestrianMetrics`): the fraction of humans in the
 target region, PedPy's against the toolkit's, and the density maps side by side
 (``docs/pedestrians.md``).  Every figure is written by the toolkit's one figure writer,
-:func:`meanfield.io.save_figure`.
+:func:`meanfield.io.atomic.save_figure`.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from matplotlib.patches import Circle
 
-from meanfield.io import subplots
+from meanfield.io.atomic import subplots
 
 __all__ = ["plot_pedestrian_figures"]
 
@@ -32,12 +32,12 @@ def plot_pedestrian_figures(
       toolkit's KDE density ``N · ρ̂``, mean over the window, on one colour scale (square
       root), the target region dashed.
 
-    Drawn without pyplot (the user's backend untouched) and written by :func:`meanfield.io.save_figure`
+    Drawn without pyplot (the user's backend untouched) and written by :func:`meanfield.io.atomic.save_figure`
     (atomically; the figure is closed).
     """
     from matplotlib.colors import PowerNorm
 
-    from meanfield.io import save_figure
+    from meanfield.io.atomic import save_figure
 
     out = Path(out_dir)
     label = f"{metrics.scenario} ({metrics.backend}, seed {metrics.seed})"

@@ -6,7 +6,7 @@ of the pedestrian-dynamics community, instead of the toolkit's own counters, so 
 numbers can be compared with experiments and other simulators:
 
 1. the humans' recorded trajectories are written in PedPy's plain-text format
-   (:func:`meanfield.trajectories.write_pedpy_trajectories`) and loaded back with
+   (:func:`meanfield.io.trajectories.write_pedpy_trajectories`) and loaded back with
    :func:`pedpy.load_trajectory_from_txt`; the walkable area is the room of the run's
    scenario;
 2. ``N(t)``, the number of humans in the target region, is PedPy's classic density in
@@ -70,7 +70,7 @@ def _pedpy():
 
 
 def _scenario(dataset: Any):
-    from meanfield.scenario import Scenario
+    from meanfield.scenarios.scenario import Scenario
 
     text = dataset.attrs.get("scenario_toml")
     if not text:
@@ -99,7 +99,7 @@ def walkable_area(dataset: Any, resolution: int = 256) -> Any:
     """The room of the run as a :class:`pedpy.WalkableArea`.
 
     The domain is parsed from the dataset's ``scenario_toml`` attribute and polygonised by
-    :meth:`meanfield.domain.Domain.to_shapely` (a disk becomes a ``resolution``-gon).
+    :meth:`meanfield.geometry.domain.Domain.to_shapely` (a disk becomes a ``resolution``-gon).
     """
     pedpy = _pedpy()
     return pedpy.WalkableArea(_scenario(dataset).domain.to_shapely(resolution=resolution))
@@ -141,10 +141,10 @@ def target_measurement_area(dataset: Any, segments: int = 1024, resolution: int 
 def load_pedpy_trajectories(dataset: Any, path: str | Path) -> Any:
     """Write the humans' trajectories to ``path`` and load them into a :class:`pedpy.TrajectoryData`.
 
-    See :func:`meanfield.trajectories.write_pedpy_trajectories` for the format, the frame
+    See :func:`meanfield.io.trajectories.write_pedpy_trajectories` for the format, the frame
     numbering (frame ``k`` is recorded time ``k``) and the refusals.
     """
-    from meanfield.trajectories import write_pedpy_trajectories
+    from meanfield.io.trajectories import write_pedpy_trajectories
 
     pedpy = _pedpy()
     written = write_pedpy_trajectories(dataset, path)

@@ -9,11 +9,11 @@ where μ₂ is the first non-zero eigenvalue of the Neumann Laplacian
 (``-Δu = μ u`` in Ω, ``∂u/∂n = 0`` on ∂Ω) and the paper's Poincaré constant is
 ``c₂ = √μ₂``.  The inequality holds on every bounded connected Lipschitz domain, convex or
 not, so this module computes μ₂ for every region: the shapes of
-:class:`~meanfield.domain.Domain` and floor plans (:class:`~meanfield.plan.Plan`,
+:class:`~meanfield.geometry.domain.Domain` and floor plans (:class:`~meanfield.geometry.plan.Plan`,
 non-convex, with holes):
 
 * :func:`neumann_eigenvalue`: the k-th non-zero eigenvalue of the cell-centred
-  finite-volume Neumann Laplacian of :class:`~meanfield.grid.Grid` (cut cells for disks,
+  finite-volume Neumann Laplacian of :class:`~meanfield.geometry.grid.Grid` (cut cells for disks,
   polygons and plans), by sparse shift-invert Lanczos.  Second-order accurate on boxes,
   disks and convex polygons (measured; see ``docs/poincare.md``), slower at re-entrant
   corners.
@@ -47,10 +47,10 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as sla
 from scipy.sparse.csgraph import connected_components
 
-from meanfield.domain import Domain
 from meanfield.errors import ParameterError
-from meanfield.grid import Grid
-from meanfield.region import Region
+from meanfield.geometry.domain import Domain
+from meanfield.geometry.grid import Grid
+from meanfield.geometry.region import Region
 
 __all__ = [
     "PoincareReport",
@@ -234,7 +234,7 @@ def neumann_eigenvalue(
     """The k-th non-zero eigenvalue of the Neumann Laplacian on Ω (k = 1: μ₂).
 
     Solves ``-Δu = μ u`` in Ω, ``∂u/∂n = 0`` on ∂Ω, with the cell-centred finite volumes
-    of :class:`~meanfield.grid.Grid`: the generalized eigenproblem ``L u = μ M u`` with
+    of :class:`~meanfield.geometry.grid.Grid`: the generalized eigenproblem ``L u = μ M u`` with
     ``L = Gᵀ W G`` (``G`` the differences across the open faces, ``W`` aperture × face
     length / cell distance) and ``M`` the cell volumes inside Ω.  ``L`` is exactly
     ``-M`` times ``grid.divergence ∘ grid.gradient`` (the Fokker–Planck solver's
@@ -254,8 +254,8 @@ def neumann_eigenvalue(
     Parameters
     ----------
     domain : Domain, Plan or Grid
-        The workspace Ω: any region (:class:`~meanfield.region.Region`), convex or not.  A
-        :class:`~meanfield.grid.Grid` is used as it is (its own cut cells); for a region
+        The workspace Ω: any region (:class:`~meanfield.geometry.region.Region`), convex or not.  A
+        :class:`~meanfield.geometry.grid.Grid` is used as it is (its own cut cells); for a region
         the grid ``Grid(domain, cells, cut_cells)`` is built (exact cut cells: a disk is
         the true circle, a plan is clipped with shapely).
     cells : (int, int), default (128, 128)

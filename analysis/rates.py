@@ -36,12 +36,12 @@ import scipy.sparse.linalg as sla
 from scipy.sparse.csgraph import connected_components
 
 from analysis.poincare import _face_graph, neumann_eigenvalue
-from meanfield.assembly import alpha_schedule_for, disturbance_for
 from meanfield.errors import ParameterError, positive_number
-from meanfield.grid import Grid
-from meanfield.metrics import gaussian_target
-from meanfield.result import SimulationResult
-from meanfield.scenario import Scenario
+from meanfield.geometry.grid import Grid
+from meanfield.geometry.target import gaussian_target
+from meanfield.scenarios.scenario import Scenario
+from meanfield.simulation.assembly import alpha_schedule_for, disturbance_for
+from meanfield.simulation.result import SimulationResult
 
 __all__ = [
     "decay_rate",
@@ -282,7 +282,7 @@ def exit_eigenvalue(grid: Grid, alpha: float, rates: np.ndarray) -> float:
 
     ``L = Gᵀ W G`` is the grid's Neumann stiffness (:func:`analysis.poincare.neumann_eigenvalue`:
     ``uᵀ L u = ∫|∇_h u|²`` on the faces), ``K = diag(k V)`` the exits' outflow, ``k`` the rate
-    at which each cell an exit crosses loses its density (:class:`~meanfield.exits.ExitSink`,
+    at which each cell an exit crosses loses its density (:class:`~meanfield.geometry.exits.ExitSink`,
     ``σ ℓ / (d V)``).  So ``α ∫|∇u|² + ∫k u² >= λ_E ∫u²`` for every ``u``, with no mean-zero
     condition: the semi-discrete form of ``−αΔ`` with zero flux on the walls and the exits'
     Robin outflow (as the grid is refined, the Dirichlet condition ``ρ = 0`` on the exits:

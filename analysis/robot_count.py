@@ -20,11 +20,11 @@ from typing import Any
 import numpy as np
 
 from analysis.parallel import map_jobs
-from meanfield.domain import Domain
 from meanfield.errors import ParameterError, positive_number
-from meanfield.kernels import GaussianKernel
-from meanfield.region import Region
-from meanfield.scenario import Scenario
+from meanfield.geometry.domain import Domain
+from meanfield.geometry.region import Region
+from meanfield.scenarios.scenario import Scenario
+from meanfield.signs.kernels import GaussianKernel
 
 __all__ = [
     "coverage_radius",
@@ -180,7 +180,7 @@ class RobotCountStudy:
 
 
 def _run_one(args: tuple[dict, int, int]) -> tuple[int, int, dict]:
-    from meanfield.loop import ClosedLoop
+    from meanfield.simulation.loop import ClosedLoop
 
     d, n, seed = args
     sc = Scenario.from_dict(d).with_values({"robots.n": n, "seed": seed})

@@ -4,7 +4,7 @@ The paper sizes the team by coverage (its discussion, :func:`analysis.robot_coun
 a robot's sign is felt, at level ``ε`` or more, within ``r_ε = √(η ln(c/ε))`` of it, and
 those disks should cover Ω.  This module measures what the closed loop actually needs:
 the scenario is run for every robot count × kernel range × seed on Dask
-(:func:`meanfield.sweep.run_sweep`, local or remote, resumable) and the outcome is reduced
+(:func:`meanfield.workflows.sweep.run_sweep`, local or remote, resumable) and the outcome is reduced
 to medians over seeds of
 
 * the fraction of humans in the target region at ``t_final``, and
@@ -28,7 +28,7 @@ import numpy as np
 
 from analysis.robot_count import coverage_estimate
 from meanfield.errors import ParameterError
-from meanfield.scenario import Scenario
+from meanfield.scenarios.scenario import Scenario
 
 __all__ = ["RobotCountSweep", "run_robot_count_sweep", "summarize_robot_count_sweep", "COUNT_KEY", "ETA_KEY"]
 
@@ -113,11 +113,11 @@ def run_robot_count_sweep(
 ):
     """Run the closed loop for every robot count × η × seed on Dask; the sweep's Dataset.
 
-    A thin call of :func:`meanfield.sweep.run_sweep` with ``{"robots.n": counts,
+    A thin call of :func:`meanfield.workflows.sweep.run_sweep` with ``{"robots.n": counts,
     "kernel.eta": etas}``: same output layout (``OUT/runs/*.json``, ``OUT/sweep.nc``), same
     resuming, same refusal of bad input before any run.
     """
-    from meanfield.sweep import run_sweep
+    from meanfield.workflows.sweep import run_sweep
 
     counts = [int(n) for n in counts]
     if not counts or min(counts) < 1:

@@ -8,7 +8,7 @@ outside. *Cold*: ``NUMBA_CACHE_DIR`` a new empty directory, so every compiled lo
 compiles. *Warm*, the anchor: the same command again on the cache the cold run left. Their
 difference is what compiling costs a user the first time; issue 19's goal is at most 3 s.
 
-The cold run compiles on two cores when it can (:mod:`meanfield.warmup`: the controller's and
+The cold run compiles on two cores when it can (:mod:`meanfield._compiled.warmup`: the controller's and
 the plant's loops in forked processes while the KDE's compile in the main one). The same
 cold run with ``MEANFIELD_PARALLEL_COMPILE=0`` (everything in one process, one core) is
 measured beside it and reported in the record's detail. Medians over ``repeats``.
@@ -78,7 +78,7 @@ def suite_records(quick: bool) -> list[dict[str, Any]]:
             note=(
                 f"compile {s['compile']:.2f} s; on one core (MEANFIELD_PARALLEL_COMPILE=0) "
                 f"{s['compile_one_core']:.2f} s. The cold run uses a second core when there is one "
-                "(meanfield.warmup); the rest of the suite runs on one."
+                "(meanfield._compiled.warmup); the rest of the suite runs on one."
             ),
             detail={**s, "repeats": repeats},
         )

@@ -2,7 +2,7 @@
 
 Run:  python benchmarks/bench_controllers.py [--steps 300] [--repeats 2] [--json FILE]
 
-For each controller that applies to the paper scenario (:func:`meanfield.controller_study.candidates`:
+For each controller that applies to the paper scenario (:func:`meanfield.workflows.controller_study.candidates`:
 the paper's law, with bounded β/γ, coverage, static signs, NMPC where installed), the closed
 loop runs ``--steps`` steps and every call of the controller's ``act`` is timed; the paper's
 law runs the same way in the same process, interleaved repeat by repeat, as the anchor.
@@ -29,7 +29,7 @@ from typing import Any  # noqa: E402
 from benchmarks.records import measured, settings  # noqa: E402
 from benchmarks.reporting import emit, machine_line, time_act_calls  # noqa: E402
 from meanfield import ClosedLoop, paper_scenario  # noqa: E402
-from meanfield.controller_study import LAW, candidates  # noqa: E402
+from meanfield.workflows.controller_study import LAW, candidates  # noqa: E402
 
 UNITY_PERIOD = 0.25  # s: a control period of paper-unity, the paper's study in metres and seconds
 PAPER_PERIOD = 0.01  # s: dt of paper, its time unit taken as a second (NMPC's real-time measure)

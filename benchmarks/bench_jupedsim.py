@@ -4,14 +4,14 @@ Run:  python benchmarks/bench_jupedsim.py [--quick] [--repeats 3] [--json FILE] 
 
 Scenario, at N = 200, 2,000 and 10,000 agents (``--quick``: 200 and 2,000, fewer steps): a
 150 × 150 m square room, the collision-free speed model, JuPedSim time step 0.05 s, bodies of
-radius 0.2 m placed without overlap by :func:`meanfield.pedestrian_crowd.place_bodies` (the
+radius 0.2 m placed without overlap by :func:`meanfield.crowds.jupedsim_engine.place_bodies` (the
 same positions for every measurement at a given N).
 
 * Anchor: JuPedSim's own engine without steering.  The simulation is built as
-  :class:`meanfield.jupedsim_api.JuPedSimAdapter` builds it (direct-steering stage, one
+  :class:`meanfield.crowds._jupedsim_api.JuPedSimAdapter` builds it (direct-steering stage, one
   journey, the agents added one by one), but with JuPedSim's public API only; each agent gets
   one fixed target once, then ``sim.iterate()`` is timed over S steps.
-* Ours: :class:`meanfield.pedestrian_crowd.PedestrianCrowd` stepped with
+* Ours: :class:`meanfield.crowds.jupedsim_engine.JuPedSimEngine` stepped with
   ``crowd.step(velocity, t, dt=0.05)``, one JuPedSim step per control period, so every agent
   is steered at every step.  The desired velocities are a fixed random field rotated by
   0.01 rad per step, its magnitudes modulated by ±20 % (every uncapped speed changes every
@@ -46,7 +46,7 @@ import numpy as np  # noqa: E402
 from benchmarks.records import import_error, measured, settings, skipped  # noqa: E402
 from benchmarks.reporting import write_files  # noqa: E402
 from meanfield import Domain  # noqa: E402
-from meanfield.pedestrian_crowd import PedestrianCrowd, place_bodies  # noqa: E402
+from meanfield.crowds.jupedsim_engine import JuPedSimEngine, place_bodies  # noqa: E402
 
 if TYPE_CHECKING:  # imported where used: the suite's adapter imports this module without JuPedSim
     import jupedsim as jps
@@ -102,8 +102,8 @@ def build_anchor(positions: np.ndarray, domain: Domain, seed: int) -> jps.Simula
     return sim
 
 
-def build_crowd(positions: np.ndarray, domain: Domain, velocities: list[np.ndarray]) -> PedestrianCrowd:
-    crowd = PedestrianCrowd(positions, domain, radius=RADIUS, max_speed=MAX_SPEED, time_step=DT)
+def build_crowd(positions: np.ndarray, domain: Domain, velocities: list[np.ndarray]) -> JuPedSimEngine:
+    crowd = JuPedSimEngine(positions, domain, radius=RADIUS, max_speed=MAX_SPEED, time_step=DT)
     crowd.step(velocities[0], 0.0, dt=DT)  # warm-up
     return crowd
 
@@ -115,8 +115,8 @@ def anchor_chunk(sim: jps.Simulation, count: int) -> float:
     return time.perf_counter() - t0
 
 
-def ours_chunk(crowd: PedestrianCrowd, velocities: list[np.ndarray], first: int, count: int) -> float:
-    """Seconds for ``count`` calls of ``PedestrianCrowd.step`` (one JuPedSim step each)."""
+def ours_chunk(crowd: JuPedSimEngine, velocities: list[np.ndarray], first: int, count: int) -> float:
+    """Seconds for ``count`` calls of ``JuPedSimEngine.step`` (one JuPedSim step each)."""
     step = crowd.step
     t0 = time.perf_counter()
     for k in range(first, first + count):
@@ -124,8 +124,8 @@ def ours_chunk(crowd: PedestrianCrowd, velocities: list[np.ndarray], first: int,
     return time.perf_counter() - t0
 
 
-def pieces_chunk(crowd: PedestrianCrowd, velocities: list[np.ndarray], first: int, count: int) -> dict[str, float]:
-    """The body of ``PedestrianCrowd.step`` replayed ``count`` times with a clock around each call."""
+def pieces_chunk(crowd: JuPedSimEngine, velocities: list[np.ndarray], first: int, count: int) -> dict[str, float]:
+    """The body of ``JuPedSimEngine.step`` replayed ``count`` times with a clock around each call."""
     adapter = crowd.adapter
     clock = time.perf_counter
     total = dict.fromkeys(PIECES, 0.0)
@@ -232,12 +232,12 @@ def suite_records(quick: bool) -> list[dict[str, Any]]:
     """
     s = settings("jupedsim", quick)
     plan = {int(k): int(v) for k, v in s["steps"].items()}
-    what = "PedestrianCrowd.step (JuPedSim backend, every agent steered every step) in a 150x150 m room"
-    ours_label = "meanfield PedestrianCrowd, JuPedSim backend, steps/s"
+    what = "JuPedSimEngine.step (JuPedSim backend, every agent steered every step) in a 150x150 m room"
+    ours_label = "meanfield JuPedSimEngine, JuPedSim backend, steps/s"
     anchor_label = "JuPedSim alone (sim.iterate, one fixed target per agent), steps/s"
     why = import_error("jupedsim")
     if why is not None:
-        from meanfield.jupedsim_api import INSTALL_HINT
+        from meanfield.crowds._jupedsim_api import INSTALL_HINT
 
         note = f"jupedsim not available ({why}); install: {INSTALL_HINT}"
         return [skipped("jupedsim", "jupedsim vs JuPedSim alone", what, ours_label, anchor_label, note)]
@@ -280,7 +280,7 @@ def main() -> None:
     results, runs = measure(plan, a.repeats)
     verdict = "PASS" if all(x["pass"] for x in results) else "FAIL"
     out = {
-        "benchmark": f"PedestrianCrowd (JuPedSim backend, steered every step) vs JuPedSim alone, {SIDE:g}x{SIDE:g} m "
+        "benchmark": f"JuPedSimEngine (JuPedSim backend, steered every step) vs JuPedSim alone, {SIDE:g}x{SIDE:g} m "
         f"room, collision-free speed model, dt={DT:g} s, radius={RADIUS:g} m, same run, best of {a.repeats}",
         "anchor": "jupedsim Simulation built as JuPedSimAdapter does, one fixed target per agent, sim.iterate()",
         "target_overhead_us_per_agent_step": TARGET_OVERHEAD_US,

@@ -49,7 +49,7 @@ TEN_MILLION = 10_000_000
 def child(mode: str, steps: int) -> dict:
     """One measurement (run in a fresh process by :func:`measure`)."""
     from meanfield import ClosedLoop
-    from meanfield.scenario import stadium_scenario
+    from meanfield.scenarios.scenario import stadium_scenario
 
     sc = stadium_scenario(seed=0)
     if mode == "ten_million":

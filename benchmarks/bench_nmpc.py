@@ -46,7 +46,7 @@ import numpy as np  # noqa: E402
 from benchmarks.records import measured, settings  # noqa: E402
 from benchmarks.reporting import time_act_calls, write_files  # noqa: E402
 from meanfield import ClosedLoop, paper_scenario  # noqa: E402
-from meanfield.cli import parse_set  # noqa: E402
+from meanfield.scenarios.overrides import parse_set  # noqa: E402
 
 CONTROL_PERIOD = 0.01  # s: dt of the paper scenario, its time unit taken as a second
 GOAL_FACTOR = 0.5  # mean compute per control step <= half the control period

@@ -31,7 +31,7 @@ from typing import Any  # noqa: E402
 from benchmarks.records import measured, settings  # noqa: E402
 from benchmarks.reporting import emit, machine_line  # noqa: E402
 from meanfield import ClosedLoop, Domain  # noqa: E402
-from meanfield.scenario import builtin_scenarios  # noqa: E402
+from meanfield.scenarios.scenario import builtin_scenarios  # noqa: E402
 
 GOAL_COST_RATIO = 1.5  # a step on the plan costs at most this many steps on the box
 

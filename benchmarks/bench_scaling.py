@@ -48,7 +48,7 @@ CELLS_PER_BANDWIDTH = 3.84  # stadium: 0.03 on the unit square's 128 cells
 def child(n: int, cells: int) -> dict[str, Any]:
     """One point (run in a fresh process by :func:`point`): steps per second and peak memory."""
     from meanfield import ClosedLoop
-    from meanfield.scenario import stadium_scenario
+    from meanfield.scenarios.scenario import stadium_scenario
 
     sc = stadium_scenario(seed=0).with_values(
         {"crowd.n": n, "grid.cells": [cells, cells], "density.bandwidth": CELLS_PER_BANDWIDTH / cells}

@@ -23,7 +23,7 @@ from benchmarks.records import measured, settings
 GOAL_SECONDS = 0.5
 COMMANDS = {
     "import meanfield": [sys.executable, "-c", "import meanfield"],
-    "meanfield --help": [sys.executable, "-m", "meanfield.cli", "--help"],
+    "meanfield --help": [sys.executable, "-m", "meanfield.cli.app", "--help"],
 }
 ANCHOR = [sys.executable, "-c", "pass"]
 

@@ -33,7 +33,7 @@ def write_files(
     """Write the record as JSON and the printed report as text, each atomically, where a path is given."""
     from pathlib import Path
 
-    from meanfield.io import atomic_write_json, atomic_write_text
+    from meanfield.io.atomic import atomic_write_json, atomic_write_text
 
     if json_path:
         atomic_write_json(Path(json_path), record)

@@ -82,9 +82,9 @@ from typing import Any  # noqa: E402
 from benchmarks.records import RATIO_MEANING, SETTINGS, failed, format_table  # noqa: E402
 from benchmarks.records import measured as measured  # noqa: E402
 from benchmarks.records import skipped as skipped  # noqa: E402
-from meanfield.cli import output_file
+from meanfield.cli.arguments import output_file
 from meanfield.errors import ParameterError  # noqa: E402
-from meanfield.io import atomic_write_json  # noqa: E402
+from meanfield.io.atomic import atomic_write_json  # noqa: E402
 
 __all__ = ["BENCHMARKS", "SETTINGS", "Benchmark", "run_suite", "format_table", "register", "main"]
 # measured and skipped (benchmarks.records) stay importable from here, as SETTINGS and format_table

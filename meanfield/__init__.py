@@ -12,47 +12,52 @@ Quick start::
     result.summary["fraction_in_target"]
 """
 
-from meanfield.lazy import lazy_namespace
+from meanfield._namespace import install_moved_modules, lazy_namespace
 
 # Names are imported on first use (PEP 562): ``import meanfield`` and ``meanfield --help`` cost
 # a few milliseconds, not the ~0.6 s of SciPy, xarray and the solvers (docs page *Command line*).
 _LAZY = {
-    "BacksteppingController": "meanfield.control",
-    "ConstantAlpha": "meanfield.control",
-    "ExtraInputs": "meanfield.control",
-    "MinimumNormBetaGamma": "meanfield.control",
-    "SaturatingAlpha": "meanfield.control",
-    "UserBetaGamma": "meanfield.control",
-    "Crowd": "meanfield.crowd",
-    "KernelDensityEstimator": "meanfield.density",
-    "silverman_bandwidth": "meanfield.density",
-    "Domain": "meanfield.domain",
+    "BacksteppingController": "meanfield.controllers.backstepping",
+    "ConstantAlpha": "meanfield.controllers.backstepping",
+    "ExtraInputs": "meanfield.controllers.backstepping",
+    "MinimumNormBetaGamma": "meanfield.controllers.backstepping",
+    "SaturatingAlpha": "meanfield.controllers.backstepping",
+    "UserBetaGamma": "meanfield.controllers.backstepping",
+    "PointMassEngine": "meanfield.crowds.point_mass",
+    "MeanfieldDeprecationWarning": "meanfield.errors",
+    "KernelDensityEstimator": "meanfield.crowds.kde",
+    "silverman_bandwidth": "meanfield.crowds.kde",
+    "Domain": "meanfield.geometry.domain",
     "ParameterError": "meanfield.errors",
     "SimulationDiverged": "meanfield.errors",
-    "FokkerPlanck": "meanfield.fokker_planck",
-    "Grid": "meanfield.grid",
-    "InteractionField": "meanfield.interaction",
-    "CustomKernel": "meanfield.kernels",
-    "GaussianKernel": "meanfield.kernels",
-    "GaussianPotential": "meanfield.kernels",
-    "kernel_jacobian_theta": "meanfield.kernels",
-    "kernel_jacobian_xi": "meanfield.kernels",
-    "kernel_value": "meanfield.kernels",
-    "ClosedLoop": "meanfield.loop",
-    "run": "meanfield.loop",
-    "fraction_in_disk": "meanfield.metrics",
-    "gaussian_target": "meanfield.metrics",
-    "target_region_radius": "meanfield.metrics",
-    "SimulationResult": "meanfield.result",
-    "NavigationField": "meanfield.robots",
-    "RobotTeam": "meanfield.robots",
-    "navigation_velocity": "meanfield.robots",
-    "Scenario": "meanfield.scenario",
-    "load_scenario": "meanfield.scenario",
-    "paper_scenario": "meanfield.scenario",
+    "FokkerPlanck": "meanfield.fokker_planck.solver",
+    "Grid": "meanfield.geometry.grid",
+    "InteractionField": "meanfield.signs.interaction",
+    "CustomKernel": "meanfield.signs.kernels",
+    "GaussianKernel": "meanfield.signs.kernels",
+    "GaussianPotential": "meanfield.signs.kernels",
+    "kernel_jacobian_theta": "meanfield.signs.kernels",
+    "kernel_jacobian_xi": "meanfield.signs.kernels",
+    "kernel_value": "meanfield.signs.kernels",
+    "ClosedLoop": "meanfield.simulation.loop",
+    "run": "meanfield.simulation.loop",
+    "fraction_in_disk": "meanfield.geometry.target",
+    "gaussian_target": "meanfield.geometry.target",
+    "target_region_radius": "meanfield.geometry.target",
+    "SimulationResult": "meanfield.simulation.result",
+    "NavigationField": "meanfield.signs.robots",
+    "RobotTeam": "meanfield.signs.robots",
+    "navigation_velocity": "meanfield.signs.robots",
+    "Scenario": "meanfield.scenarios.scenario",
+    "load_scenario": "meanfield.scenarios.scenario",
+    "paper_scenario": "meanfield.scenarios.scenario",
 }
 
-__getattr__, __dir__ = lazy_namespace(__name__, globals(), _LAZY)
+# Old names that moved, for one release: read with a warning naming the new place.
+_DEPRECATED = {"Crowd": ("meanfield.crowds.point_mass", "PointMassEngine")}
+
+__getattr__, __dir__ = lazy_namespace(__name__, globals(), _LAZY, _DEPRECATED)
+install_moved_modules()  # old module paths (meanfield.crowd, meanfield.control, ...) keep working
 
 
 __version__ = "0.1.0"
@@ -61,7 +66,6 @@ __all__ = [
     "BacksteppingController",
     "ClosedLoop",
     "ConstantAlpha",
-    "Crowd",
     "CustomKernel",
     "Domain",
     "ExtraInputs",
@@ -71,9 +75,11 @@ __all__ = [
     "Grid",
     "InteractionField",
     "KernelDensityEstimator",
+    "MeanfieldDeprecationWarning",
     "MinimumNormBetaGamma",
     "NavigationField",
     "ParameterError",
+    "PointMassEngine",
     "RobotTeam",
     "SaturatingAlpha",
     "Scenario",

@@ -1,4 +1,12 @@
-"""Exceptions of the toolkit (bad parameters, numerical blow-ups) and the shared checks of a value."""
+"""Exceptions of the toolkit (bad parameters, numerical blow-ups) and the shared checks of a value.
+
+Every check of a named field (:func:`num`, :func:`integer`, :func:`choice`, :func:`point`,
+:func:`optional_limit`, ...) takes the dotted field name first (``"crowd.sigma"``,
+``"robots.u_max"``) and raises :class:`ParameterError` with that name, the value and the
+allowed range, so that a bad scenario file or option is refused with a message that says which
+key to fix (the command line exits with status 2 on it).  Scenario sections and the parts'
+own options (a crowd's, a controller's) use them alike.
+"""
 
 from __future__ import annotations
 
@@ -8,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["ParameterError", "SimulationDiverged", "SigmaLike", "check_sigma", "positive_number", "limit_or_inf"]
+__all__ = ["num", "range_text", "integer", "choice", "point", "optional_limit", "all_numbers", "module_list", "MeanfieldDeprecationWarning", "ParameterError", "SimulationDiverged", "SigmaLike", "check_sigma", "positive_number", "limit_or_inf"]
 
 
 class ParameterError(ValueError):
@@ -29,6 +37,14 @@ class ParameterError(ValueError):
         self.value = value
         self.allowed = allowed
         super().__init__(f"invalid {name} = {value!r}: expected {allowed}")
+
+
+class MeanfieldDeprecationWarning(FutureWarning):
+    """A name, module path or scenario field that still works but has a new name, given in the message.
+
+    A :class:`FutureWarning`, so that it is shown by default, to users of scripts as well as of
+    the library's own tests; it can be filtered by this class alone.
+    """
 
 
 class SimulationDiverged(RuntimeError):
@@ -82,3 +98,235 @@ def check_sigma(name: str, sigma: Any) -> Any:
     if not math.isfinite(s) or s < 0:
         raise ParameterError(name, sigma, "a finite number >= 0, or a callable σ(x, y, t)")
     return s
+
+
+# ---------------------------------------------------------------------- checks of a named field
+def num(
+    name: str,
+    value: Any,
+    *,
+    lo: float | None = None,
+    lo_open: bool = False,
+    hi: float | None = None,
+    allowed: str | None = None,
+) -> float:
+    """A finite number, optionally bounded.
+
+    Parameters
+    ----------
+    name : str
+        The field, as named in the error.
+    value : Any
+        The value to check; booleans are refused.
+    lo, hi : float, optional
+        Lower and upper bounds (inclusive unless ``lo_open``).
+    lo_open : bool
+        Whether the lower bound itself is refused (``x > lo``).
+    allowed : str, optional
+        The allowed range as the error states it (default: :func:`range_text`).
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    ParameterError
+        If the value is not a finite number in range.
+    """
+    desc = allowed or range_text(lo, lo_open, hi)
+    if isinstance(value, bool):
+        raise ParameterError(name, value, desc)
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(name, value, desc) from None
+    if not math.isfinite(x):
+        raise ParameterError(name, value, desc)
+    if lo is not None and (x < lo or (lo_open and x == lo)):
+        raise ParameterError(name, value, desc)
+    if hi is not None and x > hi:
+        raise ParameterError(name, value, desc)
+    return x
+
+
+def range_text(lo: float | None, lo_open: bool, hi: float | None) -> str:
+    """The allowed range of :func:`num` in words (``"a finite number > 0"``, ...).
+
+    Parameters
+    ----------
+    lo : float or None
+        Lower bound.
+    lo_open : bool
+        Whether the lower bound is excluded.
+    hi : float or None
+        Upper bound (inclusive).
+
+    Returns
+    -------
+    str
+    """
+    if lo is None and hi is None:
+        return "a finite number"
+    if hi is None:
+        return f"a finite number {'>' if lo_open else '>='} {lo:g}"
+    return f"a number in [{lo:g}, {hi:g}]"
+
+
+def integer(name: str, value: Any, lo: int) -> int:
+    """An integer ``>= lo`` (a float with an integral value is accepted; booleans are not).
+
+    Parameters
+    ----------
+    name : str
+        The field, as named in the error.
+    value : Any
+        The value to check.
+    lo : int
+        Smallest allowed value.
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    ParameterError
+        If the value is not an integer ``>= lo``.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        if isinstance(value, float) and value.is_integer():
+            value = int(value)
+        else:
+            raise ParameterError(name, value, f"an integer >= {lo}")
+    if value < lo:
+        raise ParameterError(name, value, f"an integer >= {lo}")
+    return int(value)
+
+
+def choice(name: str, value: Any, options: tuple[str, ...]) -> str:
+    """One of ``options``.
+
+    Parameters
+    ----------
+    name : str
+        The field, as named in the error.
+    value : Any
+        The value to check.
+    options : tuple of str
+        The allowed values, listed in the error.
+
+    Returns
+    -------
+    str
+        ``value``.
+
+    Raises
+    ------
+    ParameterError
+        If ``value`` is not among ``options``.
+    """
+    if value not in options:
+        raise ParameterError(name, value, "one of " + ", ".join(repr(o) for o in options))
+    return value
+
+
+def point(name: str, value: Any) -> tuple[float, float]:
+    """A pair ``[x, y]`` of finite numbers.
+
+    Parameters
+    ----------
+    name : str
+        The field; a bad coordinate is named ``name[0]`` or ``name[1]``.
+    value : Any
+        The value to check.
+
+    Returns
+    -------
+    tuple of float
+
+    Raises
+    ------
+    ParameterError
+        If the value is not a pair, or a coordinate is not a finite number.
+    """
+    try:
+        a, b = value
+    except (TypeError, ValueError):
+        raise ParameterError(name, value, "a pair [x, y] of finite numbers") from None
+    return (num(f"{name}[0]", a), num(f"{name}[1]", b))
+
+
+def optional_limit(name: str, value: Any, what: str = 'a number > 0, or "none" for no limit') -> float | None:
+    """A number ``> 0``, or no limit (``None`` or the string ``"none"``).
+
+    Parameters
+    ----------
+    name : str
+        The field, as named in the error.
+    value : Any
+        The value to check.
+    what : str
+        The allowed values as the error states them.
+
+    Returns
+    -------
+    float or None
+        None for no limit.
+
+    Raises
+    ------
+    ParameterError
+        If the value is neither a number > 0 nor "none".
+    """
+    if value is None or (isinstance(value, str) and value == "none"):
+        return None
+    return num(name, value, lo=0.0, lo_open=True, allowed=what)
+
+
+def all_numbers(x: Any) -> bool:
+    """Whether ``x`` converts to a floating-point array (numbers, or nested lists of them).
+
+    Parameters
+    ----------
+    x : Any
+
+    Returns
+    -------
+    bool
+    """
+    try:
+        arr = np.asarray(x, dtype=float)
+    except (TypeError, ValueError):
+        return False
+    return arr.dtype.kind == "f"
+
+
+def module_list(name: str, value: Any) -> tuple[str, ...]:
+    """A list of plugin modules: dotted module names or paths to ``.py`` files.
+
+    Parameters
+    ----------
+    name : str
+        The field (the scenario's top-level ``plugins``).
+    value : Any
+        A list or tuple of non-empty strings (``None`` is the empty list).
+
+    Returns
+    -------
+    tuple of str
+
+    Raises
+    ------
+    ParameterError
+        If the value is not a list of non-empty strings.
+    """
+    if value is None:
+        return ()
+    allowed = "a list of module names or paths to .py files"
+    if isinstance(value, str) or not isinstance(value, (list, tuple)):
+        raise ParameterError(name, value, allowed)
+    for k, item in enumerate(value):
+        if not isinstance(item, str) or not item:
+            raise ParameterError(f"{name}[{k}]", item, "a module name or a path to a .py file")
+    return tuple(value)

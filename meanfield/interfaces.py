@@ -1,11 +1,11 @@
 """The three interfaces of the closed loop: :class:`Region`, :class:`Crowd`, :class:`Controller`.
 
-:class:`Region` lives in :mod:`meanfield.region` (the geometry at the bottom of the layers
+:class:`Region` lives in :mod:`meanfield.geometry.region` (the geometry at the bottom of the layers
 names it) and is re-exported here; the controller's contracts come with it: the Step-I gain
 (:class:`AlphaSchedule`), the β/γ rule (:class:`BetaGammaStrategy`, :class:`ExtraInputs`)
 and the law's quantities a command may carry (:class:`ControlState`).
 
-One step of :class:`meanfield.loop.ClosedLoop` (docs page *Architecture*)::
+One step of :class:`meanfield.simulation.loop.ClosedLoop` (docs page *Architecture*)::
 
     observation = Observation(crowd.density(), robots' field, t, dt)   # what the robots know
     command     = controller.act(observation)                          # (u_i, ω_i), eq. (8)
@@ -15,7 +15,7 @@ One step of :class:`meanfield.loop.ClosedLoop` (docs page *Architecture*)::
 
 Each interface is a :class:`typing.Protocol`: an implementation need not inherit from it,
 only have the methods.  Implementations are chosen by name from :mod:`meanfield.plugins`
-and built by :func:`meanfield.assembly.assemble` from parts, never from the loop.
+and built by :func:`meanfield.simulation.assembly.assemble` from parts, never from the loop.
 """
 
 from __future__ import annotations
@@ -27,12 +27,12 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from meanfield.errors import SigmaLike
-from meanfield.grid import FaceField, Grid
-from meanfield.interaction import InteractionField
-from meanfield.kernels import NavigationKernel
-from meanfield.region import BoundaryPart, Region
-from meanfield.robots import NavigationField, RobotTeam
-from meanfield.sight import SightLines
+from meanfield.geometry.grid import FaceField, Grid
+from meanfield.geometry.region import BoundaryPart, Region
+from meanfield.geometry.sight import SightLines
+from meanfield.signs.interaction import InteractionField
+from meanfield.signs.kernels import NavigationKernel
+from meanfield.signs.robots import NavigationField, RobotTeam
 
 __all__ = [
     "BoundaryPart",
@@ -47,6 +47,7 @@ __all__ = [
     "ExtraInputs",
     "CrowdContext",
     "ControllerParts",
+    "StabilityStep",
     "SigmaLike",
     "Disturbance",
 ]
@@ -245,10 +246,10 @@ class CrowdContext:
         The run's one generator: draw the initial crowd at construction, and nothing
         else until the first step (the robots' initial headings come next).
     sight : SightLines or None
-        The plan's walls that hide signs (:mod:`meanfield.sight`); None: every sign is seen.
+        The plan's walls that hide signs (:mod:`meanfield.geometry.sight`); None: every sign is seen.
     """
 
-    scenario: Any  # a meanfield.scenario.Scenario (the scenario module sits above this one)
+    scenario: Any  # a meanfield.scenarios.scenario.Scenario (the scenario module sits above this one)
     grid: Grid
     kernel: NavigationKernel
     sigma: SigmaLike
@@ -256,6 +257,27 @@ class CrowdContext:
     interaction: InteractionField | None
     rng: np.random.Generator
     sight: SightLines | None = None
+
+
+@dataclass(frozen=True)
+class StabilityStep:
+    """The largest stable time step a controller declares (``stability_step(scenario, grid)``).
+
+    The preflight warns after a run whose ``dt`` exceeds it: ``"dt = … exceeds {what} = {dt} {why}"``.
+
+    Attributes
+    ----------
+    dt : float
+        The largest stable step.
+    what : str
+        What bounds it (e.g. ``"the sampled Step-I feedback's stability step 0.9 h²/(4 α₀)"``).
+    why : str
+        The numbers and what goes wrong past it.
+    """
+
+    dt: float
+    what: str
+    why: str
 
 
 @dataclass
@@ -292,7 +314,7 @@ class ControllerParts:
         ``(ℓ, c)``: the law's unit of length and of speed with ``controller.scaling = "kernel"``
         (``ℓ = √|Ω|``, ``c`` the kernel's strength); None: the paper's law, in the scenario's units.
     sight : SightLines or None
-        The run's sight lines (:mod:`meanfield.sight`), shared with the crowd and the loop so
+        The run's sight lines (:mod:`meanfield.geometry.sight`), shared with the crowd and the loop so
         that their table of which cell sees which is computed once; None: built from ``region``.
     """
 

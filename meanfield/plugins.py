@@ -1,7 +1,7 @@
 """The registry: every interchangeable part of the closed loop, chosen by name.
 
-A scenario names its parts (``domain.kind``, ``pedestrians.backend``, ``controller.kind``,
-``controller.beta_gamma``); :func:`meanfield.assembly.assemble` looks each name up here.
+A scenario names its parts (``domain.kind``, ``crowd.kind``, ``controller.kind``,
+``controller.beta_gamma``); :func:`meanfield.simulation.assembly.assemble` looks each name up here.
 Names come from three places, one registration line each:
 
 * this toolkit's own parts, listed in :data:`BUILTIN` as ``"module:attribute"`` references
@@ -24,9 +24,9 @@ The kinds and what a factory of each kind receives and returns (docs page *Archi
     ``factory(context: CrowdContext) -> Crowd`` (:mod:`meanfield.interfaces`).
 ``controller`` (``meanfield.controllers``)
     ``factory(parts: ControllerParts) -> Controller``.
-``guidance`` (``meanfield.guidance``)
+``guidance`` (``meanfield.crowds.guidance``)
     ``factory(context: CrowdContext, positions) -> Guidance | None``: what the agents follow
-    (None: the robots' signs; :mod:`meanfield.guidance`).
+    (None: the robots' signs; :mod:`meanfield.crowds.guidance`).
 ``beta_gamma`` (``meanfield.beta_gamma``)
     ``factory(scenario) -> BetaGammaStrategy``.
 ``command`` (``meanfield.commands``)
@@ -42,7 +42,7 @@ from typing import Any
 
 from meanfield.errors import ParameterError
 
-__all__ = ["BUILTIN", "GROUPS", "available", "load", "origin", "register", "unregister"]
+__all__ = ["BUILTIN", "GROUPS", "available", "declared", "load", "origin", "register", "unregister"]
 
 GROUPS = {
     "region": "meanfield.regions",
@@ -56,31 +56,37 @@ GROUPS = {
 
 BUILTIN: dict[str, dict[str, str]] = {
     "region": {
-        "box": "meanfield.domain:Domain.box",
-        "disk": "meanfield.domain:Domain.disk",
-        "polygon": "meanfield.domain:Domain.polygon",
-        "plan": "meanfield.plan:plan_from_table",
+        "box": "meanfield.geometry.domain:Domain.box",
+        "disk": "meanfield.geometry.domain:Domain.disk",
+        "polygon": "meanfield.geometry.domain:Domain.polygon",
+        "plan": "meanfield.geometry.plan:plan_from_table",
     },
     "crowd": {
-        "point-mass": "meanfield.agent_crowd:point_mass_crowd",
-        "jupedsim": "meanfield.pedestrian_crowd:jupedsim_crowd",
-        "fokker-planck": "meanfield.density_crowd:DensityCrowd.from_context",
+        "point-mass": "meanfield.crowds.agent_crowd:point_mass_crowd",
+        "jupedsim": "meanfield.crowds.jupedsim_engine:jupedsim_crowd",
+        "fokker-planck": "meanfield.crowds.density_crowd:DensityCrowd.from_context",
     },
     "controller": {
-        "backstepping": "meanfield.control:BacksteppingController.from_parts",
-        "evacuation": "meanfield.evacuation:EvacuationController.from_parts",
-        "static-signs": "meanfield.static_signs:StaticSigns.from_parts",
-        "coverage": "meanfield.coverage:CoverageController.from_parts",
+        "backstepping": "meanfield.controllers.backstepping:BacksteppingController.from_parts",
+        "evacuation": "meanfield.controllers.evacuation:EvacuationController.from_parts",
+        "static-signs": "meanfield.controllers.static_signs:StaticSigns.from_parts",
+        "coverage": "meanfield.controllers.coverage:CoverageController.from_parts",
     },
     "guidance": {
-        "signs": "meanfield.guidance:signs",
-        "geodesic": "meanfield.guidance:geodesic",
-        "random-walk": "meanfield.guidance:random_walk",
+        "signs": "meanfield.crowds.guidance:signs",
+        "geodesic": "meanfield.crowds.guidance:geodesic",
+        "random-walk": "meanfield.crowds.guidance:random_walk",
     },
     "beta_gamma": {
-        "min-norm": "meanfield.control:MinimumNormBetaGamma.from_scenario",
+        "min-norm": "meanfield.controllers.backstepping:MinimumNormBetaGamma.from_scenario",
     },
-    "command": {},
+    "command": {
+        "run": "meanfield.cli.run:register",
+        "compare": "meanfield.cli.compare:register",
+        "scenario": "meanfield.cli.scenario:register",
+        "sweep": "meanfield.cli.sweep:register",
+        "study": "meanfield.cli.study:register",
+    },
 }
 """This toolkit's own parts: ``{kind: {name: "module:attribute"}}``."""
 
@@ -212,6 +218,22 @@ def load(kind: str, name: str) -> Any:
         If no part of that kind has this name (the message lists those that do).
     """
     return _get(kind, name).load()
+
+
+def declared(kind: str, name: str, attribute: str, default: Any = None) -> Any:
+    """What the part ``name`` of ``kind`` declares as ``attribute`` (``default`` if it declares nothing).
+
+    The core asks a part what it needs instead of testing its name: a controller says whether
+    it runs on a group's knowledge (``accepts_sensing``), whether it needs exits
+    (``requires_exits``) and which time step keeps it stable (``stability_step``); a crowd
+    checks its own options (``options``, ``check_scenario``); a β/γ rule says whether it works
+    in the kernel's units (``accepts_kernel_scaling``).  The attribute is looked up on the
+    factory, then, for a factory that is a bound class method (``Class.from_parts``), on its class.
+    """
+    factory = load(kind, name)
+    if hasattr(factory, attribute):
+        return getattr(factory, attribute)
+    return getattr(getattr(factory, "__self__", None), attribute, default)
 
 
 def import_plugin_modules(modules: list[str] | tuple[str, ...], field: str = "plugins") -> None:

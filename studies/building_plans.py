@@ -34,7 +34,7 @@ def hall() -> shapely.Polygon:
 
 
 def main() -> None:
-    from meanfield.scenario import builtin_scenarios
+    from meanfield.scenarios.scenario import builtin_scenarios
 
     for name, plan in (("office", office()), ("hall", hall())):
         shipped = builtin_scenarios()[name]().domain.polygon

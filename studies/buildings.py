@@ -56,9 +56,9 @@ KEYS = (
 def one_run(plan: str, setting: str, seed: int, backend: str) -> dict:
     """One run's evacuation figures (the baselines' robots are parked and seen by no one)."""
     from meanfield import run
-    from meanfield.scenario import builtin_scenarios
+    from meanfield.scenarios.scenario import builtin_scenarios
 
-    sc = builtin_scenarios()[plan](seed=seed).with_values({**SETTINGS[setting], "pedestrians.backend": backend})
+    sc = builtin_scenarios()[plan](seed=seed).with_values({**SETTINGS[setting], "crowd.kind": backend})
     result = run(sc, progress=False)
     s = result.summary
     curve = result.dataset["fraction_evacuated"]
@@ -153,7 +153,7 @@ def table(backends: list[str]) -> str:
 
 def figure(backends: list[str], path: str = "docs/figures/buildings_evacuation.png") -> None:
     """The median evacuation curve of each setting on each plan (one panel per plan and crowd)."""
-    from meanfield.io import save_figure, subplots
+    from meanfield.io.atomic import save_figure, subplots
 
     rows = [json.loads(line) for line in RESULTS.read_text().splitlines() if line.strip()]
     fig, axes = subplots(len(backends), len(PLANS), figsize=(4.2 * len(PLANS), 3.4 * len(backends)), squeeze=False)

@@ -4,7 +4,7 @@ Run from the repository's root:  python studies/local_sensing.py [--seeds 10] [-
 
 The paper scenario with its speed limits, ``backstepping`` and ``coverage``, sensing radius
 0.1, 0.2, 0.35, 0.5 room widths with a communication radius twice as large, and the
-centralized robots (no limit): one resumable sweep per radius (:func:`meanfield.sweep.run_sweep`).
+centralized robots (no limit): one resumable sweep per radius (:func:`meanfield.workflows.sweep.run_sweep`).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import argparse
 import numpy as np
 
 from meanfield import paper_scenario
-from meanfield.sweep import run_sweep
+from meanfield.workflows.sweep import run_sweep
 
 RADII = (0.1, 0.2, 0.35, 0.5, None)
 KINDS = ("backstepping", "coverage")

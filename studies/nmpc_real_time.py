@@ -38,7 +38,7 @@ import numpy as np  # noqa: E402
 
 from benchmarks.reporting import time_act_calls  # noqa: E402
 from meanfield import ClosedLoop, paper_scenario  # noqa: E402
-from meanfield.cli import parse_set  # noqa: E402
+from meanfield.scenarios.overrides import parse_set  # noqa: E402
 
 CONTROL_PERIOD = 0.01  # s: the paper scenario's dt, its time unit taken as a second
 

@@ -38,9 +38,9 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from meanfield.cli import parse_set  # noqa: E402
-from meanfield.io import save_figure  # noqa: E402
-from meanfield.scenario import paper_scenario  # noqa: E402
+from meanfield.io.atomic import save_figure  # noqa: E402
+from meanfield.scenarios.overrides import parse_set  # noqa: E402
+from meanfield.scenarios.scenario import paper_scenario  # noqa: E402
 
 SUMMARY_KEYS = (
     "fraction_in_target",
@@ -83,7 +83,7 @@ def _percentiles(x) -> dict[str, float]:
 
 
 def _one(job: tuple[int, str, dict, float | None]) -> dict:
-    from meanfield.loop import ClosedLoop
+    from meanfield.simulation.loop import ClosedLoop
 
     seed, kind, sets, t_final = job
     sc = paper_scenario(seed=seed)

@@ -18,8 +18,8 @@ import os
 import statistics
 from concurrent.futures import ProcessPoolExecutor
 
-from meanfield.cli import parse_set
-from meanfield.scenario import builtin_scenarios
+from meanfield.scenarios.overrides import parse_set
+from meanfield.scenarios.scenario import builtin_scenarios
 
 KEYS = ("fraction_in_target", "l2_error_initial", "l2_error_final", "l2_error_ratio", "time_to_90",
         "max_robot_speed", "speed_limit", "w2_to_target_final", "steps_per_second")
@@ -27,7 +27,7 @@ EXTRA = ("backend", "seen_fraction_final", "body_overlap_max")
 
 
 def _one(args: tuple[int, dict]) -> dict:
-    from meanfield.loop import ClosedLoop
+    from meanfield.simulation.loop import ClosedLoop
 
     name, seed, sets = args
     sc = builtin_scenarios()[name](seed=seed)

@@ -22,11 +22,11 @@ from pathlib import Path
 
 from analysis.figures import plot_robot_count_sweep, save_figure
 from analysis.robot_count_sweep import run_robot_count_sweep, summarize_robot_count_sweep
-from meanfield.cli import float_list, int_list, parse_set
 from meanfield.errors import ParameterError
-from meanfield.io import atomic_write_json
-from meanfield.scenario import load_scenario
-from meanfield.sweep import parse_seeds
+from meanfield.io.atomic import atomic_write_json
+from meanfield.scenarios.overrides import float_list, int_list, parse_set
+from meanfield.scenarios.scenario import load_scenario
+from meanfield.workflows.sweep import parse_seeds
 
 
 def _table(study, values, fmt) -> str:

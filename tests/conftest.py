@@ -16,7 +16,7 @@ matplotlib.use("Agg")
 # ---------------------------------------------------------------------- hypothesis profiles
 # Select with HYPOTHESIS_PROFILE (default "ci"); a decorator's own settings (e.g. an explicit
 # max_examples) still take precedence over the profile.
-#   ci       deterministic (derandomize, no example database); tests/test_properties.py
+#   ci       deterministic (derandomize, no example database); tests/verification/test_properties.py
 #            takes ~15 s on 2 cores
 #   dev      more examples, random seeds; the local example database replays failures
 #   release  10x ci, random seeds: the broad search before a release (a few minutes)

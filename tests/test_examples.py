@@ -46,7 +46,7 @@ def test_parked_robots_refuse_an_unknown_option():
 def test_obedient_walkers_come_from_the_toml_and_walk_only_where_a_sign_is_strong():
     # 4 robots on the unit square leave humans beyond every sign's reach
     sc = load_scenario(EXAMPLES / "obedient_walkers.toml").replace(t_final=1.0).with_values({"robots.n": 4})
-    assert sc.pedestrians.backend == "obedient-walkers"
+    assert sc.crowd.kind == "obedient-walkers"
     loop = ClosedLoop(sc)
     crowd = loop.crowd
     assert type(crowd).__name__ == "ObedientWalkers" and isinstance(crowd, Crowd)
@@ -68,7 +68,7 @@ def test_obedient_walkers_come_from_the_toml_and_walk_only_where_a_sign_is_stron
 
 
 def test_the_command_line_runs_an_example_and_its_saved_scenario_runs_again(tmp_path):
-    from meanfield.cli import main
+    from meanfield.cli.app import main
 
     out = tmp_path / "run"
     argv = ["run", str(EXAMPLES / "parked_robots.toml"), "--set", "t_final=0.2", "--out", str(out), "--quiet"]

@@ -29,7 +29,7 @@ import matplotlib
 matplotlib.use("pdf")
 import matplotlib.pyplot as plt
 from meanfield import paper_scenario, run
-from meanfield.plotting import save_run_figures
+from meanfield.plotting.figures import save_run_figures
 import analysis.figures, analysis.pedestrian_figures, verification
 r = run(paper_scenario(seed=0).replace(t_final=0.05), progress=False)
 r.save({str(tmp_path)!r}, artifacts=[save_run_figures])

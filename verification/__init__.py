@@ -8,7 +8,7 @@ the report behind ``meanfield verify`` (``runner``, ``report``, ``cli``), and th
 demo (``python -m verification.mutation``).
 """
 
-from meanfield.lazy import lazy_namespace
+from meanfield._namespace import lazy_namespace
 
 _LAZY = {
     "check_agents": "verification.agents",

@@ -11,7 +11,7 @@ that has decreased.
 Section V, second study (Unity): humans with bodies and a limited view radius follow a
 robot only when they see one, "and eventually they are also directed to the target
 location".  :func:`check_pedestrians` runs the paper's Unity study
-(:func:`meanfield.scenario.paper_unity_scenario`, whatever the verified scenario) with the
+(:func:`meanfield.scenarios.scenario.paper_unity_scenario`, whatever the verified scenario) with the
 humans as JuPedSim bodies and asks for most humans in the target region with no bodies
 overlapping; point-mass runs with and without the view radius are reported for comparison.
 
@@ -30,8 +30,9 @@ from typing import Any
 import numpy as np
 
 from analysis.parallel import map_jobs
+from meanfield.crowds.jupedsim_engine import JuPedSimOptions
 from meanfield.errors import ParameterError, SimulationDiverged
-from meanfield.scenario import Scenario, paper_unity_scenario
+from meanfield.scenarios.scenario import Scenario, paper_unity_scenario
 from verification.agents_criteria import (
     CLAIM,
     CRITERION,
@@ -70,7 +71,7 @@ _RUN_SERIES = {"time": "time", "fraction_series": "fraction_in_target"}
 
 def _run_record(scenario: Scenario, keys: tuple[str, ...] = (), series: dict[str, str] | None = None) -> dict:
     """Run one closed loop and keep the common summary keys and series, plus ``keys`` and ``series``."""
-    from meanfield.loop import ClosedLoop
+    from meanfield.simulation.loop import ClosedLoop
 
     res = ClosedLoop(scenario).run(progress=False)
     s, ds = res.summary, res.dataset
@@ -229,7 +230,7 @@ def check_agents(
 PEDESTRIANS_QUICK_SEEDS: tuple[int, ...] = (0, 1, 2)
 PEDESTRIANS_FULL_SEEDS: tuple[int, ...] = tuple(range(5))
 
-# variant -> (label, pedestrians.backend, view gating); the first is judged, the others are reported (full mode)
+# variant -> (label, crowd.kind, view gating); the first is judged, the others are reported (full mode)
 VARIANTS: dict[str, tuple[str, str, bool]] = {
     "jupedsim": ("JuPedSim bodies, 30 m view", "jupedsim", True),
     "point-mass": ("point mass, 30 m view", "point-mass", True),
@@ -239,7 +240,7 @@ VARIANTS: dict[str, tuple[str, str, bool]] = {
 def unity_scenario(seed: int, variant: str) -> Scenario:
     """The paper's Unity study for ``seed``, with the crowd backend and view gating of ``variant``."""
     _, backend, gated = VARIANTS[variant]
-    values: dict[str, Any] = {"pedestrians.backend": backend}
+    values: dict[str, Any] = {"crowd.kind": backend}
     if not gated:
         values["view.radius"] = "none"
     return paper_unity_scenario(seed).with_values(values)
@@ -304,8 +305,8 @@ def check_pedestrians(
 
     The claim is about the paper's Unity study, so the check **does not use the
     ``scenario`` argument's parameters**: it always runs
-    :func:`meanfield.scenario.paper_unity_scenario` (150 × 150 m, 200 humans, 16 robots,
-    30 m view radius, t_final 1000 s) with ``pedestrians.backend = "jupedsim"``, over
+    :func:`meanfield.scenarios.scenario.paper_unity_scenario` (150 × 150 m, 200 humans, 16 robots,
+    30 m view radius, t_final 1000 s) with ``crowd.kind = "jupedsim"``, over
     several seeds (``measured["settings"]`` says so).  Decision rule
     (:func:`pedestrians_verdict`): median fraction in the target region at t_final ≥ 0.8,
     every run completed, and the deepest body overlap ≤ 1 % of a diameter.  The full
@@ -331,7 +332,7 @@ def check_pedestrians(
     CheckResult
         Key ``"pedestrians"``; one case per run (the point-mass ones marked ``"comparison"``).
     """
-    from meanfield.jupedsim_api import JuPedSimUnavailable, jupedsim_version, load_jupedsim
+    from meanfield.crowds._jupedsim_api import JuPedSimUnavailable, jupedsim_version, load_jupedsim
 
     del scenario  # the claim is about the paper's Unity study, not the verified scenario
     start = time.perf_counter()
@@ -340,7 +341,7 @@ def check_pedestrians(
     variants = ["jupedsim"] if quick else list(VARIANTS)
     ref = unity_scenario(seeds[0], "jupedsim")
     settings = {
-        "scenario": f"{ref.name} (meanfield.scenario.paper_unity_scenario), independent of the verified scenario",
+        "scenario": f"{ref.name} (meanfield.scenarios.scenario.paper_unity_scenario), independent of the verified scenario",
         "seeds": list(seeds),
         "judged": VARIANTS["jupedsim"][0],
         "comparisons": [VARIANTS[v][0] for v in variants[1:]],
@@ -351,8 +352,8 @@ def check_pedestrians(
         "target_center": list(ref.target.center),
         "t_final_s": ref.t_final,
         "dt_s": ref.dt,
-        "pedestrian_model": ref.pedestrians.model,
-        "body_radius_m": ref.pedestrians.radius,
+        "pedestrian_model": JuPedSimOptions.of(ref).model,
+        "body_radius_m": JuPedSimOptions.of(ref).radius,
         "jupedsim_version": jupedsim_version(),
     }
     try:

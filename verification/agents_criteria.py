@@ -102,7 +102,7 @@ PEDESTRIANS_FRACTION_THRESHOLD = 0.8
 OVERLAP_THRESHOLD = 0.01  # deepest body overlap, as a fraction of a body's diameter
 
 PEDESTRIANS_CRITERION = (
-    "always on the paper's Unity study (meanfield.scenario.paper_unity_scenario: 150 × 150 m, 200 humans, "
+    "always on the paper's Unity study (meanfield.scenarios.scenario.paper_unity_scenario: 150 × 150 m, 200 humans, "
     "16 robots, 30 m view radius, target at the corner (150, 150), t_final 1000 s), whatever the verified "
     "scenario, with the humans as JuPedSim bodies (collision-free speed model, radius 0.2 m); holds when, over "
     f"seeds, the median fraction of humans in the target region at t_final is ≥ {PEDESTRIANS_FRACTION_THRESHOLD} "

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from meanfield.cli import add_scenario_arguments, scenario_from_args
+from meanfield.cli.arguments import add_scenario_arguments, scenario_from_args
 from meanfield.errors import ParameterError
 from verification.result import CHECK_NAMES
 

@@ -22,8 +22,8 @@ from typing import Any
 
 from analysis.poincare import is_convex
 from analysis.rates import grid_pieces
-from meanfield.exits import exit_segments
-from meanfield.grid import Grid
+from meanfield.geometry.exits import exit_segments
+from meanfield.geometry.grid import Grid
 
 __all__ = ["Hypotheses", "hypotheses", "disconnected_reason", "exits_reason"]
 

@@ -5,7 +5,7 @@ The paper (Section III, "Problem formulation") replaces the ``N`` humans of the 
 satisfies the Fokker–Planck equation (eq. (4)).  Every guarantee of Section IV is proved
 on the PDE, every simulation of Section V runs agents: the two must agree for large ``N``.
 
-:func:`check_mean_field` runs :func:`meanfield.compare.compare_agents_pde`: the scenario's
+:func:`check_mean_field` runs :func:`meanfield.workflows.mean_field_limit.compare_agents_pde`: the scenario's
 closed loop is run once and its robot trajectory is replayed to crowds of ``N`` agents
 and to the PDE, from the same initial density.  The distance that decides is
 ``error_to_expected`` = ‖ρ̂_N − E[ρ̂ under ρ_PDE]‖ (the kernel density estimate against the
@@ -23,10 +23,10 @@ from typing import Any
 
 import numpy as np
 
-from meanfield.compare import compare_agents_pde, fit_slope
 from meanfield.errors import ParameterError, SimulationDiverged
-from meanfield.kernels import GaussianPotential
-from meanfield.scenario import Scenario
+from meanfield.scenarios.scenario import Scenario
+from meanfield.signs.kernels import GaussianPotential
+from meanfield.workflows.mean_field_limit import compare_agents_pde, fit_slope
 from verification.result import CheckResult
 
 __all__ = ["KEY", "CLAIM", "SLOPE_RANGE", "check_mean_field", "mean_field_verdict"]
@@ -75,7 +75,7 @@ def mean_field_verdict(
         sizes, sizes not increasing, or an error that is not finite and positive (no slope
         can be fitted).
     slope : float
-        The fitted slope (:func:`meanfield.compare.fit_slope`; NaN when inconclusive).
+        The fitted slope (:func:`meanfield.workflows.mean_field_limit.fit_slope`; NaN when inconclusive).
     """
     ns = np.asarray(n, float)
     err = np.asarray(errors, float)
@@ -143,7 +143,7 @@ def check_mean_field(
     consider the mean-field limit as N → ∞", where the crowd density satisfies (4).
 
     The robot trajectory of the scenario's closed loop is replayed to crowds of ``N``
-    agents and to the Fokker–Planck solver (:func:`meanfield.compare.compare_agents_pde`,
+    agents and to the Fokker–Planck solver (:func:`meanfield.workflows.mean_field_limit.compare_agents_pde`,
     with the scenario's interaction ``W`` if it has one).  Decision rule
     (:func:`mean_field_verdict`): the time-mean of ``error_to_expected`` must decrease
     strictly with ``N``, with a fitted log-log slope in ``[-0.75, -0.25]`` (theory: −1/2).

@@ -17,7 +17,7 @@ when at least one test fails (or errors) under it.
 
 Run::
 
-    python -m verification.mutation [--out FILE.json] [--tests tests/test_properties.py ...]
+    python -m verification.mutation [--out FILE.json] [--tests tests/verification/test_properties.py ...]
 
 The hypothesis profile of the runs is ``mutation`` (``tests/conftest.py``: the
 deterministic ``ci`` examples without shrinking, since only *whether* a test fails
@@ -68,7 +68,7 @@ COPIED_PACKAGES = ("meanfield", "analysis", "verification", "tests")
 COPIED_FILES = ("pyproject.toml",)
 """Files copied alongside (pytest reads its configuration from ``pyproject.toml``)."""
 
-DEFAULT_TESTS = ("tests/test_properties.py", "tests/test_control.py")
+DEFAULT_TESTS = ("tests/verification/test_properties.py", "tests/controllers/test_backstepping.py")
 """Test files run against every mutation unless ``--tests`` says otherwise."""
 
 DEFAULT_PROFILE = "mutation"

@@ -30,7 +30,7 @@ class Mutation:
     description : str
         What the change does, in words.
     path : str
-        File relative to the repository root, e.g. ``"meanfield/control.py"``.
+        File relative to the repository root, e.g. ``"meanfield/controllers/backstepping.py"``.
     old, new : str
         The exact source text and its replacement; ``old`` must occur exactly once.
     claim : str
@@ -49,7 +49,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     Mutation(
         "u-sign",
         "robot law: u_i = k_u b_i + δu_i  ->  u_i = -k_u b_i + δu_i",
-        "meanfield/control.py",
+        "meanfield/controllers/backstepping.py",
         "u=k_u * b + extra.du,",
         "u=-k_u * b + extra.du,",
         "Theorem 3: dV2/dt = -∫α|∇ρ̃|² - Σk_u|b_i|² - Σk_ω g_i²",
@@ -57,7 +57,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     Mutation(
         "omega-sign",
         "robot law: ω_i = -k_ω g_i + δω_i  ->  ω_i = +k_ω g_i + δω_i",
-        "meanfield/control.py",
+        "meanfield/controllers/backstepping.py",
         "omega=-self.k_omega * gg + extra.domega,",
         "omega=self.k_omega * gg + extra.domega,",
         "Theorem 3: dV2/dt = -∫α|∇ρ̃|² - Σk_u|b_i|² - Σk_ω g_i²",
@@ -65,7 +65,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     Mutation(
         "beta-gamma-sum-2",
         "min-norm β/γ: extra inputs doubled (Σβ + Σγ = 2), shortfall still reported as 0",
-        "meanfield/control.py",
+        "meanfield/controllers/backstepping.py",
         "        s = A / Z\n",
         "        s = 2 * A / Z\n",
         "eq. (9): Σ_i (Σ_l β_il + γ_i) = 1",
@@ -73,7 +73,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     Mutation(
         "beta-gamma-sum-half",
         "min-norm β/γ: extra inputs halved (Σβ + Σγ = 1/2), shortfall still reported as 0",
-        "meanfield/control.py",
+        "meanfield/controllers/backstepping.py",
         "        s = A / Z\n",
         "        s = 0.5 * A / Z\n",
         "eq. (9): Σ_i (Σ_l β_il + γ_i) = 1",
@@ -81,7 +81,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     Mutation(
         "v_d-sign",
         "Step I: v_d = -(α∇ρ̃ - ∇(σρ))/ρ  ->  +α∇ρ̃/ρ + ∇(σρ)/ρ (anti-diffusion of ρ̃)",
-        "meanfield/control.py",
+        "meanfield/controllers/backstepping.py",
         "out = [-p.q[k] * p.grt[k] + p.gs[k] / p.rf[k] for k in range(2)]",
         "out = [+p.q[k] * p.grt[k] + p.gs[k] / p.rf[k] for k in range(2)]",
         "Theorem 1: dV1/dt = -2∫α|∇ρ̃|² <= -2 α_inf μ₂ V1",
@@ -89,7 +89,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     Mutation(
         "v_d-interaction-sign",
         "Step I: v_d = ... - u_W[ρ]  ->  ... + u_W[ρ] (the paper's ∇W * ρ sign slip)",
-        "meanfield/control.py",
+        "meanfield/controllers/backstepping.py",
         "out = [out[k] - p.uw[k] for k in range(2)]",
         "out = [out[k] + p.uw[k] for k in range(2)]",
         "Theorem 1 with W != 0 (u_W cancelled by v_d)",
@@ -97,7 +97,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     Mutation(
         "drop-dvd-dt",
         "A = ∫ṽᵀ(ρ∇ρ̃ - ∂_t v_d)  ->  A = ∫ṽᵀ ρ∇ρ̃ (∂_t v_d dropped)",
-        "meanfield/control.py",
+        "meanfield/controllers/backstepping.py",
         "A = g.face_inner(vt, (p.rf[0] * p.grt[0] - dvd[0], p.rf[1] * p.grt[1] - dvd[1]))",
         "A = g.face_inner(vt, (p.rf[0] * p.grt[0], p.rf[1] * p.grt[1]))",
         "Theorem 3 (A must contain ∂_t v_d)",
@@ -105,7 +105,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     Mutation(
         "saturating-alpha-derivative",
         "SaturatingAlpha: d(α/ρ)/dρ = -α₀/(ρ+ρ_f)²  ->  -α₀/(ρ+ρ_f) (wrong chain rule in ∂_t v_d)",
-        "meanfield/control.py",
+        "meanfield/controllers/backstepping.py",
         "        return -self.alpha0 / (d * d)\n",
         "        return -self.alpha0 / d\n",
         "Theorem 3 (model-based ∂_t v_d)",
@@ -113,7 +113,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     Mutation(
         "dissipation-factor-2",
         "reported dissipation ∫α|∇ρ̃|² doubled (the V1 = ∫ρ̃² vs ½∫ρ̃² factor-2 slip)",
-        "meanfield/control.py",
+        "meanfield/controllers/backstepping.py",
         "a = (p.q[0] * p.rf[0], p.q[1] * p.rf[1])  # α = (α/ρ)·ρ, as used in v_d",
         "a = (2 * p.q[0] * p.rf[0], 2 * p.q[1] * p.rf[1])",
         "Theorems 1 and 3 (the dissipation term)",
@@ -121,7 +121,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     Mutation(
         "fd-dvd-dt-sign",
         "finite-difference ∂_t v_d (the scenarios' default): (v_d(t) - v_d(t-h))/h  ->  /(-h)",
-        "meanfield/control.py",
+        "meanfield/controllers/backstepping.py",
         "                h = t - prev[0]\n",
         "                h = prev[0] - t\n",
         "Theorem 3 with dvd_dt='finite-difference' (A must contain ∂_t v_d)",
@@ -130,7 +130,7 @@ MUTATIONS: tuple[Mutation, ...] = (
         "sg-drift-reversed",
         "Scharfetter–Gummel: upwind coefficients swapped, the drift enters with the wrong sign "
         "(still an M-matrix, still mass-conserving)",
-        "meanfield/fokker_planck.py",
+        "meanfield/fokker_planck/solver.py",
         "    np.maximum(a, 0.0, out=out_l)\n    np.subtract(out_l, a, out=out_r)  # max(-a, 0), exactly\n",
         "    np.maximum(-a, 0.0, out=out_l)\n    np.add(out_l, a, out=out_r)\n",
         "eq. (4): the solver discretises -∇·(vρ) + Δ(σρ)",
@@ -139,7 +139,7 @@ MUTATIONS: tuple[Mutation, ...] = (
         "implicit-outflow-dropped",
         "implicit solver: the outflow through the x-faces to the left of each cell dropped from "
         "the diagonal (mass leaks)",
-        "meanfield/fokker_planck.py",
+        "meanfield/fokker_planck/solver.py",
         "        diag[1:, :] += dt * c.rx\n",
         "",
         "zero-flux walls: mass conserved",

@@ -3,7 +3,7 @@
 Two discretisations of eq. (4) with ``v_r = v_d + w`` (``w = ṽ + v_a``, zero for Theorem 1):
 
 * :func:`model_trajectory` — the controller's own semi-discrete model (central face
-  fluxes, :meth:`~meanfield.control.BacksteppingController.density_rate`), on which
+  fluxes, :meth:`~meanfield.controllers.backstepping.BacksteppingController.density_rate`), on which
   ``v_r = v_d`` turns eq. (4) into ``ρ̃̇ = ∇_h·(α ∇_h ρ̃) − ∇_h·(w ρ_f)`` *exactly*.
   It is integrated by an implicit stiff solver (SciPy's BDF) to a tight tolerance, so
   what it shows is the theorem's argument on the grid, free of time-stepping error.  It
@@ -15,7 +15,7 @@ Two discretisations of eq. (4) with ``v_r = v_d + w`` (``w = ṽ + v_a``, zero f
 
 Both record ``V₁ = ∫ρ̃²`` and the Step-I dissipation ``∫α|∇ρ̃|²`` along the way.  On a
 region with exits the Fokker–Planck plant loses the exits' outflow after every step, as
-the toolkit's density crowd does (:class:`~meanfield.exits.ExitSink`; ``docs/verification.md``,
+the toolkit's density crowd does (:class:`~meanfield.geometry.exits.ExitSink`; ``docs/verification.md``,
 *Floor plans and exits*), and records the mass left in Ω.
 """
 
@@ -29,10 +29,10 @@ import numpy as np
 from scipy import sparse
 from scipy.integrate import solve_ivp
 
-from meanfield.control import BacksteppingController
-from meanfield.exits import ExitSink, exit_segments
-from meanfield.fokker_planck import FokkerPlanck
-from meanfield.grid import FaceField, Grid
+from meanfield.controllers.backstepping import BacksteppingController
+from meanfield.fokker_planck.solver import FokkerPlanck
+from meanfield.geometry.exits import ExitSink, exit_segments
+from meanfield.geometry.grid import FaceField, Grid
 
 __all__ = [
     "Trajectory",
@@ -210,7 +210,7 @@ def model_trajectory(
 def exit_sink(grid: Grid, sigma: Any) -> ExitSink | None:
     """The outflow of the region's exits on ``grid`` (``None`` without exits), as the density
     crowd builds it: a diffusion σ given as a function gives no outflow, there as in
-    :class:`~meanfield.density_crowd.DensityCrowd`."""
+    :class:`~meanfield.crowds.density_crowd.DensityCrowd`."""
     segs = exit_segments(grid.domain)
     if not len(segs):
         return None
@@ -230,7 +230,7 @@ def fokker_planck_trajectory(
     """Run the Fokker–Planck plant under the sampled Step-I feedback ``v_r = v_d(ρⁿ) + w(tⁿ)``.
 
     Every step re-evaluates eq. (6) at the current density and hands it to
-    :meth:`~meanfield.fokker_planck.FokkerPlanck.step` as the face velocity; with exits,
+    :meth:`~meanfield.fokker_planck.solver.FokkerPlanck.step` as the face velocity; with exits,
     the step is followed by their outflow (``sink``, Lie splitting as in the density crowd),
     and the recorded ``dV₁/dt`` includes the outflow's rate ``−kρ``.
 
@@ -374,8 +374,8 @@ class _LyapunovRates:
 def robot_loop_trajectory(scenario: Any, t_final: float, dt: float, record_every: int = 1) -> RobotLoopTrajectory:
     """The closed loop of the robot law on the Fokker–Planck plant (eqs. (4), (6), (8)), measured.
 
-    :class:`~meanfield.loop.ClosedLoop` runs the scenario's robots and backstepping law on
-    the crowd's density (:class:`~meanfield.density_crowd.DensityCrowd`, the split stepper,
+    :class:`~meanfield.simulation.loop.ClosedLoop` runs the scenario's robots and backstepping law on
+    the crowd's density (:class:`~meanfield.crowds.density_crowd.DensityCrowd`, the split stepper,
     one step of ``dt`` per control period); the controller sees the exact density and the
     robots integrate eq. (2) within their limits.  An observer records ``V₂`` and the
     semi-discrete ``dV₂/dt`` against the claim of eq. (8) at every ``record_every``-th step.
@@ -392,10 +392,10 @@ def robot_loop_trajectory(scenario: Any, t_final: float, dt: float, record_every
     """
     import dataclasses
 
-    from meanfield.assembly import assemble
-    from meanfield.density_crowd import DensityCrowd
+    from meanfield.crowds.density_crowd import DensityCrowd
     from meanfield.errors import SimulationDiverged
-    from meanfield.loop import ClosedLoop
+    from meanfield.simulation.assembly import assemble
+    from meanfield.simulation.loop import ClosedLoop
 
     sc = scenario.replace(dt=dt, t_final=t_final)
     parts = assemble(sc, crowd="fokker-planck", controller="backstepping")

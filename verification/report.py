@@ -12,7 +12,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from meanfield.io import atomic_write_json, atomic_write_text
+from meanfield.io.atomic import atomic_write_json, atomic_write_text
 from verification.result import CheckResult, jsonable
 from verification.runner import VerificationRun
 

@@ -23,7 +23,7 @@ from typing import Any
 
 from analysis.robot_count import RobotCountStudy, coverage_estimate, empirical_robot_count
 from meanfield.errors import ParameterError, SimulationDiverged
-from meanfield.scenario import Scenario
+from meanfield.scenarios.scenario import Scenario
 from verification.result import CheckResult
 
 __all__ = ["KEY", "CLAIM", "EPS_FRACTIONS", "DECIDING", "check_robot_count", "robot_count_verdict"]

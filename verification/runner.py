@@ -1,12 +1,12 @@
 """Run every check on one scenario and collect the verdicts (``meanfield verify``).
 
 The checks run on any region: boxes, disks, convex polygons and floor plans
-(:class:`~meanfield.plan.Plan`: re-entrant corners, pillars, exits).  Theorems 1–3 need Ω
+(:class:`~meanfield.geometry.plan.Plan`: re-entrant corners, pillars, exits).  Theorems 1–3 need Ω
 connected, not convex (the Poincaré–Wirtinger inequality; μ₂ is computed on the plan's
 grid), and say themselves which hypothesis a scenario misses (:mod:`verification.hypotheses`:
 a grid that splits Ω, exits that let mass out).  A scenario that cannot be loaded gives
 ``inconclusive`` verdicts with the reason: a non-convex vertex list under
-``kind = "polygon"``, which :meth:`~meanfield.domain.Domain.polygon` refuses, is pointed to
+``kind = "polygon"``, which :meth:`~meanfield.geometry.domain.Domain.polygon` refuses, is pointed to
 ``kind = "plan"``.  A check that raises is recorded with verdict ``"error"`` and the
 exception, and the run goes on with the next check.
 """
@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from meanfield.errors import ParameterError
-from meanfield.scenario import Scenario
+from meanfield.scenarios.scenario import Scenario
 from verification import agents, mean_field, robot_count, theorem1, theorem2, theorem3
 from verification.result import CheckResult
 

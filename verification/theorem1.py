@@ -28,12 +28,12 @@ import numpy as np
 
 from analysis.poincare import neumann_eigenvalue
 from analysis.rates import decay_rate
-from meanfield.assembly import assemble
-from meanfield.control import AlphaSchedule, ConstantAlpha
-from meanfield.density_crowd import initial_density
-from meanfield.fokker_planck import FokkerPlanck
-from meanfield.io import save_figure, subplots
-from meanfield.scenario import Scenario
+from meanfield.controllers.backstepping import AlphaSchedule, ConstantAlpha
+from meanfield.crowds.density_crowd import initial_density
+from meanfield.fokker_planck.solver import FokkerPlanck
+from meanfield.io.atomic import save_figure, subplots
+from meanfield.scenarios.scenario import Scenario
+from meanfield.simulation.assembly import assemble
 from verification.hypotheses import disconnected_reason, exits_reason, hypotheses
 from verification.plant import Trajectory, exit_sink, fokker_planck_trajectory, model_trajectory
 from verification.result import CheckResult, worst

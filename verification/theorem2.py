@@ -17,7 +17,7 @@ splits Ω into pieces gives ``inconclusive``).  **With exits** the claim does no
 stated: mass leaves, the Poincaré–Wirtinger step needs ``∫ρ̃ = 0``, and even ``w = 0``,
 ``ρ₀ = ρ_*`` leaves ``ρ_*`` when ρ_* does not vanish on the exits.  What the same proof
 still gives, and what is then judged, treats the outflow as an input: with ``E = −kρ``
-the exits' outflow (:class:`~meanfield.exits.ExitSink`),
+the exits' outflow (:class:`~meanfield.geometry.exits.ExitSink`),
 ``½ d‖ρ̃‖²/dt ≤ −α_inf‖∇ρ̃‖² − ⟨ρ̃, kρ̃⟩ + sup ρ ‖w‖ ‖∇ρ̃‖ + ‖kρ_*‖ ‖ρ̃‖``, and the
 exits' outflow makes ``α_inf‖∇u‖² + ⟨u, ku⟩ ≥ λ_E‖u‖²`` with no mean-zero condition
 (:func:`analysis.rates.exit_eigenvalue`).  Hence, for every ``c₁ ∈ (0, 1)``,
@@ -41,12 +41,12 @@ import numpy as np
 
 from analysis.poincare import neumann_eigenvalue
 from analysis.rates import exit_eigenvalue
-from meanfield.assembly import assemble, disturbance_for
-from meanfield.density_crowd import initial_density
-from meanfield.fokker_planck import FokkerPlanck
-from meanfield.grid import FaceField, Grid
-from meanfield.io import save_figure, subplots
-from meanfield.scenario import Scenario
+from meanfield.crowds.density_crowd import initial_density
+from meanfield.fokker_planck.solver import FokkerPlanck
+from meanfield.geometry.grid import FaceField, Grid
+from meanfield.io.atomic import save_figure, subplots
+from meanfield.scenarios.scenario import Scenario
+from meanfield.simulation.assembly import assemble, disturbance_for
 from verification.hypotheses import disconnected_reason, exits_reason, hypotheses
 from verification.plant import Trajectory, exit_sink, fokker_planck_trajectory
 from verification.result import CheckResult, worst

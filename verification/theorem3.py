@@ -31,10 +31,10 @@ from typing import Any
 
 import numpy as np
 
-from meanfield.exits import exit_segments
-from meanfield.grid import Grid
-from meanfield.io import save_figure, subplots
-from meanfield.scenario import Scenario
+from meanfield.geometry.exits import exit_segments
+from meanfield.geometry.grid import Grid
+from meanfield.io.atomic import save_figure, subplots
+from meanfield.scenarios.scenario import Scenario
 from verification.hypotheses import disconnected_reason, hypotheses
 from verification.plant import RobotLoopTrajectory, robot_loop_trajectory
 from verification.result import CheckResult, worst

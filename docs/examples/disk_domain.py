@@ -11,8 +11,16 @@ import sys
 import numpy as np
 
 from meanfield import Domain, Scenario, run
-from meanfield.plotting import save_run_figures
-from meanfield.scenario import ControllerSpec, CrowdSpec, DensitySpec, GridSpec, KernelSpec, RobotSpec, TargetSpec
+from meanfield.plotting.figures import save_run_figures
+from meanfield.scenarios.scenario import (
+    ControllerSpec,
+    CrowdSpec,
+    DensitySpec,
+    GridSpec,
+    KernelSpec,
+    RobotSpec,
+    TargetSpec,
+)
 
 t_final = float(sys.argv[1]) if len(sys.argv) > 1 else 5.0
 R = 1.0

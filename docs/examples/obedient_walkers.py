@@ -24,11 +24,11 @@ from typing import Any
 import numpy as np
 
 from meanfield import KernelDensityEstimator, plugins
-from meanfield.agent_crowd import initial_positions
+from meanfield.crowds.agent_crowd import initial_positions
+from meanfield.geometry.region import Region
+from meanfield.geometry.target import fraction_in_disk
 from meanfield.interfaces import CrowdContext
-from meanfield.metrics import fraction_in_disk
-from meanfield.region import Region
-from meanfield.robots import navigation_velocity
+from meanfield.signs.robots import navigation_velocity
 
 THRESHOLD = 0.1
 """A sign is followed where ``|v_r| > THRESHOLD · c``."""

@@ -1,7 +1,7 @@
 """A baseline controller: robots park on a lattice over Ω and point their signs at the target.
 
 No density feedback at all: each robot drives to its own station of a regular lattice over
-the region the robots may stand in (:meth:`meanfield.domain.Domain.lattice`, the paper's 4×4
+the region the robots may stand in (:meth:`meanfield.geometry.domain.Domain.lattice`, the paper's 4×4
 for 16 robots), then stays there, and turns its sign towards the target's centre.  It is
 the "static signage" baseline a density-feedback law has to beat: humans near a sign walk
 towards the target, humans far from every sign are never fetched.

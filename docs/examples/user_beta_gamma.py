@@ -17,7 +17,7 @@ import sys
 import numpy as np
 
 from meanfield import MinimumNormBetaGamma, UserBetaGamma, paper_scenario, run
-from meanfield.plotting import save_run_figures
+from meanfield.plotting.figures import save_run_figures
 
 
 def equal_magnitude(b, g, A):

@@ -1,0 +1,40 @@
+"""The compiled-loop infrastructure: numba where it compiles, the numpy twin everywhere else.
+
+:mod:`~meanfield._compiled.core` (the :func:`compiled` decorator, :class:`CompiledLoop`, the switch),
+:mod:`~meanfield._compiled.blas` (dgemm from compiled loops), :mod:`~meanfield._compiled.vector_exp`
+(a vectorised exp) and :mod:`~meanfield._compiled.warmup` (the first compile on several cores).
+
+Names are imported on first use (:mod:`meanfield._namespace`).
+"""
+
+from meanfield._namespace import lazy_namespace
+
+_LAZY = {
+    "ARG_MAX": "meanfield._compiled.vector_exp",
+    "ARG_MIN": "meanfield._compiled.vector_exp",
+    "CompiledFallbackWarning": "meanfield._compiled.core",
+    "CompiledLoop": "meanfield._compiled.core",
+    "ENV": "meanfield._compiled.warmup",
+    "NO_BOX": "meanfield._compiled.core",
+    "UNAVAILABLE": "meanfield._compiled.core",
+    "before_cold_compile": "meanfield._compiled.core",
+    "bits_as_float": "meanfield._compiled.core",
+    "compile_in_parallel": "meanfield._compiled.warmup",
+    "compile_inner": "meanfield._compiled.core",
+    "compiled": "meanfield._compiled.core",
+    "compiled_loops": "meanfield._compiled.core",
+    "enabled": "meanfield._compiled.core",
+    "exp_inplace": "meanfield._compiled.vector_exp",
+    "gemm": "meanfield._compiled.blas",
+    "inner": "meanfield._compiled.core",
+    "matmul_into": "meanfield._compiled.blas",
+    "numba_available": "meanfield._compiled.core",
+    "numpy_path": "meanfield._compiled.core",
+    "parallel_compile_possible": "meanfield._compiled.warmup",
+    "status": "meanfield._compiled.core",
+    "use_compiled": "meanfield._compiled.core",
+}
+
+__getattr__, __dir__ = lazy_namespace(__name__, globals(), _LAZY)
+
+__all__ = sorted(_LAZY)

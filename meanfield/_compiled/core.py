@@ -1,0 +1,345 @@
+"""Compiled loops: numba where it is installed and compiles, the numpy path everywhere else.
+
+A hot loop of the toolkit (the crowd's step, the KDE's binning, the controller's integrals)
+is written twice: once in numpy, which is the reference, and once as a plain loop that
+numba compiles to machine code (``@njit(cache=True)``: compiled on first use, then read
+from numba's on-disk cache by every later process).  :func:`compiled` pairs the two::
+
+    def _binned_numpy(points, ...): ...          # the reference
+
+    @compiled(fallback=_binned_numpy)
+    def binned(points, ...): ...                 # the same arithmetic, one pass per point
+
+Calling ``binned(...)`` runs the compiled loop when :func:`enabled`, else the numpy one.
+A loop that fails to compile (numba missing, a numba that cannot type it, a read-only
+cache directory it cannot work around) falls back to numpy with **one** warning naming the
+cause; the run goes on.  The environment variable ``MEANFIELD_COMPILED=0`` (or
+:func:`use_compiled` ``(False)``) selects the numpy path everywhere, which is what the
+benchmarks' anchors and the tests that compare the two paths do.
+
+Why numba: it compiles the plain loops the equations are written in (no new language, no
+build step at install time), caches the machine code on disk, and is already what py-pde,
+the field's PDE library, is built on.  Its wheels exist for every platform the toolkit runs on.
+
+What "the same results" means: the two paths do the same floating-point operations in a
+different order, so they agree to round-off on one call (the tests check this for every
+pair); a chaotic closed loop then amplifies round-off, so whole runs agree in distribution,
+not bit for bit.  A given path is deterministic: the same seed gives the same numbers.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import struct
+import warnings
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "compiled",
+    "enabled",
+    "use_compiled",
+    "numpy_path",
+    "numba_available",
+    "status",
+    "compiled_loops",
+    "inner",
+    "UNAVAILABLE",
+    "CompiledLoop",
+    "CompiledFallbackWarning",
+    "bits_as_float",
+    "compile_inner",
+    "before_cold_compile",
+    "NO_BOX",
+]
+
+ENV = "MEANFIELD_COMPILED"
+"""``MEANFIELD_COMPILED=0`` (or ``false``/``no``/``off``) selects the numpy path everywhere."""
+
+
+class CompiledFallbackWarning(RuntimeWarning):
+    """A compiled loop could not be used; the numpy path runs instead (the message says why)."""
+
+
+_override: bool | None = None
+_failures: dict[str, str] = {}
+_loops: list[CompiledLoop] = []
+
+
+@functools.cache
+def _numba() -> Any:
+    try:
+        import numba
+    except Exception as exc:  # ImportError, or a numba broken against this numpy
+        return exc
+    return numba
+
+
+def numba_available() -> bool:
+    """Whether numba imports (not whether every loop compiles: see :func:`status`)."""
+    return not isinstance(_numba(), Exception)
+
+
+def _from_environment() -> bool:
+    return os.environ.get(ENV, "1").strip().lower() not in {"0", "false", "no", "off"}
+
+
+_environment = _from_environment()  # read at import, and again by use_compiled(None)
+
+
+_selected: bool | None = None  # enabled(), remembered until the selection changes
+
+
+def enabled() -> bool:
+    """Whether the compiled path is selected: numba imports, and neither :func:`use_compiled`
+    nor ``MEANFIELD_COMPILED=0`` (read at import, and again by ``use_compiled(None)``) turned it off."""
+    global _selected
+    if _selected is None:
+        on = _environment if _override is None else _override
+        _selected = on and numba_available()
+    return _selected
+
+
+def use_compiled(on: bool | None) -> None:
+    """Select the compiled path (True), the numpy path (False), or follow ``MEANFIELD_COMPILED`` (None, read now)."""
+    global _override, _environment, _selected
+    if on is not None and not isinstance(on, bool):
+        from meanfield.errors import ParameterError
+
+        raise ParameterError("on", on, "True, False or None")
+    _override, _selected = on, None
+    if on is None:
+        _environment = _from_environment()
+
+
+@contextmanager
+def numpy_path() -> Iterator[None]:
+    """Run the block on the numpy path (the reference), then restore the previous choice."""
+    global _override, _selected
+    before = _override
+    _override, _selected = False, None
+    try:
+        yield
+    finally:
+        _override, _selected = before, None
+
+
+def status() -> dict[str, Any]:
+    """What runs: ``{"enabled": bool, "numba": version or the import error, "fallbacks": {name: cause}}``."""
+    nb = _numba()
+    return {
+        "enabled": enabled(),
+        "numba": str(nb) if isinstance(nb, Exception) else nb.__version__,
+        "fallbacks": dict(_failures),
+    }
+
+
+_before_cold_compile: list[Callable[[], None]] = []  # see before_cold_compile
+
+
+def before_cold_compile(callback: Callable[[], None]) -> Callable[[], None]:
+    """Call ``callback()`` once, just before the next loop compiles with nothing in numba's on-disk cache.
+
+    How :func:`meanfield._compiled.warmup.compile_in_parallel` learns that the cache is cold, and how
+    ``meanfield run`` says that the first run on a machine compiles. A warm cache never
+    calls it. Returns a function that unregisters it (a no-op once it has run).
+    """
+    _before_cold_compile.append(callback)
+
+    def unregister() -> None:
+        if callback in _before_cold_compile:
+            _before_cold_compile.remove(callback)
+
+    return unregister
+
+
+def prepare_compiler() -> None:
+    """Load numba's typing and lowering registries now (about 0.3 s, which the first compile pays otherwise).
+
+    Done before forking processes that compile (:mod:`meanfield._compiled.warmup`), so that each child
+    starts from the loaded registries instead of loading its own.
+    """
+    nb = _numba()
+    if isinstance(nb, Exception):
+        return
+    from numba.core.registry import cpu_target
+
+    cpu_target.target_context.refresh()
+    cpu_target.typing_context.refresh()
+
+
+def cached_on_disk(dispatcher: Any) -> bool:
+    """Whether numba's on-disk cache holds a fresh entry for this dispatcher's loop (any signature).
+
+    Reads numba's cache index (``dispatcher._cache``, a private attribute of numba's
+    dispatchers; the ``numba`` pin in ``pyproject.toml`` covers it).  An index that is missing,
+    from another numba or older than the loop's source file counts as empty; anything this
+    cannot read counts as cached, so that nothing is started on a guess.
+    """
+    try:
+        return bool(dispatcher._cache._cache_file._load_index())
+    except Exception:
+        return True
+
+
+UNAVAILABLE = object()
+"""What a loop without a numpy twin (``fallback=None``) returns when it cannot run compiled:
+the caller then takes its own numpy path."""
+
+
+def inner(loop: Callable[..., Any]) -> Callable[..., Any]:
+    """Mark a helper called only from inside compiled loops of the same module.
+
+    It stays a plain function until a loop of its module compiles: then it is replaced, in
+    the module, by its ``numba.njit(cache=True)`` version (so importing the toolkit never
+    imports numba).  Its own failures surface when that loop compiles, and fall back there.
+    """
+    loop._compiled_inner = True  # type: ignore[attr-defined]
+    return loop
+
+
+def bits_as_float(bits: int) -> float:
+    """The float64 whose IEEE-754 bits are the int64 ``bits`` (e.g. ``(k + 1023) << 52`` is ``2.0**k``).
+
+    Inside a compiled loop this is one LLVM ``bitcast``, which costs nothing and vectorises
+    (a numba intrinsic, put in place of this function when a loop of the module compiles, as
+    :func:`inner` helpers are); called from Python it unpacks the bits with :mod:`struct`.
+    """
+    return struct.unpack("<d", struct.pack("<q", bits))[0]
+
+
+@functools.cache
+def _bitcast_intrinsic() -> Any:
+    from llvmlite import ir
+    from numba.core import types
+    from numba.extending import intrinsic
+
+    @intrinsic
+    def bits_as_float(typingctx: Any, bits: Any) -> Any:
+        def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+            return builder.bitcast(args[0], ir.DoubleType())
+
+        return types.float64(types.int64), codegen
+
+    return bits_as_float
+
+
+def _is_pending_helper(value: Any) -> bool:
+    return getattr(value, "_compiled_inner", False) and not hasattr(value, "py_func")
+
+
+_helper_dispatchers: dict[Callable[..., Any], Any] = {}  # one per helper, whichever modules import it
+
+
+def _resolve_helpers(space: dict[str, Any], nb: Any) -> None:
+    """In one module's namespace: each :func:`inner` helper by its dispatcher, :func:`bits_as_float` by
+    its intrinsic; then the same in the modules the helpers come from (before anything compiles)."""
+    homes = []
+    for name, value in list(space.items()):
+        if value is bits_as_float:
+            space[name] = _bitcast_intrinsic()
+        elif _is_pending_helper(value):
+            if value not in _helper_dispatchers:
+                _helper_dispatchers[value] = nb.njit(cache=True, error_model="numpy")(value)
+            space[name] = _helper_dispatchers[value]
+            if value.__globals__ is not space:
+                homes.append(value.__globals__)
+    for home in homes:
+        _resolve_helpers(home, nb)
+
+
+def compile_inner(helper: Callable[..., Any]) -> Any:
+    """The numba-compiled version of an :func:`inner` helper, its own helpers resolved (for tests)."""
+    if hasattr(helper, "py_func"):
+        return helper
+    nb = _numba()
+    if isinstance(nb, Exception):
+        raise nb
+    _resolve_helpers(helper.__globals__, nb)
+    return _helper_dispatchers[helper]
+
+
+class CompiledLoop:
+    """A loop compiled by numba on first call, with its numpy fallback (see the module's doc)."""
+
+    def __init__(self, loop: Callable[..., Any], fallback: Callable[..., Any] | None, options: dict[str, Any]):
+        self.loop = loop
+        self.fallback = fallback
+        self.name = f"{loop.__module__}.{loop.__qualname__}"
+        self._options = options
+        self._jitted: Callable[..., Any] | None = None
+        self._ready = False
+        functools.update_wrapper(self, loop)
+
+    def _compile(self) -> Callable[..., Any] | None:
+        nb = _numba()
+        if isinstance(nb, Exception):
+            return None
+        _resolve_helpers(self.loop.__globals__, nb)  # the module's @inner helpers, compiled versions
+        return nb.njit(cache=True, **{"error_model": "numpy", **self._options})(self.loop)
+
+    def _fail(self, exc: BaseException) -> None:
+        cause = f"{type(exc).__name__}: {str(exc).strip().splitlines()[0] if str(exc).strip() else ''}"
+        _failures[self.name] = cause
+        warnings.warn(
+            f"the compiled {self.name} could not be used ({cause}); the numpy path runs instead",
+            CompiledFallbackWarning,
+            stacklevel=3,
+        )
+
+    def _numpy(self, *args: Any) -> Any:
+        return UNAVAILABLE if self.fallback is None else self.fallback(*args)
+
+    def __call__(self, *args: Any) -> Any:
+        if self._ready and (_selected if _selected is not None else enabled()):
+            return self._jitted(*args)  # the common case first: a few hundred ns per call matter here
+        if self.name in _failures or not enabled():
+            return self._numpy(*args)
+        try:  # the first call compiles (or loads the cache); a failure there falls back, once
+            self._jitted = self._jitted or self._compile()
+            if self._jitted is None:
+                return self._numpy(*args)
+            if _before_cold_compile and not cached_on_disk(self._jitted):
+                while _before_cold_compile:  # (meanfield._compiled.warmup: other processes start compiling too)
+                    _before_cold_compile.pop(0)()
+            out = self._jitted(*args)
+        except Exception as exc:  # numba's typing/lowering errors, a cache it cannot write
+            self._fail(exc)
+            return self._numpy(*args)
+        self._ready = True
+        return out
+
+
+def compiled(fallback: Callable[..., Any] | None, **options: Any) -> Callable[[Callable[..., Any]], CompiledLoop]:
+    """Decorator: the loop below, compiled by numba (``cache=True``), with ``fallback`` its numpy twin.
+
+    Parameters
+    ----------
+    fallback : callable or None
+        The numpy implementation, same arguments, same result (to round-off).  None: the
+        caller has its own numpy path and takes it when the call returns :data:`UNAVAILABLE`.
+    **options
+        Passed to ``numba.njit`` (``fastmath`` is left off: the two paths must agree).  Loops
+        use numpy's error model (``error_model="numpy"``: a division by zero gives inf/nan as
+        in the numpy twin, and the loop carries no exception checks) unless told otherwise.
+    """
+
+    def wrap(loop: Callable[..., Any]) -> CompiledLoop:
+        compiled_loop = CompiledLoop(loop, fallback, options)
+        _loops.append(compiled_loop)
+        return compiled_loop
+
+    return wrap
+
+
+def compiled_loops() -> list[CompiledLoop]:
+    """Every compiled loop defined so far (for the tests that compare each with its fallback)."""
+    return list(_loops)
+
+
+NO_BOX = np.empty(0)
+"""The ``box`` of :func:`euler_maruyama` and :func:`robot_euler` that folds no walls into the pass."""

@@ -1,0 +1,104 @@
+"""The ``meanfield`` command: its parser, built from the registered commands, and :func:`main`.
+
+Every sub-command is a part registered by name (kind ``"command"``, :mod:`meanfield.plugins`):
+the toolkit's own (``run``, ``compare``, ``scenario``, ``sweep``, ``study``: one module each in
+this package) and those of packages built on :mod:`meanfield`, through the ``meanfield.commands``
+entry points (``meanfield analyze`` comes from :mod:`analysis`).  A command module's
+``register(subparsers)`` adds its parser and returns its handler, ``handler(args) -> int``.
+
+Exit status: 0 success; 1 the run diverged or was interrupted (outputs of the last good
+state are still written); 2 invalid input (bad parameter, unknown scenario or key).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from meanfield import plugins
+from meanfield.errors import ParameterError
+
+__all__ = ["main"]
+
+
+def _build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="meanfield",
+        description="Mean-field control of crowds by robots (Zheng et al.): simulate, analyse, verify.",
+    )
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        installed = version("meanfield-crowd")
+    except PackageNotFoundError:  # pragma: no cover - run from a source tree without installing
+        installed = "unknown (not installed)"
+    p.add_argument("--version", action="version", version=f"meanfield {installed}")
+    sub = p.add_subparsers(dest="command", required=True)
+    for name in plugins.available("command"):  # run, compare, ... and e.g. `meanfield analyze` from analysis
+        try:
+            handler = plugins.load("command", name)(sub)
+        except (ImportError, AttributeError) as exc:  # a broken plugin must not break the other commands
+            handler = _unavailable(name, exc)
+            stub = sub.add_parser(name, help=f"(unavailable: {exc})", add_help=False)
+            stub.add_argument("rest", nargs=argparse.REMAINDER)
+        sub.choices[name].set_defaults(plugin_handler=handler)
+    return p
+
+
+def _unavailable(name: str, exc: Exception):
+    def handler(args: argparse.Namespace) -> int:
+        print(f"meanfield: error: the '{name}' command could not be loaded: {exc}", file=sys.stderr)
+        return 2
+
+    return handler
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+def _terminated(signum: int, frame: object) -> None:
+    """SIGTERM (batch schedulers, containers, ``kill``) as Ctrl-C: the run keeps its last good state."""
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``meanfield`` command; returns the exit status.
+
+    SIGTERM is handled as SIGINT while a command runs: a run stops with ``"status":
+    "interrupted"`` and writes its last good state, as after Ctrl-C.
+    """
+    import signal
+    import threading
+
+    args = _build_parser().parse_args(argv)
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGTERM, _terminated)
+    try:
+        return args.plugin_handler(args)
+    except ParameterError as exc:
+        print(f"meanfield: error: {exc}", file=sys.stderr)
+        return 2
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

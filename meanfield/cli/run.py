@@ -1,0 +1,113 @@
+"""``meanfield run``: one closed-loop run, its data, figures and summary in a folder.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from meanfield import plugins
+from meanfield.cli.arguments import add_scenario_arguments, scenario_from_args
+
+__all__ = ['register', 'run_artifacts']
+
+
+def register(subparsers: Any) -> Callable[[argparse.Namespace], int]:
+    """Add ``meanfield run`` to the ``meanfield`` parser; return its handler."""
+    r = subparsers.add_parser("run", help="run a closed-loop scenario and write its outputs")
+    add_scenario_arguments(r)
+    r.add_argument(
+        "--backend",
+        choices=plugins.available("crowd"),
+        default=None,
+        help="crowd (overrides crowd.kind): a registered crowd, e.g. point-mass (SDE humans), "
+        "jupedsim (bodies), fokker-planck (the mean-field density)",
+    )
+    r.add_argument("--quiet", action="store_true", help="no progress bar, no summary printout")
+    r.add_argument("--animate", action="store_true", help="also write animation.gif")
+    r.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+    return _cmd_run
+
+
+def _trajectory_file(result, folder: Path) -> dict[str, Path]:
+    """``trajectories.sqlite``: the humans in JuPedSim's format, for PedPy and JuPedSim's viewer."""
+    from meanfield.io.trajectories import write_jupedsim_sqlite
+
+    if "human_x" not in result.dataset or result.dataset.sizes["time"] < 2:
+        return {}  # a density crowd has no humans to trace
+    area = result.scenario.domain.to_shapely()
+    return {"trajectories": write_jupedsim_sqlite(result.dataset, area, folder / "trajectories.sqlite")}
+
+
+def run_artifacts(figures: bool = True, animate: bool = False, progress: bool = False) -> list:
+    """The files written beside a run's data: the trajectories (JuPedSim's SQLite format), the
+    figures (:mod:`meanfield.plotting.figures`) and the animation."""
+    from meanfield.plotting import figures as plotting
+
+    out = [_trajectory_file]
+    if figures:
+        out.append(plotting.save_run_figures)
+    if animate:
+        out.append(
+            lambda result, folder: {
+                "animation": plotting.save_animation(result, folder / "animation.gif", progress=progress)
+            }
+        )
+    return out
+
+
+def _say_compiling() -> None:
+    print(
+        "meanfield: compiling the toolkit's loops for this machine (the first run only, a few seconds; "
+        "numba caches them)",
+        file=sys.stderr,
+        flush=True,
+    )
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from meanfield._compiled import core as compiled
+    from meanfield.simulation.loop import ClosedLoop
+    from meanfield.simulation.preflight import check_fits
+
+    sc = scenario_from_args(args)
+    check_fits(sc, args.out)  # memory and the output's disk, before anything is allocated
+    unregister = compiled.before_cold_compile(_say_compiling) if not args.quiet else None
+    try:
+        loop = ClosedLoop(sc)
+        result = loop.run(progress=not args.quiet)
+    finally:
+        if unregister is not None:
+            unregister()
+    artifacts = run_artifacts(figures=not args.no_figures, animate=args.animate, progress=not args.quiet)
+    result.save(args.out, artifacts=artifacts)
+    s = result.summary
+    if not args.quiet:
+        keys = (
+            "status",
+            "fraction_in_target",
+            "l2_error_initial",
+            "l2_error_final",
+            "w2_to_target_final",
+            "time_to_90",
+            "max_robot_speed",
+            "speed_limit",
+            "backend",
+            "seen_fraction_final",
+            "steps",
+            "wall_seconds",
+            "seed",
+        )
+        extra = ("body_overlap_max", "jupedsim_version")
+        print(json.dumps({k: s[k] for k in keys + extra if k in s}, indent=2))
+        print(f"outputs in {args.out}")
+    for warning in s.get("warnings", ()):
+        print(f"meanfield: warning: {warning}", file=sys.stderr)
+    if s["status"] != "completed":
+        print(f"meanfield: run {s['status']}: {s['message']} (outputs of the last good state written)", file=sys.stderr)
+        return 1
+    return 0

@@ -1,0 +1,583 @@
+"""The backstepping density-feedback controller (paper, Section IV).
+
+Step I, virtual control (paper, eq. (6)), on the grid faces::
+
+    v_d = -(α ∇ρ̃ - ∇(σρ)) / ρ - u_W[ρ],        ρ̃ = ρ - ρ_*
+
+Step II, robot law (paper, eq. (8)), with ṽ = v_r - v_d::
+
+    b_i = ∫ ṽᵀ K_ξ^i dx,   g_i = ∫ ṽᵀ K_θ^i dx,   A = ∫ ṽᵀ (ρ ∇ρ̃ - ∂_t v_d) dx
+    u_i = k_u b_i + δu_i,  ω_i = -k_ω g_i + δω_i,  Σ_i b_i·δu_i - g_i δω_i = A
+
+so that (semi-discrete, exactly)::
+
+    dV₂/dt = -∫ α|∇ρ̃|² - Σ_i k_u |b_i|² - Σ_i k_ω g_i²,   V₂ = ∫ ½ρ̃² + ½|ṽ|²
+
+The extra inputs ``(δu, δω)`` come from a :class:`BetaGammaStrategy`; the default is
+the minimum-norm choice ``β_il = (b_i^(l))²/Z``, ``γ_i = g_i²/Z``,
+``Z = Σ|b_i|² + Σ g_i²`` (docs page *The controller*, ``docs/controller.md#choosing-beta-and-gamma``),
+i.e. ``δu_i = A b_i / Z``, ``δω_i = -A g_i / Z``.
+
+``∂_t v_d`` is either *model-based* (chain rule through ``ρ`` with
+``∂_t ρ = -∇·((v_r + u_W) ρ - ∇(σρ))``, the Fokker–Planck right-hand side) or a finite
+difference of successive ``v_d``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+from meanfield._compiled.core import UNAVAILABLE
+from meanfield.controllers._law_loops import PAPER_STEP_ONE, face_law, paper_law
+from meanfield.errors import ParameterError, SigmaLike, check_sigma, positive_number
+from meanfield.fokker_planck.solver import FokkerPlanck
+from meanfield.geometry.grid import FaceField, Grid
+from meanfield.interfaces import (
+    AlphaSchedule,
+    BetaGammaStrategy,
+    Command,
+    ControllerParts,
+    ControlState,
+    ExtraInputs,
+    Observation,
+    StabilityStep,
+)
+from meanfield.signs.interaction import InteractionField
+from meanfield.signs.kernels import GaussianKernel
+from meanfield.signs.robots import NavigationField
+
+DVD_DT_OPTIONS = ("model", "fokker-planck", "finite-difference")
+"""The ways :class:`BacksteppingController` obtains ``∂_t v_d``."""
+
+__all__ = [
+    "DVD_DT_OPTIONS",
+    "AlphaSchedule",
+    "ConstantAlpha",
+    "SaturatingAlpha",
+    "BetaGammaStrategy",
+    "MinimumNormBetaGamma",
+    "UserBetaGamma",
+    "ExtraInputs",
+    "ControlState",
+    "BacksteppingController",
+]
+
+
+# ---------------------------------------------------------------------- α schedules
+@dataclass(frozen=True)
+class ConstantAlpha:
+    """``α(x, t) = α₀``: the paper's plain gain.  ``|v_d|`` grows like ``1/ρ`` where the crowd is thin."""
+
+    alpha0: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "alpha0", positive_number("controller.alpha", self.alpha0))
+
+    def over_rho(self, rho_f):
+        return self.alpha0 / rho_f
+
+    def over_rho_derivative(self, rho_f):
+        return -self.alpha0 / (rho_f * rho_f)
+
+    def alpha(self, rho_f):
+        return self.alpha0 + 0.0 * rho_f
+
+
+@dataclass(frozen=True)
+class SaturatingAlpha:
+    """Density-scheduled gain ``α = α₀ ρ / (ρ + ρ_floor)``.
+
+    The Step-I term becomes ``α∇ρ̃/ρ = α₀ ∇ρ̃ / (ρ + ρ_floor)``: bounded by
+    ``α₀ |∇ρ̃| / ρ_floor`` where the crowd is thin, equal to the plain gain ``α₀`` where
+    ``ρ ≫ ρ_floor``.  The price: ``α_inf = α₀ ρ_min / (ρ_min + ρ_floor)`` in Theorems 1–2,
+    which is small where the density is small (slower guaranteed decay there).
+    """
+
+    alpha0: float
+    rho_floor: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "alpha0", positive_number("controller.alpha", self.alpha0))
+        object.__setattr__(self, "rho_floor", positive_number("controller.rho_floor", self.rho_floor))
+
+    def over_rho(self, rho_f):
+        return self.alpha0 / (rho_f + self.rho_floor)
+
+    def over_rho_derivative(self, rho_f):
+        d = rho_f + self.rho_floor
+        return -self.alpha0 / (d * d)
+
+    def alpha(self, rho_f):
+        return self.alpha0 * rho_f / (rho_f + self.rho_floor)
+
+
+# ---------------------------------------------------------------------- β/γ strategies
+class MinimumNormBetaGamma:
+    """Minimum-norm solution: ``δu_i = A b_i / Z``, ``δω_i = -A g_i / Z``.
+
+    Derived on the docs page *The controller* (``docs/controller.md#choosing-beta-and-gamma``).
+
+    Equivalent to ``β_il = (b_i^(l))²/Z`` and ``γ_i = g_i²/Z`` in the paper's eq. (8):
+    non-negative, summing to 1, zero where the integral is zero, and with no division by
+    a small integral.  When ``Z = 0`` (ṽ orthogonal to every kernel column) nothing can
+    cancel ``A``: the inputs are zero and the shortfall is ``A``.
+    """
+
+    name = "min-norm"
+    accepts_kernel_scaling = True
+    """Its inputs follow the law's own units (``controller.scaling = "kernel"``): it has no limits of its own."""
+
+    @classmethod
+    def from_scenario(cls, scenario: Any) -> MinimumNormBetaGamma:
+        """Registry factory (kind ``beta_gamma``, name ``min-norm``): needs nothing of the scenario."""
+        return cls()
+
+    def __call__(self, b: np.ndarray, g: np.ndarray, A: float) -> ExtraInputs:
+        Z = (b * b).sum() + (g * g).sum()
+        if Z == 0:
+            return ExtraInputs(np.zeros_like(b), np.zeros_like(g), A)
+        s = A / Z
+        return ExtraInputs(s * b, -s * g, 0.0 * A)
+
+
+class UserBetaGamma:
+    """Wraps a user rule ``(b, g, A) -> (β (n, 2), γ (n,))`` into extra inputs.
+
+    The rule may return None when no admissible weights exist (e.g. every integral is
+    zero); the inputs are then zero and the whole ``A`` is reported as the shortfall.
+
+    The rule's output is checked against the paper's constraints (eq. (9)):
+    ``Σ β + Σ γ = 1`` and ``β_il = 0`` where ``b_i^(l) = 0`` (``γ_i`` likewise).  Then
+    ``δu_i^(l) = β_il A / b_i^(l)`` and ``δω_i = -γ_i A / g_i`` (paper, eq. (8)).
+    """
+
+    name = "user"
+
+    def __init__(self, rule: Callable[[np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]):
+        if not callable(rule):
+            raise ParameterError("beta_gamma", rule, "a callable (b, g, A) -> (beta, gamma)")
+        self.rule = rule
+
+    def __call__(self, b: np.ndarray, g: np.ndarray, A: float) -> ExtraInputs:
+        weights = self.rule(b, g, A)
+        if weights is None:  # the rule found no admissible weights: nothing cancels A
+            return ExtraInputs(np.zeros_like(b), np.zeros_like(g), A)
+        beta, gamma = weights
+        beta = np.asarray(beta, float).reshape(b.shape)
+        gamma = np.asarray(gamma, float).reshape(g.shape)
+        total = beta.sum() + gamma.sum()
+        if not np.isfinite(total) or abs(total - 1.0) > 1e-9:
+            raise ParameterError("beta_gamma", f"sum {total}", "β and γ summing to 1 (eq. (9))")
+        if np.any((b == 0) & (beta != 0)) or np.any((g == 0) & (gamma != 0)):
+            raise ParameterError(
+                "beta_gamma", "non-zero weight on a zero integral", "β_il = 0 where b_il = 0, γ_i = 0 where g_i = 0"
+            )
+        with np.errstate(divide="ignore", invalid="ignore"):
+            du = np.where(b != 0, beta * A / np.where(b != 0, b, 1.0), 0.0)
+            dw = np.where(g != 0, -gamma * A / np.where(g != 0, g, 1.0), 0.0)
+        done = (b * du).sum() - (g * dw).sum()
+        return ExtraInputs(du, dw, A - done)
+
+
+# ---------------------------------------------------------------------- the controller
+@dataclass
+class _Prepared:
+    """Quantities of one density shared by the terms of the law."""
+
+    rho: np.ndarray
+    rho_t: np.ndarray
+    rf: FaceField
+    grt: FaceField
+    sigma: Any
+    gs: FaceField
+    q: FaceField
+    uw: FaceField | None
+
+
+class BacksteppingController:
+    """Density-feedback backstepping controller of the paper (eqs. (6) and (9)).
+
+    Parameters
+    ----------
+    grid : Grid
+    target : ndarray
+        Target density ``ρ_*`` on ``grid.shape`` (unit mass).
+    sigma : float or callable
+        Diffusion ``σ`` (>= 0) or ``σ(x, y, t)``; the SDE noise is ``sqrt(2σ) dB``.
+    alpha : AlphaSchedule
+        Step-I gain.
+    k_u, k_omega : float or array of shape (n,)
+        Step-II gains, every entry >= 0 (the paper asks only Σ > 0; the bound needs each >= 0).
+    strategy : BetaGammaStrategy
+        Extra-input rule (default :class:`MinimumNormBetaGamma`).
+    interaction : InteractionField or None
+        ``u_W`` (None: ``W = 0``).
+    dvd_dt : {"model", "fokker-planck", "finite-difference"}
+        How ``∂_t v_d`` is obtained: the chain rule along the model's ``∂_t ρ`` with
+        central fluxes (``"model"``, consistent with Theorem 1's identity) or with the
+        Scharfetter–Gummel right-hand side of :class:`~meanfield.fokker_planck.solver.FokkerPlanck`
+        (``"fokker-planck"``), or a backward difference of ``v_d`` between calls.
+    scales : (float, float), optional
+        ``(ℓ, c)``: run the law in the units of length ``ℓ`` and speed ``c`` (time ``ℓ/c``),
+        so that it is the same law in any unit of length: ``V₂ = ½ℓ²∫ρ̃² + ½(cℓ)⁻²∫|ṽ|²``,
+        dimensionless gains, β/γ of minimum norm in the scaled inputs (docs page
+        *The controller*, "A law in any unit of length").  None: the paper's law.
+    """
+
+    def __init__(
+        self,
+        grid: Grid,
+        target: np.ndarray,
+        sigma: SigmaLike,
+        alpha: AlphaSchedule,
+        k_u: float | np.ndarray = 10.0,
+        k_omega: float | np.ndarray = 10.0,
+        strategy: BetaGammaStrategy | None = None,
+        interaction: InteractionField | None = None,
+        dvd_dt: Literal["model", "fokker-planck", "finite-difference"] = "finite-difference",
+        scales: tuple[float, float] | None = None,
+    ):
+        self.grid = grid
+        self.scales = None if scales is None else (float(scales[0]), float(scales[1]))
+        target = np.asarray(target, float)
+        if target.shape != grid.shape:
+            raise ParameterError("target", target.shape, f"an array of grid.shape {grid.shape}")
+        self.target = target
+        self.sigma = check_sigma("sigma", sigma)
+        self.alpha = alpha
+        for name, k in (("k_u", k_u), ("k_omega", k_omega)):
+            arr = np.asarray(k, float)
+            if not np.all(np.isfinite(arr)) or np.any(arr < 0):
+                raise ParameterError(f"controller.{name}", k, "finite gains, every one >= 0")
+        self.k_u = np.asarray(k_u, float)
+        self.k_omega = np.asarray(k_omega, float)
+        self.strategy = strategy if strategy is not None else MinimumNormBetaGamma()
+        self.interaction = interaction
+        if dvd_dt not in DVD_DT_OPTIONS:
+            raise ParameterError("controller.dvd_dt", dvd_dt, " or ".join(map(repr, DVD_DT_OPTIONS)))
+        self.dvd_dt = dvd_dt
+        self._fokker_planck = FokkerPlanck(grid, sigma, interaction=interaction) if dvd_dt == "fokker-planck" else None
+        self._previous_vd: tuple[float, FaceField] | None = None
+        self._target_gradient = grid.gradient(self.target)
+        self._fused_state: dict[str, Any] = {}  # the compiled law's per-run constants (meanfield.controllers._law_loops)
+
+    accepts_sensing = True
+    """It runs on a group's knowledge (``[sensing]``, :mod:`meanfield.controllers.local_sensing`)."""
+
+    @staticmethod
+    def stability_step(scenario: Any, grid: Any) -> StabilityStep | None:
+        """The largest ``dt`` at which the sampled Step-I feedback is stable: ``0.9 h²/(4 α₀)``.
+
+        Holding ``v_d(ρⁿ)`` over a step is an explicit step of the closed-loop diffusion
+        ``∇·(α∇ρ̃)`` (docs page *Verification*, Theorem 1); the preflight warns past it.
+        """
+        h = min(grid.dx, grid.dy)
+        alpha = scenario.controller.alpha
+        return StabilityStep(
+            dt=0.9 * h * h / (4.0 * alpha),
+            what="the sampled Step-I feedback's stability step 0.9 h²/(4 α₀)",
+            why=f"(h = {h:.3g}, α₀ = {alpha:g}): where the robots realise v_d, the held feedback overshoots",
+        )
+
+    @classmethod
+    def from_parts(cls, parts: ControllerParts) -> BacksteppingController:
+        """Registry factory (kind ``controller``, name ``backstepping``): the paper's law from parts.
+
+        The law has no ``controller.options`` (they belong to other controllers; a sweep may
+        set them for every kind), so any are ignored here.
+        """
+        return cls(*cls.law_arguments(parts), scales=parts.scales)
+
+    @staticmethod
+    def law_arguments(parts: ControllerParts) -> tuple:
+        """The constructor's positional arguments from the assembled parts (grid to ``dvd_dt``)."""
+        p = parts
+        return (p.grid, p.target, p.sigma, p.alpha, p.k_u, p.k_omega, p.beta_gamma, p.interaction, p.dvd_dt)
+
+    def act(self, observation: Observation) -> Command:
+        """The :class:`~meanfield.interfaces.Controller` interface: :meth:`robot_inputs` at the observation."""
+        o = observation
+        state = self.robot_inputs(o.density, o.field, o.t, o.dt)
+        return Command(state.u, state.omega, state)
+
+    # ------------------------------------------------------------------ pieces
+    def sigma_on_cells(self, t: float):
+        """σ at the cell centres (scalar if constant)."""
+        if callable(self.sigma):
+            X, Y = self.grid.centers
+            return np.asarray(self.sigma(X, Y, t), float)
+        return self.sigma
+
+    def interaction_on_faces(self, rho: np.ndarray) -> FaceField | None:
+        """``u_W[ρ]`` on the faces, or None when ``W = 0``."""
+        return None if self.interaction is None else self.interaction.on_faces(rho)
+
+    def _prepare(self, rho: np.ndarray, t: float) -> _Prepared:
+        """Face quantities of ``ρ`` shared by every term of the law (computed once per step)."""
+        g = self.grid
+        rho_t = rho - self.target
+        rf = g.face_average(rho)
+        if not g.is_box:  # closed faces (outside Ω) carry nothing; avoid 0/0 there
+            rf = (np.where(g.aperture_x > 0, rf[0], 1.0), np.where(g.aperture_y > 0, rf[1], 1.0))
+        grt = g.gradient(rho_t)
+        sig = self.sigma_on_cells(t)
+        if callable(self.sigma):
+            gs = g.gradient(sig * rho)
+        else:  # ∇(σρ) = σ (∇ρ̃ + ∇ρ_*) for constant σ
+            gt = self._target_gradient
+            gs = (sig * (grt[0] + gt[0]), sig * (grt[1] + gt[1]))
+        q = (self.alpha.over_rho(rf[0]), self.alpha.over_rho(rf[1]))
+        return _Prepared(rho, rho_t, rf, grt, sig, gs, q, self.interaction_on_faces(rho))
+
+    def virtual_velocity(self, rho: np.ndarray, t: float = 0.0) -> FaceField:
+        """Step I: ``v_d = -(α∇ρ̃ - ∇(σρ))/ρ - u_W[ρ]`` on the faces (paper, eq. (6)).
+
+        ``ρ`` must be positive on the faces (the KDE always is); the schedule's ``α/ρ``
+        is evaluated directly, so a saturating schedule stays bounded as ``ρ → 0``.
+        """
+        return self._virtual_velocity(self._prepare(rho, t))
+
+    def _virtual_velocity(self, p: _Prepared) -> FaceField:
+        out = [-p.q[k] * p.grt[k] + p.gs[k] / p.rf[k] for k in range(2)]
+        if p.uw is not None:
+            out = [out[k] - p.uw[k] for k in range(2)]
+        return out[0], out[1]
+
+    def density_rate(self, rho: np.ndarray, v_r: FaceField, t: float = 0.0) -> np.ndarray:
+        """Fokker–Planck right-hand side ``-∇·((v_r + u_W)ρ - ∇(σρ))`` with ``v_a = 0`` (eq. (4)).
+
+        Central (face-average) fluxes, consistent with :meth:`virtual_velocity`, so that
+        with ``v_r = v_d`` it reduces exactly to ``∇·(α∇ρ̃)`` (Theorem 1).
+        """
+        return self._density_rate(self._prepare(rho, t), v_r)
+
+    def _density_rate(self, p: _Prepared, v_r: FaceField) -> np.ndarray:
+        flux = [v_r[k] * p.rf[k] - p.gs[k] for k in range(2)]
+        if p.uw is not None:
+            flux = [flux[k] + p.uw[k] * p.rf[k] for k in range(2)]
+        return -self.grid.divergence((flux[0], flux[1]))
+
+    def virtual_velocity_rate(self, rho: np.ndarray, rho_dot: np.ndarray, t: float = 0.0) -> FaceField:
+        """``∂_t v_d`` by the chain rule along ``∂_t ρ = rho_dot`` (σ and ρ_* frozen in time).
+
+        With ``q = α/ρ`` the schedule: ``∂_t v_d = -(q'(ρ) ρ̇ ∇ρ̃ + q ∇ρ̇) + ∇(σρ̇)/ρ
+        - ∇(σρ) ρ̇/ρ² - u_W[ρ̇]`` on the faces.
+        """
+        return self._virtual_velocity_rate(self._prepare(rho, t), rho_dot)
+
+    def _virtual_velocity_rate(self, p: _Prepared, rho_dot: np.ndarray) -> FaceField:
+        g = self.grid
+        df = g.face_average(rho_dot)
+        grd = g.gradient(rho_dot)
+        gsd = g.gradient(p.sigma * rho_dot) if callable(self.sigma) else (p.sigma * grd[0], p.sigma * grd[1])
+        out = []
+        for k in range(2):
+            dq = self.alpha.over_rho_derivative(p.rf[k])
+            inv = 1.0 / p.rf[k]
+            out.append(-(dq * df[k] * p.grt[k] + p.q[k] * grd[k]) + (gsd[k] - p.gs[k] * df[k] * inv) * inv)
+        uw = self.interaction_on_faces(rho_dot)
+        if uw is not None:
+            out = [out[0] - uw[0], out[1] - uw[1]]
+        return out[0], out[1]
+
+    def dissipation(self, rho: np.ndarray) -> float:
+        """``∫ α |∇ρ̃|² dx`` on the faces (the first term of dV₂/dt; dV₁/dt = -2× this)."""
+        return self._dissipation(self._prepare(rho, 0.0))
+
+    def _dissipation(self, p: _Prepared) -> float:
+        a = (p.q[0] * p.rf[0], p.q[1] * p.rf[1])  # α = (α/ρ)·ρ, as used in v_d
+        return self.grid.face_inner((a[0] * p.grt[0], a[1] * p.grt[1]), p.grt)
+
+    # ------------------------------------------------------------------ the law
+    def robot_inputs(
+        self, rho: np.ndarray, field: NavigationField, t: float = 0.0, dt: float | None = None
+    ) -> ControlState:
+        """Step II: robot inputs ``(u_i, ω_i)`` of eq. (8) for density ``rho`` and robots ``field``.
+
+        Parameters
+        ----------
+        rho : ndarray
+            Density (estimate) on the grid, positive.
+        field : NavigationField
+            The robots' kernels on the faces at this instant.
+        t : float
+            Time.
+        dt : float, optional
+            Step since the previous call (needed by ``dvd_dt="finite-difference"``).
+        """
+        fused = self._fused_law(rho, field)
+        if fused is not None:  # the common cases: one compiled call, the same numbers to round-off
+            state = fused_robot_inputs(self, rho, field, t, fused[1])
+            if state is not None:
+                return state
+        g = self.grid
+        p = self._prepare(rho, t)
+        v_d = self._virtual_velocity(p)
+        v_r = field.velocity()
+        vt = (v_r[0] - v_d[0], v_r[1] - v_d[1])
+        b, gg = field.moments(vt)
+        if self.dvd_dt == "model":
+            dvd = self._virtual_velocity_rate(p, self._density_rate(p, v_r))
+        elif self.dvd_dt == "fokker-planck":
+            dvd = self._virtual_velocity_rate(p, self._fokker_planck.rhs(rho, t, face_velocity=v_r))
+        else:
+            prev = self._previous_vd
+            if prev is None or t <= prev[0]:
+                dvd = (np.zeros_like(v_d[0]), np.zeros_like(v_d[1]))
+            else:
+                h = t - prev[0]
+                dvd = ((v_d[0] - prev[1][0]) / h, (v_d[1] - prev[1][1]) / h)
+            self._previous_vd = (t, v_d)
+        k_u = self.k_u[:, None] if self.k_u.ndim else self.k_u
+        if self.scales is not None:
+            return self._scaled_inputs(p, v_d, vt, b, gg, dvd, k_u)
+        A = g.face_inner(vt, (p.rf[0] * p.grt[0] - dvd[0], p.rf[1] * p.grt[1] - dvd[1]))
+        extra = self.strategy(b, gg, A)
+        return ControlState(
+            v_d=v_d, v_tilde=vt, rho_tilde=p.rho_t, b=b, g=gg, A=A,
+            u=k_u * b + extra.du, omega=-self.k_omega * gg + extra.domega, shortfall=extra.shortfall,
+            dissipation=self._dissipation(p), k_u=self.k_u, k_omega=self.k_omega,
+        )  # fmt: skip
+
+    def _fusable(self, rho: np.ndarray, field: NavigationField) -> bool:
+        """Whether one compiled call (:func:`fused_robot_inputs`) computes this law now."""
+        return self._fused_law(rho, field) is not None
+
+    def _fused_law(self, rho: np.ndarray, field: NavigationField) -> tuple[str, tuple | None] | None:
+        """Which compiled call computes this law, checked at every call (a schedule or strategy may change).
+
+        ``("paper", None)``: :func:`~meanfield.controllers._law_loops.paper_law`, the paper's Step I (eq. (6)) on a
+        box, every sign seen; ``("faces", step_one)``: :func:`~meanfield.controllers._law_loops.face_law`, any grid
+        (cut cells, signs hidden by walls), Step I as :meth:`_compiled_step_one` says; None: numpy.
+        Both need a constant σ, ``W = 0``, min-norm β/γ, ``∂_t v_d`` by a backward difference, the
+        paper's units, gains per robot at most, the Gaussian kernel on this grid, real C arrays.
+        """
+        if not (
+            not callable(self.sigma) and self.interaction is None and type(self.strategy) is MinimumNormBetaGamma
+            and self.dvd_dt == "finite-difference" and self.scales is None and self.k_u.ndim <= 1
+            and self.k_omega.ndim <= 1 and type(field.kernel) is GaussianKernel and field.grid is self.grid
+            and rho.dtype == float and rho.shape == self.grid.shape and rho.flags.c_contiguous
+            and field.positions.dtype == float and field.headings.dtype == float
+        ):  # fmt: skip
+            return None
+        step_one = self._compiled_step_one()
+        if step_one is None:
+            return None
+        box = step_one[0] == PAPER_STEP_ONE and self.grid.is_box and field.separable
+        return ("paper", None) if box else ("faces", step_one)
+
+    def _compiled_step_one(self) -> tuple[int, float, float, FaceField | None] | None:
+        """Step I as :func:`~meanfield.controllers._law_loops.face_law` computes it, ``(step, v_free, ρ_max, ∇φ)``, or None.
+
+        The paper's (eq. (6)) for this class itself with the constant or saturating α.  A subclass
+        that changes Step I, its rate or the dissipation gets None (the numpy path) unless it says
+        here which compiled Step I it is (:class:`~meanfield.controllers.evacuation.EvacuationController`: Hughes').
+        """
+        if type(self) is BacksteppingController and type(self.alpha) in (ConstantAlpha, SaturatingAlpha):
+            return PAPER_STEP_ONE, 0.0, math.inf, None
+        return None
+
+    def _scaled_inputs(self, p: _Prepared, v_d: FaceField, vt: FaceField, b, gg, dvd, k_u) -> ControlState:
+        """Step II in the units ``ℓ``, ``c`` (``scales``): the law run on ``x/ℓ``, ``t c/ℓ``, ``ρℓ²``, ``v/c``.
+
+        ``b̂ = b/(c²ℓ)``, ``ĝ = g/(c²ℓ²)``, ``Â = (ℓ³/c)⟨ṽ, ρ∇ρ̃⟩ − ⟨ṽ, ∂_t v_d⟩/(c³ℓ)``; then
+        ``û = k_u b̂ + δû``, ``ω̂ = −k_ω ĝ + δω̂`` and ``u = c û``, ``ω = (c/ℓ) ω̂``, so that
+        ``dV̂₂/dt̂ = −D̂ − Σ k_u|b̂|² − Σ k_ω ĝ²`` with ``V̂₂ = ½ℓ²∫ρ̃² + ½(cℓ)⁻²∫|ṽ|²``,
+        ``t̂ = tc/ℓ`` and ``D̂ = (ℓ³/c) D``.
+        """
+        g = self.grid
+        ell, c = self.scales
+        pull = g.face_inner(vt, (p.rf[0] * p.grt[0], p.rf[1] * p.grt[1]))
+        A = ell**3 / c * pull - g.face_inner(vt, dvd) / (c**3 * ell)
+        b, gg = b / (c * c * ell), gg / (c * c * ell * ell)
+        extra = self.strategy(b, gg, A)
+        return ControlState(
+            v_d=v_d, v_tilde=vt, rho_tilde=p.rho_t, b=b, g=gg, A=A,
+            u=c * (k_u * b + extra.du), omega=c / ell * (-self.k_omega * gg + extra.domega), shortfall=extra.shortfall,
+            dissipation=ell**3 / c * self._dissipation(p), k_u=self.k_u, k_omega=self.k_omega,
+            input_scale=(c, c / ell), v2_weights=(ell * ell, 1.0 / (c * ell) ** 2),
+        )  # fmt: skip
+
+    def reset(self) -> None:
+        """Forget the previous ``v_d`` (finite-difference mode)."""
+        self._previous_vd = None
+
+
+# ---------------------------------------------------------------------- the law in one compiled call
+_NOTHING_HIDDEN = np.ones((0, 0, 0), dtype=bool)
+
+
+def _paper_constants(law: Any, g: Any, k: Any, n: int) -> np.ndarray:
+    """:func:`paper_law`'s ``cst``, packed once and kept in ``law._fused_state`` while its sources are the same
+    objects (the grid, ``∇ρ_*``, the gains, the schedule, σ) and the kernel's numbers the same."""
+    c = law._fused_state.get("paper")
+    tg = law._target_gradient
+    if (
+        c is None or c[0] is not g or c[1] is not tg or c[2] is not law.k_u or c[3] is not law.k_omega or c[4] != n
+        or c[5] is not law.alpha or c[6] is not law.sigma or c[7] != k.c or c[8] != k.eta
+    ):  # fmt: skip
+        alpha, floor = getattr(law.alpha, "alpha0", 1.0), getattr(law.alpha, "rho_floor", 0.0)  # constant: floor 0
+        gains = [np.broadcast_to(law.k_u, (n,)), np.broadcast_to(law.k_omega, (n,))]
+        numbers = [1.0 / g.dx, 1.0 / g.dy, float(law.sigma), alpha, floor, k.c, k.eta]
+        cst = np.concatenate([tg[0].ravel(), tg[1].ravel(), g.weight_x.ravel(), g.weight_y.ravel(), g.x, g.x_faces,
+                              g.y, g.y_faces, *gains, numbers], dtype=float)  # fmt: skip
+        c = law._fused_state["paper"] = (g, tg, law.k_u, law.k_omega, n, law.alpha, law.sigma, k.c, k.eta, cst)
+    return c[9]
+
+
+def fused_robot_inputs(
+    law: Any, rho: np.ndarray, field: NavigationField, t: float, step_one: tuple | None = None
+) -> ControlState | None:
+    """The :class:`~meanfield.controllers.backstepping.BacksteppingController`'s inputs in one compiled call; None when not compiled.
+
+    The controller calls this only in the cases its ``_fused_law`` checks: ``step_one`` None is
+    the paper's law on a box with the signs seen everywhere (:func:`paper_law`); otherwise it is
+    ``(step, v_free, rho_max, ∇φ)`` for :func:`face_law` (``step`` :data:`PAPER_STEP_ONE` or
+    :data:`HUGHES_STEP_ONE`; ``∇φ`` None for the paper's).  The previous ``v_d`` is read from
+    and stored in ``law._previous_vd``, as the numpy path does.  The outputs are new arrays at
+    every call (the state is kept by observers).
+    """
+    g = law.grid
+    n = len(field.positions)
+    nx, ny = g.cells
+    vd = (np.empty((nx - 1, ny)), np.empty((nx, ny - 1)))
+    vt = (np.empty((nx - 1, ny)), np.empty((nx, ny - 1)))
+    rho_t, b, gg, u, w = np.empty((nx, ny)), np.empty((n, 2)), np.empty(n), np.empty((n, 2)), np.empty(n)
+    prev = law._previous_vd
+    have_prev = prev is not None and t > prev[0]
+    h = (t - prev[0]) if have_prev else 1.0
+    if step_one is None:
+        px, py = prev[1] if have_prev else vd  # (unused without a previous v_d)
+        out = paper_law(rho, law.target, _paper_constants(law, g, field.kernel, n), field.positions, field.cos,
+                        field.sin, px, py, have_prev, h, rho_t, vd[0], vd[1], vt[0], vt[1], b, gg, u, w)  # fmt: skip
+    else:
+        k, tg, cache = field.kernel, law._target_gradient, law._fused_state
+        source = cache.get("source", (None, None, None))  # the gains per robot, once per team size and gain arrays
+        if source[0] != n or source[1] is not law.k_u or source[2] is not law.k_omega:
+            cache.update(source=(n, law.k_u, law.k_omega), k_u=np.broadcast_to(law.k_u, (n,)).astype(float))
+            cache["k_w"] = np.broadcast_to(law.k_omega, (n,)).astype(float)
+        px, py = prev[1] if have_prev else tg  # (unused without a previous v_d)
+        alpha = getattr(law.alpha, "alpha0", 1.0)
+        floor = getattr(law.alpha, "rho_floor", 0.0)  # the constant schedule: α/ρ = α₀/(ρ + 0)
+        step, v_free, rho_max, phi = step_one
+        ph = tg if phi is None else phi  # (unused by the paper's Step I)
+        seen = field.cell_sight()
+        rx, ry = np.ascontiguousarray(field.positions.T)
+        out = face_law(
+            rho, law.target, tg[0], tg[1], 1.0 / g.dx, 1.0 / g.dy, g.aperture_x, g.aperture_y, g.weight_x,
+            g.weight_y, step, float(law.sigma), alpha, floor, v_free, rho_max, ph[0], ph[1],
+            g.x_faces, g.x, g.y_faces, g.y, rx, ry, field.cos, field.sin, k.c, k.eta,
+            _NOTHING_HIDDEN if seen is None else seen, seen is not None, cache["k_u"], cache["k_w"],
+            px, py, have_prev, h, rho_t, vd[0], vd[1], vt[0], vt[1], b, gg, u, w,
+        )  # fmt: skip
+    if out is UNAVAILABLE:
+        return None
+    law._previous_vd = (t, vd)
+    A, shortfall, dissipation = out
+    return ControlState(v_d=vd, v_tilde=vt, rho_tilde=rho_t, b=b, g=gg, A=A, u=u, omega=w, shortfall=shortfall,
+                        dissipation=dissipation, k_u=law.k_u, k_omega=law.k_omega)  # fmt: skip

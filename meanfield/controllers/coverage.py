@@ -1,0 +1,189 @@
+"""Coverage and heading: robots spread over where they are needed, signs turned by density feedback.
+
+The paper's law moves each robot along ``b_i``, the gradient of ``½‖ṽ‖²`` in its position
+(eq. (8)): a robot far from a straggler has kernel columns that barely see it, so nothing
+pulls a robot there and stragglers stay behind (design notes, section 7).  The authors'
+follow-up work (Zheng et al., 2023) splits the robots' job, and so does this controller
+(registered as ``coverage``):
+
+**Positions: density-weighted coverage** (Lloyd's iteration on the grid).  Each cell of Ω
+belongs to the nearest robot that sees it (:mod:`meanfield.geometry.sight`; the nearest robot when
+none does), and robot ``i`` drives towards the weighted centroid ``C_i`` of its cells::
+
+    u_i = k_position (C_i − R_i),   C_i = Σ_{c ∈ V_i} w_c x_c |c| / Σ_{c ∈ V_i} w_c |c|
+
+with the weight ``w`` (``options.weight``) the crowd's density ``ρ`` (``"density"``) or the
+tracking error ``ρ |ṽ|`` (``"tracking-error"``, the default): people already where the
+law wants them (``ṽ ≈ 0``) stop attracting robots, and the robots go where people are not
+yet guided.  A robot whose cells hold no weight holds its position (counted in
+``summary.json`` as ``coverage_idle_fraction``).
+
+**Headings: density feedback.**  The ω-part of the law, ``ω_i = −k_heading g_i`` with
+``g_i = ∫ ṽᵀ K_θ^i`` (eq. (8)), where ``ṽ = v_r − v_d`` and ``v_d`` is the paper's Step I
+(a safe zone) or Hughes' field towards the exits (:mod:`meanfield.controllers.evacuation`) when the
+region has exits (``options.v_d`` overrides).  **What is guaranteed.**  For fixed positions
+and a frozen ``v_d``, ``V(θ) = ½∫|ṽ|²`` obeys ``dV/dt = Σ_i g_i ω_i = −k_heading Σ_i g_i² <= 0``:
+the headings descend the tracking error, and ``V`` stops decreasing only where every
+``g_i = 0``.  Nothing is claimed for the density (the positions are not the law's), and the
+check of this statement along a PDE-plant run is in the test suite.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+
+from meanfield.controllers._coverage_loops import owners as nearest_owners
+from meanfield.errors import ParameterError
+from meanfield.interfaces import Command, ControllerParts, ControlState, Observation
+
+__all__ = ["CoverageController", "WEIGHTS", "V_D"]
+
+WEIGHTS = ("tracking-error", "density", "excess")
+"""The coverage weights: ``ρ|ṽ|``, ``ρ``, or ``max(ρ − ρ_*, 0)``."""
+HEADING_GAIN_FACTOR = 3.0
+"""Default ``k_heading``: this many times the law's ``k_ω`` (on ``paper``, seeds 0–9, the worst
+seed's fraction in target was 0.845, 0.93, 0.94, 0.935 for 1, 2, 3, 5 times)."""
+V_D = ("auto", "safe-zone", "exits")
+"""Which Step I the headings track: the exits' when the region has exits (``auto``)."""
+_NOTHING_HIDDEN = np.ones((0, 0), dtype=bool)
+
+
+class CoverageController:
+    """Lloyd coverage for the positions, the law's ω-part for the headings (module docstring).
+
+    Parameters
+    ----------
+    law : BacksteppingController
+        Supplies ``v_d``, ``ṽ`` and ``g_i`` (the paper's law, or the evacuation controller).
+    grid : Grid
+        The cells the coverage is computed on.
+    sight : SightLines or None
+        The walls that hide a cell from a robot (None: every cell is seen).
+    k_position : float
+        Gain of the drive to the centroid, 1/s, > 0.
+    k_heading : float
+        Gain of the heading feedback, > 0 (from a scenario: :data:`HEADING_GAIN_FACTOR` × ``controller.k_omega``).
+    weight : {"tracking-error", "density"}
+        The coverage weight.
+    """
+
+    OPTIONS = ("k_position", "k_heading", "weight", "v_d", "v_free", "rho_max")
+
+    def __init__(
+        self,
+        law: Any,
+        grid: Any,
+        sight: Any = None,
+        k_position: float = 1.0,
+        k_heading: float = 10.0,
+        weight: str = "tracking-error",
+    ):
+        for name, k in (("k_position", k_position), ("k_heading", k_heading)):
+            if not (isinstance(k, (int, float)) and math.isfinite(k) and k > 0):
+                raise ParameterError(f"controller.options.{name}", k, "a finite number > 0")
+        if weight not in WEIGHTS:
+            raise ParameterError("controller.options.weight", weight, " or ".join(map(repr, WEIGHTS)))
+        self.law = law
+        self.grid = grid
+        self.sight = None if sight is None or sight.trivial else sight
+        self.k_position = float(k_position)
+        self.k_heading = float(k_heading)
+        self.weight = weight
+        X, Y = grid.centers
+        self._cells = np.flatnonzero(grid.active.ravel())
+        self._xy = np.column_stack([X.ravel()[self._cells], Y.ravel()[self._cells]])
+        self._volume = grid.volume.ravel()[self._cells]
+        self.steps = 0
+        self.idle_robot_steps = 0
+        self.idle = np.zeros(0, dtype=bool)  # robots whose cells held no weight at the last step
+
+    accepts_sensing = True
+    """It runs on a group's knowledge (``[sensing]``, :mod:`meanfield.controllers.local_sensing`)."""
+
+    @classmethod
+    def from_parts(cls, parts: ControllerParts) -> CoverageController:
+        """Registry factory (kind ``controller``, name ``coverage``); options as in :attr:`OPTIONS`."""
+        from meanfield.controllers.backstepping import BacksteppingController
+        from meanfield.controllers.evacuation import EvacuationController
+        from meanfield.geometry.exits import exit_segments
+        from meanfield.geometry.sight import SightLines
+
+        opts = dict(parts.options)
+        unknown = sorted(set(opts) - set(cls.OPTIONS))
+        if unknown:
+            raise ParameterError("controller.options", unknown, f"options among {list(cls.OPTIONS)}")
+        v_d = opts.pop("v_d", "auto")
+        if v_d not in V_D:
+            raise ParameterError("controller.options.v_d", v_d, " or ".join(map(repr, V_D)))
+        hughes = {k: opts.pop(k) for k in ("v_free", "rho_max") if k in opts}
+        exits = len(exit_segments(parts.region)) > 0
+        if v_d == "exits" or (v_d == "auto" and exits):
+            law = EvacuationController.from_parts(dataclasses.replace(parts, options=hughes))
+        else:
+            law = BacksteppingController.from_parts(parts)
+        opts.setdefault("k_heading", HEADING_GAIN_FACTOR * float(np.max(parts.k_omega)))
+        sight = parts.sight if parts.sight is not None else SightLines(parts.region)
+        return cls(law, parts.grid, sight, **opts)
+
+    # ------------------------------------------------------------------ positions
+    def owners(self, robots: np.ndarray) -> np.ndarray:
+        """For each active cell, the robot it belongs to: the nearest that sees it, else the nearest.
+
+        One compiled pass over the cells (:func:`meanfield.controllers._coverage_loops.owners`) with the cells each
+        robot sees (:meth:`meanfield.geometry.sight.SightLines.cell_rows`).
+        """
+        robots = np.ascontiguousarray(robots, float)
+        seen, hidden = _NOTHING_HIDDEN, False
+        if self.sight is not None:
+            seen, hidden = np.ascontiguousarray(self.sight.cell_rows(self.grid, robots)).reshape(len(robots), -1), True
+        return nearest_owners(self._xy, robots, seen, self._cells, hidden, np.empty(len(self._cells), np.intp))
+
+    def centroids(self, robots: np.ndarray, weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The weighted centroid of each robot's cells, and which robots' cells hold no weight."""
+        n = len(robots)
+        owner = self.owners(robots)
+        w = np.maximum(weight.ravel()[self._cells], 0.0) * self._volume
+        mass = np.bincount(owner, weights=w, minlength=n)
+        cx = np.bincount(owner, weights=w * self._xy[:, 0], minlength=n)
+        cy = np.bincount(owner, weights=w * self._xy[:, 1], minlength=n)
+        idle = mass <= 0
+        c = robots.copy()
+        c[~idle, 0] = cx[~idle] / mass[~idle]
+        c[~idle, 1] = cy[~idle] / mass[~idle]
+        return c, idle
+
+    def _weight(self, rho: np.ndarray, state: ControlState) -> np.ndarray:
+        if self.weight == "density":
+            return rho
+        if self.weight == "excess":
+            return np.maximum(state.rho_tilde, 0.0)
+        vx, vy = self.grid.to_cells(state.v_tilde)
+        return rho * np.hypot(vx, vy)
+
+    # ------------------------------------------------------------------ the controller
+    def act(self, observation: Observation) -> Command:
+        """Drive to the weighted centroids; turn the signs down ``½‖ṽ‖²`` (``ω = −k g``)."""
+        o = observation
+        law = self.law.robot_inputs(o.density, o.field, o.t, o.dt)
+        robots = np.real(o.field.positions)
+        c, self.idle = self.centroids(robots, self._weight(o.density, law))
+        u = self.k_position * (c - robots)
+        omega = law.input_scale[1] * (-self.k_heading * law.g)  # ω̂ = −k ĝ, in the law's units
+        self.steps += 1
+        self.idle_robot_steps += int(self.idle.sum())
+        state = dataclasses.replace(law, u=u, omega=omega, shortfall=float("nan"), k_u=0.0, k_omega=self.k_heading)
+        return Command(u, omega, state)
+
+    def reset(self) -> None:
+        """Forget the law's previous ``v_d`` and the idle count."""
+        self.law.reset()
+        self.steps = self.idle_robot_steps = 0
+
+    def summary(self) -> dict[str, Any]:
+        """``coverage_idle_fraction``: the share of robot-steps in which a robot's cells held no weight."""
+        n = max(len(self.idle), 1)
+        return {"coverage_idle_fraction": self.idle_robot_steps / max(self.steps * n, 1)}

@@ -1,0 +1,147 @@
+"""The human crowd: Euler–Maruyama for the SDE (paper, eq. (1)) with reflecting walls.
+
+::
+
+    dX_j = ( u_W(X_j) + v_r(X_j, t) + v_a(X_j, t) ) dt + sqrt(2 σ(X_j, t)) dB_j
+
+The drift is computed by the caller (the closed loop knows the robots and the
+interaction); this module owns the positions, the noise and the walls.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from meanfield._compiled.core import NO_BOX
+from meanfield.crowds._point_mass_loops import euler_maruyama
+from meanfield.errors import ParameterError, SigmaLike, SimulationDiverged, check_sigma
+from meanfield.geometry.region import Region
+
+__all__ = ["PointMassEngine"]
+
+
+class PointMassEngine:
+    """Positions of ``N`` humans and their Euler–Maruyama step.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (N, 2)
+        Initial positions, inside Ω.
+    domain : Region
+        Ω; the walls reflect.
+    sigma : float or callable
+        Diffusion ``σ >= 0`` or ``σ(x, y, t)``; the noise is ``sqrt(2σ) dB``.
+    rng : numpy.random.Generator
+        Source of the Brownian increments.
+    """
+
+    body_radius = 0.0  # point masses
+
+    def __init__(self, positions: np.ndarray, domain: Region, sigma: SigmaLike, rng: np.random.Generator):
+        positions = np.array(positions, dtype=float)
+        if positions.ndim != 2 or positions.shape[1] != 2 or len(positions) < 1:
+            raise ParameterError("crowd.positions", positions.shape, "an array of shape (N, 2), N >= 1")
+        if not np.all(np.isfinite(positions)):
+            raise ParameterError("crowd.positions", "non-finite values", "finite positions")
+        if not domain.contains(positions[:, 0], positions[:, 1], tol=1e-12).all():
+            raise ParameterError("crowd.positions", "points outside Ω", "every human inside the domain")
+        sigma = check_sigma("crowd.sigma", sigma)
+        self.positions = positions
+        # exits (meanfield.geometry.exits): who left, when and where; the positions of those who left are NaN
+        from meanfield.geometry.exits import exit_segments
+
+        self.exits = exit_segments(domain)
+        self.active = np.ones(len(positions), dtype=bool)
+        self.exit_time = np.full(len(positions), np.nan)
+        self.exit_index = np.full(len(positions), -1, dtype=np.intp)
+        self.domain = domain
+        self.sigma = sigma
+        self.rng = rng
+        # a region whose walls are not all convex follows each step from its start (Plan.reflect)
+        self._path_reflection = bool(getattr(domain, "reflects_along_paths", False))
+        self._noise = np.empty_like(positions)  # work array, reused every step
+        self._amp_key: tuple | None = None
+        self._box = NO_BOX if self._path_reflection else getattr(domain, "box_walls", NO_BOX)
+
+    @property
+    def n(self) -> int:
+        """Number of humans N."""
+        return len(self.positions)
+
+    def step(self, drift: np.ndarray, t: float, dt: float) -> None:
+        """One Euler–Maruyama step of eq. (1) with drift (N, 2), then reflect at the walls.
+
+        Raises :class:`~meanfield.errors.SimulationDiverged`, the positions unchanged, if the drift is not finite.
+        """
+        x = self.positions
+        if self._noise.shape != x.shape:  # positions replaced by an array of another size
+            self._noise = np.empty_like(x)
+        self.rng.standard_normal(out=self._noise)
+        if callable(self.sigma):
+            s = np.asarray(self.sigma(x[:, 0], x[:, 1], t), float)
+            if len(self.exits):  # σ at those who left (NaN positions) is no one's
+                s = np.where(self.active, s, 0.0)
+            if np.any(s < 0) or not np.all(np.isfinite(s)):
+                raise ParameterError("crowd.sigma", "negative or non-finite σ(x, t)", "σ(x, t) >= 0")
+            amp = np.sqrt(2.0 * s * dt)[:, None]
+        else:
+            amp = self._constant_amplitude(dt)
+        previous = x.copy() if self._path_reflection or len(self.exits) else None
+        # a box without exits folds its walls into the same pass (meanfield.crowds._field_loops)
+        folded = self._box if previous is None else NO_BOX
+        if not euler_maruyama(x, drift, self._noise, dt, amp, folded):
+            msg = f"non-finite human drift at t = {t:.4g}; the crowd is kept at the last good step"
+            raise SimulationDiverged(msg, -1)
+        if not len(self.exits):
+            if previous is not None:
+                self.domain.reflect(x, previous)
+            elif not folded.shape[0]:
+                self.domain.reflect(x)
+            return
+        self._leave_and_reflect(previous, t, dt)
+
+    def _constant_amplitude(self, dt: float) -> np.ndarray:
+        """``sqrt(2 σ dt)``, the (1, 1) array :func:`~meanfield.crowds._point_mass_loops.euler_maruyama` takes, kept per (σ, dt)."""
+        key = (self.sigma, dt)
+        if self._amp_key != key:
+            self._amp_key, self._amp = key, np.full((1, 1), math.sqrt(2.0 * self.sigma * dt))
+        return self._amp
+
+    def _leave_and_reflect(self, previous: np.ndarray, t: float, dt: float) -> None:
+        """The humans whose step reached an exit leave (position NaN); the others reflect at the walls."""
+        from meanfield.geometry.exits import leaving
+
+        x = self.positions
+        idx = np.flatnonzero(self.active)
+        sigma = 0.0 if callable(self.sigma) else self.sigma  # a σ(x, t): crossings only, no bridge test
+        gone = leaving(previous[idx], x[idx], self.exits, sigma, dt, self.rng)
+        out = idx[gone >= 0]
+        self.active[out] = False
+        self.exit_time[out] = t + dt
+        self.exit_index[out] = gone[gone >= 0]
+        x[out] = np.nan
+        stay = idx[gone < 0]
+        moved = x[stay]
+        if self._path_reflection:
+            self.domain.reflect(moved, previous[stay])
+        else:
+            self.domain.reflect(moved)
+        x[stay] = moved
+
+    def remaining(self) -> int:
+        """How many humans have not left."""
+        return int(np.count_nonzero(self.active))
+
+    def summary(self) -> dict[str, Any]:
+        """With exits: how many left through each exit, the last exit time (else nothing)."""
+        if not len(self.exits):
+            return {}
+        out = ~self.active
+        return {
+            "evacuated_per_exit": np.bincount(self.exit_index[out], minlength=len(self.exits)).tolist(),
+            "last_exit_time": float(np.nanmax(self.exit_time)) if out.any() else None,
+            "everyone_out": bool(out.all()),
+        }

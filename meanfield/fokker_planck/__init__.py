@@ -1,0 +1,20 @@
+"""The finite-volume Fokker–Planck solver of the crowd's mean-field limit (paper, eq. (4)).
+
+:mod:`~meanfield.fokker_planck.solver` holds :class:`FokkerPlanck`; :mod:`~meanfield.fokker_planck.stepping`
+its time-stepping methods, chosen by name; ``_sweeps`` their compiled tridiagonal sweeps.
+
+Names are imported on first use (:mod:`meanfield._namespace`).
+"""
+
+from meanfield._namespace import lazy_namespace
+
+_LAZY = {
+    "FaceVelocity": "meanfield.fokker_planck.stepping",
+    "FokkerPlanck": "meanfield.fokker_planck.solver",
+    "METHODS": "meanfield.fokker_planck.solver",
+    "scharfetter_gummel": "meanfield.fokker_planck.solver",
+}
+
+__getattr__, __dir__ = lazy_namespace(__name__, globals(), _LAZY)
+
+__all__ = sorted(_LAZY)

@@ -1,0 +1,453 @@
+"""Finite-volume solver of the crowd's Fokker–Planck equation with zero-flux walls.
+
+The mean-field limit of the human SDE (paper, eq. (1)) is the Fokker–Planck equation
+(paper, eq. (4), with the interaction sign derived from the SDE, see
+:mod:`meanfield.signs.interaction`)::
+
+    ∂_t ρ = -∇·( (u_W[ρ] + v_r + v_a) ρ ) + Δ(σρ)     in Ω,
+    n · ( (u_W[ρ] + v_r + v_a) ρ - ∇(σρ) ) = 0       on ∂Ω.
+
+Written as a conservation law ``∂_t ρ + ∇·J = 0`` with the flux
+``J = -σ∇ρ + (v - ∇σ) ρ`` (``v`` the total drift), it is discretised with cell-centred
+finite volumes on a :class:`~meanfield.geometry.grid.Grid` (boxes, or disks and convex polygons
+through cut cells).  The flux through each interior face is the Scharfetter–Gummel
+(exponential-fitting) flux
+
+    ``J = (σ_f / h) [ B(-P) ρ_L - B(P) ρ_R ]``,  ``P = a h / σ_f``,  ``B(z) = z / (e^z - 1)``,
+
+with ``a`` the normal drift ``v - ∇σ`` on the face and ``σ_f`` the diffusion on the face.
+It is second-order accurate where the grid Péclet number ``|P|`` is small, becomes the
+upwind flux as ``|P| → ∞`` (and exactly the upwind flux when ``σ = 0``), and keeps the
+discrete Gibbs state ``ρ ∝ exp(-U/σ)`` of a gradient drift ``v = -∇U`` exactly
+stationary.  Wall faces carry no flux, so the total mass is conserved to round-off.
+
+This module is that spatial operator (docs/fokker_planck.md, "The scheme", and
+docs/discretisation.md, "The grid"): the face fluxes (:func:`scharfetter_gummel`), the
+drift and the diffusion ``σ`` on the faces, the right-hand side ``-∇·J`` of eq. (4)
+(:meth:`FokkerPlanck.rhs`) and the sparse matrix of a backward-Euler step.  The time
+integrators (``method``: ``"adi"``, ``"split"``, ``"explicit"``, ``"implicit"``; order,
+positivity and step bounds) are in :mod:`meanfield.fokker_planck.stepping`, mixed into
+:class:`FokkerPlanck`, the solver (docs/fokker_planck.md, "Time stepping").
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Literal
+
+import numpy as np
+from scipy import sparse
+
+from meanfield.errors import ParameterError, SigmaLike, check_sigma, positive_number
+from meanfield.fokker_planck.stepping import (
+    FaceVelocity as FaceVelocity,  # re-exported: the type of solve's face_velocity
+)
+from meanfield.fokker_planck.stepping import _Coefficients, _TimeStepping
+from meanfield.geometry.grid import FaceField, Grid
+from meanfield.signs.interaction import InteractionField
+from meanfield.signs.kernels import InteractionPotential
+
+__all__ = ["FokkerPlanck", "scharfetter_gummel", "METHODS"]
+
+METHODS = ("adi", "split", "explicit", "implicit")
+
+Method = Literal["adi", "split", "explicit", "implicit"]
+PointVelocity = Callable[[np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]
+
+
+def scharfetter_gummel(
+    drift: np.ndarray, diffusion: np.ndarray | float, spacing: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Scharfetter–Gummel face coefficients: the flux is ``c_left ρ_L - c_right ρ_R``.
+
+    Parameters
+    ----------
+    drift : ndarray
+        Normal drift ``a`` on each face, positive from the left cell to the right one.
+    diffusion : ndarray or float
+        ``σ_f >= 0`` on each face.
+    spacing : float
+        Distance ``h`` between the two cell centres.
+
+    Returns
+    -------
+    c_left, c_right : ndarray
+        ``(σ_f/h) B(-P)`` and ``(σ_f/h) B(P)`` with ``P = a h / σ_f`` and
+        ``B(z) = z / (e^z - 1)``; both are ``>= 0`` and ``c_left - c_right = a``.  Where
+        ``σ_f = 0`` they are the upwind coefficients ``max(a, 0)`` and ``max(-a, 0)``.
+
+    Notes
+    -----
+    With ``s = |P|`` the smaller coefficient is ``(σ_f/h) B(s) = (σ_f/h) s / (e^s - 1)``,
+    evaluated with ``expm1`` (no overflow, full relative accuracy for every ``s``), and the
+    larger one is the smaller plus ``|a|`` (``B(-s) = B(s) + s``).  So their ratio is
+    ``e^{|P|}`` to round-off, which keeps the discrete Gibbs state exact.
+    """
+    a = np.asarray(drift, dtype=float)
+    out_l, out_r = np.empty_like(a), np.empty_like(a)
+    _scharfetter_gummel_into(a, diffusion, spacing, 1.0, out_l, out_r, np.empty_like(a), np.empty_like(a))
+    return out_l, out_r
+
+
+def _scharfetter_gummel_into(a, diffusion, spacing, length, out_l, out_r, t1, t2) -> None:
+    """:func:`scharfetter_gummel` times ``length``, written into ``out_l``, ``out_r``.
+
+    No temporaries (``t1``, ``t2`` are work arrays of ``a``'s shape): a fresh half-megabyte
+    array per operation costs more in page faults than the arithmetic.
+    """
+    np.maximum(a, 0.0, out=out_l)
+    np.subtract(out_l, a, out=out_r)  # max(-a, 0), exactly
+    if np.ndim(diffusion) == 0:
+        d = float(diffusion)
+        if d > 0.0:
+            np.abs(a, out=t1)
+            t1 *= spacing
+            with np.errstate(over="ignore"):  # s = inf for a subnormal σ_f: clipped below; e^s = inf: B(s) = 0
+                t1 /= d
+                np.clip(t1, 1e-300, 1e300, out=t1)  # B(0) = 1 as s -> 0; B(1e300) = 0
+                np.expm1(t1, out=t2)
+            np.divide(t1, t2, out=t1)
+            t1 *= d / spacing
+            out_l += t1
+            out_r += t1
+    else:
+        d = np.broadcast_to(np.asarray(diffusion, dtype=float), a.shape)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            s = np.clip(np.abs(a) * spacing / d, 1e-300, 1e300)
+            small = np.where(d > 0, (d / spacing) * (s / np.expm1(s)), 0.0)
+        out_l += small
+        out_r += small
+    if np.ndim(length) or length != 1.0:
+        out_l *= length
+        out_r *= length
+
+
+def _check_point_velocity(name: str, value, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    try:
+        vx, vy = value
+    except (TypeError, ValueError):
+        raise ParameterError(name, type(value).__name__, "a callable returning a pair (vx, vy)") from None
+    vx = np.broadcast_to(np.asarray(vx, dtype=float), shape) if np.ndim(vx) == 0 else np.asarray(vx, dtype=float)
+    vy = np.broadcast_to(np.asarray(vy, dtype=float), shape) if np.ndim(vy) == 0 else np.asarray(vy, dtype=float)
+    if vx.shape != shape or vy.shape != shape:
+        raise ParameterError(
+            name, f"components of shapes {vx.shape}, {vy.shape}", f"arrays shaped like the inputs x, y: {shape}"
+        )
+    if not (np.all(np.isfinite(vx)) and np.all(np.isfinite(vy))):
+        raise ParameterError(name, "non-finite values (NaN or inf)", "finite velocities")
+    return vx, vy
+
+
+class FokkerPlanck(_TimeStepping):
+    """Finite-volume Fokker–Planck solver of the crowd density (paper, eq. (4)).
+
+    The spatial operator (Scharfetter–Gummel fluxes, :meth:`rhs`) is defined here; the
+    time stepping (:meth:`step`, :meth:`solve`, :meth:`automatic_dt`,
+    :meth:`positivity_bound`) comes from :mod:`meanfield.fokker_planck.stepping`.  See
+    docs/fokker_planck.md.
+
+    Parameters
+    ----------
+    grid : Grid
+        Cells of Ω (box, or disk/polygon through cut cells).
+    sigma : float or callable, default 0
+        Diffusion ``σ >= 0``, or ``σ(x, y, t)`` returning an array shaped like ``x``;
+        the SDE noise is ``sqrt(2σ) dB`` and the diffusion term ``Δ(σρ)``.
+    velocity : callable, optional
+        ``velocity(x, y, t) -> (vx, vy)``, a prescribed drift (e.g. the robots' ``v_r``),
+        evaluated at the face midpoints.
+    potential : callable, optional
+        ``U(x, y)``: adds the gradient drift ``-∇U``, taken as differences of ``U`` between
+        cell centres, so that ``exp(-U/σ)`` is an exact discrete steady state.
+    interaction : InteractionPotential or InteractionField, optional
+        ``W``; adds ``u_W[ρ](x) = ∫ ∇W(y - x) ρ(y) dy`` (the SDE's sign).
+    disturbance : callable, optional
+        ``v_a(x, y, t) -> (vx, vy)``, the unmodelled drift of the paper.
+    method : {"adi", "split", "explicit", "implicit"}, optional
+        Time integrator (see :mod:`meanfield.fokker_planck.stepping` for order and positivity).  Default:
+        ``"adi"`` on a box; ``"split"`` on cut-cell grids (disks, polygons), whose small
+        cells would bound the ADI and explicit steps.
+    time_dependent : bool, default True
+        Whether ``sigma``, ``velocity`` or ``disturbance`` depend on ``t``.  When False
+        they are evaluated once and the face coefficients (and factorisations) reused.
+    cfl : float, default 0.9
+        Fraction of the positivity bound used by the automatic step (0 < cfl <= 1).
+    courant : float, optional
+        ``"adi"`` only: choose the automatic step for accuracy instead of positivity,
+        ``dt = courant · min_faces(h / |a|)`` (the drift crosses at most ``courant`` cells
+        per step), so that the O(dt²) time error of Peaceman–Rachford scales like the
+        O(h²) space error.  The step is stable whatever its size; each step's result is
+        still checked to be ``>= 0`` and the step shortened when it is not.  Without any
+        drift it falls back to the positivity step.  Default None: ``cfl`` × the
+        positivity bound, O(h²) steps.
+
+    Examples
+    --------
+    >>> from meanfield import Domain, Grid, FokkerPlanck
+    >>> grid = Grid(Domain.box(1.0, 1.0), cells=(32, 32))
+    >>> fp = FokkerPlanck(grid, sigma=0.01, velocity=lambda x, y, t: (0.1 + 0 * x, 0 * y))
+    >>> rho = fp.solve(grid.normalize(np.ones(grid.shape)), t_final=1.0)
+    >>> bool(abs(grid.integrate(rho) - 1.0) < 1e-12)
+    True
+    """
+
+    def __init__(
+        self,
+        grid: Grid,
+        sigma: SigmaLike = 0.0,
+        velocity: PointVelocity | None = None,
+        *,
+        potential: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+        interaction: InteractionPotential | InteractionField | None = None,
+        disturbance: PointVelocity | None = None,
+        method: Method | None = None,
+        time_dependent: bool = True,
+        cfl: float = 0.9,
+        courant: float | None = None,
+    ):
+        if not isinstance(grid, Grid):
+            raise ParameterError("grid", type(grid).__name__, "a meanfield.Grid")
+        self.grid = grid
+        self.sigma: SigmaLike = check_sigma("sigma", sigma)
+        for name, f in (("velocity", velocity), ("potential", potential), ("disturbance", disturbance)):
+            if f is not None and not callable(f):
+                raise ParameterError(name, type(f).__name__, "a callable of (x, y, t) (potential: of (x, y)), or None")
+        self.velocity = velocity
+        self.disturbance = disturbance
+        self.potential = potential
+        if interaction is None or isinstance(interaction, InteractionField):
+            self.interaction = interaction
+        elif hasattr(interaction, "gradient"):
+            self.interaction = InteractionField(grid, interaction)
+        else:
+            raise ParameterError(
+                "interaction", type(interaction).__name__, "an InteractionPotential, InteractionField or None"
+            )
+        if method is None:
+            method = "adi" if grid.is_box else "split"
+        if method not in METHODS:
+            raise ParameterError("method", method, f"one of {', '.join(map(repr, METHODS))}")
+        self.method = method
+        self.time_dependent = bool(time_dependent)
+        cfl_v = positive_number("cfl", cfl)
+        if cfl_v > 1:
+            raise ParameterError("cfl", cfl, "a number in (0, 1]")
+        self.cfl = cfl_v
+        if courant is not None and method != "adi":
+            raise ParameterError("courant", courant, "None unless method='adi' (the only method it applies to)")
+        self.courant = None if courant is None else positive_number("courant", courant)
+        self._static: tuple[FaceField, FaceField] | None = None  # (drift, diffusion) when cacheable
+        self._potential_drift: FaceField | None = None
+        self._coeff_cache: _Coefficients | None = None
+        self._dynamic: _Coefficients | None = None
+        self._lu_cache: dict = {}
+        self._work: dict[str, np.ndarray] = {}
+
+    # ------------------------------------------------------------------ validation
+    def check_density(self, rho, name: str = "rho") -> np.ndarray:
+        """Validate a density on ``grid.shape``: finite, ``>= 0``, positive mass.
+
+        Returns a float copy with the cells outside Ω set to zero.
+        """
+        g = self.grid
+        try:
+            arr = np.array(rho, dtype=float)
+        except (TypeError, ValueError):
+            raise ParameterError(name, type(rho).__name__, f"a real array of grid.shape {g.shape}") from None
+        if arr.shape != g.shape:
+            raise ParameterError(name, f"shape {arr.shape}", f"an array of grid.shape {g.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise ParameterError(name, "non-finite values (NaN or inf)", "a finite density")
+        if np.any(arr < 0):
+            raise ParameterError(name, f"minimum {arr.min():.3g}", "a density >= 0 everywhere")
+        arr = np.where(g.active, arr, 0.0)
+        mass = g.integrate(arr)
+        if not mass > 0:
+            raise ParameterError(name, "zero mass", "a density of positive mass (∫ρ dx > 0)")
+        return arr
+
+    # ------------------------------------------------------------------ drift and diffusion
+    def _sigma_fields(self, t: float) -> tuple[FaceField, FaceField | None]:
+        """``σ`` on the faces and ``∇σ`` on the faces (None if σ is constant)."""
+        g = self.grid
+        if not callable(self.sigma):
+            return (self.sigma, self.sigma), None
+        out = []
+        for X, Y in (g.face_points_x, g.face_points_y, g.centers):
+            s = np.asarray(self.sigma(X, Y, t), dtype=float)
+            if s.shape != X.shape:
+                s = np.broadcast_to(s, X.shape) if s.ndim == 0 else s
+            if s.shape != X.shape:
+                raise ParameterError("sigma", f"σ(x, y, t) of shape {s.shape}", f"an array shaped like x: {X.shape}")
+            if not np.all(np.isfinite(s)) or np.any(s < 0):
+                raise ParameterError("sigma", "σ(x, y, t) negative or non-finite", "σ(x, y, t) >= 0 and finite")
+            out.append(s)
+        return (out[0], out[1]), g.gradient(out[2])
+
+    def _point_drift(self, f: PointVelocity, name: str, t: float) -> FaceField:
+        g = self.grid
+        Xx, Yx = g.face_points_x
+        Xy, Yy = g.face_points_y
+        vx = _check_point_velocity(name, f(Xx, Yx, t), Xx.shape)[0]
+        vy = _check_point_velocity(name, f(Xy, Yy, t), Xy.shape)[1]
+        return vx, vy
+
+    def _base_drift(self, t: float) -> tuple[FaceField, FaceField]:
+        """Drift ``v + v_a - ∇U - ∇σ`` on faces and ``σ`` on faces (no ρ-dependent part)."""
+        if self._static is not None:
+            return self._static
+        g = self.grid
+        ax = np.zeros((g.shape[0] - 1, g.shape[1]))
+        ay = np.zeros((g.shape[0], g.shape[1] - 1))
+        if self.velocity is not None:
+            vx, vy = self._point_drift(self.velocity, "velocity", t)
+            ax += vx
+            ay += vy
+        if self.disturbance is not None:
+            vx, vy = self._point_drift(self.disturbance, "disturbance", t)
+            ax += vx
+            ay += vy
+        if self.potential is not None:
+            if self._potential_drift is None:
+                X, Y = g.centers
+                U = np.asarray(self.potential(X, Y), dtype=float)
+                if U.shape != g.shape or not np.all(np.isfinite(U[g.active])):
+                    raise ParameterError(
+                        "potential", "U(x, y) of wrong shape or non-finite", f"finite, shape {g.shape}"
+                    )
+                gx, gy = g.gradient(np.where(g.active, U, 0.0))
+                self._potential_drift = (-gx, -gy)
+            ax += self._potential_drift[0]
+            ay += self._potential_drift[1]
+        diff, grad_sigma = self._sigma_fields(t)
+        if grad_sigma is not None:
+            ax -= grad_sigma[0]
+            ay -= grad_sigma[1]
+        result = ((ax, ay), diff)
+        if not self.time_dependent:
+            self._static = result
+        return result
+
+    def drift(self, rho: np.ndarray, t: float = 0.0, face_velocity: FaceField | None = None) -> FaceField:
+        """Total normal drift ``u_W[ρ] + v + v_a - ∇U - ∇σ`` on the interior faces."""
+        (ax, ay), _ = self._base_drift(t)
+        if self.interaction is not None:
+            ux, uy = self.interaction.on_faces(rho)
+            ax, ay = ax + ux, ay + uy
+        if face_velocity is not None:
+            ax, ay = ax + face_velocity[0], ay + face_velocity[1]
+        return ax, ay
+
+    def _buffer(self, name: str, shape: tuple[int, ...]) -> np.ndarray:
+        """A work array reused from step to step (see :func:`_scharfetter_gummel_into`)."""
+        b = self._work.get(name)
+        if b is None or b.shape != shape:
+            b = self._work[name] = np.empty(shape)
+        return b
+
+    def _coefficients(self, rho: np.ndarray, t: float, face_velocity: FaceField | None) -> _Coefficients:
+        """Face coefficients at ``(ρ, t)``; cached when nothing depends on time or ``ρ``.
+
+        The dynamic set is written into the same arrays every call: a caller must be done
+        with the previous set before asking for the next.
+        """
+        cacheable = not self.time_dependent and self.interaction is None and face_velocity is None
+        if cacheable and self._coeff_cache is not None:
+            return self._coeff_cache
+        g = self.grid
+        nx, ny = g.shape
+        (bx, by), (dxf, dyf) = self._base_drift(t)
+        uw = self.interaction.on_faces(rho) if self.interaction is not None else None
+        if cacheable:
+            arrays = [np.empty((nx - 1, ny)), np.empty((nx - 1, ny)), np.empty((nx, ny - 1)), np.empty((nx, ny - 1))]
+        else:
+            arrays = [
+                self._buffer(k, sh)
+                for k, sh in (("lx", (nx - 1, ny)), ("rx", (nx - 1, ny)), ("ly", (nx, ny - 1)), ("ry", (nx, ny - 1)))
+            ]
+        for k, (base, d, h, length) in enumerate(((bx, dxf, g.dx, g._len_x), (by, dyf, g.dy, g._len_y))):
+            shape = base.shape
+            a = base
+            if uw is not None or face_velocity is not None:
+                a = self._buffer(f"a{k}", shape)
+                np.copyto(a, base)
+                if uw is not None:
+                    a += uw[k]
+                if face_velocity is not None:
+                    a += face_velocity[k]
+            length = g.dy if (g.is_box and k == 0) else g.dx if g.is_box else length
+            _scharfetter_gummel_into(
+                a,
+                d,
+                h,
+                length,
+                arrays[2 * k],
+                arrays[2 * k + 1],
+                self._buffer(f"t1{k}", shape),
+                self._buffer(f"t2{k}", shape),
+            )
+        if cacheable:
+            self._coeff_cache = _Coefficients(*arrays)
+            return self._coeff_cache
+        c = self._dynamic
+        if c is None:
+            c = self._dynamic = _Coefficients(*arrays)
+        else:
+            c.reset()
+        return c
+
+    # ------------------------------------------------------------------ right-hand side
+    def flux(self, rho: np.ndarray, t: float = 0.0, face_velocity: FaceField | None = None) -> FaceField:
+        """Scharfetter–Gummel flux ``J·n`` on the interior faces (per unit face length)."""
+        g = self.grid
+        ax, ay = self.drift(rho, t, face_velocity)
+        _, (dxf, dyf) = self._base_drift(t)
+        lx, rx = scharfetter_gummel(ax, dxf, g.dx)
+        ly, ry = scharfetter_gummel(ay, dyf, g.dy)
+        return lx * rho[:-1, :] - rx * rho[1:, :], ly * rho[:, :-1] - ry * rho[:, 1:]
+
+    def rhs(self, rho: np.ndarray, t: float = 0.0, face_velocity: FaceField | None = None) -> np.ndarray:
+        """``∂_t ρ = -∇·J`` (paper, eq. (4)) on the cells, zero flux through the walls."""
+        c = self._coefficients(rho, t, face_velocity)
+        return self._apply(c, rho, "xy", np.empty(rho.shape)) * self.grid._inv_volume
+
+    def _apply(self, c: _Coefficients, rho: np.ndarray, axes: str, out: np.ndarray) -> np.ndarray:
+        """Mass rate ``A ρ`` (per cell, not divided by volume) along ``axes``, into ``out``."""
+        out[...] = 0.0
+        nx, ny = rho.shape
+        if "x" in axes:
+            G = self._buffer("Gx", (nx - 1, ny))
+            T = self._buffer("Tx", (nx - 1, ny))
+            np.multiply(c.lx, rho[:-1, :], out=G)
+            np.multiply(c.rx, rho[1:, :], out=T)
+            G -= T
+            out[:-1, :] -= G
+            out[1:, :] += G
+        if "y" in axes:
+            G = self._buffer("Gy", (nx, ny - 1))
+            T = self._buffer("Ty", (nx, ny - 1))
+            np.multiply(c.ly, rho[:, :-1], out=G)
+            np.multiply(c.ry, rho[:, 1:], out=T)
+            G -= T
+            out[:, :-1] -= G
+            out[:, 1:] += G
+        return out
+
+    def _matrix(self, c: _Coefficients, dt: float) -> sparse.csc_matrix:
+        """The backward-Euler matrix ``V - dt A`` of eq. (4) (an M-matrix; identity rows outside Ω)."""
+        g = self.grid
+        nx, ny = g.shape
+        idx = np.arange(nx * ny).reshape(nx, ny)
+        V = g.volume
+        diag = V.copy()
+        diag[:-1, :] += dt * c.lx
+        diag[1:, :] += dt * c.rx
+        diag[:, :-1] += dt * c.ly
+        diag[:, 1:] += dt * c.ry
+        diag[V <= 0] = 1.0
+        rows = [idx.ravel(), idx[:-1, :].ravel(), idx[1:, :].ravel(), idx[:, :-1].ravel(), idx[:, 1:].ravel()]
+        cols = [idx.ravel(), idx[1:, :].ravel(), idx[:-1, :].ravel(), idx[:, 1:].ravel(), idx[:, :-1].ravel()]
+        vals = [diag.ravel(), -dt * c.rx.ravel(), -dt * c.lx.ravel(), -dt * c.ry.ravel(), -dt * c.ly.ravel()]
+        return sparse.csc_matrix(
+            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(nx * ny, nx * ny)
+        )

@@ -1,0 +1,28 @@
+"""Files: atomic output and the run folder (:mod:`~meanfield.io.atomic`), trajectories in the formats
+pedestrian-dynamics tools read (:mod:`~meanfield.io.trajectories`).
+
+Names are imported on first use (:mod:`meanfield._namespace`).
+"""
+
+from meanfield._namespace import lazy_namespace
+
+_LAZY = {
+    "JUPEDSIM_SQLITE_VERSION": "meanfield.io.trajectories",
+    "atomic_write_json": "meanfield.io.atomic",
+    "atomic_write_text": "meanfield.io.atomic",
+    "atomic_write_with": "meanfield.io.atomic",
+    "check_complete_folder": "meanfield.io.atomic",
+    "check_output_dir": "meanfield.io.atomic",
+    "check_output_file": "meanfield.io.atomic",
+    "frame_spacing": "meanfield.io.trajectories",
+    "save_figure": "meanfield.io.atomic",
+    "sha256_of": "meanfield.io.atomic",
+    "subplots": "meanfield.io.atomic",
+    "write_complete_folder": "meanfield.io.atomic",
+    "write_jupedsim_sqlite": "meanfield.io.trajectories",
+    "write_pedpy_trajectories": "meanfield.io.trajectories",
+}
+
+__getattr__, __dir__ = lazy_namespace(__name__, globals(), _LAZY)
+
+__all__ = sorted(_LAZY)

@@ -1,0 +1,375 @@
+"""The sections of a scenario: one small validated dataclass per TOML table.
+
+Each class checks its fields on construction and raises
+:class:`~meanfield.errors.ParameterError` naming the dotted field (``"crowd.sigma"``).
+Names of interchangeable parts (``crowd.kind``, ``controller.kind``, ``controller.beta_gamma``)
+are checked against the registry (:mod:`meanfield.plugins`), so a
+plugin registered before the section is built is accepted.  :class:`meanfield.scenarios.scenario.Scenario`
+assembles the sections and runs the cross-field checks; import the classes from
+:mod:`meanfield.scenarios.scenario`, which re-exports them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields, is_dataclass
+from typing import Any
+
+import numpy as np
+
+from meanfield import plugins
+from meanfield.controllers.backstepping import DVD_DT_OPTIONS
+from meanfield.errors import ParameterError, all_numbers, choice, integer, num, optional_limit, point
+from meanfield.geometry.region import region_keywords
+
+__all__ = [
+    "field_hint",
+    "region_keys",
+    "settable",
+    "SECTIONS",
+    "GridSpec",
+    "CrowdSpec",
+    "RobotSpec",
+    "KernelSpec",
+    "InteractionSpec",
+    "DisturbanceSpec",
+    "TargetSpec",
+    "DensitySpec",
+    "ControllerSpec",
+    "ViewSpec",
+    "SensingSpec",
+]
+
+
+@dataclass
+class GridSpec:
+    """Finite-volume grid: ``cells = (nx, ny)``, each >= 2."""
+
+    cells: tuple[int, int] = (30, 30)
+
+    def __post_init__(self) -> None:
+        try:
+            nx, ny = self.cells
+        except (TypeError, ValueError):
+            raise ParameterError("grid.cells", self.cells, "a pair of integers >= 2") from None
+        self.cells = (integer("grid.cells[0]", nx, 2), integer("grid.cells[1]", ny, 2))
+
+
+@dataclass
+class CrowdSpec:
+    """Humans: which crowd moves them, count ``n >= 1``, initial distribution, diffusion ``σ >= 0``.
+
+    ``kind`` is a registered crowd (:mod:`meanfield.plugins`, kind ``crowd``): ``"point-mass"``
+    (the SDE of eq. (1), :mod:`meanfield.crowds.point_mass`), ``"jupedsim"`` (bodies moved by
+    JuPedSim, :mod:`meanfield.crowds.jupedsim_engine`), ``"fokker-planck"`` (the density itself,
+    eq. (4)) or a plugin's.  ``options`` holds one table per crowd kind, ``[crowd.options.<kind>]``,
+    which that crowd checks itself (it declares ``options``, :func:`meanfield.plugins.declared`);
+    a table is kept whatever ``kind`` is, so that switching kind (``--backend``) finds it.
+
+    ``field_evaluation`` is how ``v_r`` reaches the humans: ``"exact"`` (eq. (3) at each
+    human, O(N n)), ``"sampled"`` (on a lattice twice as fine as the grid, interpolated
+    bilinearly, O(N + n M): :mod:`meanfield.signs.sampled_field`) or ``"auto"`` (sampled when
+    ``N n > 2·10⁶``).  ``guidance`` is what the agents follow: the robots' ``"signs"``
+    (the paper), or a baseline, ``"geodesic"`` (the informed crowd, walking the shortest
+    route to an exit at ``free_speed``) or ``"random-walk"`` (the uninformed crowd; registry
+    kind ``guidance``, :mod:`meanfield.crowds.guidance`).  ``free_speed`` is the free walking speed
+    (1.34 m/s, Weidmann), also used by the evacuation lower bound.
+    """
+
+    kind: str = "point-mass"
+    n: int = 200
+    initial: str = "uniform"
+    initial_center: tuple[float, float] = (0.5, 0.5)
+    initial_std: float = 0.1
+    sigma: float = 0.015
+    field_evaluation: str = "auto"
+    guidance: str = "signs"
+    free_speed: float = 1.34
+    options: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.kind = choice("crowd.kind", self.kind, plugins.available("crowd"))
+        self.n = integer("crowd.n", self.n, 1)
+        self.initial = choice("crowd.initial", self.initial, ("uniform", "gaussian"))
+        self.initial_center = point("crowd.initial_center", self.initial_center)
+        self.initial_std = num("crowd.initial_std", self.initial_std, lo=0.0, lo_open=True)
+        self.sigma = num("crowd.sigma", self.sigma, lo=0.0)
+        self.field_evaluation = choice("crowd.field_evaluation", self.field_evaluation, ("auto", "exact", "sampled"))
+        self.guidance = choice("crowd.guidance", self.guidance, plugins.available("guidance"))
+        self.free_speed = num("crowd.free_speed", self.free_speed, lo=0.0, lo_open=True)
+        if not isinstance(self.options, dict):
+            raise ParameterError("crowd.options", self.options, "a table of tables, one per crowd kind")
+        kinds = plugins.available("crowd")
+        for kind, table in self.options.items():
+            if kind not in kinds:
+                raise ParameterError(f"crowd.options.{kind}", table, f"a table named after a registered crowd {kinds}")
+            if not isinstance(table, dict):
+                raise ParameterError(f"crowd.options.{kind}", table, "a table of that crowd's options")
+            options = plugins.declared("crowd", kind, "options")
+            if options is None and table:
+                raise ParameterError(f"crowd.options.{kind}", table, f"no options (the {kind!r} crowd takes none)")
+            if options is not None:
+                try:
+                    options(**table)  # the crowd checks its own options, naming crowd.options.<kind>.<field>
+                except TypeError:
+                    known = sorted(f.name for f in fields(options)) if is_dataclass(options) else "its options"
+                    raise ParameterError(f"crowd.options.{kind}", table, f"keys among {known}") from None
+        self.options = {k: dict(v) for k, v in self.options.items()}
+
+
+@dataclass
+class RobotSpec:
+    """Robots: count, initial layout and headings, speed limits, wall margin.
+
+    ``layout = "grid"`` puts the robots on a regular lattice (the paper's 4×4),
+    ``"random"`` draws them uniformly, ``"explicit"`` takes ``positions``.
+    ``headings`` is ``"random"`` (uniform on [0, 2π), as in the paper) or a list.
+    ``margin`` keeps robots at least that far inside the bounding walls of a box
+    (a robot is a body; it cannot stand in a wall).
+    """
+
+    n: int = 16
+    layout: str = "grid"
+    positions: list[list[float]] | None = None
+    headings: str | list[float] = "random"
+    u_max: float | None = None
+    omega_max: float | None = None
+    margin: float = 0.0
+
+    def __post_init__(self) -> None:
+        self.n = integer("robots.n", self.n, 1)
+        self.layout = choice("robots.layout", self.layout, ("grid", "random", "explicit"))
+        if self.layout == "explicit":
+            if self.positions is None:
+                raise ParameterError("robots.positions", None, "a list of n [x, y] pairs when layout = 'explicit'")
+            pos = np.asarray(self.positions, dtype=float) if all_numbers(self.positions) else None
+            if pos is None or pos.shape != (self.n, 2) or not np.all(np.isfinite(pos)):
+                raise ParameterError("robots.positions", self.positions, f"{self.n} finite [x, y] pairs")
+            self.positions = pos.tolist()
+        elif self.positions is not None:
+            raise ParameterError("robots.positions", "given", "no positions unless layout = 'explicit'")
+        if isinstance(self.headings, str):
+            choice("robots.headings", self.headings, ("random",))
+        else:
+            h = np.asarray(self.headings, dtype=float) if all_numbers(self.headings) else None
+            if h is None or h.shape != (self.n,) or not np.all(np.isfinite(h)):
+                raise ParameterError("robots.headings", self.headings, f"'random' or {self.n} finite angles")
+            self.headings = h.tolist()
+        self.u_max = optional_limit("robots.u_max", self.u_max)
+        self.omega_max = optional_limit("robots.omega_max", self.omega_max)
+        self.margin = num("robots.margin", self.margin, lo=0.0)
+
+
+@dataclass
+class KernelSpec:
+    """Navigation kernel ``K̄(ξ) = c exp(-|ξ|²/η)``: ``c > 0``, ``η > 0``."""
+
+    c: float = 0.2
+    eta: float = 0.05
+
+    def __post_init__(self) -> None:
+        self.c = num("kernel.c", self.c, lo=0.0, lo_open=True)
+        self.eta = num("kernel.eta", self.eta, lo=0.0, lo_open=True)
+
+
+@dataclass
+class InteractionSpec:
+    """Interaction potential W: ``"none"`` or ``"gaussian"`` (``s exp(-|z|²/ℓ²)``, ``s > 0`` repels)."""
+
+    kind: str = "none"
+    strength: float = 0.0
+    length: float = 0.1
+
+    def __post_init__(self) -> None:
+        self.kind = choice("interaction.kind", self.kind, ("none", "gaussian"))
+        self.strength = num("interaction.strength", self.strength)
+        self.length = num("interaction.length", self.length, lo=0.0, lo_open=True)
+        if self.kind == "gaussian" and self.strength == 0:
+            raise ParameterError("interaction.strength", 0.0, "a non-zero number when kind = 'gaussian'")
+
+
+@dataclass
+class DisturbanceSpec:
+    """Bounded disturbance v_a: ``"none"``, ``"constant"`` (``velocity``) or ``"swirl"``
+    (rotation about the domain centre with speed ``strength`` at unit distance)."""
+
+    kind: str = "none"
+    velocity: tuple[float, float] = (0.0, 0.0)
+    strength: float = 0.0
+
+    def __post_init__(self) -> None:
+        self.kind = choice("disturbance.kind", self.kind, ("none", "constant", "swirl"))
+        self.velocity = point("disturbance.velocity", self.velocity)
+        self.strength = num("disturbance.strength", self.strength)
+
+
+@dataclass
+class TargetSpec:
+    """Target density: Gaussian with ``center`` and ``std > 0``, restricted to Ω, unit mass."""
+
+    center: tuple[float, float] = (1.0, 1.0)
+    std: float = 0.15
+
+    def __post_init__(self) -> None:
+        self.center = point("target.center", self.center)
+        self.std = num("target.std", self.std, lo=0.0, lo_open=True)
+
+
+@dataclass
+class DensitySpec:
+    """KDE: ``bandwidth`` h > 0 or ``"silverman"``; wall ``boundary``; evaluation ``method``."""
+
+    bandwidth: float | str = 0.08
+    boundary: str = "reflect"
+    method: str = "auto"
+
+    def __post_init__(self) -> None:
+        if isinstance(self.bandwidth, str):
+            choice("density.bandwidth", self.bandwidth, ("silverman",))
+        else:
+            self.bandwidth = num(
+                "density.bandwidth", self.bandwidth, lo=0.0, lo_open=True, allowed='a number > 0, or "silverman"'
+            )
+        self.boundary = choice("density.boundary", self.boundary, ("reflect", "renormalize", "none"))
+        self.method = choice("density.method", self.method, ("auto", "separable", "binned"))
+
+
+@dataclass
+class ControllerSpec:
+    """Controller gains and options (paper, eqs. (6) and (8)).
+
+    ``beta_gamma`` is ``"min-norm"`` (the minimum-norm rule: docs page ``docs/controller.md``,
+    section "Choosing β and γ: the minimum-norm rule") or any other registered strategy, such
+    as ``"bounded"`` (the speed-limited program of :mod:`analysis.bounded`).  ``kind`` is
+    ``"backstepping"`` (the paper's law) or any other registered controller, such as
+    ``"nmpc"`` (:mod:`analysis.nmpc`); ``options`` is passed to that plugin, which
+    validates it.  ``dvd_dt`` is one of :data:`meanfield.controllers.backstepping.DVD_DT_OPTIONS`.  See
+    :mod:`meanfield.plugins`.  ``scaling`` is ``"paper"`` (the paper's law, in the scenario's
+    units) or ``"kernel"`` (the same law in the units ``√|Ω|`` and the kernel's ``c``: the
+    robots' inputs no longer depend on the unit of length, and the gains are dimensionless).
+    """
+
+    alpha: float = 0.2
+    alpha_schedule: str = "saturating"
+    rho_floor: float = 2.0
+    k_u: float = 10.0
+    k_omega: float = 10.0
+    beta_gamma: str = "min-norm"
+    dvd_dt: str = "finite-difference"
+    kind: str = "backstepping"
+    options: dict[str, Any] = field(default_factory=dict)
+    scaling: str = "paper"
+
+    def __post_init__(self) -> None:
+        self.alpha = num("controller.alpha", self.alpha, lo=0.0, lo_open=True)
+        self.alpha_schedule = choice("controller.alpha_schedule", self.alpha_schedule, ("constant", "saturating"))
+        self.rho_floor = num("controller.rho_floor", self.rho_floor, lo=0.0, lo_open=True)
+        self.k_u = num("controller.k_u", self.k_u, lo=0.0)
+        self.k_omega = num("controller.k_omega", self.k_omega, lo=0.0)
+        self.beta_gamma = choice("controller.beta_gamma", self.beta_gamma, plugins.available("beta_gamma"))
+        self.dvd_dt = choice("controller.dvd_dt", self.dvd_dt, DVD_DT_OPTIONS)
+        self.scaling = choice("controller.scaling", self.scaling, ("paper", "kernel"))
+        self.kind = choice("controller.kind", self.kind, plugins.available("controller"))
+        if not isinstance(self.options, dict):
+            raise ParameterError("controller.options", self.options, "a table of options for the controller kind")
+        self.options = dict(self.options)
+
+
+@dataclass
+class ViewSpec:
+    """The humans' local view (the paper's Unity study, Section V-B).
+
+    A human follows the navigation field ``v_r`` (eq. (3)) only while some robot is within
+    ``radius`` of it; otherwise it walks a persistent random walk at ``walk_speed`` whose
+    heading diffuses with ``turning_rate`` (rad²/s, so the heading decorrelates as
+    ``exp(-turning_rate t)``; see :mod:`meanfield.crowds.local_view`).  ``radius = "none"`` (the
+    default) is the paper's model (eq. (1)): every human feels every robot.
+    """
+
+    radius: float | None = None
+    walk_speed: float = 0.0
+    turning_rate: float = 0.0
+
+    def __post_init__(self) -> None:
+        self.radius = optional_limit("view.radius", self.radius, what='a view radius > 0, or "none" (no gating)')
+        self.walk_speed = num("view.walk_speed", self.walk_speed, lo=0.0)
+        self.turning_rate = num("view.turning_rate", self.turning_rate, lo=0.0)
+
+
+@dataclass
+class SensingSpec:
+    """What each robot knows (:mod:`meanfield.controllers.local_sensing`).
+
+    ``radius``: a robot sees the crowd's density only within this distance of itself;
+    ``comm_radius``: robots within this distance of each other share what they see (a
+    connected group shares everything, the limit of consensus on their estimates).  Either
+    ``"none"`` (the default): no limit, the paper's centralized robots.
+    """
+
+    radius: float | None = None
+    comm_radius: float | None = None
+
+    def __post_init__(self) -> None:
+        self.radius = optional_limit("sensing.radius", self.radius, what='a radius > 0, or "none" (no limit)')
+        self.comm_radius = optional_limit(
+            "sensing.comm_radius", self.comm_radius, what='a radius > 0, or "none" (no limit)'
+        )
+
+    @property
+    def local(self) -> bool:
+        """True when some robot knows less than everything."""
+        return self.radius is not None or self.comm_radius is not None
+
+
+SECTIONS: dict[str, type] = {
+    "grid": GridSpec,
+    "crowd": CrowdSpec,
+    "robots": RobotSpec,
+    "kernel": KernelSpec,
+    "interaction": InteractionSpec,
+    "disturbance": DisturbanceSpec,
+    "target": TargetSpec,
+    "density": DensitySpec,
+    "controller": ControllerSpec,
+    "view": ViewSpec,
+    "sensing": SensingSpec,
+}
+"""The scenario's tables in TOML order: ``{table name: section class}``."""
+
+
+# ---------------------------------------------------------------------- keys that --set may name
+def region_keys(kind: Any) -> set[str] | None:
+    """The keys of the ``[domain]`` table of a registered region kind (None: unknown, or any)."""
+    return region_keywords(kind)
+
+
+def field_hint(parts: list[str], node: dict[str, Any], top_level: tuple[str, ...] = ()) -> str:
+    """What is allowed instead of an unknown dotted key: the shape's keys, or the closest field names."""
+    import difflib
+
+    if parts[0] == "domain" and len(parts) == 2:
+        kind = node.get("kind", "box")
+        keys = sorted(region_keys(kind) or ())
+        return f"a key of the {kind!r} region ({', '.join(keys)}); set domain.kind first to change the shape"
+    names = [f"{sec}.{f.name}" for sec, cls in SECTIONS.items() for f in fields(cls)]
+    names += [*top_level, *(f"domain.{k}" for k in sorted(region_keys(node.get("kind", "box")) or ()))]
+    close = difflib.get_close_matches(".".join(parts), names, n=3, cutoff=0.75)
+    return "an existing scenario field" + (f" (did you mean {' or '.join(close)}?)" if close else "")
+
+
+def settable(parts: list[str], node: dict[str, Any]) -> bool:
+    """Whether a dotted key absent from the scenario's table names a field that may be set.
+
+    A field left empty today (``view.radius = "none"`` is omitted, so is ``robots.positions``
+    until a layout uses it), a key of the region's kind (``domain.radius`` after
+    ``domain.kind = "disk"``), a controller option or a crowd's option (``crowd.options.<kind>.<field>``).
+    """
+    if parts[:-1] == ["controller", "options"] or (parts[:2] == ["crowd", "options"] and len(parts) == 4):
+        return True
+    if len(parts) != 2:
+        return False
+    section, name = parts
+    if section == "domain":
+        keys = region_keys(node.get("kind", "box"))
+        return keys is None or name in keys
+    cls = SECTIONS.get(section)
+    return cls is not None and name in {f.name for f in fields(cls)}

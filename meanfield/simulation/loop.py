@@ -1,0 +1,346 @@
+"""The closed loop: one step, written once, for any crowd and any controller.
+
+One step of :class:`ClosedLoop` (``dt``; docs page *Architecture*):
+
+1. observe: the crowd's density on the grid (a KDE of agents, or the PDE's density) and
+   the robots' kernels at their states (:class:`~meanfield.interfaces.Observation`);
+2. act: the controller's robot inputs ``(u_i, ω_i)`` (eq. (8) for the paper's law);
+3. the crowd advances under the robots' signs (eq. (1) for agents, eq. (4) for the density);
+4. the robots advance, their inputs saturated at the speed limits (eq. (2)), kept in
+   their region;
+5. the observers see the step (recording, time to 90 %, input statistics, ...).
+
+The loop holds no recording and computes no summary: observers do
+(:mod:`meanfield.simulation.observers`, :mod:`meanfield.simulation.summary`), as py-pde's trackers watch its
+solvers.  :meth:`ClosedLoop.run` attaches the standard observers and returns a result;
+:func:`run` assembles a scenario first.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any
+
+import numpy as np
+
+from meanfield._compiled.warmup import compile_in_parallel, parallel_compile_possible
+from meanfield.errors import ParameterError, SimulationDiverged
+from meanfield.interfaces import Observation
+from meanfield.scenarios.scenario import Scenario, load_scenario
+from meanfield.signs.robots import NavigationField, limited_inputs
+from meanfield.simulation.assembly import Parts, assemble
+from meanfield.simulation.evacuation_measures import EvacuationTracker
+from meanfield.simulation.observers import InputStatistics, Observer, Recorder, StepRecord, TargetTracker
+from meanfield.simulation.preflight import stability_warnings
+from meanfield.simulation.result import SimulationResult
+from meanfield.simulation.stragglers import StragglerTracker
+from meanfield.simulation.summary import run_id, run_summary
+
+__all__ = ["ClosedLoop", "Observer", "StepRecord", "run"]  # Observer, StepRecord: from meanfield.simulation.observers
+
+
+class ClosedLoop:
+    """Steps the parts of a closed loop: crowd, robots and controller.
+
+    Parameters
+    ----------
+    parts : Parts or Scenario
+        The parts from :func:`meanfield.simulation.assembly.assemble`; a scenario is assembled here
+        (with ``overrides``).
+    observers : sequence of Observer
+        Called at the start and after every step.
+    **overrides
+        For a scenario: passed to :func:`~meanfield.simulation.assembly.assemble` (``sigma``,
+        ``disturbance``, ``beta_gamma``, ``kernel``, ``crowd``, ``controller``).
+
+    Examples
+    --------
+    >>> from meanfield import ClosedLoop, paper_scenario
+    >>> loop = ClosedLoop(paper_scenario(seed=1).replace(t_final=0.1))
+    >>> result = loop.run(progress=False)
+    >>> result.summary["status"], result.summary["steps"]
+    ('completed', 10)
+    """
+
+    def __init__(self, parts: Any, *, observers: Any = (), **overrides: Any):
+        if isinstance(parts, Scenario):
+            parts = assemble(parts, **overrides)
+        elif overrides:
+            raise ParameterError("overrides", sorted(overrides), "none when the loop is given assembled parts")
+        if not isinstance(parts, Parts):
+            raise ParameterError("scenario", type(parts).__name__, "a Scenario (or the Parts of one)")
+        self.parts = parts
+        self.scenario = parts.scenario
+        self.crowd = parts.crowd
+        self.robots = parts.robots
+        self.controller = parts.controller
+        self.grid = parts.grid
+        self.dt = parts.scenario.dt
+        self.observers = list(observers)
+        self.t = 0.0
+        self.step_index = 0
+        controller_half, plant_half = self._first_step_halves()
+        halves = [h for h in (controller_half, plant_half) if h is not None]  # the law compiles longest: first
+        with compile_in_parallel(halves):  # (only on a cold cache: meanfield._compiled.warmup)
+            self.density: np.ndarray = self.crowd.density()
+        # a density that compiled nothing (the Fokker-Planck crowd's) forked nothing: then the plant's half
+        # compiles in a child beside the first step's act, which compiles the law here (_act)
+        self._plant_beside_first_act = [plant_half] if plant_half and parallel_compile_possible() else None
+        self.last: StepRecord | None = None  # the latest step, as observers saw it
+        self._started = False
+
+    def _first_step_halves(self) -> tuple[Callable[[], Any] | None, Callable[[], Any] | None]:
+        """The first step in two halves, the controller's and the plant's, for
+        :func:`~meanfield._compiled.warmup.compile_in_parallel` (None: a half that may not run in a child).
+
+        Each runs in a forked child, on the child's copy of the loop, only to compile (and
+        cache) the loops it calls: the controller acts on a stand-in density (zeros: which
+        loops compile depends on the arrays' types, not their values); the crowd takes one
+        step under the robots as they are, and the robots one with zero inputs, through the
+        saturation. Only the toolkit's own parts are called in a child: a plug-in's part might
+        act on the world (a real robot taking its command), so its loops compile here, in
+        this process, when it first runs.
+        """
+
+        def controller_half() -> None:
+            self.controller.act(Observation(np.zeros(self.grid.shape), self._field(), self.t, self.dt))
+
+        def plant_half() -> None:
+            self.crowd.advance(self.robots, self.t, self.dt)
+            r = self.robots
+            u, w, _ = limited_inputs(np.zeros((len(r.positions), 2)), np.zeros(len(r.positions)), r.u_max, r.omega_max)
+            r.advance(u, w, self.dt, self.parts.robot_region)
+
+        plant = _toolkit_part(self.crowd) and _toolkit_part(self.robots)
+        return (controller_half if _toolkit_part(self.controller) else None), (plant_half if plant else None)
+
+    # the parts, by name (read-only conveniences)
+    @property
+    def kernel(self):
+        return self.parts.kernel
+
+    @property
+    def target(self) -> np.ndarray:
+        return self.parts.target
+
+    @property
+    def domain(self):
+        return self.parts.region
+
+    @property
+    def robot_region(self):
+        return self.parts.robot_region
+
+    def attach(self, observer: Any) -> None:
+        """Add an observer (it sees the current state at once if the loop has started)."""
+        self.observers.append(observer)
+        if self._started:
+            observer.start(self)
+
+    def observe(self) -> Observation:
+        """What the robots know now: the density on the grid, their kernels, the time."""
+        return Observation(self.density, self._field(), self.t, self.dt)
+
+    def _field(self) -> NavigationField:
+        """The robots' kernels on the grid at their current states."""
+        r = self.robots
+        return NavigationField(self.parts.kernel, self.grid, r.positions, r.headings, self.parts.sight)
+
+    def _act(self, observation: Observation) -> Any:
+        """The first step's act, the plant's half compiling in a child meanwhile if the cache is cold (once)."""
+        tasks, self._plant_beside_first_act = self._plant_beside_first_act, None
+        with compile_in_parallel(tasks):
+            return self.controller.act(observation)
+
+    def start(self) -> None:
+        """Show the initial state to the observers (once; :meth:`step` calls it if needed)."""
+        if not self._started:
+            self._started = True
+            for obs in self.observers:
+                obs.start(self)
+
+    def step(self) -> StepRecord:
+        """Advance the closed loop by one ``dt``; raise :class:`SimulationDiverged` on NaN/inf.
+
+        The state is only changed when the robot inputs and the crowd's velocities are
+        finite, so after the exception the loop still holds the last good state.
+        """
+        self.start()
+        k, dt = self.step_index, self.dt
+        observation = self.observe()
+        command = self.controller.act(observation) if self._plant_beside_first_act is None else self._act(observation)
+        u, w, report = limited_inputs(command.u, command.omega, self.robots.u_max, self.robots.omega_max)
+        if not report[4]:
+            raise SimulationDiverged(
+                f"non-finite robot inputs at t = {self.t:.4g} (step {k}); the state is kept at the last good step", k
+            )
+        try:
+            self.crowd.advance(self.robots, self.t, dt)
+        except SimulationDiverged as exc:
+            raise SimulationDiverged(f"{exc} (step {k})", k) from None
+        self.robots.advance(u, w, dt, self.parts.robot_region)
+        self.step_index = k + 1
+        self.t = self.step_index * dt
+        self.density = self.crowd.density()
+        if not _all_finite(self.density):
+            raise SimulationDiverged(f"non-finite density at t = {self.t:.4g}", self.step_index)
+        record = self.last = StepRecord(k, observation, command, u, w, self.robots, report)
+        for obs in self.observers:
+            obs.step(self, record)
+        return record
+
+    def run(self, progress: bool = True, callback: Callable[[ClosedLoop], None] | None = None) -> SimulationResult:
+        """Run to ``t_final`` with the standard observers, recording every ``record_every`` steps.
+
+        :class:`~meanfield.simulation.observers.TargetTracker`, :class:`~meanfield.simulation.observers.InputStatistics`
+        and :class:`~meanfield.simulation.observers.Recorder` watch the run; :func:`~meanfield.simulation.summary.run_summary`
+        reads them at the end.
+
+        Parameters
+        ----------
+        progress : bool
+            Show a tqdm progress bar.
+        callback : callable, optional
+            Called as ``callback(loop)`` after every step.
+
+        Returns
+        -------
+        SimulationResult
+            With ``summary["status"]`` ``"completed"``, ``"diverged"`` (the message in
+            ``summary["message"]``; frames up to the last good state) or ``"interrupted"``
+            (KeyboardInterrupt; frames so far).
+        """
+        from tqdm.auto import tqdm
+
+        loop = self
+        sc = loop.scenario
+        target, inputs = TargetTracker(0.9), InputStatistics()
+        recorder = Recorder(target)
+        evacuation, stragglers = EvacuationTracker(), StragglerTracker()
+        for obs in (target, inputs, recorder, evacuation, stragglers):
+            loop.attach(obs)
+        loop.start()
+        p = loop.parts
+        rho_err0 = loop.grid.norm(loop.density - p.target)
+        status, message = "completed", ""
+        first = loop.step_index
+        n_steps = sc.steps - first
+        start = time.perf_counter()
+        bar = None  # shown once the first step is done: it loads (or compiles) the compiled loops
+        try:
+            remaining = loop.crowd.remaining_fraction if recorder.exits else None  # only with exits
+            with _stop_between_steps() as stop_requested:
+                for _ in range(n_steps):
+                    if stop_requested():
+                        raise KeyboardInterrupt
+                    loop.step()
+                    if bar is None:
+                        desc = f"meanfield run {sc.name}"
+                        bar = tqdm(total=n_steps, disable=not progress, desc=desc, unit="step", mininterval=0.5)
+                    if recorder.last_recorded_step == loop.step_index:
+                        bar.update(loop.step_index - first - bar.n)
+                    if callback is not None:
+                        callback(loop)
+                    if remaining is not None and remaining() <= 0.0:
+                        message = f"everyone left through the exits at t = {loop.t:.4g}"
+                        break
+        except SimulationDiverged as exc:
+            status, message = "diverged", str(exc)
+        except KeyboardInterrupt:
+            status, message = "interrupted", f"interrupted at t = {loop.t:.4g}"
+        except SystemError as exc:  # a second Ctrl-C inside a compiled call surfaces as this
+            if not isinstance(exc.__cause__, KeyboardInterrupt):
+                raise
+            status, message = "interrupted", f"interrupted at t = {loop.t:.4g}"
+        finally:
+            if bar is not None:
+                bar.close()
+            for obs in (target, inputs, recorder, evacuation, stragglers):
+                loop.observers.remove(obs)
+        wall = time.perf_counter() - start
+        recorder.finish()
+        dataset = recorder.dataset()
+        summary = run_summary(
+            loop,
+            target,
+            inputs,
+            recorder,
+            dataset,
+            status=status,
+            message=message,
+            rho_err0=rho_err0,
+            wall=wall,
+            steps_run=loop.step_index - first,
+            measures={**evacuation.summary(), **stragglers.summary(loop)},
+        )
+        rid = run_id(loop, status)
+        summary = {"run_id": rid, **summary, "warnings": stability_warnings(sc, loop.grid, summary)}
+        dataset.attrs.update(run_id=rid, status=status, message=message)
+        return SimulationResult(sc, dataset, summary, p.kernel)
+
+
+def _all_finite(a: np.ndarray) -> bool:
+    """Whether every entry of ``a`` is finite (``np.isfinite(a).all()``; counting costs 60 % of ``all``'s call)."""
+    return np.count_nonzero(np.isfinite(a)) == a.size
+
+
+def _toolkit_part(part: Any) -> bool:
+    """Whether ``part`` is one of the toolkit's own (``meanfield`` or ``analysis``): calling it has no effect
+    outside this process."""
+    return type(part).__module__.partition(".")[0] in ("meanfield", "analysis")
+
+
+@contextmanager
+def _stop_between_steps() -> Iterator[Callable[[], bool]]:
+    """While a run steps: the first Ctrl-C (SIGINT) or SIGTERM asks it to stop after the current step.
+
+    The signal only sets a flag that :meth:`ClosedLoop.run` reads between steps, so a step is
+    never cut in half (a signal landing inside a compiled call, or between two appends of a
+    recorded frame, would leave the state or the frames inconsistent).  A second signal
+    interrupts at once, as Python's default handler does.  Outside the main thread (where
+    handlers cannot be installed) signals behave as Python's defaults.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: False
+        return
+    requested: list[int] = []
+
+    def handler(signum: int, frame: object) -> None:
+        if requested:
+            raise KeyboardInterrupt(f"signal {signum}")
+        requested.append(signum)
+
+    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield lambda: bool(requested)
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+
+def run(
+    scenario: Scenario | str, *, seed: int | None = None, progress: bool = True, **overrides: Any
+) -> SimulationResult:
+    """Assemble a scenario's closed loop and run it.
+
+    Parameters
+    ----------
+    scenario : Scenario or str
+        A scenario, a built-in name (``"paper"``) or a TOML path.
+    seed : int, optional
+        Override the scenario's seed.
+    progress : bool
+        Show a progress bar.
+    **overrides
+        Passed to :func:`~meanfield.simulation.assembly.assemble` (``sigma``, ``disturbance``,
+        ``beta_gamma``, ``kernel``, ``crowd``, ``controller``).
+    """
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    if seed is not None:
+        scenario = scenario.replace(seed=seed)
+    return ClosedLoop(scenario, **overrides).run(progress=progress)

@@ -1,0 +1,118 @@
+"""The ``meanfield`` command: exit statuses, error messages naming the field, outputs."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from meanfield import Scenario, paper_scenario
+from meanfield.cli.app import main
+
+from tests.scenarios.test_scenario import BAD_TOML
+
+TINY = """\
+t_final = 0.05
+dt = 0.01
+record_every = 5
+[crowd]
+n = 40
+[robots]
+n = 4
+[grid]
+cells = [12, 12]
+"""
+
+
+@pytest.mark.parametrize(("text", "name"), BAD_TOML)
+def test_bad_scenario_file_exits_2_naming_the_field(text, name, tmp_path, capsys):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    out = tmp_path / "out"
+    status = main(["run", str(path), "--out", str(out), "--quiet", "--no-figures"])
+    err = capsys.readouterr().err
+    assert status == 2
+    assert name in err
+    assert not out.exists()  # refused before anything ran
+
+
+@pytest.mark.parametrize(
+    ("args", "name"),
+    [
+        (["--set", "crowd.sigma=-1"], "crowd.sigma"),
+        (["--set", "kernel.eta=0"], "kernel.eta"),
+        (["--set", "kernel.nope=1"], "kernel.nope"),
+        (["--set", "dt"], "--set"),
+        (["--seed", "-3"], "--seed"),
+    ],
+)
+def test_bad_overrides_exit_2(args, name, tmp_path, capsys):
+    out = tmp_path / "out"
+    status = main(["run", "paper", "--out", str(out), "--quiet", "--no-figures", *args])
+    assert status == 2
+    assert name in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_unknown_scenario_name_exits_2(tmp_path, capsys):
+    assert main(["run", "no-such-scenario", "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    assert "scenario" in capsys.readouterr().err
+
+
+def test_run_writes_outputs_and_exits_0(tmp_path, capsys):
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY)
+    out = tmp_path / "out"
+    status = main(["run", str(path), "--out", str(out), "--seed", "4", "--no-figures", "--set", "kernel.c=0.4"])
+    assert status == 0
+    printed = capsys.readouterr().out
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "completed"
+    assert summary["seed"] == 4 and summary["steps"] == 5
+    assert summary["scenario"]["kernel"]["c"] == 0.4
+    assert (out / "timeseries.nc").exists()
+    assert '"fraction_in_target"' in printed
+
+
+def test_scenario_command_prints_parseable_toml(capsys):
+    assert main(["scenario", "paper"]) == 0
+    text = capsys.readouterr().out
+    assert Scenario.from_toml(text).to_dict() == paper_scenario().to_dict()
+
+
+def test_installed_command_exit_status(tmp_path):
+    """As a separate process (``python -m meanfield.cli.app``, what the ``meanfield`` script runs):
+    exit status 2 and the field named on stderr."""
+    path = tmp_path / "bad.toml"
+    path.write_text("[crowd]\nsigma = -0.5\n")
+    proc = subprocess.run(
+        [sys.executable, "-m", "meanfield.cli.app", "run", str(path), "--out", str(tmp_path / "o"), "--quiet"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 2
+    assert "crowd.sigma" in proc.stderr
+    assert not (tmp_path / "o").exists()
+
+
+# ---------------------------------------------------------------------- CLI habits (issue 16, item 11)
+def test_version_and_the_list_of_built_in_scenarios(capsys):
+    from importlib.metadata import version
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0 and capsys.readouterr().out.strip() == f"meanfield {version('meanfield-crowd')}"
+    assert main(["scenario", "--list"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert [line.split()[0] for line in lines] == ["hall", "l-room", "office", "paper", "paper-unity", "stadium"]
+    assert all(len(line.split(maxsplit=1)) == 2 for line in lines)  # a name and what it is
+
+
+def test_the_help_lists_every_built_in_scenario(capsys):
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "a built-in scenario (hall, l-room, office, paper, paper-unity, stadium) or a TOML file" in text

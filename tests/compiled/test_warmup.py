@@ -1,0 +1,234 @@
+"""The first compile on two cores (``meanfield._compiled.warmup``): forked children fill numba's cache.
+
+Each test runs a fresh Python process on its own empty ``NUMBA_CACHE_DIR``, the only way to
+see a cold cache. What is checked: the children compile and cache the loops the parent does
+not call itself; the run's numbers are the same with and without them; nothing is forked on
+a warm cache or when ``MEANFIELD_PARALLEL_COMPILE=0``; a task that fails or hangs costs the
+parent nothing but the wait (bounded by ``timeout``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+import threading
+
+import pytest
+
+from meanfield._compiled import core as compiled
+from meanfield._compiled import warmup
+
+pytestmark = pytest.mark.skipif(
+    not (compiled.numba_available() and sys.platform.startswith("linux") and warmup._usable_cpus() >= 2),
+    reason="the parallel compile needs numba, Linux and two usable CPUs",
+)
+
+BUILD = textwrap.dedent(
+    """
+    import json, sys
+    import numpy as np
+    from meanfield import ClosedLoop, paper_scenario
+    from meanfield._compiled import warmup
+    from meanfield.controllers import _law_loops as law_loops
+    loop = ClosedLoop(paper_scenario(seed=3).replace(t_final=0.05))
+    forked, law_called = warmup._used, law_loops.paper_law._jitted is not None
+    law_cached = law_loops.paper_law._compile()._cache._cache_file._load_index() != {}
+    for _ in range(5):
+        loop.step()
+    print(json.dumps({"forked": forked, "law_called_here": law_called, "law_cached": law_cached,
+                      "density": loop.density.ravel().tolist(), "robots": loop.robots.positions.ravel().tolist()}))
+    """
+)
+
+
+def _python(code: str, cache: str, **env: str) -> dict:
+    environment = {**os.environ, "NUMBA_CACHE_DIR": cache, "MEANFIELD_COMPILED": "1", **env}
+    environment.pop(warmup.ENV, None)
+    environment.update(env)
+    out = subprocess.run([sys.executable, "-c", code], env=environment, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_children_cache_the_law_the_parent_has_not_called_and_the_numbers_do_not_change(tmp_path):
+    parallel = _python(BUILD, str(tmp_path / "a"))
+    assert parallel["forked"]
+    # the parent has not called the law yet, but its compiled code is already on disk: a child wrote it
+    assert not parallel["law_called_here"] and parallel["law_cached"]
+    serial = _python(BUILD, str(tmp_path / "b"), MEANFIELD_PARALLEL_COMPILE="0")
+    assert not serial["forked"] and not serial["law_cached"]
+    assert parallel["density"] == serial["density"]  # bit for bit: the children change nothing here
+    assert parallel["robots"] == serial["robots"]
+
+
+FOKKER_PLANCK = textwrap.dedent(
+    """
+    import json
+    from meanfield import ClosedLoop, paper_scenario
+    from meanfield._compiled import warmup
+    sc = paper_scenario(seed=3).with_values({"pedestrians.backend": "fokker-planck"}).replace(t_final=0.05)
+    loop = ClosedLoop(sc)
+    forked_at_build = warmup._used
+    for _ in range(5):
+        loop.step()
+    print(json.dumps({"forked_at_build": forked_at_build, "forked": warmup._used,
+                      "density": loop.density.ravel().tolist(), "robots": loop.robots.positions.ravel().tolist()}))
+    """
+)
+
+
+def test_a_density_that_compiles_nothing_forks_the_plant_beside_the_first_act(tmp_path):
+    parallel = _python(FOKKER_PLANCK, str(tmp_path / "fp"))
+    # the PDE's first density compiles nothing, so nothing forks then; the first step's act does
+    assert not parallel["forked_at_build"] and parallel["forked"]
+    serial = _python(FOKKER_PLANCK, str(tmp_path / "fp1"), MEANFIELD_PARALLEL_COMPILE="0")
+    assert not serial["forked"]
+    assert parallel["density"] == serial["density"] and parallel["robots"] == serial["robots"]  # bit for bit
+
+
+def test_nothing_is_forked_on_a_warm_cache(tmp_path):
+    cache = str(tmp_path / "c")
+    assert _python(BUILD, cache)["forked"]
+    assert not _python(BUILD, cache)["forked"]
+
+
+TASKS = textwrap.dedent(
+    """
+    import json, os, sys, time
+    import numpy as np
+    from meanfield._compiled import warmup
+    from meanfield._compiled.core import compiled
+
+    def _twice(x):
+        return 2.0 * x
+
+    @compiled(fallback=_twice)
+    def twice(x):
+        out = np.empty_like(x)
+        for i in range(x.shape[0]):
+            out[i] = 2.0 * x[i]
+        return out
+
+    def fails():
+        raise RuntimeError("a task that fails")
+
+    def hangs():
+        time.sleep(600)
+
+    t0 = time.perf_counter()
+    with warmup.compile_in_parallel([fails, hangs], timeout=float(sys.argv[1])):
+        y = twice(np.arange(3.0))
+    print(json.dumps({"forked": warmup._used, "y": y.tolist(), "seconds": time.perf_counter() - t0}))
+    """
+)
+
+
+def test_a_task_that_fails_or_hangs_costs_only_the_bounded_wait(tmp_path):
+    script = tmp_path / "tasks.py"
+    script.write_text(TASKS)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "d"), "MEANFIELD_COMPILED": "1"}
+    env.pop(warmup.ENV, None)
+    out = subprocess.run([sys.executable, str(script), "2.0"], env=env, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout.strip().splitlines()[-1])
+    assert doc["forked"] and doc["y"] == [0.0, 2.0, 4.0]
+    assert doc["seconds"] < 60  # the hanging child was killed at the 2 s timeout, not waited for (600 s)
+    assert "a task that fails" not in out.stderr  # the children's output goes nowhere
+
+
+def test_the_switch_and_the_conditions():
+    assert warmup.ENV == "MEANFIELD_PARALLEL_COMPILE"
+    with compiled.numpy_path():
+        assert not warmup.parallel_compile_possible()  # nothing compiles on the numpy path
+    release = threading.Event()
+    other = threading.Thread(target=release.wait)
+    other.start()
+    try:  # another thread could hold a lock the child would need: no fork
+        assert not warmup.parallel_compile_possible()
+    finally:
+        release.set()
+        other.join()
+
+
+def test_the_switch_turns_it_off(tmp_path):
+    script = tmp_path / "off.py"
+    script.write_text(TASKS)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "e"), "MEANFIELD_COMPILED": "1", warmup.ENV: "0"}
+    out = subprocess.run([sys.executable, str(script), "2.0"], env=env, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout.strip().splitlines()[-1])
+    assert not doc["forked"] and doc["y"] == [0.0, 2.0, 4.0]
+
+
+PLUGIN = textwrap.dedent(
+    """
+    import dataclasses, json, os, sys
+    from meanfield import ClosedLoop, paper_scenario
+    from meanfield._compiled import warmup
+    from meanfield.simulation.assembly import assemble
+
+    class Relay:  # a plug-in controller that could drive real robots: each call leaves a trace
+        def __init__(self, inner):
+            self.inner = inner
+
+        def act(self, observation):
+            with open(sys.argv[1], "a") as f:
+                f.write(f"{os.getpid()}\\n")
+            return self.inner.act(observation)
+
+    parts = assemble(paper_scenario(seed=0).replace(t_final=0.05))
+    loop = ClosedLoop(dataclasses.replace(parts, controller=Relay(parts.controller)))
+    loop.step()
+    print(json.dumps({"forked": warmup._used, "pid": os.getpid()}))
+    """
+)
+
+
+def test_a_plugin_controller_is_never_called_in_a_child(tmp_path):
+    script, trace = tmp_path / "plugin.py", tmp_path / "calls.txt"
+    script.write_text(PLUGIN)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "f"), "MEANFIELD_COMPILED": "1"}
+    env.pop(warmup.ENV, None)
+    command = [sys.executable, str(script), str(trace)]
+    out = subprocess.run(command, env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout.strip().splitlines()[-1])
+    assert doc["forked"]  # the toolkit's crowd still compiled in a child
+    assert trace.read_text().split() == [str(doc["pid"])]  # one call, the step's, in this process
+
+
+def test_meanfield_run_says_when_its_first_run_compiles(tmp_path):
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "g"), "MEANFIELD_COMPILED": "1"}
+    command = [sys.executable, "-m", "meanfield.cli.app", "run", "paper", "--set", "t_final=0.05", "--no-figures"]
+
+    def stderr(out: str) -> str:
+        done = subprocess.run([*command, "--out", str(tmp_path / out)], env=env, capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr
+        return done.stderr
+
+    assert "compiling the toolkit's loops for this machine" in stderr("cold")
+    assert "compiling" not in stderr("warm")  # numba's cache serves the second run
+
+
+def test_a_cold_compile_callback_can_be_withdrawn():
+    calls = []
+
+    def callback() -> None:
+        calls.append(1)
+
+    unregister = compiled.before_cold_compile(callback)
+    assert callback in compiled._before_cold_compile
+    unregister()
+    unregister()  # twice: no error
+    assert callback not in compiled._before_cold_compile and not calls
+
+
+def test_meanfield_run_leaves_no_callback_behind(tmp_path):
+    from meanfield.cli.app import main
+    from meanfield.cli.run import _say_compiling
+
+    assert main(["run", "paper", "--set", "t_final=0.05", "--no-figures", "--out", str(tmp_path / "r")]) == 0
+    assert _say_compiling not in compiled._before_cold_compile  # (a warm cache never called it)

@@ -1,0 +1,95 @@
+"""A folder with a summary.json holds one complete run; --out is checked before any work (issue 16, items 1-2)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+
+from meanfield import paper_scenario, run
+from meanfield.cli.app import main
+from meanfield.errors import ParameterError
+from meanfield.io.atomic import check_complete_folder, check_output_dir, check_output_file
+
+
+@pytest.fixture(scope="module")
+def two_runs(tmp_path_factory):
+    base = paper_scenario(seed=0).replace(t_final=0.05)
+    return run(base, progress=False), run(base.replace(seed=1), progress=False)
+
+
+def test_every_file_carries_the_run_id_and_reruns_keep_it(two_runs):
+    a, b = two_runs
+    assert a.summary["run_id"] != b.summary["run_id"]
+    again = run(paper_scenario(seed=0).replace(t_final=0.05), progress=False)
+    assert again.summary["run_id"] == a.summary["run_id"]  # the id is what the run is
+    assert a.dataset.attrs["run_id"] == a.summary["run_id"] and a.dataset.attrs["status"] == "completed"
+
+
+def test_a_reader_detects_a_file_of_another_run(two_runs, tmp_path):
+    a, b = two_runs
+    a.save(tmp_path / "a")
+    b.save(tmp_path / "b")
+    assert check_complete_folder(tmp_path / "a") == []
+    shutil.copy(tmp_path / "b" / "timeseries.nc", tmp_path / "a" / "timeseries.nc")
+    problems = check_complete_folder(tmp_path / "a")
+    assert len(problems) == 1 and "timeseries.nc" in problems[0] and "another run" in problems[0]
+    (tmp_path / "a" / "summary.json").unlink()
+    assert "no summary.json" in check_complete_folder(tmp_path / "a")[0]
+
+
+def test_saving_over_an_earlier_run_removes_what_only_the_earlier_run_wrote(two_runs, tmp_path):
+    from meanfield.plotting.figures import save_run_figures
+
+    a, b = two_runs
+    out = tmp_path / "run"
+    a.save(out, artifacts=[save_run_figures])
+    (out / ".timeseries.abc.part.nc").write_bytes(b"killed write")  # a temporary of a killed save
+    b.save(out)  # no figures this time: a's figures must not stay beside b's summary
+    names = {p.name for p in out.iterdir()}
+    assert names == {"summary.json", "timeseries.nc", "scenario.toml"}
+    s = json.loads((out / "summary.json").read_text())
+    assert s["seed"] == 1 and check_complete_folder(out) == []
+
+
+def test_out_is_checked_before_anything_runs(tmp_path):
+    afile = tmp_path / "afile"
+    afile.write_text("not a folder")
+    with pytest.raises(ParameterError) as exc:
+        check_output_dir(afile)
+    assert exc.value.name == "--out" and "is a file" in str(exc.value)
+    with pytest.raises(ParameterError) as exc:
+        check_output_dir(afile / "under")
+    assert "is a file, not a folder" in str(exc.value)
+    assert check_output_dir(tmp_path / "new" / "deep") == tmp_path / "new" / "deep"
+    assert not (tmp_path / "new").exists()  # a check creates nothing
+    with pytest.raises(ParameterError) as exc:
+        check_output_file(tmp_path)
+    assert "a file path" in str(exc.value)
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["run", "paper"],
+        ["compare", "paper"],
+        ["analyze", "paper", "--quick"],
+        ["verify", "paper", "--quick"],
+        ["sweep", "paper", "--set", "robots=4"],
+    ],
+)
+def test_every_command_refuses_a_bad_out_with_status_2(argv, tmp_path, capsys):
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    with pytest.raises(SystemExit) as exc:
+        main([*argv, "--out", str(afile)])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "--out" in err and str(afile) in err and "is a file" in err
+
+
+def test_bench_refuses_a_folder_as_its_report(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["bench", "--out", str(tmp_path)])
+    assert exc.value.code == 2 and "a file path" in capsys.readouterr().err
