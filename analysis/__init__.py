@@ -7,8 +7,15 @@
 - :mod:`analysis.bounded`: the speed-limited β/γ program (cvxpy + Clarabel), the
   ``bounded`` strategy of scenarios;
 - :mod:`analysis.limits`: closed-loop runs over speed limits;
-- :mod:`analysis.nmpc`: the NMPC baseline (CasADi), the ``nmpc`` controller of scenarios;
+- :mod:`analysis.nmpc` (a subpackage): the NMPC baseline (CasADi), the ``nmpc`` controller of
+  scenarios;
+- :mod:`analysis.pedestrians` (a subpackage): PedPy measurements of finished runs, the command
+  ``meanfield pedestrians``;
 - :mod:`analysis.cli`: ``meanfield analyze``.
+
+The modules ``analysis.nmpc_*`` and ``analysis.pedestrian_*`` of earlier releases moved into the
+two subpackages; their old paths still import for one release, with a warning naming the new
+module (:mod:`analysis._moved`).
 
 Built on :mod:`meanfield`; never imported by it (the strategy, the controller and the
 command reach it through entry points, see :mod:`meanfield.plugins`).
@@ -20,6 +27,7 @@ Example::
     mu2 = neumann_eigenvalue(Domain.disk(1.0), cells=(128, 128))
 """
 
+from analysis._moved import install_moved_modules
 from meanfield._namespace import lazy_namespace
 
 _LAZY = {
@@ -48,6 +56,7 @@ _LAZY = {
 }
 
 __getattr__, __dir__ = lazy_namespace(__name__, globals(), _LAZY)
+install_moved_modules()  # old module paths (analysis.nmpc_qp, analysis.pedestrian_metrics, ...) keep working
 
 __all__ = [
     "BoundedBetaGamma",

@@ -50,7 +50,7 @@ from scipy.sparse.csgraph import connected_components
 from meanfield.errors import ParameterError
 from meanfield.geometry.domain import Domain
 from meanfield.geometry.grid import Grid
-from meanfield.geometry.region import Region
+from meanfield.geometry.region import Region, convex_polygon
 
 __all__ = [
     "PoincareReport",
@@ -67,7 +67,6 @@ _DENSE_LIMIT = 100  # up to this many unknowns, a dense generalized eigensolve
 _SHAPE_RTOL = 1e-9  # relative tolerance of the closed-form shape detection
 _MAX_ITERATIONS = 300  # subspace iterations before falling back to ARPACK
 _RESIDUAL_TOL = 1e-10  # relative residual of the shift-inverted Ritz pairs
-_CONVEX_RTOL = 1e-12  # (hull area - area) / area below this: convex up to round-off
 NOT_CONVEX = "not applicable (Ω not convex)"
 """How reports print the Payne–Weinberger bound of a non-convex Ω."""
 
@@ -322,8 +321,10 @@ def neumann_eigenvalue(
 
 
 def is_convex(domain: Domain | Grid) -> bool:
-    """Whether Ω is convex: every :class:`Domain` is; another region when it has no holes and
-    its convex hull adds no area beyond round-off (relative ``1e-12``).
+    """Whether Ω is convex, as the region reports it (``is_convex``: every :class:`Domain` is; a plan
+    when it has no holes and its convex hull adds no area beyond round-off, relative ``1e-12``,
+    :func:`meanfield.geometry.region.convex_polygon`); a region that does not report it is
+    judged by its shapely outline the same way.
 
     Parameters
     ----------
@@ -331,13 +332,10 @@ def is_convex(domain: Domain | Grid) -> bool:
         The workspace (a grid's domain is used).
     """
     dom = _check_domain(domain)
-    if isinstance(dom, Domain):
-        return True  # box, disk and polygon: Domain.polygon refuses a non-convex vertex list
-    shape = dom.to_shapely()
-    if getattr(shape, "geom_type", None) != "Polygon" or len(shape.interiors):
-        return False
-    area = float(shape.area)
-    return area > 0 and (float(shape.convex_hull.area) - area) <= _CONVEX_RTOL * area
+    reported = getattr(dom, "is_convex", None)
+    if reported is not None:
+        return bool(reported)
+    return convex_polygon(dom.to_shapely())
 
 
 def payne_weinberger_bound(domain: Domain | Grid) -> float | None:

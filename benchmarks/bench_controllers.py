@@ -29,7 +29,9 @@ from typing import Any  # noqa: E402
 from benchmarks.records import measured, settings  # noqa: E402
 from benchmarks.reporting import emit, machine_line, time_act_calls  # noqa: E402
 from meanfield import ClosedLoop, paper_scenario  # noqa: E402
-from meanfield.workflows.controller_study import LAW, candidates  # noqa: E402
+from meanfield.workflows.controller_study import candidates, reference_law  # noqa: E402
+
+LAW = reference_law()[0]
 
 UNITY_PERIOD = 0.25  # s: a control period of paper-unity, the paper's study in metres and seconds
 PAPER_PERIOD = 0.01  # s: dt of paper, its time unit taken as a second (NMPC's real-time measure)

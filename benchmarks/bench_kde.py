@@ -52,7 +52,7 @@ from scipy.stats import gaussian_kde  # noqa: E402
 from benchmarks.records import BENCH_INSTALL, import_error, measured, settings, skipped  # noqa: E402
 from benchmarks.reporting import emit, machine_line  # noqa: E402
 from meanfield import Domain, Grid, KernelDensityEstimator, silverman_bandwidth  # noqa: E402
-from meanfield._compiled import core as compiled
+from meanfield._compiled import core as compiled  # noqa: E402
 
 CELLS = 256
 STD = 0.12

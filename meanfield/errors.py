@@ -16,7 +16,23 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["num", "range_text", "integer", "choice", "point", "optional_limit", "all_numbers", "module_list", "MeanfieldDeprecationWarning", "ParameterError", "SimulationDiverged", "SigmaLike", "check_sigma", "positive_number", "limit_or_inf"]
+__all__ = [
+    "num",
+    "range_text",
+    "integer",
+    "choice",
+    "point",
+    "optional_limit",
+    "all_numbers",
+    "module_list",
+    "MeanfieldDeprecationWarning",
+    "ParameterError",
+    "SimulationDiverged",
+    "SigmaLike",
+    "check_sigma",
+    "positive_number",
+    "limit_or_inf",
+]
 
 
 class ParameterError(ValueError):

@@ -30,7 +30,7 @@ matplotlib.use("pdf")
 import matplotlib.pyplot as plt
 from meanfield import paper_scenario, run
 from meanfield.plotting.figures import save_run_figures
-import analysis.figures, analysis.pedestrian_figures, verification
+import analysis.figures, analysis.pedestrians.figures, verification
 r = run(paper_scenario(seed=0).replace(t_final=0.05), progress=False)
 r.save({str(tmp_path)!r}, artifacts=[save_run_figures])
 assert matplotlib.get_backend() == "pdf", matplotlib.get_backend()

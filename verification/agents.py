@@ -341,7 +341,7 @@ def check_pedestrians(
     variants = ["jupedsim"] if quick else list(VARIANTS)
     ref = unity_scenario(seeds[0], "jupedsim")
     settings = {
-        "scenario": f"{ref.name} (meanfield.scenarios.scenario.paper_unity_scenario), independent of the verified scenario",
+        "scenario": f"{ref.name} (meanfield.scenarios.paper_unity_scenario), independent of the verified scenario",
         "seeds": list(seeds),
         "judged": VARIANTS["jupedsim"][0],
         "comparisons": [VARIANTS[v][0] for v in variants[1:]],

@@ -83,6 +83,25 @@ def main(argv: Sequence[str] | None = None) -> int:
     SIGTERM is handled as SIGINT while a command runs: a run stops with ``"status":
     "interrupted"`` and writes its last good state, as after Ctrl-C.
     """
+    import warnings
+
+    from meanfield.errors import MeanfieldDeprecationWarning
+
+    def show(message, category, filename, lineno, file=None, line=None):  # warnings.showwarning's signature
+        if issubclass(category, MeanfieldDeprecationWarning):  # the user's field or option, not our line
+            print(f"meanfield: warning: {message}", file=sys.stderr)
+        else:
+            default_show(message, category, filename, lineno, file, line)
+
+    default_show = warnings.showwarning
+    warnings.showwarning = show
+    try:
+        return _main(argv)
+    finally:
+        warnings.showwarning = default_show
+
+
+def _main(argv: Sequence[str] | None) -> int:
     import signal
     import threading
 

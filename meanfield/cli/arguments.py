@@ -12,7 +12,15 @@ from pathlib import Path
 from meanfield.errors import ParameterError
 from meanfield.scenarios.overrides import parse_set
 
-__all__ = ['add_scenario_arguments', 'scenario_from_args', 'builtin_names', 'builtin_description', 'output_dir', 'output_file', 'SCENARIO_HELP']
+__all__ = [
+    "add_scenario_arguments",
+    "scenario_from_args",
+    "builtin_names",
+    "builtin_description",
+    "output_dir",
+    "output_file",
+    "SCENARIO_HELP",
+]
 
 
 def output_dir(text: str) -> Path:

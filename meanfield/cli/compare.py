@@ -12,7 +12,7 @@ from meanfield.cli.arguments import add_scenario_arguments, scenario_from_args
 from meanfield.errors import ParameterError
 from meanfield.scenarios.overrides import int_list
 
-__all__ = ['register']
+__all__ = ["register"]
 
 
 def register(subparsers: Any) -> Callable[[argparse.Namespace], int]:

@@ -13,7 +13,7 @@ from typing import Any
 from meanfield import plugins
 from meanfield.cli.arguments import add_scenario_arguments, scenario_from_args
 
-__all__ = ['register', 'run_artifacts']
+__all__ = ["register", "run_artifacts"]
 
 
 def register(subparsers: Any) -> Callable[[argparse.Namespace], int]:

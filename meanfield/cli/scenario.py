@@ -10,7 +10,7 @@ from typing import Any
 
 from meanfield.cli.arguments import SCENARIO_HELP, builtin_description, builtin_names
 
-__all__ = ['register']
+__all__ = ["register"]
 
 
 def register(subparsers: Any) -> Callable[[argparse.Namespace], int]:

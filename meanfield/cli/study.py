@@ -1,4 +1,6 @@
-"""``meanfield study controllers``: every installed controller on the same seeds (:mod:`meanfield.workflows.controller_study`).
+"""``meanfield study controllers``: every installed controller on the same seeds.
+
+The study itself is :mod:`meanfield.workflows.controller_study`; this module is its command.
 """
 
 from __future__ import annotations
@@ -10,7 +12,7 @@ from typing import Any
 from meanfield.cli.arguments import output_dir
 from meanfield.workflows.controller_study import _Incomplete, study_controllers, table
 
-__all__ = ['register']
+__all__ = ["register"]
 
 
 def register(subparsers: Any) -> Callable[[argparse.Namespace], int]:

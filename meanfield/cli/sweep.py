@@ -1,4 +1,6 @@
-"""``meanfield sweep``: closed-loop runs over a grid of scenario values × seeds on Dask (:mod:`meanfield.workflows.sweep`).
+"""``meanfield sweep``: closed-loop runs over a grid of scenario values × seeds on Dask.
+
+The sweep itself is :mod:`meanfield.workflows.sweep`; this module is its command.
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ from meanfield.workflows.dask_cluster import CONNECT_TIMEOUT
 from meanfield.workflows.sweep import run_sweep
 from meanfield.workflows.sweep_plan import parse_seeds, parse_values
 
-__all__ = ['register']
+__all__ = ["register"]
 
 
 def register(subparsers: Any) -> Callable[[argparse.Namespace], int]:

@@ -92,7 +92,8 @@ def paper_law(rho, target, cst, pos, cos, sin, prev_x, prev_y, have_prev, h, rho
     ``exp(-d²/η)`` evaluated directly): a few hundred ulps where the factors matter (tests: a product of two within
     1,024 ulps above ``1e-20 c``, within ``2⁻⁴² c`` everywhere).  A start below ``e^{-708}`` is 0 (the segment's points
     are then more than 21 h away, ``f < c e^{-233}``; a ratio's exponent beyond 700, clamped by
-    :func:`~meanfield._compiled.vector_exp.exp_inplace`, only occurs in such segments).  The derivatives are ``-2 d_k/η f_k``.
+    :func:`~meanfield._compiled.vector_exp.exp_inplace`, only occurs in such segments).  The derivatives
+    are ``-2 d_k/η f_k``.
 
     Parameters
     ----------

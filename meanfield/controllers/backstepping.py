@@ -264,7 +264,7 @@ class BacksteppingController:
         self._fokker_planck = FokkerPlanck(grid, sigma, interaction=interaction) if dvd_dt == "fokker-planck" else None
         self._previous_vd: tuple[float, FaceField] | None = None
         self._target_gradient = grid.gradient(self.target)
-        self._fused_state: dict[str, Any] = {}  # the compiled law's per-run constants (meanfield.controllers._law_loops)
+        self._fused_state: dict[str, Any] = {}  # the compiled law's per-run constants (controllers._law_loops)
 
     accepts_sensing = True
     """It runs on a group's knowledge (``[sensing]``, :mod:`meanfield.controllers.local_sensing`)."""
@@ -472,7 +472,8 @@ class BacksteppingController:
         return ("paper", None) if box else ("faces", step_one)
 
     def _compiled_step_one(self) -> tuple[int, float, float, FaceField | None] | None:
-        """Step I as :func:`~meanfield.controllers._law_loops.face_law` computes it, ``(step, v_free, ρ_max, ∇φ)``, or None.
+        """Step I as :func:`~meanfield.controllers._law_loops.face_law` computes it, ``(step, v_free, ρ_max, ∇φ)``,
+        or None.
 
         The paper's (eq. (6)) for this class itself with the constant or saturating α.  A subclass
         that changes Step I, its rate or the dissipation gets None (the numpy path) unless it says
@@ -533,7 +534,7 @@ def _paper_constants(law: Any, g: Any, k: Any, n: int) -> np.ndarray:
 def fused_robot_inputs(
     law: Any, rho: np.ndarray, field: NavigationField, t: float, step_one: tuple | None = None
 ) -> ControlState | None:
-    """The :class:`~meanfield.controllers.backstepping.BacksteppingController`'s inputs in one compiled call; None when not compiled.
+    """The :class:`BacksteppingController`'s inputs in one compiled call; None when not compiled.
 
     The controller calls this only in the cases its ``_fused_law`` checks: ``step_one`` None is
     the paper's law on a box with the signs seen everywhere (:func:`paper_law`); otherwise it is

@@ -161,7 +161,9 @@ class JuPedSimAdapter:
         self.version = str(getattr(jps, "__version__", "?"))
         model_cls, params_cls = (getattr(jps, name, None) for name in MODELS[model])
         if model_cls is None or params_cls is None:
-            raise ParameterError("crowd.options.jupedsim.model", model, f"a model this JuPedSim ({self.version}) provides")
+            raise ParameterError(
+                "crowd.options.jupedsim.model", model, f"a model this JuPedSim ({self.version}) provides"
+            )
         kwargs = {"rng_seed": int(seed)} if model == "anticipation-velocity" else {}
         self._params_cls = params_cls
         self.sim = jps.Simulation(model=model_cls(**kwargs), geometry=geometry, dt=float(time_step))

@@ -195,7 +195,8 @@ def _rect(a: np.ndarray, b: np.ndarray, normal: np.ndarray, near: float, far: fl
 
 
 class JuPedSimEngine:
-    """Humans as JuPedSim bodies under direct steering (same interface as :class:`~meanfield.crowds.point_mass.PointMassEngine`).
+    """Humans as JuPedSim bodies under direct steering (the interface of
+    :class:`~meanfield.crowds.point_mass.PointMassEngine`).
 
     Parameters
     ----------
@@ -218,7 +219,8 @@ class JuPedSimEngine:
     Attributes
     ----------
     exits : ndarray, shape (E, 2, 2)
-        Ω's exits (:func:`~meanfield.geometry.exits.exit_segments`), as in :class:`~meanfield.crowds.point_mass.PointMassEngine`.
+        Ω's exits (:func:`~meanfield.geometry.exits.exit_segments`), as in
+        :class:`~meanfield.crowds.point_mass.PointMassEngine`.
     active : ndarray of bool, shape (N,)
         The humans still in Ω.
     exit_time : ndarray, shape (N,)

@@ -244,8 +244,8 @@ class KernelDensityEstimator:
         return axis_factors(centres, coords, h, lo, hi, self.boundary == "reflect")
 
     def _separable(self, points: np.ndarray, h: float, cell_area: float = 0.0) -> np.ndarray:
-        """The exact sum (:func:`meanfield.crowds._kde_loops.separable_sum`), in blocks of points; with ``cell_area`` > 0
-        scaled to unit mass on a box of cells of that area."""
+        """The exact sum (:func:`meanfield.crowds._kde_loops.separable_sum`), in blocks of points; with
+        ``cell_area`` > 0 scaled to unit mass on a box of cells of that area."""
         g = self.grid
         x0, x1, y0, y1 = g.domain.bounds
         nx, ny = g.cells

@@ -104,7 +104,8 @@ class PointMassEngine:
         self._leave_and_reflect(previous, t, dt)
 
     def _constant_amplitude(self, dt: float) -> np.ndarray:
-        """``sqrt(2 σ dt)``, the (1, 1) array :func:`~meanfield.crowds._point_mass_loops.euler_maruyama` takes, kept per (σ, dt)."""
+        """``sqrt(2 σ dt)``, the (1, 1) array :func:`~meanfield.crowds._point_mass_loops.euler_maruyama` takes,
+        kept per (σ, dt)."""
         key = (self.sigma, dt)
         if self._amp_key != key:
             self._amp_key, self._amp = key, np.full((1, 1), math.sqrt(2.0 * self.sigma * dt))

@@ -1,7 +1,8 @@
 """The finite-volume Fokker–Planck solver of the crowd's mean-field limit (paper, eq. (4)).
 
 :mod:`~meanfield.fokker_planck.solver` holds :class:`FokkerPlanck`; :mod:`~meanfield.fokker_planck.stepping`
-its time-stepping methods, chosen by name; ``_sweeps`` their compiled tridiagonal sweeps.
+its time-stepping methods, one :class:`Stepper` each, chosen by name from :data:`STEPPERS`; ``_sweeps`` their
+compiled tridiagonal sweeps.
 
 Names are imported on first use (:mod:`meanfield._namespace`).
 """
@@ -9,9 +10,15 @@ Names are imported on first use (:mod:`meanfield._namespace`).
 from meanfield._namespace import lazy_namespace
 
 _LAZY = {
+    "AdiStepper": "meanfield.fokker_planck.stepping",
+    "ExplicitStepper": "meanfield.fokker_planck.stepping",
     "FaceVelocity": "meanfield.fokker_planck.stepping",
     "FokkerPlanck": "meanfield.fokker_planck.solver",
+    "ImplicitStepper": "meanfield.fokker_planck.stepping",
     "METHODS": "meanfield.fokker_planck.solver",
+    "SplitStepper": "meanfield.fokker_planck.stepping",
+    "STEPPERS": "meanfield.fokker_planck.stepping",
+    "Stepper": "meanfield.fokker_planck.stepping",
     "scharfetter_gummel": "meanfield.fokker_planck.solver",
 }
 

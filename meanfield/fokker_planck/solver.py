@@ -26,12 +26,16 @@ docs/discretisation.md, "The grid"): the face fluxes (:func:`scharfetter_gummel`
 drift and the diffusion ``σ`` on the faces, the right-hand side ``-∇·J`` of eq. (4)
 (:meth:`FokkerPlanck.rhs`) and the sparse matrix of a backward-Euler step.  The time
 integrators (``method``: ``"adi"``, ``"split"``, ``"explicit"``, ``"implicit"``; order,
-positivity and step bounds) are in :mod:`meanfield.fokker_planck.stepping`, mixed into
-:class:`FokkerPlanck`, the solver (docs/fokker_planck.md, "Time stepping").
+positivity and step bounds) are the steppers of :mod:`meanfield.fokker_planck.stepping`,
+chosen by name (:data:`~meanfield.fokker_planck.stepping.STEPPERS`): :class:`FokkerPlanck`,
+the solver, holds the one its ``method`` names and hands it each step, around which it
+checks the arguments, chooses the automatic step and drives :meth:`FokkerPlanck.solve`
+(docs/fokker_planck.md, "Time stepping").
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Literal
 
@@ -39,17 +43,18 @@ import numpy as np
 from scipy import sparse
 
 from meanfield.errors import ParameterError, SigmaLike, check_sigma, positive_number
+from meanfield.fokker_planck.stepping import STEPPERS, Stepper, _check_face_field, _Coefficients, _StepTooLarge
 from meanfield.fokker_planck.stepping import (
     FaceVelocity as FaceVelocity,  # re-exported: the type of solve's face_velocity
 )
-from meanfield.fokker_planck.stepping import _Coefficients, _TimeStepping
 from meanfield.geometry.grid import FaceField, Grid
 from meanfield.signs.interaction import InteractionField
 from meanfield.signs.kernels import InteractionPotential
 
 __all__ = ["FokkerPlanck", "scharfetter_gummel", "METHODS"]
 
-METHODS = ("adi", "split", "explicit", "implicit")
+#: The names of the time-stepping methods (:data:`~meanfield.fokker_planck.stepping.STEPPERS`).
+METHODS = tuple(STEPPERS)
 
 Method = Literal["adi", "split", "explicit", "implicit"]
 PointVelocity = Callable[[np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]
@@ -138,13 +143,26 @@ def _check_point_velocity(name: str, value, shape: tuple[int, int]) -> tuple[np.
     return vx, vy
 
 
-class FokkerPlanck(_TimeStepping):
+def _stepper_class(method) -> type[Stepper]:
+    """The stepper registered as ``method`` in :data:`~meanfield.fokker_planck.stepping.STEPPERS`."""
+    if method not in STEPPERS:
+        raise ParameterError("method", method, f"one of {', '.join(map(repr, STEPPERS))}")
+    return STEPPERS[method]
+
+
+def _check_courant(stepper: type[Stepper], courant) -> None:
+    """Refuse an accuracy step ``courant`` for a method it does not apply to."""
+    if courant is not None and not stepper.accepts_courant:
+        raise ParameterError("courant", courant, "None unless method='adi' (the only method it applies to)")
+
+
+class FokkerPlanck:
     """Finite-volume Fokker–Planck solver of the crowd density (paper, eq. (4)).
 
-    The spatial operator (Scharfetter–Gummel fluxes, :meth:`rhs`) is defined here; the
-    time stepping (:meth:`step`, :meth:`solve`, :meth:`automatic_dt`,
-    :meth:`positivity_bound`) comes from :mod:`meanfield.fokker_planck.stepping`.  See
-    docs/fokker_planck.md.
+    The spatial operator (Scharfetter–Gummel fluxes, :meth:`rhs`) is defined here; each
+    time step (:meth:`step`, :meth:`solve`, :meth:`automatic_dt`, :meth:`positivity_bound`)
+    is taken by :attr:`stepper`, the :class:`~meanfield.fokker_planck.stepping.Stepper` of
+    ``method``, from :mod:`meanfield.fokker_planck.stepping`.  See docs/fokker_planck.md.
 
     Parameters
     ----------
@@ -225,23 +243,36 @@ class FokkerPlanck(_TimeStepping):
             )
         if method is None:
             method = "adi" if grid.is_box else "split"
-        if method not in METHODS:
-            raise ParameterError("method", method, f"one of {', '.join(map(repr, METHODS))}")
-        self.method = method
+        stepper = _stepper_class(method)
         self.time_dependent = bool(time_dependent)
         cfl_v = positive_number("cfl", cfl)
         if cfl_v > 1:
             raise ParameterError("cfl", cfl, "a number in (0, 1]")
         self.cfl = cfl_v
-        if courant is not None and method != "adi":
-            raise ParameterError("courant", courant, "None unless method='adi' (the only method it applies to)")
+        _check_courant(stepper, courant)
         self.courant = None if courant is None else positive_number("courant", courant)
         self._static: tuple[FaceField, FaceField] | None = None  # (drift, diffusion) when cacheable
         self._potential_drift: FaceField | None = None
         self._coeff_cache: _Coefficients | None = None
         self._dynamic: _Coefficients | None = None
-        self._lu_cache: dict = {}
         self._work: dict[str, np.ndarray] = {}
+        #: The time-stepping method (docs/fokker_planck.md, "Time stepping"), built on this operator.
+        self.stepper: Stepper = stepper(self)
+
+    @property
+    def method(self) -> str:
+        """The name of the time-stepping method, a key of :data:`~meanfield.fokker_planck.stepping.STEPPERS`.
+
+        Setting it swaps :attr:`stepper` for a new one of that method (checked like the
+        constructor's ``method``, with ``courant``).
+        """
+        return self.stepper.name
+
+    @method.setter
+    def method(self, method: Method) -> None:
+        stepper = _stepper_class(method)
+        _check_courant(stepper, self.courant)
+        self.stepper = stepper(self)
 
     # ------------------------------------------------------------------ validation
     def check_density(self, rho, name: str = "rho") -> np.ndarray:
@@ -451,3 +482,138 @@ class FokkerPlanck(_TimeStepping):
         return sparse.csc_matrix(
             (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(nx * ny, nx * ny)
         )
+
+    # ------------------------------------------------------------------ time stepping (the stepper's)
+    def positivity_bound(self, rho: np.ndarray, t: float = 0.0, face_velocity: FaceField | None = None) -> float:
+        """Largest ``dt`` for which the chosen method keeps ``ρ >= 0`` (inf if unconditional).
+
+        ``"explicit"``: ``min_c V_c / Σ_out(c)`` (forward-Euler bound, also the stability
+        bound); ``"adi"``: ``2 min(V_c / Σ_out^x(c), V_c / Σ_out^y(c))``;
+        ``"split"`` and ``"implicit"``: inf (M-matrices).  See
+        :meth:`Stepper.positivity_bound <meanfield.fokker_planck.stepping.Stepper.positivity_bound>`
+        and docs/fokker_planck.md, "Time stepping".
+        """
+        return self.stepper.positivity_bound(self._coefficients(rho, t, face_velocity))
+
+    def step(self, rho: np.ndarray, t: float, dt: float, face_velocity: FaceField | None = None) -> np.ndarray:
+        """Advance ``ρ`` from ``t`` to ``t + dt`` by one step of ``self.method``.
+
+        Parameters
+        ----------
+        rho : ndarray
+            Density on ``grid.shape`` (finite, ``>= 0``, positive mass).
+        t, dt : float
+            Current time and step (``dt > 0``).  An explicit ``dt`` above the positivity
+            and stability bound raises :class:`~meanfield.errors.ParameterError`.
+        face_velocity : FaceField, optional
+            An extra drift already on the faces (e.g. ``NavigationField.velocity()`` of the
+            robots), held constant over the step.
+        """
+        rho = self.check_density(rho)
+        dt = positive_number("dt", dt)
+        if face_velocity is not None:
+            face_velocity = _check_face_field("face_velocity", face_velocity, self.grid)
+        return self.stepper.step(rho, float(t), dt, face_velocity, check=True)
+
+    def automatic_dt(self, rho: np.ndarray, t: float = 0.0, face_velocity: FaceField | None = None) -> float:
+        """The step ``solve`` takes when ``dt`` is None.
+
+        ``cfl`` × the positivity bound for ``"explicit"`` and ``"adi"`` (on cut-cell
+        grids the smallest cell sets it: prefer ``"split"`` there, or pass ``dt``); for
+        the unconditionally positive ``"split"`` and ``"implicit"``, ``cfl`` × four times
+        the explicit bound of the cells at least half inside Ω (their error is first
+        order in ``dt``; pass a ``dt`` to go further).  With ``courant`` set (``"adi"``):
+        ``courant · min_faces(h / |a|)``, an accuracy step (:meth:`solve` then divides
+        the time left into equal steps of at most that size).  See
+        :meth:`Stepper.automatic_bound <meanfield.fokker_planck.stepping.Stepper.automatic_bound>`
+        and docs/fokker_planck.md, "Time stepping".
+        """
+        c = self._coefficients(rho, t, face_velocity)
+        if self.courant is not None:  # accuracy: the drift crosses `courant` cells per step
+            step = self.courant * c.crossing_time(self.grid)
+            if math.isfinite(step):
+                return step
+        b = self.stepper.automatic_bound(c)
+        if not math.isfinite(b):  # no drift and no diffusion: nothing moves
+            return math.inf
+        return self.cfl * b
+
+    def solve(
+        self,
+        rho0: np.ndarray,
+        t_final: float,
+        t0: float = 0.0,
+        dt: float | None = None,
+        *,
+        face_velocity: FaceVelocity | None = None,
+        callback: Callable[[float, np.ndarray], None] | None = None,
+        progress: bool = False,
+    ) -> np.ndarray:
+        """Integrate from ``t0`` to ``t_final`` and return ``ρ(t_final)``.
+
+        Parameters
+        ----------
+        rho0 : ndarray
+            Initial density on ``grid.shape`` (finite, ``>= 0``, positive mass).
+        t_final, t0 : float
+            End and start times (``t_final >= t0``).
+        dt : float, optional
+            Fixed step (the last step is shortened to land on ``t_final``).  None: the
+            automatic step of :meth:`automatic_dt`, re-evaluated every step when the
+            drift changes.
+        face_velocity : FaceField or callable, optional
+            Extra drift on the faces, constant or ``t -> FaceField``.
+        callback : callable, optional
+            ``callback(t, rho)`` after every step.
+        progress : bool
+            Show a progress bar (tqdm) over simulated time.
+        """
+        rho = self.check_density(rho0, "rho0")
+        try:
+            t0 = float(t0)
+            t_final = float(t_final)
+        except (TypeError, ValueError):
+            raise ParameterError("t_final", t_final, "finite times with t_final >= t0") from None
+        if not (math.isfinite(t0) and math.isfinite(t_final)) or t_final < t0:
+            raise ParameterError("t_final", t_final, f"a finite time >= t0 = {t0}")
+        if dt is not None:
+            dt = positive_number("dt", dt)
+        fv_fn = None
+        fv_const = None
+        if callable(face_velocity):
+            fv_fn = face_velocity
+        elif face_velocity is not None:
+            fv_const = _check_face_field("face_velocity", face_velocity, self.grid)
+        bar = None
+        if progress:
+            from tqdm.auto import tqdm
+
+            bar = tqdm(total=t_final - t0, unit="t", desc=f"Fokker–Planck ({self.method})")
+        t = t0
+        span = max(abs(t_final), abs(t0), 1.0)
+        try:
+            while t_final - t > 1e-13 * span:
+                fv = fv_const if fv_fn is None else _check_face_field("face_velocity", fv_fn(t), self.grid)
+                h = dt if dt is not None else self.automatic_dt(rho, t, fv)
+                if dt is None and self.courant is not None and math.isfinite(h):  # equal steps to t_final
+                    h = (t_final - t) / max(1, math.ceil((t_final - t) / h - 1e-9))
+                h = min(h, t_final - t)
+                for attempt in range(60):
+                    try:
+                        new = self.stepper.step(rho, t, h, fv, check=True)
+                        break
+                    except _StepTooLarge as exc:
+                        # automatic step: the drift grew within the step; retry below its bound
+                        if dt is not None or attempt == 59:
+                            raise
+                        h = min(0.5 * h, self.cfl * exc.bound)
+                rho = new
+                t = t + h if t_final - (t + h) > 1e-13 * span else t_final
+                if callback is not None:
+                    callback(t, rho)
+                if bar is not None:
+                    bar.update(h)
+        finally:
+            if bar is not None:
+                bar.close()
+        return rho

@@ -1,24 +1,24 @@
-"""Time stepping of the crowd's Fokker–Planck equation (paper, eq. (4)).
+"""Time stepping of the crowd's Fokker–Planck equation (paper, eq. (4)), one class per method.
 
 The finite-volume operator of :mod:`meanfield.fokker_planck.solver` turns eq. (4) into the
 semi-discrete system ``V dρ/dt = A(ρ, t) ρ`` (cell volumes ``V``, Scharfetter–Gummel
 face coefficients in ``A``; see docs/fokker_planck.md, "The scheme").  This module
-advances that system in time; it is mixed into
-:class:`~meanfield.fokker_planck.solver.FokkerPlanck`, the public solver, and is not used on its
-own.  Time stepping (``method``; docs/fokker_planck.md, "Time stepping", and
-docs/discretisation.md, "Time stepping"):
+advances that system in time.  Each method is a :class:`Stepper`, registered by name in
+:data:`STEPPERS`; :class:`~meanfield.fokker_planck.solver.FokkerPlanck`, the public solver,
+holds the one its ``method`` names and hands it every step.  Time stepping (``method``;
+docs/fokker_planck.md, "Time stepping", and docs/discretisation.md, "Time stepping"):
 
-``"explicit"``
+``"explicit"`` (:class:`ExplicitStepper`)
     Heun's method (SSP Runge–Kutta 2), second order.  Positive when
     ``dt <= min_c V_c / Σ_out(c)``, the forward-Euler positivity bound, which is also its
     stability bound; the step is chosen automatically, and a user ``dt`` above the bound
     is refused.
-``"split"`` (the default on cut-cell grids)
+``"split"`` (:class:`SplitStepper`, the default on cut-cell grids)
     Directional splitting: backward-Euler sweeps along x then y (the order alternates
     each step), each a batch of tridiagonal solves, O(cells) per step
     whatever the drift does.  Every sweep matrix is an M-matrix, so ``ρ >= 0`` for any
     ``dt``.  First order in time.
-``"adi"`` (the default on a box)
+``"adi"`` (:class:`AdiStepper`, the default on a box)
     Peaceman–Rachford alternating-direction implicit scheme (Crank–Nicolson halves),
     second order in time, two tridiagonal sweeps per step, stable for any ``dt``.
     Guaranteed positive when ``dt <= 2 min(V_c / Σ_out^x(c), V_c / Σ_out^y(c))`` (about
@@ -27,7 +27,7 @@ docs/discretisation.md, "Time stepping"):
     does not.  With ``courant`` set, the automatic step is chosen for accuracy instead:
     ``courant · min_faces(h / |a|)``, whose O(dt²) time error scales like the O(h²)
     space error (the positivity bound scales like h²).
-``"implicit"``
+``"implicit"`` (:class:`ImplicitStepper`)
     Backward Euler on the full 2-D M-matrix (sparse LU), positive for any ``dt``, first
     order in time.  The factorisation is reused while the coefficients and ``dt`` stay
     fixed; a drift that moves every step forces a refactorisation, which is why
@@ -46,17 +46,22 @@ start of each step (IMEX: nonlinear drift explicit, linear drift–diffusion imp
 from __future__ import annotations
 
 import math
+from abc import ABC, abstractmethod
 from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 from scipy.linalg import lapack
 from scipy.sparse import linalg as splinalg
 
-from meanfield.errors import ParameterError, positive_number
+from meanfield.errors import ParameterError
 from meanfield.fokker_planck import _sweeps as fp_compiled
 from meanfield.geometry.grid import FaceField, Grid
 
-__all__ = ["FaceVelocity"]
+if TYPE_CHECKING:
+    from scipy import sparse
+
+__all__ = ["FaceVelocity", "Stepper", "AdiStepper", "SplitStepper", "ExplicitStepper", "ImplicitStepper", "STEPPERS"]
 
 #: An extra drift on the faces for :meth:`~meanfield.fokker_planck.solver.FokkerPlanck.solve`:
 #: a face field ``(Fx, Fy)``, or a callable ``t -> (Fx, Fy)``.
@@ -107,6 +112,38 @@ class _Coefficients:
             self._out_x, self._out_y = ox, oy
         return self._out_x, self._out_y
 
+    def bound(self, grid: Grid, axes: str, typical: bool = False) -> float:
+        """``min_c V_c / Σ_out(c)`` over the faces along ``axes`` (cached with the coefficients).
+
+        The forward-Euler positivity bound of the coefficients' ``A`` restricted to ``axes``
+        (docs/fokker_planck.md, "Time stepping").  ``typical``: only over the cells at least
+        half inside Ω (a step size, not a bound).
+        """
+        key = axes + ("-typical" if typical else "")
+        if key in self.bounds:
+            return self.bounds[key]
+        ox, oy = self.outflow(grid.shape)
+        out = (ox if "x" in axes else 0.0) + (oy if "y" in axes else 0.0)
+        mask = (grid.volume_fraction >= 0.5 if typical else grid.active) & (out > 0)
+        b = float(np.min(grid.volume[mask] / out[mask])) if np.any(mask) else math.inf
+        self.bounds[key] = b
+        return b
+
+    def crossing_time(self, grid: Grid) -> float:
+        """``min_faces h / |a|``, the time the drift takes to cross a cell (cached with the coefficients).
+
+        ``|a|`` is read off the coefficients: ``c_left - c_right = a`` times the face length.
+        """
+        if "crossing" not in self.bounds:
+            rate = 0.0
+            faces = ((self.lx, self.rx, grid._len_x, grid.dx), (self.ly, self.ry, grid._len_y, grid.dy))
+            for lo, hi, length, h in faces:
+                open_ = length > 0
+                if np.any(open_):
+                    rate = max(rate, float(np.max(np.abs(lo - hi)[open_] / length[open_])) / h)
+            self.bounds["crossing"] = 1.0 / rate if rate > 0 else math.inf
+        return self.bounds["crossing"]
+
 
 #: factorisations kept for a fixed drift (one per step size and axis): the latest few
 _CACHED_FACTORS = 8
@@ -120,120 +157,183 @@ class _StepTooLarge(ParameterError):
         self.bound = bound
 
 
-class _TimeStepping:
-    """The time integrators of eq. (4), mixed into :class:`~meanfield.fokker_planck.solver.FokkerPlanck`.
+class _Operator(Protocol):
+    """What a :class:`Stepper` asks of the spatial operator (docs/fokker_planck.md, "The scheme").
 
-    The host class provides the spatial operator (docs/fokker_planck.md, "The scheme"):
-    ``grid``, ``method``, ``cfl``, ``courant``, ``time_dependent``, ``interaction``, the caches
-    ``_lu_cache`` and ``_work``, and the methods ``check_density``, ``_coefficients``
-    (the face coefficients of ``A(ρ, t)``), ``_apply`` (the mass rate ``A ρ``),
-    ``_matrix`` (the backward-Euler matrix ``V - dt A``) and ``_buffer`` (work arrays).
+    :class:`~meanfield.fokker_planck.solver.FokkerPlanck` provides it: the ``grid``, whether
+    the coefficients may be kept (``time_dependent``, ``interaction``), the face coefficients
+    of ``A(ρ, t)`` (``_coefficients``), the mass rate ``A ρ`` along some axes (``_apply``) and
+    the backward-Euler matrix ``V - dt A`` (``_matrix``).
     """
 
-    # ------------------------------------------------------------------ step bounds
-    def _bound(self, c: _Coefficients, axes: str, typical: bool = False) -> float:
-        """``min_c V_c / Σ_out(c)`` over the faces along ``axes`` (cached per coefficient set).
+    grid: Grid
+    time_dependent: bool
+    interaction: Any
 
-        ``typical``: only over the cells at least half inside Ω (a step size, not a bound).
-        """
-        key = axes + ("-typical" if typical else "")
-        if key in c.bounds:
-            return c.bounds[key]
-        g = self.grid
-        ox, oy = c.outflow(g.shape)
-        out = (ox if "x" in axes else 0.0) + (oy if "y" in axes else 0.0)
-        mask = (g.volume_fraction >= 0.5 if typical else g.active) & (out > 0)
-        b = float(np.min(g.volume[mask] / out[mask])) if np.any(mask) else math.inf
-        c.bounds[key] = b
-        return b
+    def _coefficients(self, rho: np.ndarray, t: float, face_velocity: FaceField | None) -> _Coefficients: ...
 
-    def _crossing_time(self, c: _Coefficients) -> float:
-        """``min_faces h / |a|``, the time the drift takes to cross a cell (cached per coefficient set).
+    def _apply(self, c: _Coefficients, rho: np.ndarray, axes: str, out: np.ndarray) -> np.ndarray: ...
 
-        ``|a|`` is read off the coefficients: ``c_left - c_right = a`` times the face length.
-        """
-        if "crossing" not in c.bounds:
-            g = self.grid
-            rate = 0.0
-            for lo, hi, length, h in ((c.lx, c.rx, g._len_x, g.dx), (c.ly, c.ry, g._len_y, g.dy)):
-                open_ = length > 0
-                if np.any(open_):
-                    rate = max(rate, float(np.max(np.abs(lo - hi)[open_] / length[open_])) / h)
-            c.bounds["crossing"] = 1.0 / rate if rate > 0 else math.inf
-        return c.bounds["crossing"]
+    def _matrix(self, c: _Coefficients, dt: float) -> sparse.csc_matrix: ...
 
-    def positivity_bound(self, rho: np.ndarray, t: float = 0.0, face_velocity: FaceField | None = None) -> float:
-        """Largest ``dt`` for which the chosen method keeps ``ρ >= 0`` (inf if unconditional).
 
-        ``"explicit"``: ``min_c V_c / Σ_out(c)`` (forward-Euler bound, also the stability
-        bound); ``"adi"``: ``2 min(V_c / Σ_out^x(c), V_c / Σ_out^y(c))``;
-        ``"split"`` and ``"implicit"``: inf (M-matrices).
-        """
-        c = self._coefficients(rho, t, face_velocity)
-        if self.method == "explicit":
-            return self._bound(c, "xy")
-        if self.method == "adi":
-            return 2.0 * min(self._bound(c, "x"), self._bound(c, "y"))
-        return math.inf
+class Stepper(ABC):
+    """One time-stepping method of eq. (4): its step, its positivity bound and its state.
 
-    # ------------------------------------------------------------------ time steps
-    def step(self, rho: np.ndarray, t: float, dt: float, face_velocity: FaceField | None = None) -> np.ndarray:
-        """Advance ``ρ`` from ``t`` to ``t + dt`` by one step of ``self.method``.
+    A method is chosen by name (:data:`STEPPERS`, ``FokkerPlanck(method=...)``); the solver
+    holds one stepper, built on itself (the spatial operator: face coefficients, ``A ρ``,
+    the backward-Euler matrix), and asks it for every step and bound
+    (docs/fokker_planck.md, "Time stepping").  A stepper keeps what its method reuses from
+    step to step: the factorisations for a fixed drift (the latest few) and work arrays.
+
+    Parameters
+    ----------
+    operator : FokkerPlanck
+        The spatial operator it advances (the solver that holds it).
+
+    Attributes
+    ----------
+    name : str
+        The method's name in :data:`STEPPERS` (``FokkerPlanck.method``).
+    accepts_courant : bool
+        Whether the accuracy step ``courant`` applies (``FokkerPlanck(courant=...)``).
+    """
+
+    name: ClassVar[str]
+    accepts_courant: ClassVar[bool] = False
+
+    def __init__(self, operator: _Operator) -> None:
+        self.operator = operator
+        self._lu_cache: dict = {}
+        self._work: dict[str, np.ndarray] = {}
+
+    @abstractmethod
+    def positivity_bound(self, c: _Coefficients) -> float:
+        """Largest ``dt`` for which one step from the coefficients ``c`` keeps ``ρ >= 0`` (inf if unconditional)."""
+
+    def automatic_bound(self, c: _Coefficients) -> float:
+        """The step the automatic step is the fraction ``cfl`` of: the positivity bound unless it is infinite."""
+        return self.positivity_bound(c)
+
+    @abstractmethod
+    def step(self, rho: np.ndarray, t: float, dt: float, face_velocity: FaceField | None, check: bool) -> np.ndarray:
+        """Advance ``ρ`` from ``t`` to ``t + dt`` (arguments already checked by the solver).
 
         Parameters
         ----------
         rho : ndarray
-            Density on ``grid.shape`` (finite, ``>= 0``, positive mass).
+            Density on ``grid.shape``.
         t, dt : float
-            Current time and step (``dt > 0``).  An explicit ``dt`` above the positivity
-            and stability bound raises :class:`~meanfield.errors.ParameterError`.
-        face_velocity : FaceField, optional
-            An extra drift already on the faces (e.g. ``NavigationField.velocity()`` of the
-            robots), held constant over the step.
+            Current time and step.
+        face_velocity : FaceField or None
+            Extra face drift, held over the step.
+        check : bool
+            Refuse a step above the method's bound (:class:`~meanfield.errors.ParameterError`
+            naming ``dt``); the solver's automatic step retries below it.
         """
-        rho = self.check_density(rho)
-        dt = positive_number("dt", dt)
-        if face_velocity is not None:
-            face_velocity = _check_face_field("face_velocity", face_velocity, self.grid)
-        return self._step(rho, float(t), dt, face_velocity, check=True)
 
-    def _step(self, rho, t, dt, fv, check: bool) -> np.ndarray:
-        m = self.method
-        if m == "explicit":
-            return self._heun(rho, t, dt, fv, check)
-        if m == "split":
-            return self._split(rho, t, dt, fv)
-        if m == "adi":
-            return self._adi(rho, t, dt, fv, check)
-        return self._implicit(rho, t, dt, fv)
+    # ------------------------------------------------------------------ shared machinery
+    def _buffer(self, name: str, shape: tuple[int, ...]) -> np.ndarray:
+        """A work array reused from step to step (a fresh one costs more in page faults than the arithmetic)."""
+        b = self._work.get(name)
+        if b is None or b.shape != shape:
+            b = self._work[name] = np.empty(shape)
+        return b
+
+    def _cache_key(self, fv):
+        op = self.operator
+        cacheable = not op.time_dependent and op.interaction is None and fv is None
+        return "static" if cacheable else None
+
+    def _remember(self, key, factors) -> None:
+        """Keep a factorisation for a fixed drift; steps of many sizes keep only the latest few."""
+        while len(self._lu_cache) >= _CACHED_FACTORS:
+            self._lu_cache.pop(next(iter(self._lu_cache)))
+        self._lu_cache[key] = factors
 
     def _too_large(self, dt: float, bound: float, what: str) -> ParameterError:
         return _StepTooLarge(
             bound,
             "dt",
             dt,
-            f"dt <= {bound:.6g}, the {what} bound of method={self.method!r} at this state "
+            f"dt <= {bound:.6g}, the {what} bound of method={self.name!r} at this state "
             "(or dt=None for an automatic step, or method='split'/'implicit', positive for any dt)",
         )
 
-    def _heun(self, rho, t, dt, fv, check):
-        g = self.grid
-        iv = g._inv_volume
-        c1 = self._coefficients(rho, t, fv)
-        if check and dt > self._bound(c1, "xy") * (1 + 1e-12):
-            raise self._too_large(dt, self._bound(c1, "xy"), "stability/positivity")
-        r1 = self._apply(c1, rho, "xy", np.empty(rho.shape))
+
+class ExplicitStepper(Stepper):
+    """``"explicit"``: Heun's method (SSP Runge–Kutta 2), second order in time.
+
+    Positive, and stable, for ``dt <= min_c V_c / Σ_out(c)`` (the forward-Euler bound,
+    docs/fokker_planck.md, "Time stepping"); with ``check`` a larger step is refused at
+    either stage.
+    """
+
+    name = "explicit"
+
+    def positivity_bound(self, c: _Coefficients) -> float:
+        """``min_c V_c / Σ_out(c)``: the forward-Euler positivity bound, also the stability bound."""
+        return c.bound(self.operator.grid, "xy")
+
+    def step(self, rho: np.ndarray, t: float, dt: float, face_velocity: FaceField | None, check: bool) -> np.ndarray:
+        """One Heun step: two forward-Euler stages (coefficients at ``t`` and ``t + dt``), averaged."""
+        op = self.operator
+        iv = op.grid._inv_volume
+        c1 = op._coefficients(rho, t, face_velocity)
+        if check and dt > self.positivity_bound(c1) * (1 + 1e-12):
+            raise self._too_large(dt, self.positivity_bound(c1), "stability/positivity")
+        r1 = op._apply(c1, rho, "xy", np.empty(rho.shape))
         r1 *= dt * iv
         r1 += rho
-        c2 = self._coefficients(r1, t + dt, fv)
-        if check and dt > self._bound(c2, "xy") * (1 + 1e-12):
-            raise self._too_large(dt, self._bound(c2, "xy"), "stability/positivity")
-        out = self._apply(c2, r1, "xy", np.empty(rho.shape))
+        c2 = op._coefficients(r1, t + dt, face_velocity)
+        if check and dt > self.positivity_bound(c2) * (1 + 1e-12):
+            raise self._too_large(dt, self.positivity_bound(c2), "stability/positivity")
+        out = op._apply(c2, r1, "xy", np.empty(rho.shape))
         out *= dt * iv
         out += r1
         out += rho
         out *= 0.5
         return out
+
+
+class ImplicitStepper(Stepper):
+    """``"implicit"``: backward Euler on the full 2-D M-matrix ``V - dt A`` (sparse LU), first order.
+
+    Positive for any ``dt``.  The LU factors are kept while the coefficients and ``dt``
+    stay fixed; a drift that moves every step refactorises every step
+    (docs/fokker_planck.md, "Time stepping").
+    """
+
+    name = "implicit"
+
+    def positivity_bound(self, c: _Coefficients) -> float:
+        """Infinite: ``V - dt A`` is an M-matrix for any ``dt``."""
+        return math.inf
+
+    def automatic_bound(self, c: _Coefficients) -> float:
+        """Four times the explicit bound of the cells at least half inside Ω (first order: an accuracy step)."""
+        return 4.0 * c.bound(self.operator.grid, "xy", typical=True)
+
+    def step(self, rho: np.ndarray, t: float, dt: float, face_velocity: FaceField | None, check: bool) -> np.ndarray:
+        """Solve ``(V - dt A(ρ, t + dt)) ρ' = V ρ`` (``check`` is moot: positive for any ``dt``)."""
+        op = self.operator
+        c = op._coefficients(rho, t + dt, face_velocity)
+        key = self._cache_key(face_velocity)
+        lu = self._lu_cache.get(("2d", dt, key)) if key is not None else None
+        if lu is None:
+            lu = splinalg.splu(op._matrix(c, dt))
+            if key is not None:
+                self._remember(("2d", dt, key), lu)
+        return lu.solve((op.grid.volume * rho).ravel()).reshape(rho.shape)
+
+
+class _LineStepper(Stepper):
+    """A method made of implicit sweeps along grid lines: the tridiagonal solves of ``"split"`` and ``"adi"``.
+
+    Each sweep solves ``(V - τ A_axis) ρ' = b`` on every line along one axis
+    (:mod:`meanfield.fokker_planck._sweeps`, eq. (S)): compiled Thomas factors, or LAPACK
+    on the numpy path, kept for a fixed drift.
+    """
 
     def _sweep(self, c: _Coefficients, rhs_mass: np.ndarray, tau: float, axis: str, cache_key) -> np.ndarray:
         """Solve ``(V - τ A_axis) ρ' = rhs_mass`` by tridiagonal solves along ``axis``.
@@ -241,7 +341,7 @@ class _TimeStepping:
         The systems of all grid lines form one tridiagonal matrix (zero couplings between
         lines), solved by one LAPACK call; ``rhs_mass`` may be overwritten.
         """
-        g = self.grid
+        g = self.operator.grid
         V = g.volume
         if axis == "x":
             lo, hi, Vt = c.lx.T, c.rx.T, V.T
@@ -282,37 +382,54 @@ class _TimeStepping:
         x = x.reshape(rows, n)
         return x.T if axis == "x" else x
 
-    def _cache_key(self, fv):
-        cacheable = not self.time_dependent and self.interaction is None and fv is None
-        return "static" if cacheable else None
-
     def _thomas(self, c: _Coefficients, tau: float, axis: str, key) -> tuple[np.ndarray, np.ndarray]:
-        """Factors of ``V - τ A_axis`` (:func:`~meanfield.fokker_planck._sweeps.tridiagonal_factor`), kept for a fixed drift."""
+        """Factors of ``V - τ A_axis`` (:func:`~meanfield.fokker_planck._sweeps.tridiagonal_factor`), kept for a
+        fixed drift."""
         ck = ("thomas", axis, tau, key) if key is not None else None
         if ck is not None and ck in self._lu_cache:
             return self._lu_cache[ck]
-        shape = self.grid.shape
+        grid = self.operator.grid
+        shape = grid.shape
         if ck is None:  # a new drift every step: factor into work arrays
             g, rp = self._buffer("g" + axis, shape), self._buffer("rp" + axis, shape)
         else:
             g, rp = np.empty(shape), np.empty(shape)
         lo, hi = (c.lx, c.rx) if axis == "x" else (c.ly, c.ry)
-        fp_compiled.tridiagonal_factor(self.grid.volume, lo, hi, tau, 0 if axis == "x" else 1, g, rp)
+        fp_compiled.tridiagonal_factor(grid.volume, lo, hi, tau, 0 if axis == "x" else 1, g, rp)
         if ck is not None:
             self._remember(ck, (g, rp))
         return g, rp
 
-    def _remember(self, key, factors) -> None:
-        """Keep a factorisation for a fixed drift; steps of many sizes keep only the latest few."""
-        while len(self._lu_cache) >= _CACHED_FACTORS:
-            self._lu_cache.pop(next(iter(self._lu_cache)))
-        self._lu_cache[key] = factors
 
-    def _split(self, rho, t, dt, fv):
-        c = self._coefficients(rho, t + dt, fv)
-        key = self._cache_key(fv)
-        V = self.grid.volume
-        self._parity = not getattr(self, "_parity", False)
+class SplitStepper(_LineStepper):
+    """``"split"``: directional splitting, backward-Euler sweeps along x then y, first order in time.
+
+    The order of the two sweeps alternates from step to step (the stepper remembers which
+    came first).  Every sweep matrix is an M-matrix, so ``ρ >= 0`` for any ``dt``
+    (docs/fokker_planck.md, "Time stepping"); the default on cut-cell grids.
+    """
+
+    name = "split"
+
+    def __init__(self, operator: _Operator) -> None:
+        super().__init__(operator)
+        self._parity = False
+
+    def positivity_bound(self, c: _Coefficients) -> float:
+        """Infinite: each sweep matrix ``V - dt A_axis`` is an M-matrix for any ``dt``."""
+        return math.inf
+
+    def automatic_bound(self, c: _Coefficients) -> float:
+        """Four times the explicit bound of the cells at least half inside Ω (first order: an accuracy step)."""
+        return 4.0 * c.bound(self.operator.grid, "xy", typical=True)
+
+    def step(self, rho: np.ndarray, t: float, dt: float, face_velocity: FaceField | None, check: bool) -> np.ndarray:
+        """Two backward-Euler sweeps, coefficients at ``t + dt`` (``check`` is moot: positive for any ``dt``)."""
+        op = self.operator
+        c = op._coefficients(rho, t + dt, face_velocity)
+        key = self._cache_key(face_velocity)
+        V = op.grid.volume
+        self._parity = not self._parity
         first, second = ("x", "y") if self._parity else ("y", "x")
         if fp_compiled.enabled():
             out = np.multiply(V, rho)
@@ -326,10 +443,31 @@ class _TimeStepping:
         r = self._sweep(c, V * rho, dt, first, key)
         return np.array(self._sweep(c, V * r, dt, second, key))
 
-    def _adi(self, rho, t, dt, fv, check):
-        c = self._coefficients(rho, t + 0.5 * dt, fv)
-        key = self._cache_key(fv)
-        V = self.grid.volume
+
+class AdiStepper(_LineStepper):
+    """``"adi"``: the Peaceman–Rachford alternating-direction implicit scheme, second order in time.
+
+    ``(V - h A_x) r = (V + h A_y) ρ``, ``(V - h A_y) ρ' = (V + h A_x) r`` with ``h = dt/2``
+    and the coefficients at ``t + dt/2`` (:mod:`meanfield.fokker_planck._sweeps`): stable for
+    any ``dt``, positive for ``dt <= 2 min(V_c / Σ_out^x(c), V_c / Σ_out^y(c))``; beyond it
+    each result is checked to be ``>= 0`` (docs/fokker_planck.md, "Time stepping").  The
+    default on a box, and the one method with an accuracy step (``courant``).
+    """
+
+    name = "adi"
+    accepts_courant = True
+
+    def positivity_bound(self, c: _Coefficients) -> float:
+        """``2 min(V_c / Σ_out^x(c), V_c / Σ_out^y(c))``: both Crank–Nicolson halves positive (about 4× explicit)."""
+        g = self.operator.grid
+        return 2.0 * min(c.bound(g, "x"), c.bound(g, "y"))
+
+    def step(self, rho: np.ndarray, t: float, dt: float, face_velocity: FaceField | None, check: bool) -> np.ndarray:
+        """One Peaceman–Rachford step; with ``check`` a result below zero refuses ``dt`` with the bound."""
+        op = self.operator
+        c = op._coefficients(rho, t + 0.5 * dt, face_velocity)
+        key = self._cache_key(face_velocity)
+        V = op.grid.volume
         h = 0.5 * dt
         if fp_compiled.enabled():
             gx, rpx = self._thomas(c, h, "x", key)
@@ -338,135 +476,26 @@ class _TimeStepping:
             work = self._buffer("r", rho.shape)
             lowest = fp_compiled.adi_step(rho, V, c.lx, c.rx, c.ly, c.ry, h, gx, rpx, gy, rpy, work, out)
             if check and lowest < 0:  # possible only above the positivity bound
-                raise self._too_large(dt, 2.0 * min(self._bound(c, "x"), self._bound(c, "y")), "positivity")
+                raise self._too_large(dt, self.positivity_bound(c), "positivity")
             return out
         vr = self._buffer("vr", rho.shape)
-        b = self._apply(c, rho, "y", self._buffer("rhs", rho.shape))
+        b = op._apply(c, rho, "y", self._buffer("rhs", rho.shape))
         b *= h
         b += np.multiply(V, rho, out=vr)
         r = self._sweep(c, b, h, "x", key)
-        b = self._apply(c, r, "x", self._buffer("rhs", rho.shape))
+        b = op._apply(c, r, "x", self._buffer("rhs", rho.shape))
         b *= h
         b += np.multiply(V, r, out=vr)
         out = np.array(self._sweep(c, b, h, "y", key))
         if check and out.min() < 0:  # possible only above the positivity bound
-            bound = 2.0 * min(self._bound(c, "x"), self._bound(c, "y"))
-            raise self._too_large(dt, bound, "positivity")
+            raise self._too_large(dt, self.positivity_bound(c), "positivity")
         return out
 
-    def _implicit(self, rho, t, dt, fv):
-        c = self._coefficients(rho, t + dt, fv)
-        key = self._cache_key(fv)
-        lu = self._lu_cache.get(("2d", dt, key)) if key is not None else None
-        if lu is None:
-            lu = splinalg.splu(self._matrix(c, dt))
-            if key is not None:
-                self._remember(("2d", dt, key), lu)
-        return lu.solve((self.grid.volume * rho).ravel()).reshape(rho.shape)
 
-    # ------------------------------------------------------------------ driver
-    def automatic_dt(self, rho: np.ndarray, t: float = 0.0, face_velocity: FaceField | None = None) -> float:
-        """The step ``solve`` takes when ``dt`` is None.
-
-        ``cfl`` × the positivity bound for ``"explicit"`` and ``"adi"`` (on cut-cell
-        grids the smallest cell sets it: prefer ``"split"`` there, or pass ``dt``); for
-        the unconditionally positive ``"split"`` and ``"implicit"``, ``cfl`` × four times
-        the explicit bound of the cells at least half inside Ω (their error is first
-        order in ``dt``; pass a ``dt`` to go further).  With ``courant`` set (``"adi"``):
-        ``courant · min_faces(h / |a|)``, an accuracy step (:meth:`solve` then divides
-        the time left into equal steps of at most that size).
-        """
-        c = self._coefficients(rho, t, face_velocity)
-        if self.courant is not None:  # accuracy: the drift crosses `courant` cells per step
-            step = self.courant * self._crossing_time(c)
-            if math.isfinite(step):
-                return step
-        if self.method == "explicit":
-            b = self._bound(c, "xy")
-        elif self.method == "adi":
-            b = 2.0 * min(self._bound(c, "x"), self._bound(c, "y"))
-        else:
-            b = 4.0 * self._bound(c, "xy", typical=True)
-        if not math.isfinite(b):  # no drift and no diffusion: nothing moves
-            return math.inf
-        return self.cfl * b
-
-    def solve(
-        self,
-        rho0: np.ndarray,
-        t_final: float,
-        t0: float = 0.0,
-        dt: float | None = None,
-        *,
-        face_velocity: FaceVelocity | None = None,
-        callback: Callable[[float, np.ndarray], None] | None = None,
-        progress: bool = False,
-    ) -> np.ndarray:
-        """Integrate from ``t0`` to ``t_final`` and return ``ρ(t_final)``.
-
-        Parameters
-        ----------
-        rho0 : ndarray
-            Initial density on ``grid.shape`` (finite, ``>= 0``, positive mass).
-        t_final, t0 : float
-            End and start times (``t_final >= t0``).
-        dt : float, optional
-            Fixed step (the last step is shortened to land on ``t_final``).  None: the
-            automatic step of :meth:`automatic_dt`, re-evaluated every step when the
-            drift changes.
-        face_velocity : FaceField or callable, optional
-            Extra drift on the faces, constant or ``t -> FaceField``.
-        callback : callable, optional
-            ``callback(t, rho)`` after every step.
-        progress : bool
-            Show a progress bar (tqdm) over simulated time.
-        """
-        rho = self.check_density(rho0, "rho0")
-        try:
-            t0 = float(t0)
-            t_final = float(t_final)
-        except (TypeError, ValueError):
-            raise ParameterError("t_final", t_final, "finite times with t_final >= t0") from None
-        if not (math.isfinite(t0) and math.isfinite(t_final)) or t_final < t0:
-            raise ParameterError("t_final", t_final, f"a finite time >= t0 = {t0}")
-        if dt is not None:
-            dt = positive_number("dt", dt)
-        fv_fn = None
-        fv_const = None
-        if callable(face_velocity):
-            fv_fn = face_velocity
-        elif face_velocity is not None:
-            fv_const = _check_face_field("face_velocity", face_velocity, self.grid)
-        bar = None
-        if progress:
-            from tqdm.auto import tqdm
-
-            bar = tqdm(total=t_final - t0, unit="t", desc=f"Fokker–Planck ({self.method})")
-        t = t0
-        span = max(abs(t_final), abs(t0), 1.0)
-        try:
-            while t_final - t > 1e-13 * span:
-                fv = fv_const if fv_fn is None else _check_face_field("face_velocity", fv_fn(t), self.grid)
-                h = dt if dt is not None else self.automatic_dt(rho, t, fv)
-                if dt is None and self.courant is not None and math.isfinite(h):  # equal steps to t_final
-                    h = (t_final - t) / max(1, math.ceil((t_final - t) / h - 1e-9))
-                h = min(h, t_final - t)
-                for attempt in range(60):
-                    try:
-                        new = self._step(rho, t, h, fv, check=True)
-                        break
-                    except _StepTooLarge as exc:
-                        # automatic step: the drift grew within the step; retry below its bound
-                        if dt is not None or attempt == 59:
-                            raise
-                        h = min(0.5 * h, self.cfl * exc.bound)
-                rho = new
-                t = t + h if t_final - (t + h) > 1e-13 * span else t_final
-                if callback is not None:
-                    callback(t, rho)
-                if bar is not None:
-                    bar.update(h)
-        finally:
-            if bar is not None:
-                bar.close()
-        return rho
+#: The time-stepping methods by name (``FokkerPlanck(method=...)``), in the order of ``METHODS``.
+STEPPERS: dict[str, type[Stepper]] = {
+    AdiStepper.name: AdiStepper,
+    SplitStepper.name: SplitStepper,
+    ExplicitStepper.name: ExplicitStepper,
+    ImplicitStepper.name: ImplicitStepper,
+}

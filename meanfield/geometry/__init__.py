@@ -15,6 +15,7 @@ from meanfield._namespace import lazy_namespace
 
 _LAZY = {
     "BoundaryPart": "meanfield.geometry.region",
+    "CONVEX_RTOL": "meanfield.geometry.region",
     "Domain": "meanfield.geometry.domain",
     "ExitRoutes": "meanfield.geometry.geodesic",
     "ExitSink": "meanfield.geometry.exits",
@@ -30,6 +31,7 @@ _LAZY = {
     "UNITS": "meanfield.geometry.dxf",
     "WallIndex": "meanfield.geometry.walls",
     "blocking_walls": "meanfield.geometry.sight",
+    "convex_polygon": "meanfield.geometry.region",
     "convex_polygon_cut_cells": "meanfield.geometry.cut_cells",
     "disk_cut_cells": "meanfield.geometry.cut_cells",
     "distance_to_segments": "meanfield.geometry.exits",

@@ -1,10 +1,15 @@
-"""The workspace Ω: the toolkit's :class:`~meanfield.interfaces.Region` implementation.
+"""The workspace Ω: the entry point to every region, and the convex shapes in closed form.
 
-The paper (Section III) assumes Ω ⊂ R² convex and bounded with a Lipschitz boundary.
-Three shapes are registered (:mod:`meanfield.plugins`, kind ``region``): an axis-aligned
-rectangle (``Domain.box``), a disk (``Domain.disk``) and a convex polygon
-(``Domain.polygon``).  A polygon that is not convex is refused for now: reflection and
-the Fokker–Planck walls of non-convex plans come with the floor-plan work.
+:class:`Domain` builds every :class:`~meanfield.geometry.region.Region` the toolkit has:
+``Domain.box``, ``Domain.disk`` and ``Domain.polygon`` (registered as region kinds ``box``,
+``disk``, ``polygon``, :mod:`meanfield.plugins`), and ``Domain.from_wkt``,
+``Domain.from_geojson``, ``Domain.from_dxf`` and ``Domain.from_shapely`` for a room drawn
+elsewhere.  Each returns the right implementation of the shape it is given: an axis-aligned
+rectangle is a box, a convex polygon without holes is a polygon (both answered here in closed
+form), and anything else, a room with re-entrant corners or holes, is a
+:class:`~meanfield.geometry.plan.Plan`.  Nothing is refused for not being convex: the paper
+(Section III) assumes a convex Ω, and the results that need it say so where they are
+computed (``is_convex``; the Payne–Weinberger bound, :func:`analysis.poincare.payne_weinberger_bound`).
 
 The domain tests membership, reflects a point that stepped outside back in (the
 reflecting walls of the human SDE, eq. (1)), projects a point onto Ω (robots are kept
@@ -24,7 +29,7 @@ from typing import Any, Literal
 import numpy as np
 
 from meanfield.errors import ParameterError
-from meanfield.geometry.region import BoundaryPart, sample_by_rejection, square_lattice
+from meanfield.geometry.region import BoundaryPart, Region, convex_polygon, sample_by_rejection, square_lattice
 
 __all__ = ["Domain"]
 
@@ -105,16 +110,20 @@ class Domain:
         return cls("disk", np.zeros((0, 2)), c, radius)._exits(exits)
 
     @classmethod
-    def polygon(cls, vertices: Any, exits: Any = ()) -> Domain:
-        """Convex polygon through ``vertices`` (either orientation, no repeated end point).
+    def polygon(cls, vertices: Any, exits: Any = ()) -> Region:
+        """The simple polygon through ``vertices`` (either orientation, no repeated end point).
 
-        ``exits``: boundary segments that are exits (:meth:`with_exits`).
+        A convex polygon is a :class:`Domain` (kind ``"polygon"``, answered in closed form); a
+        polygon that is not convex, an L-shaped room say, is a :class:`~meanfield.geometry.plan.Plan`
+        (its walls followed segment by segment).  ``is_convex`` tells which; the paper's theory
+        assumes a convex Ω (docs page *Poincaré constant*).  ``exits``: boundary segments that are
+        exits (:meth:`with_exits`).
 
         Raises
         ------
         ParameterError
-            If fewer than 3 vertices, non-finite values, repeated or collinear points,
-            or the polygon is not convex (the paper's theory assumes convex Ω).
+            If fewer than 3 vertices, non-finite values, repeated points, collinear
+            consecutive vertices of a convex polygon, or a self-intersecting polygon.
         """
         v = np.asarray(vertices, dtype=float)
         if v.ndim != 2 or v.shape[1] != 2 or v.shape[0] < 3:
@@ -129,14 +138,10 @@ class Domain:
         cross = e[:, 0] * np.roll(e[:, 1], -1) - e[:, 1] * np.roll(e[:, 0], -1)
         scale = np.max(np.abs(v - v.mean(axis=0))) ** 2
         tol = 1e-12 * scale
+        if np.any(cross > tol) and np.any(cross < -tol):  # turns both ways: not convex, a plan
+            return cls.from_shapely(_simple_polygon(v), exits)
         if np.any(np.abs(cross) <= tol):
             raise ParameterError("vertices", "collinear consecutive vertices", "a strictly convex vertex list")
-        if not (np.all(cross > 0) or np.all(cross < 0)):
-            raise ParameterError(
-                "vertices",
-                "a non-convex polygon",
-                "a convex polygon (the paper's theory assumes convex Ω)",
-            )
         if np.all(cross < 0):
             v = v[::-1].copy()
         # A star polygon turns the same way at every vertex but winds more than once.
@@ -146,6 +151,67 @@ class Domain:
             raise ParameterError("vertices", "a self-intersecting polygon", "a simple convex polygon")
         c = v.mean(axis=0)
         return cls("polygon", v, (float(c[0]), float(c[1])), 0.0)._exits(exits)
+
+    @classmethod
+    def from_shapely(cls, polygon: Any, exits: Any = ()) -> Region:
+        """The region of a shapely ``Polygon`` (metres), as the right implementation.
+
+        An axis-aligned rectangle is :meth:`box`, a convex polygon without holes :meth:`polygon`,
+        anything else (re-entrant corners, holes) a :class:`~meanfield.geometry.plan.Plan`.
+        Vertices on a straight edge are dropped first (they change no shape).
+
+        Parameters
+        ----------
+        polygon : shapely.Polygon
+            Valid, non-empty, one piece; holes allowed.
+        exits : sequence of segments, optional
+            Parts of the walls that are exits, ``((x0, y0), (x1, y1))`` each.
+        """
+        import shapely
+
+        from meanfield.geometry.plan import Plan
+
+        plan = Plan(polygon, exits)  # validates the polygon and the exits
+        shape = shapely.simplify(plan.polygon, 0.0)
+        if len(shape.interiors) or not convex_polygon(shape):
+            return plan
+        v = np.asarray(shape.exterior.coords, float)[:-1]
+        x0, y0 = v.min(axis=0)
+        x1, y1 = v.max(axis=0)
+        corners = {(x0, y0), (x1, y0), (x1, y1), (x0, y1)}
+        if len(v) == 4 and {(float(a), float(b)) for a, b in v} == corners:
+            return cls.box(x1 - x0, y1 - y0, (x0, y0), exits=plan.exits)
+        return cls.polygon(v, exits=plan.exits)
+
+    @classmethod
+    def from_wkt(cls, text: str, exits: Any = ()) -> Region:
+        """The region of a WKT ``POLYGON`` (metres; holes allowed), as :meth:`from_shapely` chooses it."""
+        from meanfield.geometry.plan import Plan
+
+        return cls.from_shapely(Plan.from_wkt(text).polygon, exits)
+
+    @classmethod
+    def from_geojson(cls, source: Any, exits: Any = ()) -> Region:
+        """The region of a GeoJSON Polygon (a file, or the parsed object; a Feature's geometry is
+        taken), as :meth:`from_shapely` chooses it."""
+        from meanfield.geometry.plan import Plan
+
+        return cls.from_shapely(Plan.from_geojson(source).polygon, exits)
+
+    @classmethod
+    def from_dxf(cls, path: Any, exits: Any = (), **layers: str | None) -> Region:
+        """The region of a DXF drawing (its walls, obstacles and exits on layers named by ``layers``:
+        :func:`meanfield.geometry.dxf.read_dxf`), as :meth:`from_shapely` chooses it; ``exits`` are
+        added to those the drawing holds."""
+        from meanfield.geometry.plan import Plan
+
+        plan = Plan.from_dxf(path, **layers)
+        return cls.from_shapely(plan.polygon, (*plan.exits, *tuple(exits)))
+
+    @property
+    def is_convex(self) -> bool:
+        """True: a box, a disk and a :meth:`polygon` that is a Domain are convex."""
+        return True
 
     def _exits(self, exits: Any) -> Domain:
         return self.with_exits(exits) if exits is not None and len(exits) else self
@@ -488,3 +554,14 @@ class Domain:
 
     def __hash__(self) -> int:
         return hash(repr(self.to_dict()))
+
+
+def _simple_polygon(vertices: np.ndarray) -> Any:
+    """The shapely polygon through ``vertices``, refused (naming ``vertices``) unless simple."""
+    import shapely
+
+    poly = shapely.Polygon(vertices)
+    if not poly.is_valid:
+        reason = shapely.is_valid_reason(poly)
+        raise ParameterError("vertices", f"a self-intersecting polygon ({reason})", "a simple polygon")
+    return poly

@@ -23,7 +23,7 @@ import numpy as np
 
 from meanfield.errors import ParameterError
 from meanfield.geometry._wall_loops import reflect_steps, robot_steps
-from meanfield.geometry.region import BoundaryPart, sample_by_rejection, square_lattice
+from meanfield.geometry.region import BoundaryPart, convex_polygon, sample_by_rejection, square_lattice
 
 __all__ = ["Plan", "plan_from_table"]
 
@@ -116,6 +116,12 @@ class Plan:
 
         return cls(*read_dxf(path, **layers))
 
+    @property
+    def is_convex(self) -> bool:
+        """Whether the room is convex: no holes, and its convex hull adds no area beyond round-off
+        (relative ``1e-12``).  The paper's theory assumes it; the results that need it ask."""
+        return convex_polygon(self.polygon)
+
     # ------------------------------------------------------------------ the Region interface
     @property
     def bounds(self) -> tuple[float, float, float, float]:
@@ -183,7 +189,8 @@ class Plan:
         return self._index().first_hit(start, end)
 
     def _walk(self, loop: Any, start: np.ndarray, end: np.ndarray, *options: Any) -> np.ndarray:
-        """Run a loop of :mod:`meanfield.geometry._wall_loops` on the steps ``start → end``, ``end`` changed in place."""
+        """Run a loop of :mod:`meanfield.geometry._wall_loops` on the steps ``start → end``, ``end`` changed in
+        place."""
         work = end if end.dtype == np.float64 and end.flags.c_contiguous else np.ascontiguousarray(end, float)
         loop(np.ascontiguousarray(start, float), work, *self._index().tables(), *options)
         if work is not end:

@@ -24,6 +24,8 @@ __all__ = [
     "square_lattice",
     "region_keywords",
     "region_from_table",
+    "convex_polygon",
+    "CONVEX_RTOL",
 ]
 
 
@@ -128,6 +130,19 @@ class Region(Protocol):
     def to_dict(self) -> dict[str, Any]:
         """The scenario's ``[domain]`` table: ``{"kind": name, ...}``."""
         ...
+
+
+CONVEX_RTOL = 1e-12
+"""A polygon is convex when its convex hull adds no area beyond this relative round-off."""
+
+
+def convex_polygon(shape: Any) -> bool:
+    """Whether a shapely polygon is convex: no holes, and its convex hull adds no area beyond
+    round-off (relative :data:`CONVEX_RTOL`)."""
+    if getattr(shape, "geom_type", None) != "Polygon" or len(shape.interiors):
+        return False
+    area = float(shape.area)
+    return area > 0 and (float(shape.convex_hull.area) - area) <= CONVEX_RTOL * area
 
 
 def sample_by_rejection(region: Any, n: int, rng: np.random.Generator) -> np.ndarray:

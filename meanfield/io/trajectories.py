@@ -8,7 +8,7 @@ dataset in the whitespace-separated format of the Pedestrian Dynamics Data Archi
 format :func:`pedpy.load_trajectory_from_txt` reads: comment lines starting with ``#``
 that give the frame rate and the unit, then one line ``id frame x y`` per human and
 recorded frame.  Only numpy and xarray are needed here; PedPy itself is used by
-:mod:`analysis.pedestrian_metrics`.
+:mod:`analysis.pedestrians.metrics`.
 """
 
 from __future__ import annotations

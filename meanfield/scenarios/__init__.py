@@ -1,8 +1,8 @@
 """Scenarios: every parameter of a run, validated, round-tripping to TOML; the built-in TOML files.
 
 :mod:`~meanfield.scenarios.scenario` holds :class:`Scenario` and the loaders, :mod:`~meanfield.scenarios.sections`
-one dataclass per TOML table, :mod:`~meanfield.scenarios.overrides` the values read from text (``--set``); the built-in scenarios
-are the ``*.toml`` files beside them.
+one dataclass per TOML table, :mod:`~meanfield.scenarios.overrides` the values read from text
+(``--set``); the built-in scenarios are the ``*.toml`` files beside them.
 
 Names are imported on first use (:mod:`meanfield._namespace`).
 """

@@ -107,7 +107,8 @@ _OLD_PEDESTRIAN_KIND = "jupedsim"
 
 OLD_FIELDS: dict[str, str] = {
     "pedestrians.backend": "crowd.kind",
-    **{f"pedestrians.{k}": f"crowd.options.{_OLD_PEDESTRIAN_KIND}.{k}" for k in ("model", "radius", "max_speed", "time_step")},
+    **{f"pedestrians.{k}": f"crowd.options.{_OLD_PEDESTRIAN_KIND}.{k}" for k in ("model", "radius", "max_speed")},
+    "pedestrians.time_step": f"crowd.options.{_OLD_PEDESTRIAN_KIND}.time_step",
 }
 """Deprecated dotted fields and the fields that replaced them (read for one release, with a warning)."""
 
@@ -157,7 +158,7 @@ def _upgrade_old_fields(d: dict[str, Any]) -> dict[str, Any]:
     for key, value in old.items():
         new = OLD_FIELDS.get(f"pedestrians.{key}")
         if new is None:
-            raise ParameterError(f"pedestrians.{key}", value, f"a key of the deprecated [pedestrians]: {sorted(OLD_FIELDS)}")
+            raise ParameterError(f"pedestrians.{key}", value, f"a key of the old [pedestrians]: {sorted(OLD_FIELDS)}")
         if _get(d, new) is not _MISSING:
             raise ParameterError(
                 f"pedestrians.{key}", value, f"one of pedestrians.{key} (deprecated) and {new}, not both"

@@ -207,8 +207,8 @@ class NavigationField:
         (complex-step differentiation in the tests).
     sight : SightLines, optional
         A plan's walls: each robot's kernel is zero on the faces it does not see
-        (:mod:`meanfield.geometry.sight`, decided between cells).  The mask is piecewise constant in ``R_i``: the rates and
-        moments below differentiate the kernel where it is visible and ignore the jumps.
+        (:mod:`meanfield.geometry.sight`, decided between cells).  The mask is piecewise constant in ``R_i``: the
+        rates and moments below differentiate the kernel where it is visible and ignore the jumps.
     """
 
     def __init__(

@@ -128,7 +128,8 @@ def law_scales(scenario: Scenario, region: Region, kernel: NavigationKernel) -> 
         raise ParameterError("controller.scaling", "kernel", "a kernel with a strength c > 0 (the unit of speed)")
     strategy = scenario.controller.beta_gamma
     if not plugins.declared("beta_gamma", strategy, "accepts_kernel_scaling", False):
-        fits = [s for s in plugins.available("beta_gamma") if plugins.declared("beta_gamma", s, "accepts_kernel_scaling")]
+        rules = plugins.available("beta_gamma")
+        fits = [s for s in rules if plugins.declared("beta_gamma", s, "accepts_kernel_scaling")]
         raise ParameterError(
             "controller.scaling",
             "kernel",

@@ -197,8 +197,8 @@ class ClosedLoop:
         """Run to ``t_final`` with the standard observers, recording every ``record_every`` steps.
 
         :class:`~meanfield.simulation.observers.TargetTracker`, :class:`~meanfield.simulation.observers.InputStatistics`
-        and :class:`~meanfield.simulation.observers.Recorder` watch the run; :func:`~meanfield.simulation.summary.run_summary`
-        reads them at the end.
+        and :class:`~meanfield.simulation.observers.Recorder` watch the run;
+        :func:`~meanfield.simulation.summary.run_summary` reads them at the end.
 
         Parameters
         ----------

@@ -86,7 +86,8 @@ class StepRecord:
     @cached_property
     def limits(self) -> tuple[float, float, bool, int]:
         """``(max ‖u_i‖, max |ω_i|, saturated, at_limit)`` of this step: the ``report`` the loop's
-        :func:`~meanfield.signs.robots.limited_inputs` made, else one pass (:func:`meanfield.signs._robot_loops.input_report`)."""
+        :func:`~meanfield.signs.robots.limited_inputs` made, else one pass
+        (:func:`meanfield.signs._robot_loops.input_report`)."""
         if self.report is not None:
             return self.report[:4]
         c, r = self.command, self.robots

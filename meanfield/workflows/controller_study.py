@@ -27,20 +27,22 @@ from typing import Any
 import numpy as np
 
 from meanfield.errors import ParameterError
-from meanfield.scenarios.sections import ControllerSpec
 
 __all__ = ["study_controllers", "candidates", "table"]
 
-LAW = ControllerSpec.kind
-"""The reference of the study, against which each controller's compute is measured: the scenario's
-default controller, the paper's law."""
+def reference_law() -> tuple[str, str]:
+    """The study's reference, against which each controller's compute is measured, and its β/γ rule:
+    the scenario's default controller and rule (the paper's law, minimum-norm)."""
+    from meanfield.scenarios.sections import ControllerSpec  # the scenario's defaults (a lazy import: --help)
+
+    return ControllerSpec.kind, ControllerSpec.beta_gamma
 
 
 def candidates(scenario: Any, sensing: float | None = None) -> dict[str, dict[str, Any]]:
     """Every installed controller that applies to ``scenario``: ``{label: scenario overrides}``.
 
     The registered controllers by name (those that declare ``requires_exits``, such as
-    ``evacuation``, only in a room with exits), and the paper's law (:data:`LAW`) with each other
+    ``evacuation``, only in a room with exits), and the paper's law (:func:`reference_law`) with each other
     registered β/γ rule (``backstepping+bounded`` when :mod:`analysis.bounded` is installed).
     With ``sensing = r``, each controller that runs on local knowledge (it declares
     ``accepts_sensing``) gets a twin ``<name>@r`` whose robots see within ``r`` and talk within
@@ -50,15 +52,16 @@ def candidates(scenario: Any, sensing: float | None = None) -> dict[str, dict[st
     from meanfield.geometry.exits import exit_segments
 
     exits = len(exit_segments(scenario.domain)) > 0
+    law, default_rule = reference_law()
     out: dict[str, dict[str, Any]] = {}
     for name in plugins.available("controller"):
         if plugins.declared("controller", name, "requires_exits", False) and not exits:
             continue
         out[name] = {"controller.kind": name}
-        if name == LAW:
+        if name == law:
             for rule in plugins.available("beta_gamma"):
-                if rule != ControllerSpec.beta_gamma:
-                    out[f"{LAW}+{rule}"] = {"controller.kind": LAW, "controller.beta_gamma": rule}
+                if rule != default_rule:
+                    out[f"{law}+{rule}"] = {"controller.kind": law, "controller.beta_gamma": rule}
         if sensing is not None and plugins.declared("controller", name, "accepts_sensing", False):
             local = {"sensing.radius": sensing, "sensing.comm_radius": 2 * sensing}
             out[f"{name}@{sensing:g}"] = {"controller.kind": name, **local}
@@ -154,7 +157,7 @@ def study_controllers(
         ds = run_sweep(base, sets, seeds, out / name, workers=workers, progress=progress)
         statuses.append(ds.attrs["status"])
         rows.append(_row(name, ds, exits))
-    law = next((r["ms_per_step"] for r in rows if r["controller"] == LAW), math.nan)
+    law = next((r["ms_per_step"] for r in rows if r["controller"] == reference_law()[0]), math.nan)
     for r in rows:
         r["compute_vs_law"] = r["ms_per_step"] / law if law > 0 else math.nan
     _write(rows, out, exits, base.name)

@@ -477,17 +477,18 @@ def test_other_bad_arguments():
 @pytest.mark.parametrize(
     "vertices",
     [
-        [(0, 0), (2, 0), (1, 0.5), (2, 2), (0, 2)],  # non-convex
+        [(0, 0), (2, 2), (2, 0), (0, 2)],  # a bow tie: crosses itself
         [(0, 0), (1, 0)],  # fewer than 3 vertices
         [(0, 0), (1, 0), (1, 0), (0, 1)],  # repeated vertex
         [(0, 0), (1, 1), (2, 2)],  # zero area: all collinear
         [(0, 0), (1, 0), (2, 0), (3, 0)],  # zero area: all collinear
         [(0, 0), (1, 0), (0.5, 0), (0.2, 0)],  # zero area, doubling back
     ],
-    ids=["non-convex", "two-vertices", "repeated", "collinear-3", "collinear-4", "collinear-back"],
+    ids=["self-intersecting", "two-vertices", "repeated", "collinear-3", "collinear-4", "collinear-back"],
 )
 def test_domain_refuses_degenerate_polygons(vertices):
-    """Domain.polygon refuses what the Poincaré theory cannot take (convexity, positive area)."""
+    """Domain.polygon refuses what no region can be (a crossing outline, no area); a polygon that is
+    merely not convex is a plan, with no Payne–Weinberger bound (tests/geometry/test_region_family.py)."""
     with pytest.raises(ParameterError) as exc:
         Domain.polygon(vertices)
     assert exc.value.name == "vertices"

@@ -10,7 +10,6 @@ import pytest
 
 from meanfield import Scenario, paper_scenario
 from meanfield.cli.app import main
-
 from tests.scenarios.test_scenario import BAD_TOML
 
 TINY = """\

@@ -13,8 +13,7 @@ import numpy as np
 import pytest
 
 from meanfield import Domain, ParameterError
-from meanfield.crowds.jupedsim_engine import max_body_overlap, place_bodies
-from meanfield.crowds.jupedsim_engine import PEDESTRIAN_MODELS, JuPedSimOptions
+from meanfield.crowds.jupedsim_engine import PEDESTRIAN_MODELS, JuPedSimOptions, max_body_overlap, place_bodies
 from meanfield.scenarios.scenario import paper_unity_scenario
 
 

@@ -185,10 +185,11 @@ def test_fixed_drift_reuses_the_factorisations_and_keeps_only_a_few():
     rho = _rho0(g)
     for dt in np.linspace(0.001, 0.02, 12):
         rho = fp.step(rho, 0.0, float(dt))
-        assert len(fp._lu_cache) <= 8
-    before = dict(fp._lu_cache)
+        assert len(fp.stepper._lu_cache) <= 8
+    before = dict(fp.stepper._lu_cache)
     fp.step(rho, 0.0, 0.02)  # the same step again: no new factorisation
-    assert fp._lu_cache.keys() == before.keys() and all(fp._lu_cache[k] is before[k] for k in before)
+    cache = fp.stepper._lu_cache
+    assert cache.keys() == before.keys() and all(cache[k] is before[k] for k in before)
 
 
 # ---------------------------------------------------------------------- the accuracy step

@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from meanfield.crowds.jupedsim_engine import JuPedSimOptions
 from meanfield import ClosedLoop, Domain, FokkerPlanck, Grid, ParameterError, paper_scenario
 from meanfield._compiled import core as compiled
+from meanfield.crowds.jupedsim_engine import JuPedSimOptions
 from meanfield.crowds.point_mass import PointMassEngine
 from meanfield.geometry.exits import ExitSink, exit_segments, leaving
 

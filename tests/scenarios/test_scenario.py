@@ -177,7 +177,11 @@ def test_paper_unity_builtin_is_paper_under_the_similarity():
         dt=base.dt * T,
         t_final=base.t_final * T,
         domain=Domain.box(L, L),
-        crowd=CrowdSpec(n=200, sigma=0.5, options={"jupedsim": {"model": "collision-free-speed", "radius": 0.2, "max_speed": 1.34, "time_step": 0.05}}),
+        crowd=CrowdSpec(
+            n=200,
+            sigma=0.5,
+            options={"jupedsim": dict(model="collision-free-speed", radius=0.2, max_speed=1.34, time_step=0.05)},
+        ),
         robots=RobotSpec(n=16, u_max=base.robots.u_max * L / T, omega_max=base.robots.omega_max / T),
         kernel=KernelSpec(c=base.kernel.c * L / T, eta=base.kernel.eta * L * L),
         target=TargetSpec(center=(L, L), std=base.target.std * L),

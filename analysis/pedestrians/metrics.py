@@ -20,11 +20,11 @@ numbers can be compared with experiments and other simulators:
 4. figures of both (:func:`plot_pedestrian_figures`).
 
 PedPy is imported lazily, inside the functions: the rest of :mod:`analysis` works without
-it.  ``meanfield pedestrians RUN_DIR... --out DIR`` (:func:`analysis.pedestrian_cli.register`) runs it all
+it.  ``meanfield pedestrians RUN_DIR... --out DIR`` (:func:`analysis.pedestrians.cli.register`) runs it all
 (``docs/pedestrians.md``).
 
 This module holds the measurements; the figures are drawn by
-:mod:`analysis.pedestrian_figures` and the command lives in :mod:`analysis.pedestrian_cli`,
+:mod:`analysis.pedestrians.figures` and the command lives in :mod:`analysis.pedestrians.cli`,
 (:func:`plot_pedestrian_figures` is re-exported here).
 """
 
@@ -38,8 +38,8 @@ from typing import Any
 
 import numpy as np
 
-from analysis.pedestrian_figures import plot_pedestrian_figures
-from analysis.pedestrian_flow import speed_and_flow
+from analysis.pedestrians.figures import plot_pedestrian_figures
+from analysis.pedestrians.flow import speed_and_flow
 from meanfield.errors import ParameterError
 
 __all__ = [
@@ -64,7 +64,7 @@ def _pedpy():
         import pedpy
     except ImportError as exc:  # pragma: no cover - exercised only without PedPy
         raise ImportError(
-            "analysis.pedestrian_metrics needs PedPy (pedestrian-dynamics analysis): pip install pedpy"
+            "analysis.pedestrians.metrics needs PedPy (pedestrian-dynamics analysis): pip install pedpy"
         ) from exc
     return pedpy
 
@@ -275,7 +275,7 @@ class PedestrianMetrics:
     trajectory_file: str
     seconds: dict[str, float] = field(default_factory=dict)
     figures: dict[str, str] = field(default_factory=dict)
-    speed_and_flow: dict[str, Any] = field(default_factory=dict)  # analysis.pedestrian_flow
+    speed_and_flow: dict[str, Any] = field(default_factory=dict)  # analysis.pedestrians.flow
 
     @property
     def count_difference(self) -> np.ndarray:
@@ -372,7 +372,7 @@ def pedestrian_metrics(
 ) -> PedestrianMetrics:
     """Measure a run with PedPy: ``N(t)`` in the target region, density maps, speed and flow.
 
-    Speed and flow (:mod:`analysis.pedestrian_flow`): PedPy's individual speeds and their
+    Speed and flow (:mod:`analysis.pedestrians.flow`): PedPy's individual speeds and their
     mean per frame, and the flow across the target region's entry line.
 
     Parameters

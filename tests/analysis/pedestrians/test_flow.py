@@ -1,4 +1,5 @@
-"""PedPy's speed and flow of a run (issue 16, item 10), against walkers whose answer is known."""
+"""PedPy's speed and flow of a run (analysis.pedestrians.flow; issue 16, item 10), against walkers
+whose answer is known."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ pedpy = pytest.importorskip("pedpy", reason="PedPy comes with the pedestrians ex
 pd = pytest.importorskip("pandas")
 shapely = pytest.importorskip("shapely")
 
-from analysis.pedestrian_flow import entry_line, speed_and_flow  # noqa: E402
+from analysis.pedestrians.flow import entry_line, speed_and_flow  # noqa: E402
 
 
 def test_the_entry_line_faces_the_room_at_the_target_radius():

@@ -17,7 +17,7 @@ the cell-volume weights, so the step keeps ``ρ >= 0`` and conserves mass exactl
 robots follow eq. (2) by forward Euler, ``R_{k+1} = R_k + Δt_p u_k``, ``θ_{k+1} = θ_k + Δt_p ω_k``.
 
 :class:`CoarseFokkerPlanck` is that model, both as CasADi functions (for the optimiser of
-:class:`~analysis.nmpc.NMPCController`) and numerically; it is re-exported by
+:class:`~analysis.nmpc.controller.NMPCController`) and numerically; it is re-exported by
 :mod:`analysis.nmpc`.
 """
 
@@ -28,7 +28,7 @@ import math
 import casadi as ca
 import numpy as np
 
-from analysis.nmpc_options import FLUXES, _opt_name
+from analysis.nmpc.options import FLUXES, _opt_name
 from meanfield.errors import ParameterError
 from meanfield.geometry.grid import Grid
 from meanfield.signs.kernels import GaussianKernel

@@ -1,6 +1,6 @@
 """The quadratic subproblem of the NMPC's SQP solver: a dense primal–dual interior-point method.
 
-Each SQP iteration of :mod:`analysis.nmpc_sqp` solves, in the inputs ``x = z (B, n, 3) =
+Each SQP iteration of :mod:`analysis.nmpc.sqp` solves, in the inputs ``x = z (B, n, 3) =
 (u_x, u_y, ω)`` of every robot on every input block::
 
     minimise   ½ xᵀ P x + qᵀ x                       (P positive definite)
@@ -54,7 +54,7 @@ class InputQP:
     Parameters
     ----------
     N : ndarray (H, B)
-        ``N[k, b]``: prediction steps ``0..k`` on block ``b`` (:func:`analysis.nmpc_condensed.block_counts`).
+        ``N[k, b]``: prediction steps ``0..k`` on block ``b`` (:func:`analysis.nmpc.condensed.block_counts`).
     n : int
         Robots.
     step : float

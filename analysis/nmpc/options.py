@@ -1,10 +1,10 @@
 """Options of the NMPC baseline: the ``[controller.options]`` table of the ``nmpc`` controller.
 
 :class:`NMPCOptions` parses and validates the options of
-:class:`~analysis.nmpc.NMPCController` (docs/nmpc.md, "Options"); a bad key or value
+:class:`~analysis.nmpc.controller.NMPCController` (docs/nmpc.md, "Options"); a bad key or value
 raises :class:`~meanfield.errors.ParameterError` naming ``controller.options.<key>``.
 :data:`FLUXES`, :data:`HESSIANS` and :data:`SOLVERS` are the allowed values of ``flux`` (the
-advective fluxes of :class:`~analysis.nmpc_model.CoarseFokkerPlanck`), ``hessian`` and ``solver``.
+advective fluxes of :class:`~analysis.nmpc.prediction_model.CoarseFokkerPlanck`), ``hessian`` and ``solver``.
 Everything here is re-exported by :mod:`analysis.nmpc`.
 """
 
@@ -29,7 +29,7 @@ HESSIANS = ("exact", "limited-memory", "gauss-newton")
 """The Hessian: exact (both solvers), L-BFGS (IPOPT only) or Gauss–Newton (SQP only)."""
 
 SOLVERS = ("sqp", "ipopt")
-"""The NLP solvers: SQP on the inputs (:mod:`analysis.nmpc_sqp`) or IPOPT on all states (:mod:`analysis.nmpc_ipopt`)."""
+"""The NLP solvers: SQP on the inputs (:mod:`analysis.nmpc.sqp`) or IPOPT on all states (:mod:`analysis.nmpc.ipopt`)."""
 
 DEFAULT_ITERATIONS = {"sqp": 3, "ipopt": 50}
 """``max_iter`` when not given: QPs per solve (SQP; real-time iterations) or IPOPT iterations."""
@@ -67,7 +67,7 @@ def _float_option(key: str, value: Any, *, positive: bool) -> float:
 
 @dataclass(frozen=True)
 class NMPCOptions:
-    """Options of :class:`~analysis.nmpc.NMPCController` (``[controller.options]`` of a scenario).
+    """Options of :class:`~analysis.nmpc.controller.NMPCController` (``[controller.options]`` of a scenario).
 
     Parameters
     ----------
@@ -95,8 +95,8 @@ class NMPCOptions:
     warm_start : bool
         Start each solve from the previous solution shifted (otherwise from zero inputs).
     solver : {"sqp", "ipopt"}
-        SQP on the inputs with the exact Hessian (:mod:`analysis.nmpc_sqp`), or IPOPT on the
-        full space (:mod:`analysis.nmpc_ipopt`).  Same problem, same minimisers.
+        SQP on the inputs with the exact Hessian (:mod:`analysis.nmpc.sqp`), or IPOPT on the
+        full space (:mod:`analysis.nmpc.ipopt`).  Same problem, same minimisers.
     blocks : list of int or None
         Move blocking (SQP only): prediction steps per input block, summing to ``horizon``; an
         input is held over its block, ``[1] * horizon`` is no blocking.  None: the first two

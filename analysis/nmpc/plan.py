@@ -1,6 +1,6 @@
 """One solution of the NMPC problem (:class:`NMPCPlan`) and the robot state a solve starts from.
 
-Shared by the solvers of :class:`~analysis.nmpc.NMPCController` (IPOPT and SQP); re-exported
+Shared by the solvers of :class:`~analysis.nmpc.controller.NMPCController` (IPOPT and SQP); re-exported
 by :mod:`analysis.nmpc`.
 """
 

@@ -2,9 +2,9 @@
 
 (docs/controllers.md, "NMPC in real time".)
 
-The optimal-control problem of :mod:`analysis.nmpc` lifts every state (densities and robot
+The optimal-control problem of :mod:`analysis.nmpc.controller` lifts every state (densities and robot
 states) to a decision variable.  Here the states are eliminated: they are functions of the
-inputs through the same model, :class:`~analysis.nmpc_model.CoarseFokkerPlanck` (eq. (4) on
+inputs through the same model, :class:`~analysis.nmpc.prediction_model.CoarseFokkerPlanck` (eq. (4) on
 the coarse cells, backward Euler; eq. (2), forward Euler)::
 
     s_{k+1} = s_k + Δt_p z_{β(k)},            s = (R_x, R_y, θ) of every robot
@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as sla
 
-from analysis.nmpc_model import CoarseFokkerPlanck
+from analysis.nmpc.prediction_model import CoarseFokkerPlanck
 from meanfield.errors import ParameterError
 
 __all__ = ["CondensedProblem", "block_counts"]

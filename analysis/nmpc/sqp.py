@@ -2,10 +2,10 @@
 
 (docs/controllers.md, "NMPC in real time".)
 
-The NMPC problem of :mod:`analysis.nmpc` (docs/nmpc.md, "The optimal-control problem": the
+The NMPC problem of :mod:`analysis.nmpc.controller` (docs/nmpc.md, "The optimal-control problem": the
 paper's eq. (4) on coarse cells as the prediction model, eq. (2) for the robots with their
 speed limits), condensed onto the robots' inputs
-(:class:`~analysis.nmpc_condensed.CondensedProblem`: the same cost ``J(z)`` and the same
+(:class:`~analysis.nmpc.condensed.CondensedProblem`: the same cost ``J(z)`` and the same
 constraints, the states eliminated through the same model), is solved by SQP:
 
 1. at the iterate ``z`` (always feasible: within the speed limits and the region), ``J``, ``∇J``
@@ -14,7 +14,7 @@ constraints, the states eliminated through the same model), is solved by SQP:
    indefinite far from a minimum: the headings enter through cos and sin), plus a
    Levenberg–Marquardt term ``ν·mean(diag)·I``;
 3. the QP ``min ½dᵀH d + ∇Jᵀd`` under the exact constraints (speed disks, turn-rate bounds,
-   positions in the region) by the interior-point method of :class:`~analysis.nmpc_qp.InputQP`;
+   positions in the region) by the interior-point method of :class:`~analysis.nmpc.qp.InputQP`;
 4. the ratio ``ρ = ΔJ / predicted`` of the full step drives ``ν`` (a trust region); the step
    is backtracked (halved, at most four times) until ``J`` decreases enough (Armijo); the
    constraints are convex, so every accepted iterate stays feasible.
@@ -35,8 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.nmpc_condensed import CondensedProblem
-from analysis.nmpc_qp import InputQP
+from analysis.nmpc.condensed import CondensedProblem
+from analysis.nmpc.qp import InputQP
 
 __all__ = ["SQPResult", "SQPSolver"]
 

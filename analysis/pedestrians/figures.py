@@ -1,7 +1,7 @@
-"""The figures of :func:`analysis.pedestrian_metrics.pedestrian_metrics`: N(t) and density maps.
+"""The figures of :func:`analysis.pedestrians.metrics.pedestrian_metrics`: N(t) and density maps.
 
 :func:`plot_pedestrian_figures` draws a measured run (a
-:class:`~analysis.pedestrian_metrics.PedestrianMetrics`): the fraction of humans in the
+:class:`~analysis.pedestrians.metrics.PedestrianMetrics`): the fraction of humans in the
 target region, PedPy's against the toolkit's, and the density maps side by side
 (``docs/pedestrians.md``).  Every figure is written by the toolkit's one figure writer,
 :func:`meanfield.io.atomic.save_figure`.
@@ -23,7 +23,7 @@ __all__ = ["plot_pedestrian_figures"]
 def plot_pedestrian_figures(
     metrics: Any, out_dir: str | Path, *, prefix: str = "", dpi: float = 90
 ) -> dict[str, Path]:
-    """Draw the two figures of a measured run (a :class:`~analysis.pedestrian_metrics.PedestrianMetrics`,
+    """Draw the two figures of a measured run (a :class:`~analysis.pedestrians.metrics.PedestrianMetrics`,
     which calls this; hence no import of it here); return their paths.
 
     - ``{prefix}n_in_target.png``: ``N(t)/N`` from PedPy beside the toolkit's

@@ -1,8 +1,8 @@
 """``meanfield pedestrians RUN_DIR... --out DIR``: PedPy measurements of finished runs.
 
-The command of :mod:`analysis.pedestrian_metrics` (entry point
-``analysis.pedestrian_cli:register``): for every run,
-:func:`~analysis.pedestrian_metrics.pedestrian_metrics` with its figures in ``DIR/<run>``,
+The command of :mod:`analysis.pedestrians.metrics` (entry point
+``analysis.pedestrians.cli:register``): for every run,
+:func:`~analysis.pedestrians.metrics.pedestrian_metrics` with its figures in ``DIR/<run>``,
 and one report ``DIR/pedestrians.json`` (``docs/pedestrians.md``, ``docs/cli.md``).  The
 measurements are imported when the command runs, so that registering it costs nothing.
 """
@@ -49,7 +49,7 @@ def _labels(run_dirs: list[Path]) -> list[str]:
 
 
 def _handle(args: argparse.Namespace) -> int:
-    from analysis.pedestrian_metrics import _pedpy, pedestrian_metrics
+    from analysis.pedestrians.metrics import _pedpy, pedestrian_metrics
     from meanfield.io.atomic import atomic_write_json
 
     if not 0 < args.window <= 1:

@@ -8,9 +8,9 @@ The prediction model
     The Fokker–Planck equation of the paper (eq. (4)) without interaction or disturbance,
     on ``cells`` coarse cells (finite volumes, upwind or central advective fluxes), backward
     Euler in time with the prediction step ``Δt_p``; the robots follow eq. (2) by forward
-    Euler.  It is :class:`~analysis.nmpc_model.CoarseFokkerPlanck` (docs/nmpc.md, "The
-    prediction model"); the options are :class:`~analysis.nmpc_options.NMPCOptions`.  Both
-    are re-exported here.
+    Euler.  It is :class:`~analysis.nmpc.prediction_model.CoarseFokkerPlanck` (docs/nmpc.md, "The
+    prediction model"); the options are :class:`~analysis.nmpc.options.NMPCOptions`.  Both
+    are exported by the package, :mod:`analysis.nmpc`.
 
 The optimal-control problem (every ``Δt_c = period``)::
 
@@ -23,10 +23,10 @@ this one problem (``solver``):
 
 * ``"sqp"`` (default): the states eliminated, SQP on the robots' inputs with the exact
   Hessian and the exact constraints, a few QPs per control period (real-time iterations),
-  optionally with move blocking (:mod:`analysis.nmpc_condensed`, :mod:`analysis.nmpc_sqp`,
-  :mod:`analysis.nmpc_qp`);
+  optionally with move blocking (:mod:`analysis.nmpc.condensed`, :mod:`analysis.nmpc.sqp`,
+  :mod:`analysis.nmpc.qp`);
 * ``"ipopt"``: every state lifted as a decision variable, compiled once with CasADi's Opti
-  stack and solved by IPOPT to convergence (:mod:`analysis.nmpc_ipopt`).
+  stack and solved by IPOPT to convergence (:mod:`analysis.nmpc.ipopt`).
 
 Each solve is warm-started from the previous solution shifted by the elapsed prediction
 steps.  Between solves the robots apply the plan open loop (with ``period == step``, the
@@ -50,12 +50,12 @@ from typing import Any
 
 import numpy as np
 
-from analysis.nmpc_condensed import CondensedProblem
-from analysis.nmpc_ipopt import ipopt_arrays, ipopt_function
-from analysis.nmpc_model import CoarseFokkerPlanck
-from analysis.nmpc_options import FLUXES, HESSIANS, SOLVERS, NMPCOptions
-from analysis.nmpc_plan import NMPCPlan, robot_state
-from analysis.nmpc_sqp import SQPSolver
+from analysis.nmpc.condensed import CondensedProblem
+from analysis.nmpc.ipopt import ipopt_arrays, ipopt_function
+from analysis.nmpc.options import NMPCOptions
+from analysis.nmpc.plan import NMPCPlan, robot_state
+from analysis.nmpc.prediction_model import CoarseFokkerPlanck
+from analysis.nmpc.sqp import SQPSolver
 from meanfield.controllers.backstepping import BacksteppingController, ControlState
 from meanfield.errors import ParameterError
 from meanfield.geometry.grid import Grid
@@ -63,16 +63,7 @@ from meanfield.interfaces import Command, ControllerParts, Observation
 from meanfield.signs.kernels import NavigationKernel
 from meanfield.signs.robots import NavigationField, RobotTeam
 
-__all__ = [
-    "FLUXES",
-    "HESSIANS",
-    "SOLVERS",
-    "NMPCOptions",
-    "CoarseFokkerPlanck",
-    "NMPCPlan",
-    "NMPCController",
-    "nmpc_controller_for",
-]
+__all__ = ["NMPCController", "nmpc_controller_for"]
 
 
 # ---------------------------------------------------------------------- the controller

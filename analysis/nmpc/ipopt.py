@@ -1,6 +1,7 @@
-"""The full-space NMPC problem solved by IPOPT (``solver = "ipopt"`` of :class:`~analysis.nmpc.NMPCController`).
+"""The full-space NMPC problem solved by IPOPT (``solver = "ipopt"`` of the NMPC controller).
 
-The problem of :mod:`analysis.nmpc` (docs/nmpc.md, "The optimal-control problem") written
+The solver of :class:`~analysis.nmpc.controller.NMPCController` with ``solver = "ipopt"``: the
+problem of :mod:`analysis.nmpc.controller` (docs/nmpc.md, "The optimal-control problem") written
 with CasADi's Opti stack with every state lifted as a decision variable (inputs, robot
 states, coarse densities: sparse Jacobians and Hessians), compiled once with
 ``Opti.to_function`` into one function of ``ρ_0``, ``R``, ``θ``, ``ρ_*`` and the initial
@@ -15,8 +16,8 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from analysis.nmpc_model import CoarseFokkerPlanck
-from analysis.nmpc_options import NMPCOptions
+from analysis.nmpc.options import NMPCOptions
+from analysis.nmpc.prediction_model import CoarseFokkerPlanck
 
 __all__ = ["ipopt_function", "ipopt_arrays"]
 

@@ -1,64 +1,16 @@
-"""PedPy trajectories and measurements: exact counts on synthetic crowds, round trip, refusals."""
+"""PedPy trajectories and measurements (analysis.pedestrians.metrics): exact counts on synthetic
+crowds, round trip, refusals."""
 
 from __future__ import annotations
 
-import argparse
 import json
 
 import numpy as np
 import pytest
-import xarray as xr
 
 from meanfield.errors import ParameterError
-from meanfield.geometry.target import fraction_in_disk
 from meanfield.io.trajectories import frame_spacing, write_pedpy_trajectories
-from meanfield.scenarios.scenario import paper_scenario
-
-N = 20
-CELLS = 10
-
-
-def _dataset(x: np.ndarray, y: np.ndarray, times, *, center=(1.0, 1.0), radius=0.3) -> xr.Dataset:
-    """A run dataset on the paper's unit square with the given human positions (time, human)."""
-    times = np.asarray(times, dtype=float)
-    pts = np.stack([x, y], axis=-1)
-    frac = [fraction_in_disk(p, center, radius) for p in pts]
-    c = (np.arange(CELLS) + 0.5) / CELLS
-    dens = np.ones((times.size, CELLS, CELLS))  # unit mass on the unit square
-    return xr.Dataset(
-        {
-            "human_x": (("time", "human"), x),
-            "human_y": (("time", "human"), y),
-            "fraction_in_target": ("time", np.asarray(frac)),
-            "density": (("time", "x", "y"), dens),
-        },
-        coords={"time": times, "human": np.arange(x.shape[1]), "x": c, "y": c},
-        attrs={
-            "target_center_x": center[0],
-            "target_center_y": center[1],
-            "target_radius": radius,
-            "backend": "point-mass",
-            "seed": 0,
-            "scenario_toml": paper_scenario().to_toml(),
-        },
-    )
-
-
-def _crowd(ks, center=(1.0, 1.0), radius=0.3, seed=0):
-    """Frame j: ks[j] humans well inside the target disk (∩ room), the others well outside."""
-    rng = np.random.default_rng(seed)
-    T = len(ks)
-    x, y = np.empty((T, N)), np.empty((T, N))
-    for j, k in enumerate(ks):
-        got = 0
-        while got < N:
-            p = rng.uniform(0.02, 0.98, 2)
-            d = np.hypot(*(p - center))
-            inside = d < 0.9 * radius
-            if (got < k and inside) or (got >= k and d > 1.1 * radius):
-                x[j, got], y[j, got] = p
-                got += 1
-    return x, y
+from tests.analysis.pedestrians.conftest import CELLS, N, crowd_positions, run_dataset
 
 
 def _read(path):
@@ -68,8 +20,8 @@ def _read(path):
 
 # ------------------------------------------------------------------ writer (no PedPy)
 def test_file_has_header_and_one_line_per_human_and_frame(tmp_path):
-    x, y = _crowd([0, 3, 5])
-    path = write_pedpy_trajectories(_dataset(x, y, [0.0, 0.1, 0.2]), tmp_path / "t.txt")
+    x, y = crowd_positions([0, 3, 5])
+    path = write_pedpy_trajectories(run_dataset(x, y, [0.0, 0.1, 0.2]), tmp_path / "t.txt")
     text = path.read_text()
     assert "# framerate: 10.0\n" in text  # 1/0.1 written as 10, not 10.000000000000002
     assert "x/m" in text
@@ -84,8 +36,8 @@ def test_file_has_header_and_one_line_per_human_and_frame(tmp_path):
 
 
 def test_short_last_frame_is_dropped(tmp_path):
-    x, y = _crowd([1, 2, 3, 4])
-    path = write_pedpy_trajectories(_dataset(x, y, [0.0, 2.0, 4.0, 5.0]), tmp_path / "t.txt")
+    x, y = crowd_positions([1, 2, 3, 4])
+    path = write_pedpy_trajectories(run_dataset(x, y, [0.0, 2.0, 4.0, 5.0]), tmp_path / "t.txt")
     _, frame, _, _ = _read(path)
     assert set(frame) == {0, 1, 2}
     assert "# framerate: 0.5\n" in path.read_text()
@@ -95,9 +47,9 @@ def test_short_last_frame_is_dropped(tmp_path):
 
 
 def test_missing_positions_are_left_out(tmp_path):
-    x, y = _crowd([0, 0])
+    x, y = crowd_positions([0, 0])
     x[1, 4] = np.nan
-    pid, frame, _, _ = _read(write_pedpy_trajectories(_dataset(x, y, [0.0, 1.0]), tmp_path / "t.txt"))
+    pid, frame, _, _ = _read(write_pedpy_trajectories(run_dataset(x, y, [0.0, 1.0]), tmp_path / "t.txt"))
     assert pid.size == 2 * N - 1 and not np.any((pid == 4) & (frame == 1))
 
 
@@ -113,7 +65,7 @@ def test_missing_positions_are_left_out(tmp_path):
 )
 def test_bad_frames_are_refused_by_name(tmp_path, times, what):
     T = len(times)
-    ds = _dataset(np.zeros((T, N)), np.zeros((T, N)), times)
+    ds = run_dataset(np.zeros((T, N)), np.zeros((T, N)), times)
     with pytest.raises(ParameterError) as exc:
         write_pedpy_trajectories(ds, tmp_path / "t.txt")
     assert exc.value.name == "dataset" and what in str(exc.value)
@@ -121,8 +73,8 @@ def test_bad_frames_are_refused_by_name(tmp_path, times, what):
 
 
 def test_dataset_without_humans_is_refused(tmp_path):
-    x, y = _crowd([0, 0])
-    ds = _dataset(x, y, [0.0, 1.0])
+    x, y = crowd_positions([0, 0])
+    ds = run_dataset(x, y, [0.0, 1.0])
     with pytest.raises(ParameterError, match="human_y") as exc:
         write_pedpy_trajectories(ds.drop_vars("human_y"), tmp_path / "t.txt")
     assert exc.value.name == "dataset"
@@ -133,8 +85,8 @@ def test_dataset_without_humans_is_refused(tmp_path):
 # ------------------------------------------------------------------ PedPy
 def test_round_trip_through_pedpy_gives_the_same_frames_and_positions(tmp_path):
     pedpy = pytest.importorskip("pedpy")
-    x, y = _crowd([0, 4, 9, 2])
-    path = write_pedpy_trajectories(_dataset(x, y, [10.0, 12.5, 15.0, 17.5]), tmp_path / "t.txt")
+    x, y = crowd_positions([0, 4, 9, 2])
+    path = write_pedpy_trajectories(run_dataset(x, y, [10.0, 12.5, 15.0, 17.5]), tmp_path / "t.txt")
     traj = pedpy.load_trajectory_from_txt(trajectory_file=path)
     assert traj.frame_rate == 0.4
     d = traj.data.sort_values(["frame", "id"])
@@ -147,11 +99,11 @@ def test_round_trip_through_pedpy_gives_the_same_frames_and_positions(tmp_path):
 @pytest.mark.parametrize("center, radius", [((1.0, 1.0), 0.3), ((0.5, 0.45), 0.2), ((0.0, 0.6), 0.25)])
 def test_pedpy_count_in_target_is_exactly_k(tmp_path, center, radius):
     pytest.importorskip("pedpy")
-    from analysis.pedestrian_metrics import count_in_target, load_pedpy_trajectories, target_measurement_area
+    from analysis.pedestrians.metrics import count_in_target, load_pedpy_trajectories, target_measurement_area
 
     ks = [0, 1, 7, N, 13]
-    x, y = _crowd(ks, center, radius, seed=1)
-    ds = _dataset(x, y, np.arange(len(ks)) * 0.5, center=center, radius=radius)
+    x, y = crowd_positions(ks, center, radius, seed=1)
+    ds = run_dataset(x, y, np.arange(len(ks)) * 0.5, center=center, radius=radius)
     traj = load_pedpy_trajectories(ds, tmp_path / "t.txt")
     area = target_measurement_area(ds)
     counts = count_in_target(traj, area)
@@ -166,13 +118,13 @@ def test_pedpy_count_in_target_is_exactly_k(tmp_path, center, radius):
 
 def test_pedestrian_metrics_end_to_end(tmp_path):
     pytest.importorskip("pedpy")
-    from analysis.pedestrian_metrics import pedestrian_metrics
+    from analysis.pedestrians.metrics import pedestrian_metrics
 
     ks = [2, 5, 9, 12, 15]
-    x, y = _crowd(ks, seed=2)
+    x, y = crowd_positions(ks, seed=2)
     run = tmp_path / "run"
     run.mkdir()
-    _dataset(x, y, np.arange(5) * 0.1).to_netcdf(run / "timeseries.nc", engine="h5netcdf")
+    run_dataset(x, y, np.arange(5) * 0.1).to_netcdf(run / "timeseries.nc", engine="h5netcdf")
     m = pedestrian_metrics(run, tmp_path / "out", window_fraction=0.5, voronoi_frames=2)
     np.testing.assert_array_equal(m.n_in_target, ks)
     assert m.max_fraction_difference == 0 and m.differences_explained
@@ -190,28 +142,3 @@ def test_pedestrian_metrics_end_to_end(tmp_path):
     for p in m.figures.values():
         assert p.endswith(".png") and (tmp_path / "out" / p.split("/")[-1]).stat().st_size > 0
     assert json.loads(json.dumps(m.to_dict()))["fraction_final_pedpy"] == ks[-1] / N
-
-
-def test_command_writes_report_and_refuses_bad_arguments(tmp_path, capsys):
-    pytest.importorskip("pedpy")
-    from analysis.pedestrian_cli import register
-
-    x, y = _crowd([1, 3], seed=3)
-    run = tmp_path / "run"
-    run.mkdir()
-    _dataset(x, y, [0.0, 1.0]).to_netcdf(run / "timeseries.nc", engine="h5netcdf")
-    parser = argparse.ArgumentParser()
-    handler = register(parser.add_subparsers(dest="command"))
-    out = tmp_path / "out"
-    args = parser.parse_args(["pedestrians", str(run), str(run), "--out", str(out), "--voronoi-frames", "0", "--quiet"])
-    assert handler(args) == 0
-    report = json.loads((out / "pedestrians.json").read_text())
-    assert set(report["runs"]) == {"run", "run-1"} and report["differences_explained"]
-    assert report["runs"]["run"]["voronoi_frames"] == []
-    for bad, name in [(["--window", "0"], "--window"), (["--voronoi-frames", "-1"], "--voronoi-frames")]:
-        with pytest.raises(ParameterError) as exc:
-            handler(parser.parse_args(["pedestrians", str(run), "--out", str(out), *bad]))
-        assert exc.value.name == name
-    with pytest.raises(ParameterError) as exc:
-        handler(parser.parse_args(["pedestrians", str(tmp_path / "nothing"), "--out", str(out)]))
-    assert exc.value.name == "RUN_DIR"
