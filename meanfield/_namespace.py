@@ -1,7 +1,7 @@
 """Package namespaces: names imported on first use (PEP 562), and the modules that moved.
 
 ``import meanfield`` (and ``analysis``, ``verification``) costs milliseconds instead of
-SciPy"s, xarray"s and the solvers" import time, and ``meanfield --help`` stays quick; a name
+SciPy's, xarray's and the solvers' import time, and ``meanfield --help`` stays quick; a name
 such as ``meanfield.run`` is imported the first time it is read, then kept
 (:func:`lazy_namespace`).
 
@@ -33,11 +33,11 @@ def lazy_namespace(
 ) -> tuple[Callable[[str], Any], Callable[[], list[str]]]:
     """``__getattr__`` and ``__dir__`` for a package whose ``names`` map to the modules defining them.
 
-    Usage, in a package"s ``__init__.py``::
+    Usage, in a package's ``__init__.py``::
 
         __getattr__, __dir__ = lazy_namespace(__name__, globals(), {"run": "meanfield.simulation.loop", ...})
 
-    ``deprecated`` maps an old name to ``(module, new name)``: reading it gives the new name"s
+    ``deprecated`` maps an old name to ``(module, new name)``: reading it gives the new name's
     value with a :class:`~meanfield.errors.MeanfieldDeprecationWarning` naming it (never cached,
     so that every use is told).
     """

@@ -24,7 +24,7 @@ The kinds and what a factory of each kind receives and returns (docs page *Archi
     ``factory(context: CrowdContext) -> Crowd`` (:mod:`meanfield.interfaces`).
 ``controller`` (``meanfield.controllers``)
     ``factory(parts: ControllerParts) -> Controller``.
-``guidance`` (``meanfield.crowds.guidance``)
+``guidance`` (``meanfield.guidance``)
     ``factory(context: CrowdContext, positions) -> Guidance | None``: what the agents follow
     (None: the robots' signs; :mod:`meanfield.crowds.guidance`).
 ``beta_gamma`` (``meanfield.beta_gamma``)
@@ -153,7 +153,7 @@ def register(kind: str, name: str, factory: Any, origin: str | None = None) -> A
 
     Parameters
     ----------
-    kind : {"region", "crowd", "controller", "beta_gamma", "command"}
+    kind : {"region", "crowd", "controller", "guidance", "beta_gamma", "command"}
     name : str
         The name a scenario uses (``controller.kind = name``, ...).
     factory : callable

@@ -51,14 +51,7 @@ def _handle(args: argparse.Namespace) -> int:
             raise ParameterError("--checks", args.checks, f"a comma-separated subset of {', '.join(CHECKS)}")
     if args.workers is not None and args.workers < 1:
         raise ParameterError("--workers", args.workers, "an integer >= 1")
-    try:
-        scenario: Any = scenario_from_args(args)
-    except ParameterError as exc:
-        if "convex" not in str(exc):
-            raise
-        # a non-convex kind = "polygon" (floor plans, kind = "plan", load and are checked):
-        # every check reports inconclusive, with the reason and the way to a plan
-        scenario = exc
+    scenario: Any = scenario_from_args(args)  # a room that is not convex is a plan, on which the checks run
     args.out.mkdir(parents=True, exist_ok=True)
 
     def show(result) -> None:

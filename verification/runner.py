@@ -53,14 +53,7 @@ CLAIMS: dict[str, str] = {
 
 def unusable_scenario_reason(exc: Exception) -> str:
     """A reader's explanation of why a scenario could not be loaded for the checks."""
-    text = str(exc)
-    if "non-convex" in text or "not convex" in text:
-        return (
-            'the domain is not convex, and kind = "polygon" takes convex vertex lists only: give the room as a '
-            'floor plan, [domain] kind = "plan" with wkt = "POLYGON ((x y, ...))", and the checks run on it '
-            f"(Theorems 1–3 need Ω connected, not convex) ({text})"
-        )
-    return f"the scenario cannot be used: {text}"
+    return f"the scenario cannot be used: {exc}"
 
 
 @dataclass
@@ -103,8 +96,8 @@ def verify(
     Parameters
     ----------
     scenario : Scenario, or the exception raised while loading it
-        An exception (e.g. a :class:`~meanfield.errors.ParameterError` for a non-convex
-        ``kind = "polygon"``) makes every check ``inconclusive`` with the reason.
+        An exception (the :class:`~meanfield.errors.ParameterError` that refused a scenario)
+        makes every check ``inconclusive`` with the reason.
     out_dir : path
         Where the checks put their figures (``out_dir/figures``).
     quick : bool

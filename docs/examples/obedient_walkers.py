@@ -11,8 +11,8 @@ The whole crowd is this module plus its registration line (last line).  A scenar
 it by name once the module is imported, e.g. from TOML::
 
     plugins = ["obedient_walkers.py"]     # relative to the TOML file
-    [pedestrians]
-    backend = "obedient-walkers"
+    [crowd]
+    kind = "obedient-walkers"
 
 or ``meanfield run docs/examples/obedient_walkers.toml --out runs/walkers``.
 """

@@ -54,24 +54,6 @@ def _unavailable(name: str, exc: Exception):
     return handler
 
 
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
 def _terminated(signum: int, frame: object) -> None:
     """SIGTERM (batch schedulers, containers, ``kill``) as Ctrl-C: the run keeps its last good state."""
     raise KeyboardInterrupt(f"signal {signum}")

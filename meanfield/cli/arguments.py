@@ -71,9 +71,7 @@ def add_scenario_arguments(parser: argparse.ArgumentParser, seed_help: str = "ra
 
     Read them back with :func:`scenario_from_args`.  Command plugins use both.
     """
-    parser.add_argument(
-        "scenario", nargs="?", default="paper", help=SCENARIO_HELP.format(", ".join(builtin_names()))
-    )
+    parser.add_argument("scenario", nargs="?", default="paper", help=SCENARIO_HELP.format(", ".join(builtin_names())))
     parser.add_argument("--out", required=True, type=output_dir, help="output directory (checked before any work)")
     parser.add_argument("--seed", type=int, default=None, help=seed_help)
     parser.add_argument(

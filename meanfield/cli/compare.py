@@ -1,5 +1,4 @@
-"""``meanfield compare``: agents beside the Fokker–Planck equation under the same robots, for several N.
-"""
+"""``meanfield compare``: agents beside the Fokker–Planck equation under the same robots, for several N."""
 
 from __future__ import annotations
 

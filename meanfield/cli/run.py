@@ -1,5 +1,4 @@
-"""``meanfield run``: one closed-loop run, its data, figures and summary in a folder.
-"""
+"""``meanfield run``: one closed-loop run, its data, figures and summary in a folder."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""``meanfield scenario``: a scenario printed as TOML, or the list of the built-in ones.
-"""
+"""``meanfield scenario``: a scenario printed as TOML, or the list of the built-in ones."""
 
 from __future__ import annotations
 
@@ -16,9 +15,7 @@ __all__ = ["register"]
 def register(subparsers: Any) -> Callable[[argparse.Namespace], int]:
     """Add ``meanfield scenario`` to the ``meanfield`` parser; return its handler."""
     s = subparsers.add_parser("scenario", help="print a scenario as TOML (a starting point for your own)")
-    s.add_argument(
-        "scenario", nargs="?", default="paper", help=SCENARIO_HELP.format(", ".join(builtin_names()))
-    )
+    s.add_argument("scenario", nargs="?", default="paper", help=SCENARIO_HELP.format(", ".join(builtin_names())))
     s.add_argument("--list", action="store_true", help="list the built-in scenarios, one line each")
     return _cmd_scenario
 

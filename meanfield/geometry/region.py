@@ -1,8 +1,12 @@
 """The :class:`Region` interface: the workspace Ω as geometry, its boundary as walls and exits.
 
 The first of the closed loop's three interfaces (:mod:`meanfield.interfaces` holds the
-other two); :class:`meanfield.geometry.domain.Domain` implements it.  This module imports nothing of
-the toolkit, so that the geometry at the bottom of the layers can name it.
+other two); :class:`meanfield.geometry.domain.Domain` builds every implementation of it (its
+convex shapes, and :class:`~meanfield.geometry.plan.Plan` for the rest).  This module imports only
+the toolkit's foundations (:mod:`meanfield.errors`, :mod:`meanfield.plugins`), so that every
+module of the geometry can name it; it also reads a scenario's ``[domain]`` table into a region
+through the registry (:func:`region_from_table`) and tells whether a polygon is convex
+(:func:`convex_polygon`).
 """
 
 from __future__ import annotations
@@ -202,7 +206,7 @@ def region_from_table(table: dict[str, Any]) -> Any:
     """The region a scenario's ``[domain]`` table describes, built by its registered factory.
 
     ``kind`` (default ``"box"``) names a region registered in :mod:`meanfield.plugins`
-    (built in: ``"box"``, ``"disk"``, ``"polygon"``); the other keys are passed to that
+    (built in: ``"box"``, ``"disk"``, ``"polygon"``, ``"plan"``); the other keys are passed to that
     factory as keyword arguments (for a box, ``width``, ``height``, ``origin``).
 
     Parameters
@@ -213,7 +217,8 @@ def region_from_table(table: dict[str, Any]) -> Any:
     Returns
     -------
     Region
-        What the factory returns (:class:`meanfield.geometry.domain.Domain` for the built-ins).
+        What the factory returns (a :class:`~meanfield.geometry.domain.Domain` or a
+        :class:`~meanfield.geometry.plan.Plan` for the built-ins).
 
     Raises
     ------

@@ -14,22 +14,6 @@ from meanfield.errors import ParameterError
 __all__ = ["parse_set", "int_list", "float_list"]
 
 
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
 def parse_set(values: Sequence[str]) -> dict[str, object]:
     """``["robots.n=9", ...]`` as ``{"robots.n": 9, ...}``, each value read as TOML (else a string)."""
     import tomllib

@@ -1,5 +1,4 @@
-"""The Wasserstein distance W₂ between the agents and a grid density (the summary's ``w2_to_target``).
-"""
+"""The Wasserstein distance W₂ between the agents and a grid density (the summary's ``w2_to_target``)."""
 
 from __future__ import annotations
 

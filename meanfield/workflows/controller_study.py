@@ -30,6 +30,7 @@ from meanfield.errors import ParameterError
 
 __all__ = ["study_controllers", "candidates", "table"]
 
+
 def reference_law() -> tuple[str, str]:
     """The study's reference, against which each controller's compute is measured, and its β/γ rule:
     the scenario's default controller and rule (the paper's law, minimum-norm)."""

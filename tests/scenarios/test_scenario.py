@@ -109,7 +109,7 @@ BAD_TOML = [
     ("[target]\ncenter = [50.0, 50.0]\nstd = 0.1\n", "target.center"),
     ("[crowd]\nsigmaa = 0.1\n", "crowd.sigmaa"),
     ("speed = 3\n", "speed"),
-    ('[domain]\nkind = "polygon"\nvertices = [[0, 0], [2, 0], [1, 0.3], [1, 2]]\n', "domain.vertices"),
+    ('[domain]\nkind = "polygon"\nvertices = [[0, 0], [2, 2], [2, 0], [0, 2]]\n', "domain.vertices"),  # a bow tie
     ("this is not toml", "scenario file"),
 ]
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from analysis.poincare import neumann_eigenvalue
-from meanfield import ConstantAlpha, Domain, Grid, paper_scenario
+from meanfield import ConstantAlpha, Domain, Grid, load_scenario, paper_scenario
 from meanfield.cli.app import main
 from meanfield.controllers.backstepping import BacksteppingController
 from verification import runner
@@ -162,18 +162,24 @@ def test_verify_command_writes_report_and_verdicts(tmp_path, capsys, monkeypatch
     assert "| claim | verdict | result |" in report and "figures/theorem1.png" in report
 
 
-def test_non_convex_domain_gives_inconclusive_verdicts(tmp_path):
-    """A non-convex vertex list under kind = "polygon" (Domain.polygon refuses it): every claim
-    inconclusive with the reason and the way to a floor plan, exit 0.  Plans themselves are
-    checked (tests/verification/test_plans.py)."""
-    path = _tiny_toml(tmp_path, vertices=[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.5, 0.4], [0.0, 1.0]])
+def test_an_unusable_domain_is_refused_and_a_non_convex_one_is_a_plan(tmp_path, capsys):
+    """A vertex list that is no room (a bow tie crosses itself) is refused naming the field, exit 2;
+    handed to :func:`verify` as the exception, every claim is inconclusive with the reason.  A vertex
+    list that is merely not convex is a floor plan, on which the checks run (tests/verification/test_plans.py)."""
+    from meanfield.errors import ParameterError
+    from meanfield.geometry.plan import Plan
+
+    path = _tiny_toml(tmp_path, vertices=[[0.0, 0.0], [1.0, 1.0], [1.0, 0.0], [0.0, 1.0]])
     out = tmp_path / "out"
-    assert main(["verify", str(path), "--out", str(out), "--quick", "--quiet"]) == 0
-    data = json.loads((out / "verdicts.json").read_text())
-    assert [v["key"] for v in data["verdicts"]] == list(runner.CHECKS)
-    for v in data["verdicts"]:
-        assert v["verdict"] == "inconclusive"
-        assert "not convex" in v["reason"] and 'kind = "plan"' in v["reason"]
+    assert main(["verify", str(path), "--out", str(out), "--quick", "--quiet"]) == 2
+    assert "domain.vertices" in capsys.readouterr().err and not out.exists()
+    with pytest.raises(ParameterError) as exc:
+        load_scenario(path)
+    run = runner.verify(exc.value, out, quick=True)
+    assert [r.key for r in run.results] == list(runner.CHECKS)
+    assert all(r.verdict == "inconclusive" and "self-intersecting" in r.reason for r in run.results)
+    notch = _tiny_toml(tmp_path, vertices=[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.5, 0.4], [0.0, 1.0]])
+    assert isinstance(load_scenario(notch).domain, Plan)
 
 
 def test_a_crashing_check_is_an_error_and_exit_1(tmp_path, monkeypatch):
