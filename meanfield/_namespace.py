@@ -14,8 +14,6 @@ that names its new place (``meanfield.crowds.point_mass.PointMassEngine``).
 from __future__ import annotations
 
 import importlib
-import importlib.abc
-import importlib.machinery
 import sys
 import types
 import warnings
@@ -242,13 +240,16 @@ class _MovedModule(types.ModuleType):
         return sorted(getattr(importlib.import_module(f"meanfield.{module}"), "__all__", ()))
 
 
-class _MovedFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
-    """Finds ``meanfield.<old>`` for every old module in :data:`MOVED` (and nothing else)."""
+class _MovedFinder:
+    """Finds ``meanfield.<old>`` for every old module in :data:`MOVED` (and nothing else): a meta-path
+    finder and its loader (the protocols of :mod:`importlib.abc`, without importing it at start-up)."""
 
     def find_spec(self, fullname: str, path: Any = None, target: Any = None) -> Any:
         if not fullname.startswith("meanfield.") or fullname.removeprefix("meanfield.") not in MOVED:
             return None
-        return importlib.machinery.ModuleSpec(fullname, self)
+        from importlib.machinery import ModuleSpec
+
+        return ModuleSpec(fullname, self)
 
     def create_module(self, spec: Any) -> types.ModuleType:
         return _MovedModule(spec.name)

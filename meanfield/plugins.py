@@ -36,13 +36,14 @@ The kinds and what a factory of each kind receives and returns (docs page *Archi
 from __future__ import annotations
 
 import importlib
+from collections.abc import Callable
 from dataclasses import dataclass
 from importlib.metadata import entry_points
 from typing import Any
 
 from meanfield.errors import ParameterError
 
-__all__ = ["BUILTIN", "GROUPS", "available", "declared", "load", "origin", "register", "unregister"]
+__all__ = ["BUILTIN", "GROUPS", "available", "declared", "load", "loaders", "origin", "register", "unregister"]
 
 GROUPS = {
     "region": "meanfield.regions",
@@ -194,6 +195,15 @@ def unregister(kind: str, name: str) -> None:
 def available(kind: str) -> tuple[str, ...]:
     """Names registered for one kind (``"region"``, ``"crowd"``, ``"controller"``, ...), sorted."""
     return tuple(sorted(_entries(kind)))
+
+
+def loaders(kind: str) -> dict[str, Callable[[], Any]]:
+    """Every registered name of one kind, sorted, with a function that loads its factory.
+
+    One scan of the installed packages' entry points for all the names (each :func:`load`
+    scans them again, about 5 ms): the ``meanfield`` command builds its parser this way.
+    """
+    return {name: entry.load for name, entry in sorted(_entries(kind).items())}
 
 
 def origin(kind: str, name: str) -> str:

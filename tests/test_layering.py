@@ -57,16 +57,18 @@ def test_unknown_plugin_and_kind_are_refused_by_name():
 
 
 def test_a_broken_command_plugin_does_not_break_the_other_commands(monkeypatch, tmp_path, capsys):
-    real = plugins.load
+    from importlib.metadata import EntryPoint
 
-    def broken(kind, name):
-        if kind == "command" and name == "analyze":
-            raise ImportError("No module named 'missing_dependency'")
-        return real(kind, name)
+    broken = EntryPoint(name="broken", value="meanfield_no_such_module:register", group="meanfield.commands")
+    real = plugins.entry_points
 
-    monkeypatch.setattr(plugins, "load", broken)
-    assert main(["analyze", "paper", "--out", str(tmp_path)]) == 2
-    assert "could not be loaded" in capsys.readouterr().err
+    def with_broken(group):
+        return [*real(group=group), *([broken] if group == "meanfield.commands" else [])]
+
+    monkeypatch.setattr(plugins, "entry_points", with_broken)
+    assert main(["broken", "paper", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "'broken' command could not be loaded" in err and "meanfield_no_such_module" in err
     assert main(["scenario", "paper"]) == 0
 
 

@@ -35,9 +35,9 @@ def _build_parser() -> argparse.ArgumentParser:
         installed = "unknown (not installed)"
     p.add_argument("--version", action="version", version=f"meanfield {installed}")
     sub = p.add_subparsers(dest="command", required=True)
-    for name in plugins.available("command"):  # run, compare, ... and e.g. `meanfield analyze` from analysis
+    for name, load in plugins.loaders("command").items():  # run, compare, ...; `meanfield analyze` from analysis
         try:
-            handler = plugins.load("command", name)(sub)
+            handler = load()(sub)
         except (ImportError, AttributeError) as exc:  # a broken plugin must not break the other commands
             handler = _unavailable(name, exc)
             stub = sub.add_parser(name, help=f"(unavailable: {exc})", add_help=False)
