@@ -47,10 +47,13 @@ def _finite(name: str, value: float) -> float:
 
 @dataclass(frozen=True)
 class Domain:
-    """A convex, bounded workspace Ω.
+    """A convex, bounded workspace Ω, and the builder of every region.
 
-    Do not call the constructor directly; use :meth:`box`, :meth:`disk` or
-    :meth:`polygon`, which validate their arguments.
+    Do not call the constructor directly; use :meth:`box`, :meth:`disk` or :meth:`polygon`
+    (or :meth:`from_wkt`, :meth:`from_geojson`, :meth:`from_dxf`, :meth:`from_shapely`), which
+    validate their arguments and return the right implementation.  This class answers for a
+    convex polygon, by its edges; the box and the disk are its subclasses, which answer in
+    closed form (no method asks which shape it is).
 
     Attributes
     ----------
@@ -98,7 +101,7 @@ class Domain:
         x0 = _finite("origin[0]", origin[0])
         y0 = _finite("origin[1]", origin[1])
         v = np.array([[x0, y0], [x0 + width, y0], [x0 + width, y0 + height], [x0, y0 + height]], float)
-        return cls("box", v, (x0 + width / 2, y0 + height / 2), 0.0)._exits(exits)
+        return _Box("box", v, (x0 + width / 2, y0 + height / 2), 0.0)._exits(exits)
 
     @classmethod
     def disk(cls, radius: float = 1.0, center: tuple[float, float] = (0.0, 0.0), exits: Any = ()) -> Domain:
@@ -107,7 +110,7 @@ class Domain:
         if radius <= 0:
             raise ParameterError("radius", radius, "a number > 0")
         c = (_finite("center[0]", center[0]), _finite("center[1]", center[1]))
-        return cls("disk", np.zeros((0, 2)), c, radius)._exits(exits)
+        return _Disk("disk", np.zeros((0, 2)), c, radius)._exits(exits)
 
     @classmethod
     def polygon(cls, vertices: Any, exits: Any = ()) -> Region:
@@ -220,10 +223,6 @@ class Domain:
     @functools.cached_property
     def bounds(self) -> tuple[float, float, float, float]:
         """``(xmin, xmax, ymin, ymax)`` of the bounding box (computed once: the domain is frozen)."""
-        if self.kind == "disk":
-            cx, cy = self.center
-            r = self.radius
-            return (cx - r, cx + r, cy - r, cy + r)
         v = self.vertices
         return (float(v[:, 0].min()), float(v[:, 0].max()), float(v[:, 1].min()), float(v[:, 1].max()))
 
@@ -233,7 +232,7 @@ class Domain:
         fold a box's walls into a step (:func:`meanfield.crowds._point_mass_loops.euler_maruyama`,
         :func:`~meanfield.signs._robot_loops.robot_euler`). Not to be changed; left writable, since numba compiles a
         read-only array as another type (a second compilation of each pass)."""
-        return np.array(self.bounds if self.kind == "box" else (), float)
+        return np.array((), float)
 
     @functools.cached_property
     def _corners(self) -> tuple[np.ndarray, np.ndarray]:
@@ -246,16 +245,12 @@ class Domain:
     @property
     def area(self) -> float:
         """Area |Ω|."""
-        if self.kind == "disk":
-            return math.pi * self.radius**2
         x, y = self.vertices[:, 0], self.vertices[:, 1]
         return float(0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
 
     @property
     def diameter(self) -> float:
         """Largest distance between two points of Ω."""
-        if self.kind == "disk":
-            return 2 * self.radius
         d = self.vertices[:, None, :] - self.vertices[None, :, :]
         return float(np.sqrt((d**2).sum(-1)).max())
 
@@ -278,12 +273,6 @@ class Domain:
         y = np.asarray(y, float)
         if tol is None:
             tol = 1e-12 * self.diameter
-        if self.kind == "disk":
-            cx, cy = self.center
-            return (x - cx) ** 2 + (y - cy) ** 2 <= (self.radius + tol) ** 2
-        if self.kind == "box":
-            x0, x1, y0, y1 = self.bounds
-            return (x >= x0 - tol) & (x <= x1 + tol) & (y >= y0 - tol) & (y <= y1 + tol)
         _, n, off = self._edges()
         inside = np.ones(np.broadcast(x, y).shape, bool)
         for k in range(len(off)):
@@ -302,30 +291,6 @@ class Domain:
         points : ndarray, shape (N, 2)
             Positions, modified in place and returned.
         """
-        if self.kind == "box":
-            x0, x1, y0, y1 = self.bounds
-            for k, (lo, hi) in enumerate(((x0, x1), (y0, y1))):
-                col = points[:, k]
-                out = (col < lo) | (col > hi)
-                if out.any():
-                    period = 2.0 * (hi - lo)
-                    s = np.mod(col[out] - lo, period)
-                    col[out] = lo + np.where(s > hi - lo, period - s, s)
-            return points
-        if self.kind == "disk":
-            cx, cy = self.center
-            dx = points[:, 0] - cx
-            dy = points[:, 1] - cy
-            r = np.hypot(dx, dy)
-            out = r > self.radius
-            if out.any():
-                rr = r[out]
-                new = np.maximum(2 * self.radius - rr, 0.0)
-                new = np.minimum(new, self.radius)
-                scale = new / rr
-                points[out, 0] = cx + dx[out] * scale
-                points[out, 1] = cy + dy[out] * scale
-            return points
         _, n, off = self._edges()
         for _ in range(4):
             moved = False
@@ -341,22 +306,6 @@ class Domain:
 
     def project(self, points: np.ndarray) -> np.ndarray:
         """Nearest point of Ω for each row of ``points`` (in place); inside points unchanged."""
-        if self.kind == "box":  # the corners as rows: two broadcast ufuncs (np.clip per column costs 3x)
-            lo, hi = self._corners
-            np.maximum(points, lo, out=points)
-            np.minimum(points, hi, out=points)
-            return points
-        if self.kind == "disk":
-            cx, cy = self.center
-            dx = points[:, 0] - cx
-            dy = points[:, 1] - cy
-            r = np.hypot(dx, dy)
-            out = r > self.radius
-            if out.any():
-                s = self.radius / r[out]
-                points[out, 0] = cx + dx[out] * s
-                points[out, 1] = cy + dy[out] * s
-            return points
         out = ~self.contains(points[:, 0], points[:, 1])
         if not out.any():
             return points
@@ -383,8 +332,6 @@ class Domain:
         """This domain as a shapely polygon (a disk becomes a ``resolution``-gon)."""
         import shapely
 
-        if self.kind == "disk":
-            return shapely.Point(self.center).buffer(self.radius, quad_segs=max(resolution // 4, 8))
         return shapely.Polygon(self.vertices)
 
     # ------------------------------------------------------------------ the Region interface
@@ -397,28 +344,17 @@ class Domain:
         are clipped with shapely where its wall crosses them (:mod:`meanfield.geometry.cut_cells`).
         ``dx``, ``dy`` are the lattice spacings.
         """
-        from meanfield.geometry.cut_cells import convex_polygon_cut_cells, disk_cut_cells
+        from meanfield.geometry.cut_cells import convex_polygon_cut_cells
 
-        nx, ny = len(x_edges) - 1, len(y_edges) - 1
-        if self.kind == "box":
-            return np.ones((nx, ny)), np.ones((nx - 1, ny)), np.ones((nx, ny - 1))
-        if self.kind == "disk":
-            return disk_cut_cells(self.center, self.radius, x_edges, y_edges, dx, dy)
         _, normal, offset = self._edges()
         return convex_polygon_cut_cells(normal, offset, self.to_shapely(), x_edges, y_edges, dx, dy)
 
     def cells_meeting(self, x_edges: np.ndarray, y_edges: np.ndarray) -> np.ndarray:
         """Mask ``(nx, ny)`` of the lattice cells whose interior meets Ω."""
-        if self.kind == "box":
-            return np.ones((len(x_edges) - 1, len(y_edges) - 1), bool)
+        import shapely
+
         XL, YL = np.meshgrid(x_edges[:-1], y_edges[:-1], indexing="ij")
         XR, YR = np.meshgrid(x_edges[1:], y_edges[1:], indexing="ij")
-        if self.kind == "disk":  # the cell's nearest point to the centre lies in the open disk
-            cx, cy = self.center
-            dx = np.clip(cx, XL, XR) - cx
-            dy = np.clip(cy, YL, YR) - cy
-            return dx * dx + dy * dy < self.radius**2
-        import shapely
 
         boxes = shapely.box(XL, YL, XR, YR)
         return shapely.area(shapely.intersection(boxes, self.to_shapely())) > 0
@@ -434,15 +370,6 @@ class Domain:
         """
         if margin <= 0:
             return self
-        if self.kind == "box":
-            x0, x1, y0, y1 = self.bounds
-            if x1 - x0 <= 2 * margin or y1 - y0 <= 2 * margin:
-                raise ParameterError("robots.margin", margin, f"less than half the box's sides ({self.bounds})")
-            return Domain.box(x1 - x0 - 2 * margin, y1 - y0 - 2 * margin, (x0 + margin, y0 + margin))
-        if self.kind == "disk":
-            if margin >= self.radius:
-                raise ParameterError("robots.margin", margin, f"less than the disk's radius {self.radius}")
-            return Domain.disk(self.radius - margin, self.center)
         raise ParameterError("robots.margin", margin, "0 for a polygon domain (a margin needs a box or a disk)")
 
     def lattice(self, n: int) -> np.ndarray:
@@ -452,17 +379,6 @@ class Domain:
         row centred if it is partial; other shapes get the smallest square lattice over the
         bounding box with at least ``n`` points inside Ω, of which ``n`` evenly spaced ones.
         """
-        x0, x1, y0, y1 = self.bounds
-        if self.kind == "box":
-            cols = math.ceil(math.sqrt(n))
-            rows = math.ceil(n / cols)
-            pts = []
-            for r in range(rows):
-                k = min(cols, n - r * cols)
-                y = y0 + (r + 0.5) * (y1 - y0) / rows
-                for c in range(k):
-                    pts.append((x0 + (c + 0.5 + (cols - k) / 2) * (x1 - x0) / cols, y))
-            return np.array(pts, float)
         return square_lattice(self, n)
 
     def boundary_parts(self) -> tuple[BoundaryPart, ...]:
@@ -495,7 +411,7 @@ class Domain:
 
         segs: list[Segment] = []
         ring = self.to_shapely().exterior
-        tol = 1e-9 * self.diameter + (2 * math.pi * self.radius / 4096 if self.kind == "disk" else 0.0)
+        tol = 1e-9 * self.diameter + self._exit_tolerance()
         for k, e in enumerate(exits):
             try:
                 (ax_, ay_), (bx, by) = e
@@ -509,7 +425,7 @@ class Domain:
             ):
                 raise ParameterError(f"domain.exits[{k}]", e, "a segment on the boundary of Ω")
             segs.append(seg)
-        return Domain(self.kind, self.vertices, self.center, self.radius, tuple(segs))
+        return type(self)(self.kind, self.vertices, self.center, self.radius, tuple(segs))
 
     def neumann_eigenvalue(self) -> float | None:
         """μ₂, the first non-zero Neumann eigenvalue of −Δ on Ω, where it has a closed form.
@@ -517,28 +433,23 @@ class Domain:
         Rectangle: ``π² / max(width, height)²``; disk: ``(j'₁,₁ / R)²`` (``j'₁,₁ ≈ 1.8412``, the
         first zero of J₁'); None for a polygon (see :func:`analysis.poincare.exact_neumann_eigenvalue`).
         """
-        if self.kind == "box":
-            x0, x1, y0, y1 = self.bounds
-            return math.pi**2 / max(x1 - x0, y1 - y0) ** 2
-        if self.kind == "disk":
-            from scipy.special import jnp_zeros
-
-            return float(jnp_zeros(1, 1)[0] / self.radius) ** 2
         return None
 
     # ------------------------------------------------------------------ serialisation
     def to_dict(self) -> dict[str, Any]:
         """Plain-data description (for TOML)."""
-        if self.kind == "box":
-            x0, x1, y0, y1 = self.bounds
-            d: dict[str, Any] = {"kind": "box", "width": x1 - x0, "height": y1 - y0, "origin": [x0, y0]}
-        elif self.kind == "disk":
-            d = {"kind": "disk", "radius": self.radius, "center": list(self.center)}
-        else:
-            d = {"kind": "polygon", "vertices": self.vertices.tolist()}
+        d = self._table()
         if self.exits:
             d["exits"] = [[list(a), list(b)] for a, b in self.exits]
         return d
+
+    def _table(self) -> dict[str, Any]:
+        """The ``[domain]`` table of the shape, without its exits."""
+        return {"kind": "polygon", "vertices": self.vertices.tolist()}
+
+    def _exit_tolerance(self) -> float:
+        """How far an exit may lie from the outline (beyond round-off): 0 for straight walls."""
+        return 0.0
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Domain:
@@ -554,6 +465,192 @@ class Domain:
 
     def __hash__(self) -> int:
         return hash(repr(self.to_dict()))
+
+    def __repr__(self) -> str:
+        return f"Domain(kind={self.kind!r}, center={self.center!r}, radius={self.radius!r}, exits={self.exits!r})"
+
+
+
+class _Box(Domain):
+    """An axis-aligned rectangle (``Domain.box``): every question in closed form, the walls folded."""
+
+    @functools.cached_property
+    def box_walls(self) -> np.ndarray:
+        """``(x0, x1, y0, y1)``: the ``box`` the compiled passes fold into a step (see :attr:`Domain.box_walls`)."""
+        return np.array(self.bounds, float)
+
+    def contains(self, x: Any, y: Any, tol: float | None = None) -> np.ndarray:
+        """Whether points lie in the closed box (boundary included, up to ``tol``; see :meth:`Domain.contains`)."""
+        x = np.asarray(x, float)
+        y = np.asarray(y, float)
+        if tol is None:
+            tol = 1e-12 * self.diameter
+        x0, x1, y0, y1 = self.bounds
+        return (x >= x0 - tol) & (x <= x1 + tol) & (y >= y0 - tol) & (y <= y1 + tol)
+
+    def reflect(self, points: np.ndarray) -> np.ndarray:
+        """Fold each coordinate back into the box (any number of bounces), in place."""
+        x0, x1, y0, y1 = self.bounds
+        for k, (lo, hi) in enumerate(((x0, x1), (y0, y1))):
+            col = points[:, k]
+            out = (col < lo) | (col > hi)
+            if out.any():
+                period = 2.0 * (hi - lo)
+                s = np.mod(col[out] - lo, period)
+                col[out] = lo + np.where(s > hi - lo, period - s, s)
+        return points
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """Nearest point of the box (in place): the corners as rows, two broadcast ufuncs (``np.clip`` per
+        column costs three times as much)."""
+        lo, hi = self._corners
+        np.maximum(points, lo, out=points)
+        np.minimum(points, hi, out=points)
+        return points
+
+    def cut_cells(
+        self, x_edges: np.ndarray, y_edges: np.ndarray, dx: float, dy: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every cell and face of the box's lattice is whole."""
+        nx, ny = len(x_edges) - 1, len(y_edges) - 1
+        return np.ones((nx, ny)), np.ones((nx - 1, ny)), np.ones((nx, ny - 1))
+
+    def cells_meeting(self, x_edges: np.ndarray, y_edges: np.ndarray) -> np.ndarray:
+        """Every cell of the box's lattice."""
+        return np.ones((len(x_edges) - 1, len(y_edges) - 1), bool)
+
+    def robot_region(self, margin: float) -> Domain:
+        """The box inset by ``margin`` (the box itself for ``margin <= 0``; see :meth:`Domain.robot_region`)."""
+        if margin <= 0:
+            return self
+        x0, x1, y0, y1 = self.bounds
+        if x1 - x0 <= 2 * margin or y1 - y0 <= 2 * margin:
+            raise ParameterError("robots.margin", margin, f"less than half the box's sides ({self.bounds})")
+        return Domain.box(x1 - x0 - 2 * margin, y1 - y0 - 2 * margin, (x0 + margin, y0 + margin))
+
+    def lattice(self, n: int) -> np.ndarray:
+        """A cell-centred ``cols × rows`` lattice (``cols = ceil(sqrt(n))``), the last row centred if partial."""
+        x0, x1, y0, y1 = self.bounds
+        cols = math.ceil(math.sqrt(n))
+        rows = math.ceil(n / cols)
+        pts = []
+        for r in range(rows):
+            k = min(cols, n - r * cols)
+            y = y0 + (r + 0.5) * (y1 - y0) / rows
+            for c in range(k):
+                pts.append((x0 + (c + 0.5 + (cols - k) / 2) * (x1 - x0) / cols, y))
+        return np.array(pts, float)
+
+    def neumann_eigenvalue(self) -> float | None:
+        """``π² / max(width, height)²``."""
+        x0, x1, y0, y1 = self.bounds
+        return math.pi**2 / max(x1 - x0, y1 - y0) ** 2
+
+    def _table(self) -> dict[str, Any]:
+        x0, x1, y0, y1 = self.bounds
+        return {"kind": "box", "width": x1 - x0, "height": y1 - y0, "origin": [x0, y0]}
+
+
+class _Disk(Domain):
+    """A disk (``Domain.disk``): every question in closed form; its outline a 4096-gon where shapely draws it."""
+
+    @functools.cached_property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """``(xmin, xmax, ymin, ymax)`` of the bounding box."""
+        cx, cy = self.center
+        r = self.radius
+        return (cx - r, cx + r, cy - r, cy + r)
+
+    @property
+    def area(self) -> float:
+        """``π R²``."""
+        return math.pi * self.radius**2
+
+    @property
+    def diameter(self) -> float:
+        """``2 R``."""
+        return 2 * self.radius
+
+    def contains(self, x: Any, y: Any, tol: float | None = None) -> np.ndarray:
+        """Whether points lie in the closed disk (boundary included, up to ``tol``; see :meth:`Domain.contains`)."""
+        x = np.asarray(x, float)
+        y = np.asarray(y, float)
+        if tol is None:
+            tol = 1e-12 * self.diameter
+        cx, cy = self.center
+        return (x - cx) ** 2 + (y - cy) ** 2 <= (self.radius + tol) ** 2
+
+    def reflect(self, points: np.ndarray) -> np.ndarray:
+        """Mirror points that left the disk across its circle (radially), in place."""
+        cx, cy = self.center
+        dx = points[:, 0] - cx
+        dy = points[:, 1] - cy
+        r = np.hypot(dx, dy)
+        out = r > self.radius
+        if out.any():
+            rr = r[out]
+            new = np.maximum(2 * self.radius - rr, 0.0)
+            new = np.minimum(new, self.radius)
+            scale = new / rr
+            points[out, 0] = cx + dx[out] * scale
+            points[out, 1] = cy + dy[out] * scale
+        return points
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """Nearest point of the disk (in place): outside points pulled radially onto the circle."""
+        cx, cy = self.center
+        dx = points[:, 0] - cx
+        dy = points[:, 1] - cy
+        r = np.hypot(dx, dy)
+        out = r > self.radius
+        if out.any():
+            s = self.radius / r[out]
+            points[out, 0] = cx + dx[out] * s
+            points[out, 1] = cy + dy[out] * s
+        return points
+
+    def to_shapely(self, resolution: int = 4096) -> Any:
+        """The disk as a shapely ``resolution``-gon."""
+        import shapely
+
+        return shapely.Point(self.center).buffer(self.radius, quad_segs=max(resolution // 4, 8))
+
+    def cut_cells(
+        self, x_edges: np.ndarray, y_edges: np.ndarray, dx: float, dy: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The disk's cut cells, exact in closed form (:func:`meanfield.geometry.cut_cells.disk_cut_cells`)."""
+        from meanfield.geometry.cut_cells import disk_cut_cells
+
+        return disk_cut_cells(self.center, self.radius, x_edges, y_edges, dx, dy)
+
+    def cells_meeting(self, x_edges: np.ndarray, y_edges: np.ndarray) -> np.ndarray:
+        """Cells whose nearest point to the centre lies in the open disk."""
+        XL, YL = np.meshgrid(x_edges[:-1], y_edges[:-1], indexing="ij")
+        XR, YR = np.meshgrid(x_edges[1:], y_edges[1:], indexing="ij")
+        cx, cy = self.center
+        dx = np.clip(cx, XL, XR) - cx
+        dy = np.clip(cy, YL, YR) - cy
+        return dx * dx + dy * dy < self.radius**2
+
+    def robot_region(self, margin: float) -> Domain:
+        """The disk of radius ``R - margin`` (the disk itself for ``margin <= 0``)."""
+        if margin <= 0:
+            return self
+        if margin >= self.radius:
+            raise ParameterError("robots.margin", margin, f"less than the disk's radius {self.radius}")
+        return Domain.disk(self.radius - margin, self.center)
+
+    def neumann_eigenvalue(self) -> float | None:
+        """``(j'₁,₁ / R)²`` (``j'₁,₁ ≈ 1.8412``, the first zero of J₁')."""
+        from scipy.special import jnp_zeros
+
+        return float(jnp_zeros(1, 1)[0] / self.radius) ** 2
+
+    def _table(self) -> dict[str, Any]:
+        return {"kind": "disk", "radius": self.radius, "center": list(self.center)}
+
+    def _exit_tolerance(self) -> float:
+        return 2 * math.pi * self.radius / 4096  # the 4096-gon's chord against the circle
 
 
 def _simple_polygon(vertices: np.ndarray) -> Any:
