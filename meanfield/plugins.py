@@ -27,6 +27,9 @@ The kinds and what a factory of each kind receives and returns (docs page *Archi
 ``guidance`` (``meanfield.guidance``)
     ``factory(context: CrowdContext, positions) -> Guidance | None``: what the agents follow
     (None: the robots' signs; :mod:`meanfield.crowds.guidance`).
+``congestion`` (``meanfield.congestion``)
+    ``factory(free_speed, rho_max) -> FundamentalDiagram``: the speed–density relation a
+    congested crowd walks by (:mod:`meanfield.crowds.congestion`; ``crowd.congestion``).
 ``beta_gamma`` (``meanfield.beta_gamma``)
     ``factory(scenario) -> BetaGammaStrategy``.
 ``command`` (``meanfield.commands``)
@@ -50,6 +53,7 @@ GROUPS = {
     "crowd": "meanfield.crowds",
     "controller": "meanfield.controllers",
     "guidance": "meanfield.guidance",
+    "congestion": "meanfield.congestion",
     "beta_gamma": "meanfield.beta_gamma",
     "command": "meanfield.commands",
 }
@@ -77,6 +81,11 @@ BUILTIN: dict[str, dict[str, str]] = {
         "signs": "meanfield.crowds.guidance:signs",
         "geodesic": "meanfield.crowds.guidance:geodesic",
         "random-walk": "meanfield.crowds.guidance:random_walk",
+    },
+    "congestion": {
+        "none": "meanfield.crowds.congestion:NoCongestion.from_scenario",
+        "weidmann": "meanfield.crowds.congestion:Weidmann.from_scenario",
+        "linear": "meanfield.crowds.congestion:Linear.from_scenario",
     },
     "beta_gamma": {
         "min-norm": "meanfield.controllers.backstepping:MinimumNormBetaGamma.from_scenario",
@@ -154,7 +163,7 @@ def register(kind: str, name: str, factory: Any, origin: str | None = None) -> A
 
     Parameters
     ----------
-    kind : {"region", "crowd", "controller", "guidance", "beta_gamma", "command"}
+    kind : {"region", "crowd", "controller", "guidance", "congestion", "beta_gamma", "command"}
     name : str
         The name a scenario uses (``controller.kind = name``, ...).
     factory : callable

@@ -72,7 +72,10 @@ class CrowdSpec:
     (the paper), or a baseline, ``"geodesic"`` (the informed crowd, walking the shortest
     route to an exit at ``free_speed``) or ``"random-walk"`` (the uninformed crowd; registry
     kind ``guidance``, :mod:`meanfield.crowds.guidance`).  ``free_speed`` is the free walking speed
-    (1.34 m/s, Weidmann), also used by the evacuation lower bound.
+    (1.34 m/s, Weidmann), also used by the evacuation lower bound.  ``congestion`` is the
+    speed–density relation the humans walk by (registry kind ``congestion``,
+    :mod:`meanfield.crowds.congestion`): ``"none"`` (the paper's crowd, the default),
+    ``"weidmann"`` or ``"linear"``, with the jam density ``rho_max`` (persons/m², 5.4).
     """
 
     kind: str = "point-mass"
@@ -84,6 +87,8 @@ class CrowdSpec:
     field_evaluation: str = "auto"
     guidance: str = "signs"
     free_speed: float = 1.34
+    congestion: str = "none"
+    rho_max: float = 5.4
     options: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -96,6 +101,8 @@ class CrowdSpec:
         self.field_evaluation = choice("crowd.field_evaluation", self.field_evaluation, ("auto", "exact", "sampled"))
         self.guidance = choice("crowd.guidance", self.guidance, plugins.available("guidance"))
         self.free_speed = num("crowd.free_speed", self.free_speed, lo=0.0, lo_open=True)
+        self.congestion = choice("crowd.congestion", self.congestion, plugins.available("congestion"))
+        self.rho_max = num("crowd.rho_max", self.rho_max, lo=0.0, lo_open=True)
         if not isinstance(self.options, dict):
             raise ParameterError("crowd.options", self.options, "a table of tables, one per crowd kind")
         kinds = plugins.available("crowd")
