@@ -135,7 +135,12 @@ def check_output_dir(path: str | Path, name: str = "--out") -> Path:
     """
     from meanfield.errors import ParameterError
 
+    if isinstance(path, str) and not path.strip():
+        raise ParameterError(name, path, "a folder to write into (an empty path names none; '.' is the current one)")
     path = Path(path)
+    if path.is_symlink() and not path.exists():
+        target = os.readlink(path)
+        raise ParameterError(name, str(path), f"a folder to write into (a symbolic link to {target}, which is missing)")
     base = _nearest_existing(path)
     if base == path.absolute() and not base.is_dir():
         raise ParameterError(name, str(path), "a folder to write into (this path is a file)")

@@ -346,7 +346,8 @@ class Recorder:
         for key in (*_CONTROL_KEYS[:4], "fraction_in_target", *_CONTROL_KEYS[4:]):
             data[key] = ("time", stack(f[key], float))
         data["saturated"] = ("time", stack(f["saturated"], np.int8))
-        data["robots_at_limit"] = ("time", stack(f["robots_at_limit"], np.int16))
+        count = np.int16 if loop.robots.n <= np.iinfo(np.int16).max else np.int32  # the smallest that holds n
+        data["robots_at_limit"] = ("time", stack(f["robots_at_limit"], count))
         data["shortfall_applied"] = ("time", stack(f["shortfall_applied"], float))
         data["seen_fraction"] = ("time", stack(f["seen_fraction"], float))
         if "fraction_evacuated" in f:

@@ -69,6 +69,34 @@ def test_out_is_checked_before_anything_runs(tmp_path):
     assert "a file path" in str(exc.value)
 
 
+def test_an_empty_out_and_a_dangling_link_are_refused_before_anything_runs(tmp_path, capsys):
+    """``--out ""`` named no folder and wrote into the current one; a link to a missing folder was
+    accepted, then failed with FileExistsError after the whole run (issue "Nothing lost", item 4)."""
+    with pytest.raises(ParameterError) as exc:
+        check_output_dir("")
+    assert exc.value.name == "--out" and "empty path" in str(exc.value)
+    link = tmp_path / "link"
+    link.symlink_to(tmp_path / "missing")
+    with pytest.raises(ParameterError) as exc:
+        check_output_dir(link)
+    assert "symbolic link" in str(exc.value) and "missing" in str(exc.value)
+    with pytest.raises(SystemExit) as code:
+        main(["run", "paper", "--out", str(link), "--quiet"])
+    assert code.value.code == 2
+    assert "symbolic link" in capsys.readouterr().err and not (tmp_path / "missing").exists()
+
+
+def test_more_robots_than_int16_holds_are_counted_without_overflow(tmp_path):
+    """33,000 robots overflowed the int16 count of robots at a limit after the whole run."""
+    sc = paper_scenario(seed=0).replace(t_final=0.02).with_values({"robots.n": 33000})
+    result = run(sc, progress=False)
+    assert result.summary["status"] == "completed"
+    at_limit = result.dataset["robots_at_limit"]
+    assert at_limit.dtype.itemsize >= 4 and int(at_limit.max()) <= 33000
+    result.save(tmp_path / "out")
+    check_complete_folder(tmp_path / "out")
+
+
 @pytest.mark.parametrize(
     "argv",
     [
