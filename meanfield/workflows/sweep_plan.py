@@ -285,11 +285,36 @@ def expand_sweep(base: Any, sets: dict[str, list], seed_list: list[int]) -> Swee
     return SweepPlan(base, sets, seed_list, coords, runs)
 
 
+_FRACTIONS = ("fraction_in_target", "fraction_evacuated", "limits_binding_fraction")
+"""Summary figures that are fractions, in [0, 1]."""
+
+
+def _valid_record(rec: Any) -> bool:
+    """Whether a run record read back from ``OUT/runs`` can be a result: a table whose summary is a
+    table, whose numeric figures are numbers (or None), fractions within [0, 1] and the other
+    figures of :data:`SUMMARY_KEYS` not negative.  A record edited by hand or cut short fails."""
+    if not isinstance(rec, dict) or not isinstance(rec.get("summary"), dict):
+        return False
+    summary = rec["summary"]
+    for name in SUMMARY_KEYS:
+        v = summary.get(name)
+        if v is None:
+            continue
+        if isinstance(v, bool) or not isinstance(v, int | float):
+            return False
+        if math.isnan(v):
+            continue
+        if v < 0 or (name in _FRACTIONS and v > 1):
+            return False
+    return True
+
+
 def finished_runs(plan: SweepPlan, runs_dir: Path) -> dict[str, dict[str, Any]]:
     """The records in ``runs_dir`` of the plan's runs that are reused: key → record.
 
-    A record is reused when its status is one of :data:`CACHED_STATUSES` (a deterministic
-    outcome); unreadable files and the other statuses are left to run again.
+    A record is reused when it is a valid result (:func:`_valid_record`: a table, its figures
+    within their ranges) and its status is one of :data:`CACHED_STATUSES` (a deterministic
+    outcome); unreadable or invalid files and the other statuses are left to run again.
     """
     records: dict[str, dict[str, Any]] = {}
     if runs_dir.is_dir():
@@ -299,7 +324,7 @@ def finished_runs(plan: SweepPlan, runs_dir: Path) -> dict[str, dict[str, Any]]:
                 rec = json.loads(path.read_text())
             except (OSError, ValueError):
                 continue
-            if rec.get("summary", {}).get("status") in CACHED_STATUSES:
+            if _valid_record(rec) and rec["summary"].get("status") in CACHED_STATUSES:
                 records[r["key"]] = rec
     return records
 

@@ -273,3 +273,29 @@ def test_analyze_and_verify_jobs_go_to_a_running_scheduler(scheduler_address):
 
     with jobs_on(scheduler_address):  # its workers import what they run: a function of an installed module
         assert map_jobs(math.factorial, [1, 2, 3, 4], workers=None, desc="t", progress=False) == [1, 2, 6, 24]
+
+
+@pytest.mark.parametrize(
+    "record",
+    [
+        [],  # valid JSON, not a table: blocked every resume with AttributeError
+        "done",
+        {"summary": []},
+        {"summary": {"status": "completed", "fraction_in_target": 5.0}},  # an impossible fraction
+        {"summary": {"status": "completed", "time_to_90": -1.0}},
+        {"summary": {"status": "completed", "steps": "many"}},
+    ],
+)
+def test_a_record_that_cannot_be_a_result_is_run_again_not_reused(tiny_toml, tmp_path, record):
+    """Records read back on resume are checked (issue "Nothing lost", item 5): one that is not a
+    table, or whose figures are out of their ranges, is run again; a valid one is reused."""
+    from meanfield.scenarios.scenario import load_scenario
+    from meanfield.workflows.sweep_plan import expand_sweep, finished_runs
+
+    plan = expand_sweep(load_scenario(tiny_toml), {"robots.n": [4]}, [0, 1])
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    bad, good = (runs / f"{r['key']}.json" for r in plan.runs)
+    bad.write_text(json.dumps(record))
+    good.write_text(json.dumps({"summary": {"status": "completed", "fraction_in_target": 0.9, "steps": 10}}))
+    assert list(finished_runs(plan, runs)) == [plan.runs[1]["key"]]
