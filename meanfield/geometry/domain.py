@@ -29,7 +29,15 @@ from typing import Any, Literal
 import numpy as np
 
 from meanfield.errors import ParameterError
-from meanfield.geometry.region import BoundaryPart, Region, convex_polygon, sample_by_rejection, square_lattice
+from meanfield.geometry.region import (
+    BoundaryPart,
+    Region,
+    convex_polygon,
+    exit_list,
+    refuse_overlapping_exits,
+    sample_by_rejection,
+    square_lattice,
+)
 
 __all__ = ["Domain"]
 
@@ -412,7 +420,7 @@ class Domain:
         segs: list[Segment] = []
         ring = self.to_shapely().exterior
         tol = 1e-9 * self.diameter + self._exit_tolerance()
-        for k, e in enumerate(exits):
+        for k, e in enumerate(exit_list(exits)):
             try:
                 (ax_, ay_), (bx, by) = e
                 seg = ((float(ax_), float(ay_)), (float(bx), float(by)))
@@ -425,6 +433,7 @@ class Domain:
             ):
                 raise ParameterError(f"domain.exits[{k}]", e, "a segment on the boundary of Ω")
             segs.append(seg)
+        refuse_overlapping_exits(segs, tol)
         return type(self)(self.kind, self.vertices, self.center, self.radius, tuple(segs))
 
     def neumann_eigenvalue(self) -> float | None:

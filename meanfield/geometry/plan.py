@@ -23,7 +23,14 @@ import numpy as np
 
 from meanfield.errors import ParameterError
 from meanfield.geometry._wall_loops import reflect_steps, robot_steps
-from meanfield.geometry.region import BoundaryPart, convex_polygon, sample_by_rejection, square_lattice
+from meanfield.geometry.region import (
+    BoundaryPart,
+    convex_polygon,
+    exit_list,
+    refuse_overlapping_exits,
+    sample_by_rejection,
+    square_lattice,
+)
 
 __all__ = ["Plan", "plan_from_table"]
 
@@ -66,7 +73,7 @@ class Plan:
 
         out = []
         tol = 1e-9 * self.diameter
-        for k, e in enumerate(exits):
+        for k, e in enumerate(exit_list(exits, "exits")):
             try:
                 (ax_, ay_), (bx, by) = e
                 seg = ((float(ax_), float(ay_)), (float(bx), float(by)))
@@ -75,6 +82,7 @@ class Plan:
             if seg[0] == seg[1] or not self.polygon.boundary.buffer(tol).covers(shapely.LineString(seg)):
                 raise ParameterError(f"exits[{k}]", e, "a segment of two distinct points on the plan's walls")
             out.append(seg)
+        refuse_overlapping_exits(out, tol, "exits")
         return tuple(out)
 
     # ------------------------------------------------------------------ builders

@@ -30,6 +30,8 @@ __all__ = [
     "region_from_table",
     "convex_polygon",
     "CONVEX_RTOL",
+    "exit_list",
+    "refuse_overlapping_exits",
 ]
 
 
@@ -147,6 +149,34 @@ def convex_polygon(shape: Any) -> bool:
         return False
     area = float(shape.area)
     return area > 0 and (float(shape.convex_hull.area) - area) <= CONVEX_RTOL * area
+
+
+def exit_list(exits: Any, name: str = "domain.exits") -> list[Any]:
+    """``exits`` as a list of candidate segments, refused (named ``name``) unless it is a list.
+
+    A string is refused as a whole (``exits = "door"`` is not four segments ``'d'``, ``'o'``, ...).
+    """
+    if isinstance(exits, str | bytes) or not hasattr(exits, "__iter__"):
+        raise ParameterError(name, exits, "a list of segments [[[x0, y0], [x1, y1]], ...]")
+    return list(exits)
+
+
+def refuse_overlapping_exits(segments: Any, tol: float, name: str = "domain.exits") -> None:
+    """Refuse (named ``name[k]``) an exit that overlaps an earlier one along a length above ``tol``.
+
+    Two exits sharing a stretch of wall would count its people twice and its width twice in the
+    evacuation bound; exits that touch at an end point are fine.
+    """
+    import shapely
+
+    lines = [shapely.LineString(s) for s in segments]
+    for k in range(1, len(lines)):
+        for j in range(k):
+            shared = lines[k].intersection(lines[j].buffer(tol, cap_style="flat"))
+            if shared.length > 2 * tol:
+                raise ParameterError(
+                    f"{name}[{k}]", [list(p) for p in segments[k]], f"an exit that does not overlap exits[{j}]"
+                )
 
 
 def sample_by_rejection(region: Any, n: int, rng: np.random.Generator) -> np.ndarray:

@@ -87,3 +87,25 @@ def test_convexity_is_reported_where_a_result_needs_it():
     assert payne_weinberger_bound(Domain.polygon(L_ROOM)) is None  # not convex: no bound, never a number
     square = Domain.from_wkt("POLYGON ((0 0, 1 0, 1 1, 0 1, 0 0))")
     assert payne_weinberger_bound(square) == pytest.approx(math.pi**2 / 2.0, rel=1e-15)
+
+
+@pytest.mark.parametrize(
+    ("build", "name"),
+    [
+        (lambda ex: Domain.box(1.0, 1.0, exits=ex), "domain.exits"),
+        (lambda ex: Domain.from_wkt("POLYGON ((0 0, 1 0, 1 1, 0.5 1, 0.5 2, 0 2, 0 0))", exits=ex), "exits"),
+    ],
+    ids=["box", "plan"],
+)
+def test_exits_that_are_not_a_list_or_overlap_are_refused_by_name(build, name):
+    """``exits = "door"`` was read as the segments 'd', 'o', ...; a duplicate or overlapping exit was
+    accepted, counted no one and doubled the evacuation bound's width (issue "Nothing lost", item 7)."""
+    with pytest.raises(ParameterError) as info:
+        build("door")
+    assert info.value.name == name and "a list of segments" in str(info.value)
+    door = ((1.0, 0.2), (1.0, 0.6))
+    for second in (door, ((1.0, 0.4), (1.0, 0.8)), ((1.0, 0.6), (1.0, 0.2))):
+        with pytest.raises(ParameterError) as info:
+            build([door, second])
+        assert info.value.name == f"{name}[1]" and "overlap exits[0]" in str(info.value)
+    assert len(build([door, ((1.0, 0.6), (1.0, 0.8))]).exits) == 2  # exits that touch at an end are two doors
