@@ -96,6 +96,9 @@ def _main(argv: Sequence[str] | None) -> int:
     except ParameterError as exc:
         print(f"meanfield: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM where a command has no handler of its own (start-up)
+        print(f"meanfield: {args.command} interrupted", file=sys.stderr)
+        return 130
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)

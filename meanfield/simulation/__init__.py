@@ -39,6 +39,7 @@ _LAZY = {
     "run_id": "meanfield.simulation.summary",
     "run_summary": "meanfield.simulation.summary",
     "sensing_controllers": "meanfield.simulation.assembly",
+    "signals_deferred": "meanfield.simulation.loop",
     "stability_warnings": "meanfield.simulation.preflight",
     "w2_block_size": "meanfield.simulation.wasserstein",
     "wasserstein2_to_grid_density": "meanfield.simulation.wasserstein",

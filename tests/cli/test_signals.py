@@ -87,3 +87,71 @@ def test_a_kill_during_a_save_into_a_used_folder_never_mixes_two_runs(tmp_path):
     assert outcomes[-1] == 1  # not killed: the new run, complete
     leftovers = [p.name for p in Path(out).iterdir() if ".part" in p.name]
     assert all(p.startswith(".") for p in leftovers)  # at most hidden temporaries of a killed write
+
+
+_AT_PHASE = r"""
+import os, signal, sys
+import meanfield.io.atomic as atomic
+import meanfield.simulation.assembly as assembly
+import meanfield.simulation.loop as loop
+from meanfield.cli.app import main
+
+phase, times, argv = sys.argv[1], int(sys.argv[2]), sys.argv[3:]
+
+
+def signalling(function):
+    def wrapped(*args, **kwargs):
+        for _ in range(times):
+            os.kill(os.getpid(), signal.SIGTERM)
+        return function(*args, **kwargs)
+    return wrapped
+
+
+if phase == "start-up":
+    assembly.assemble = signalling(assembly.assemble)
+    loop.assemble = assembly.assemble
+elif phase == "summary":
+    loop.run_summary = signalling(loop.run_summary)
+elif phase == "save":
+    atomic.write_complete_folder = signalling(atomic.write_complete_folder)
+sys.exit(main(argv))
+"""
+
+
+def _signalled_at(phase: str, times: int, out: Path, earlier: bool = False) -> tuple[int, str]:
+    """``meanfield run paper`` into ``out`` (over an earlier run if ``earlier``), the process sending
+    itself ``times`` SIGTERMs as ``phase`` begins: the phases are reached for certain, not by timing."""
+    argv = ["run", "paper", "--set", "t_final=0.5", "--out", str(out), "--quiet", "--no-figures"]
+    if earlier:
+        subprocess.run([sys.executable, "-m", "meanfield.cli.app", *argv[:3], "t_final=0.3", *argv[4:]], check=True)
+    done = subprocess.run([sys.executable, "-c", _AT_PHASE, phase, str(times), *argv], capture_output=True, text=True)
+    return done.returncode, done.stderr
+
+
+@pytest.mark.parametrize("earlier", [False, True], ids=["empty-folder", "over-an-earlier-run"])
+@pytest.mark.parametrize("phase", ["summary", "save"])
+def test_a_signal_after_the_last_step_lets_the_run_finish_and_save(tmp_path, phase, earlier):
+    """The summary and the save (about 40 % of a paper run) were cut by a signal: a traceback, no
+    summary, and an earlier run's files already deleted (issue "Nothing lost", item 1).  Now the
+    signal is held until the run is saved: one complete run, no traceback."""
+    out = tmp_path / "run"
+    rc, err = _signalled_at(phase, 1, out, earlier)
+    assert rc == 0 and "Traceback" not in err, err
+    assert "finished and saved" in err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "completed" and summary["time_final"] == pytest.approx(0.5)
+    assert check_complete_folder(out) == []
+
+
+def test_a_second_signal_after_the_last_step_stops_at_once_without_a_traceback(tmp_path):
+    out = tmp_path / "run"
+    rc, err = _signalled_at("summary", 2, out)
+    assert rc == 130 and "Traceback" not in err and "interrupted" in err, err
+    assert not (out / "summary.json").exists()  # nothing claims to be a complete run
+
+
+def test_a_signal_during_start_up_stops_before_anything_is_written(tmp_path):
+    out = tmp_path / "run"
+    rc, err = _signalled_at("start-up", 1, out)
+    assert rc == 130 and "Traceback" not in err and "run interrupted" in err, err
+    assert not out.exists()
