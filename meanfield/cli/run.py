@@ -70,21 +70,23 @@ def _say_compiling() -> None:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from meanfield._compiled import core as compiled
+    from meanfield.io.atomic import folder_lock
     from meanfield.simulation.loop import ClosedLoop, signals_deferred
     from meanfield.simulation.preflight import check_fits
 
     sc = scenario_from_args(args)
     check_fits(sc, args.out)  # memory and the output's disk, before anything is allocated
     unregister = compiled.before_cold_compile(_say_compiling) if not args.quiet else None
-    try:
-        loop = ClosedLoop(sc)  # a signal here stops the command before anything is written (exit 130)
-    finally:
-        if unregister is not None:
-            unregister()
-    artifacts = run_artifacts(figures=not args.no_figures, animate=args.animate, progress=not args.quiet)
-    with signals_deferred() as held:  # the loop stops between steps; the summary and the save finish
-        result = loop.run(progress=not args.quiet)
-        result.save(args.out, artifacts=artifacts)
+    with folder_lock(args.out):  # a second run into this folder is refused while this one lasts
+        try:
+            loop = ClosedLoop(sc)  # a signal here stops the command before anything is written (exit 130)
+        finally:
+            if unregister is not None:
+                unregister()
+        artifacts = run_artifacts(figures=not args.no_figures, animate=args.animate, progress=not args.quiet)
+        with signals_deferred() as held:  # the loop stops between steps; the summary and the save finish
+            result = loop.run(progress=not args.quiet)
+            result.save(args.out, artifacts=artifacts)
     s = result.summary
     if held():
         print("meanfield: a signal came after the last step: the run was finished and saved", file=sys.stderr)

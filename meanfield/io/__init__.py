@@ -14,6 +14,7 @@ _LAZY = {
     "check_complete_folder": "meanfield.io.atomic",
     "check_output_dir": "meanfield.io.atomic",
     "check_output_file": "meanfield.io.atomic",
+    "folder_lock": "meanfield.io.atomic",
     "frame_spacing": "meanfield.io.trajectories",
     "save_figure": "meanfield.io.atomic",
     "sha256_of": "meanfield.io.atomic",

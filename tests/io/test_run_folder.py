@@ -121,3 +121,19 @@ def test_bench_refuses_a_folder_as_its_report(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["bench", "--out", str(tmp_path)])
     assert exc.value.code == 2 and "a file path" in capsys.readouterr().err
+
+
+def test_a_second_run_into_a_folder_another_run_holds_is_refused(tmp_path, capsys):
+    """Two runs into one --out at once lost one run or crashed (issue "Nothing lost", item 3): the
+    folder is locked for the whole of a run, and the second is refused at once naming the lock."""
+    from meanfield.io.atomic import folder_lock
+
+    out = tmp_path / "run"
+    argv = ["run", "paper", "--set", "t_final=0.05", "--out", str(out), "--quiet", "--no-figures"]
+    with folder_lock(out):  # another run holds it
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert "--out" in err and "lock" in err
+        assert list(out.iterdir()) == []  # the refused run wrote nothing
+    assert not out.exists()  # the holder wrote nothing either: no empty folder is left
+    assert main(argv) == 0 and check_complete_folder(out) == []  # free again
