@@ -432,11 +432,25 @@ def _label_variables(ds: Any, units: str) -> None:
     for name, long_name in (
         ("V2", "V2 = integral of rho_tilde^2/2 + |v_tilde|^2/2 (mixes 1/L^2 and L^4/T^2)"),
         ("A", "cross term A of the robot law, eq. (8)"),
-        ("dissipation", "integral of alpha |grad rho_tilde|^2"),
         ("shortfall", "part of A the strategy leaves uncancelled"),
         ("shortfall_applied", "part of A the applied inputs leave uncancelled"),
-        ("saturated", "1 if the limits cut a command in this step"),
-        ("robots_at_limit", "robots whose command reached a limit"),
-    ):
+    ):  # no single unit: each says why (CF: a comment, no units attribute)
         if name in ds.variables:
             ds.variables[name].attrs.setdefault("long_name", long_name)
+            ds.variables[name].attrs["comment"] = _MIXED_UNITS
+    if "dissipation" in ds.variables:  # d/dt of V1: V1's unit per second
+        ds.variables["dissipation"].attrs.setdefault("long_name", "integral of alpha |grad rho_tilde|^2")
+        ds.variables["dissipation"].attrs["units"] = "m-2 s-1" if units == "SI" else "1"
+    if "robots_at_limit" in ds.variables:  # a count
+        ds.variables["robots_at_limit"].attrs.setdefault("long_name", "robots whose command reached a limit")
+        ds.variables["robots_at_limit"].attrs["units"] = "1"
+    if "saturated" in ds.variables:  # a flag
+        var = ds.variables["saturated"]
+        var.attrs.setdefault("long_name", "1 if the limits cut a command in this step")
+        var.attrs.update(units="1", flag_values=np.array([0, 1], dtype=var.dtype), flag_meanings="within_limits cut")
+
+
+_MIXED_UNITS = (
+    "mixes rho_tilde^2 (1/L^2) with |v_tilde|^2 (L^4/T^2) as the paper's V2 does: no single unit "
+    "(docs page The paper's slips, units); in the kernel's units (controller.scaling = kernel) both are 1"
+)

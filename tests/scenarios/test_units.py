@@ -29,6 +29,14 @@ def test_netcdf_variables_carry_cf_units_and_long_names(name, length, speed):
     assert ds["density"].attrs["units"] == ("m-2" if length == "m" else "1")
     assert "units" not in ds["V2"].attrs and "mixes" in ds["V2"].attrs["long_name"]
     assert all("long_name" in ds[v].attrs for v in ds.data_vars)
+    # every variable has a unit, or says in its comment why it has none (issue "Nothing lost", item 10)
+    unitless = {v for v in ds.data_vars if "units" not in ds[v].attrs}
+    assert unitless == {"V2", "A", "shortfall", "shortfall_applied"}
+    assert all("no single unit" in ds[v].attrs["comment"] for v in unitless)
+    assert ds["dissipation"].attrs["units"] == ("m-2 s-1" if length == "m" else "1")
+    assert ds["robots_at_limit"].attrs["units"] == "1"
+    flag = ds["saturated"].attrs
+    assert flag["units"] == "1" and list(flag["flag_values"]) == [0, 1] and len(flag["flag_meanings"].split()) == 2
 
 
 def test_bodies_need_a_scenario_in_metres():
