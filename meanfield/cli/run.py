@@ -11,6 +11,7 @@ from typing import Any
 
 from meanfield import plugins
 from meanfield.cli.arguments import add_scenario_arguments, scenario_from_args
+from meanfield.errors import ParameterError
 
 __all__ = ["register", "run_artifacts"]
 
@@ -75,6 +76,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from meanfield.simulation.preflight import check_fits
 
     sc = scenario_from_args(args)
+    own = Path(args.scenario)
+    if own.suffix == ".toml" and own.is_file() and own.resolve() == (Path(args.out) / "scenario.toml").resolve():
+        raise ParameterError(
+            "--out", str(args.out), f"a folder other than the one holding {own} (the run writes a scenario.toml there)"
+        )
     check_fits(sc, args.out)  # memory and the output's disk, before anything is allocated
     unregister = compiled.before_cold_compile(_say_compiling) if not args.quiet else None
     with folder_lock(args.out):  # a second run into this folder is refused while this one lasts

@@ -47,6 +47,7 @@ from pathlib import Path
 from typing import Any
 
 from meanfield.errors import ParameterError
+from meanfield.geometry.region import regular_file
 
 __all__ = ["read_dxf", "Segment", "UNITS"]
 
@@ -78,10 +79,8 @@ class _Drawing:
     def __init__(self, path: str | Path):
         import ezdxf
 
-        self.path = Path(path)
+        self.path = regular_file(path, "an existing DXF file")
         self.name = self.path.name
-        if not self.path.is_file():
-            raise ParameterError("file", str(path), "an existing DXF file")
         try:
             doc = ezdxf.readfile(self.path)
         except (OSError, ValueError, ezdxf.DXFError) as exc:

@@ -28,6 +28,7 @@ from meanfield.geometry.region import (
     convex_polygon,
     exit_list,
     refuse_overlapping_exits,
+    regular_file,
     sample_by_rejection,
     square_lattice,
 )
@@ -103,11 +104,11 @@ class Plan:
         import shapely
 
         if not isinstance(source, dict):
-            path = Path(source)
-            if not path.is_file():
-                raise ParameterError("file", str(source), "an existing GeoJSON file")
+            path = regular_file(source, "an existing GeoJSON file")
             try:
                 source = json.loads(path.read_text())
+            except OSError as exc:
+                raise ParameterError("file", str(path), f"a readable GeoJSON file ({exc.strerror})") from None
             except ValueError as exc:
                 raise ParameterError("file", str(path), f"valid JSON ({exc})") from None
         if source.get("type") == "Feature":

@@ -32,6 +32,7 @@ __all__ = [
     "CONVEX_RTOL",
     "exit_list",
     "refuse_overlapping_exits",
+    "regular_file",
 ]
 
 
@@ -149,6 +150,27 @@ def convex_polygon(shape: Any) -> bool:
         return False
     area = float(shape.area)
     return area > 0 and (float(shape.convex_hull.area) - area) <= CONVEX_RTOL * area
+
+
+def regular_file(path: Any, what: str, name: str = "file") -> Any:
+    """``path`` as an existing regular file (a :class:`pathlib.Path`), refused (named ``name``) otherwise, never
+    with a traceback.
+
+    A path too long for the system, a device or a special file (``/proc/self/mem``) and a
+    missing file are refused alike; the value in the message is cut to 200 characters.
+    """
+    from pathlib import Path
+
+    text = str(path)
+    shown = text if len(text) <= 200 else text[:200] + f"... ({len(text)} characters)"
+    try:
+        p = Path(path)
+        ok = p.is_file() and not p.resolve().is_relative_to("/proc")  # /proc: files that are not data
+    except (OSError, ValueError) as exc:
+        raise ParameterError(name, shown, f"{what} (the path cannot be used: {exc.__class__.__name__})") from None
+    if not ok:
+        raise ParameterError(name, shown, what)
+    return p
 
 
 def exit_list(exits: Any, name: str = "domain.exits") -> list[Any]:

@@ -137,3 +137,22 @@ def test_a_second_run_into_a_folder_another_run_holds_is_refused(tmp_path, capsy
         assert list(out.iterdir()) == []  # the refused run wrote nothing
     assert not out.exists()  # the holder wrote nothing either: no empty folder is left
     assert main(argv) == 0 and check_complete_folder(out) == []  # free again
+
+
+def test_a_run_never_overwrites_its_own_scenario_file(tmp_path, capsys):
+    """``run my/scenario.toml --out my`` replaced the user's file with the normalised scenario."""
+    own = tmp_path / "scenario.toml"
+    own.write_text(paper_scenario().replace(t_final=0.02).to_toml() + "# my notes\n")
+    before = own.read_text()
+    assert main(["run", str(own), "--out", str(tmp_path), "--quiet", "--no-figures"]) == 2
+    assert "--out" in capsys.readouterr().err and own.read_text() == before
+
+
+@pytest.mark.parametrize("file", ["/proc/self/mem", "a" * 5000 + ".geojson", "/dev/null"])
+def test_a_plan_file_that_cannot_be_read_is_refused_not_a_traceback(file):
+    """Over-long paths and special files as a plan ended in OSError tracebacks (item 8)."""
+    from meanfield.scenarios.scenario import Scenario
+
+    with pytest.raises(ParameterError) as exc:
+        Scenario.from_dict({"domain": {"kind": "plan", "file": file}})
+    assert exc.value.name == "domain.file" and len(str(exc.value)) < 600
