@@ -39,6 +39,7 @@ Default bandwidth (Silverman's rule in two dimensions, which coincides with Scot
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -47,7 +48,7 @@ from meanfield.crowds._kde_loops import axis_factors, linear_binning_into, separ
 from meanfield.errors import ParameterError
 from meanfield.geometry.grid import Grid
 
-__all__ = ["KernelDensityEstimator", "silverman_bandwidth", "kde_direct"]
+__all__ = ["KernelDensityEstimator", "silverman_bandwidth", "kde_direct", "BinnedPlan", "binned_plan"]
 
 Boundary = Literal["none", "reflect", "renormalize"]
 Method = Literal["auto", "separable", "binned"]
@@ -91,6 +92,55 @@ def _ones(n: int) -> np.ndarray:
         _ONES = np.ones(max(n, 2 * len(_ONES)))
         _ONES.flags.writeable = False
     return _ONES[:n]
+
+
+@dataclass(frozen=True)
+class BinnedPlan:
+    """How :meth:`KernelDensityEstimator._binned` works at one grid and bandwidth: the fine lattice
+    ``mx × my`` (``r`` times the grid's), the kernel's half-widths ``kx, ky`` on it, and the
+    convolution it chooses; :meth:`working_bytes` is the memory that takes."""
+
+    nx: int
+    ny: int
+    r: int
+    mx: int
+    my: int
+    kx: int
+    ky: int
+    wx: int
+    wy: int
+    convolution: str
+
+    def working_bytes(self, reflect: bool) -> int:
+        """Bytes of the working arrays: the binned counts, and the banded products' factors and
+        halves, or the (padded) counts, the kernel and the FFTs' complex arrays (three of them)."""
+        if self.convolution == "matrix":
+            return 8 * (self.mx * self.my + self.nx * self.wx + self.ny * self.wy + 2 * self.nx * self.my)
+        px, py = (min(self.kx, self.mx), min(self.ky, self.my)) if reflect else (0, 0)
+        padded = (self.mx + 2 * px) * (self.my + 2 * py)
+        kernel = (2 * self.kx + 1) * (2 * self.ky + 1)
+        full = (self.mx + 2 * px + 2 * self.kx + 1) * (self.my + 2 * py + 2 * self.ky + 1)
+        return 8 * (self.mx * self.my + padded + kernel) + 48 * full
+
+
+def binned_plan(nx: int, ny: int, dx: float, dy: float, h: float, r: int, convolution: str = "auto") -> BinnedPlan:
+    """The plan of the binned estimate on an ``nx × ny`` grid of cells ``dx × dy`` at bandwidth ``h``
+    with refinement ``r`` (``convolution`` ``"auto"``: the cheaper of the banded product and the FFT)."""
+    mx, my = nx * r, ny * r
+    bx, by = dx / r, dy / r
+    # Gaussian on fine-lattice offsets, truncated at 6h (relative tail < 1e-8)
+    kx = min(int(math.ceil(6 * h / bx)), 2 * mx)
+    ky = min(int(math.ceil(6 * h / by)), 2 * my)
+    wx = min(mx, _BAND_ROWS * r + 2 * int(math.ceil(_BAND_REACH * h / bx)) + 2)
+    wy = min(my, _BAND_ROWS * r + 2 * int(math.ceil(_BAND_REACH * h / by)) + 2)
+    if convolution == "auto":
+        # multiply-adds of the two banded products (_BAND_ROWS rows at a time, the factors
+        # cut where they fall below _BAND_CUT, ~9.1h) against ~P log2 P of the FFTs, with the
+        # constant measured on one core (a dense product runs ~25× faster per operation)
+        macs = nx * wx * my + nx * ny * wy
+        p = (mx + 4 * kx) * (my + 4 * ky)
+        convolution = "matrix" if macs <= 25 * p * math.log2(p) else "fft"
+    return BinnedPlan(nx, ny, r, mx, my, kx, ky, wx, wy, convolution)
 
 
 def silverman_bandwidth(points: np.ndarray, floor: float = 0.0) -> float:
@@ -267,24 +317,12 @@ class KernelDensityEstimator:
         g = self.grid
         r = self.oversample_for(h)
         nx, ny = g.shape
-        mx, my = nx * r, ny * r
         x0, x1, y0, y1 = g.domain.bounds
+        plan = binned_plan(nx, ny, g.dx, g.dy, h, r, self.convolution)
+        mx, my, kx, ky, convolution = plan.mx, plan.my, plan.kx, plan.ky, plan.convolution
         bx, by = g.dx / r, g.dy / r
         counts = linear_binning_into(points, x0, y0, bx, by, np.empty((mx, my)))
         norm = 1.0 / (2 * math.pi * h * h * len(points))
-        # Gaussian on fine-lattice offsets, truncated at 6h (relative tail < 1e-8)
-        kx = min(int(math.ceil(6 * h / bx)), 2 * mx)
-        ky = min(int(math.ceil(6 * h / by)), 2 * my)
-        convolution = self.convolution
-        if convolution == "auto":
-            # multiply-adds of the two banded products (_BAND_ROWS rows at a time, the factors
-            # cut where they fall below _BAND_CUT, ~9.1h) against ~P log2 P of the FFTs, with the
-            # constant measured on one core (a dense product runs ~25× faster per operation)
-            wx = min(mx, _BAND_ROWS * r + 2 * int(math.ceil(_BAND_REACH * h / bx)) + 2)
-            wy = min(my, _BAND_ROWS * r + 2 * int(math.ceil(_BAND_REACH * h / by)) + 2)
-            macs = nx * wx * my + nx * ny * wy
-            p = (mx + 4 * kx) * (my + 4 * ky)
-            convolution = "matrix" if macs <= 25 * p * math.log2(p) else "fft"
         if convolution == "matrix":
             return self._banded_product(counts, h, r) * norm
         ox = np.arange(-kx, kx + 1) * bx
@@ -307,6 +345,20 @@ class KernelDensityEstimator:
         if r % 2:
             return blocks[:, r // 2, :, r // 2].copy()
         return blocks[:, r // 2 - 1 : r // 2 + 1, :, r // 2 - 1 : r // 2 + 1].mean(axis=(1, 3))
+
+    def working_bytes(self, n_points: int, h: float) -> int:
+        """Bytes the estimate's working arrays take at ``n_points`` points and bandwidth ``h`` (an upper
+        estimate, for the memory guard before a run: :func:`meanfield.simulation.preflight.check_fits`)."""
+        g = self.grid
+        nx, ny = g.shape
+        method = self.method
+        if method == "auto":
+            method = "separable" if n_points * nx * ny <= 5e7 else "binned"
+        if method == "separable":
+            return 8 * (3 * nx * ny + 2 * n_points * (nx + ny))
+        return binned_plan(nx, ny, g.dx, g.dy, h, self.oversample_for(h), self.convolution).working_bytes(
+            self.boundary == "reflect"
+        )
 
     def _banded_product(self, counts: np.ndarray, h: float, r: int) -> np.ndarray:
         """``Fx counts Fyᵀ`` with the fine-lattice factors, band by band.

@@ -61,3 +61,49 @@ def test_a_run_that_breaks_a_condition_of_the_scheme_says_so():
     fast = sc.with_values({"robots.u_max": 10.0, "robots.omega_max": 100.0, "controller.k_u": 1000.0})
     s = ClosedLoop(fast).run(progress=False).summary
     assert any("more than a grid cell" in w for w in s["warnings"]) and s["max_robot_speed"] * sc.dt > 1 / 30
+
+
+def test_a_grid_whose_density_estimate_cannot_fit_is_refused_naming_the_grid(monkeypatch):
+    """``grid.cells = [1000000, 2]`` passed the guard, grew to 23.7 GB and was killed: the guard
+    missed the density estimate's fine lattice, padding and FFTs (issue "Nothing lost", item 6)."""
+    monkeypatch.setattr(budget, "available_memory", lambda: 20 * 2**30)
+    sc = paper_scenario(seed=0).with_values({"grid.cells": [1_000_000, 2]})
+    est = estimate_run(sc)
+    assert est.kde_bytes > 10 * 2**30  # the FFT of a 8e6 x 16 fine lattice padded by 6 h
+    with pytest.raises(ParameterError) as exc:
+        check_fits(sc)
+    assert exc.value.name == "grid.cells" and "density estimate" in str(exc.value)
+
+
+def test_each_size_is_blamed_on_its_own_field(monkeypatch):
+    monkeypatch.setattr(budget, "available_memory", lambda: 4 * 2**30)
+    cases = {
+        "robots.n": {"robots.n": 100_000_000},
+        "crowd.n": {"crowd.n": 100_000_000},
+        "record_every": {"t_final": 1e5, "record_every": 1, "crowd.n": 10_000},
+    }
+    for name, values in cases.items():
+        with pytest.raises(ParameterError) as exc:
+            check_fits(paper_scenario(seed=0).with_values(values))
+        assert exc.value.name == name, (name, str(exc.value))
+    with pytest.raises(ParameterError) as exc:
+        check_fits(paper_scenario(seed=0).with_values({"dt": 1e-300}))
+    assert exc.value.name == "dt" and len(str(exc.value)) < 200  # not a 600-digit frame count
+
+
+def test_the_memory_available_is_the_least_of_the_system_the_cgroup_and_the_ulimit(monkeypatch):
+    monkeypatch.setattr(budget, "_system_available", lambda: 20 * 2**30)
+    monkeypatch.setattr(budget, "_cgroup_available", lambda: 3 * 2**30)
+    monkeypatch.setattr(budget, "_rlimit_available", lambda: None)
+    assert budget.available_memory() == 3 * 2**30
+    monkeypatch.setattr(budget, "_rlimit_available", lambda: 2**30)
+    assert budget.available_memory() == 2**30
+    script = (
+        "import resource; resource.setrlimit(resource.RLIMIT_AS, (3 * 2**30, resource.RLIM_INFINITY));"
+        "from meanfield.simulation.preflight import available_memory; print(available_memory())"
+    )
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True)
+    assert 0 < int(done.stdout) < 3 * 2**30  # the ulimit, less what the process already maps
