@@ -30,12 +30,13 @@ def parse_set(values: Sequence[str]) -> dict[str, object]:
     return out
 
 
-def int_list(name: str, text: str, ranges: bool = False) -> tuple[int, ...]:
-    """Comma-separated integers (``"1,2,4"``), or with ``ranges`` also ``"A-B"`` (inclusive)."""
+def int_list(name: str, text: str, ranges: bool = False, most: int | None = None) -> tuple[int, ...]:
+    """Comma-separated integers (``"1,2,4"``), or with ``ranges`` also ``"A-B"`` (inclusive); at most
+    ``most`` of them (refused before a range is spelt out)."""
     try:
         if ranges and "-" in text and "," not in text:
-            a, b = text.split("-")
-            values = tuple(range(int(a), int(b) + 1))
+            a, b = (int(v) for v in text.split("-"))
+            values = range(a, b + 1)  # spelt out below, once its length is known to be allowed
         else:
             values = tuple(int(v) for v in text.split(",") if v.strip())
     except ValueError:
@@ -43,7 +44,9 @@ def int_list(name: str, text: str, ranges: bool = False) -> tuple[int, ...]:
         raise ParameterError(name, text, allowed) from None
     if not values:
         raise ParameterError(name, text, "at least one integer")
-    return values
+    if most is not None and len(values) > most:
+        raise ParameterError(name, text, f"at most {most:,} integers")
+    return tuple(values)
 
 
 def float_list(name: str, text: str) -> tuple[float, ...]:

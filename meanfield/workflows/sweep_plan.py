@@ -60,6 +60,8 @@ SUMMARY_KEYS: tuple[str, ...] = (
     "steps_per_second",
     "steps",
 )
+#: The most runs one sweep may hold (each is a record file and a row of the dataset).
+MAX_RUNS = 1_000_000
 #: Statuses of a run that are reused on resume (the others are run again).
 CACHED_STATUSES: tuple[str, ...] = ("completed", "diverged")
 _NOT_RUN = "not run"
@@ -126,7 +128,9 @@ def parse_seeds(text: str) -> list[int]:
     from meanfield.scenarios.overrides import int_list
 
     t = text.strip()
-    seeds = list(range(int(t))) if t.isdigit() else list(int_list("--seeds", t, ranges=True))
+    if t.isdigit() and int(t) > MAX_RUNS:
+        raise ParameterError("--seeds", text, f"at most {MAX_RUNS:,} seeds (a sweep of at most {MAX_RUNS:,} runs)")
+    seeds = list(range(int(t))) if t.isdigit() else list(int_list("--seeds", t, ranges=True, most=MAX_RUNS))
     if not seeds:
         raise ParameterError("--seeds", text, "at least one seed (an empty sweep runs nothing)")
     return seeds
@@ -235,6 +239,8 @@ def check_sweep(
     if isinstance(seeds, int | np.integer) and not isinstance(seeds, bool):
         if seeds < 1:
             raise ParameterError("--seeds", seeds, "at least one seed (an empty sweep runs nothing)")
+        if seeds > MAX_RUNS:
+            raise ParameterError("--seeds", seeds, f"at most {MAX_RUNS:,} seeds (a sweep of at most {MAX_RUNS:,} runs)")
         seed_list = list(range(int(seeds)))
     else:
         seed_list = list(seeds)
@@ -245,6 +251,11 @@ def check_sweep(
         seed_list = [int(s) for s in seed_list]
     if len(set(seed_list)) != len(seed_list):
         raise ParameterError("--seeds", seed_list, "distinct seeds")
+    runs = len(seed_list) * math.prod(len(v) for v in sets.values())
+    if runs > MAX_RUNS:
+        raise ParameterError(
+            "--seeds", len(seed_list), f"a sweep of at most {MAX_RUNS:,} runs (values × seeds give {runs:,})"
+        )
     return base, sets, seed_list
 
 

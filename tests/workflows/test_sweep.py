@@ -299,3 +299,11 @@ def test_a_record_that_cannot_be_a_result_is_run_again_not_reused(tiny_toml, tmp
     bad.write_text(json.dumps(record))
     good.write_text(json.dumps({"summary": {"status": "completed", "fraction_in_target": 0.9, "steps": 10}}))
     assert list(finished_runs(plan, runs)) == [plan.runs[1]["key"]]
+
+
+@pytest.mark.parametrize("seeds", ["100000000", "0-99999999"])
+def test_a_sweep_of_more_runs_than_the_cap_is_refused_before_it_is_spelt_out(tiny_toml, tmp_path, capsys, seeds):
+    """``--seeds 100000000`` had no guard (issue "Nothing lost", item 6): refused at once, naming --seeds."""
+    assert main(["sweep", str(tiny_toml), "--seeds", seeds, "--out", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err
+    assert "--seeds" in err and "1,000,000" in err and not (tmp_path / "s").exists()
