@@ -115,3 +115,14 @@ def test_the_help_lists_every_built_in_scenario(capsys):
         main(["run", "--help"])
     text = " ".join(capsys.readouterr().out.split())
     assert "a built-in scenario (hall, l-room, office, paper, paper-unity, stadium) or a TOML file" in text
+
+
+def test_the_paper_s_own_warning_is_kept_in_the_summary_and_printed_only_when_dt_changes(tmp_path, capsys):
+    """``meanfield run paper`` printed the dt warning at every run (issue "Nothing lost", item 12)."""
+    out = tmp_path / "a"
+    assert main(["run", "paper", "--set", "t_final=0.05", "--out", str(out), "--quiet", "--no-figures"]) == 0
+    assert "Step-I" not in capsys.readouterr().err
+    assert any("Step-I" in w for w in json.loads((out / "summary.json").read_text())["warnings"])
+    argv = ["run", "paper", "--set", "t_final=0.05", "--set", "dt=0.02", "--out", str(tmp_path / "b"), "--quiet"]
+    assert main([*argv, "--no-figures"]) == 0
+    assert "meanfield: warning: dt = 0.02 exceeds the sampled Step-I" in capsys.readouterr().err
