@@ -92,8 +92,8 @@ def scenario_from_args(args: argparse.Namespace):
     """
     from meanfield.scenarios.scenario import load_scenario
 
-    if args.seed is not None and args.seed < 0:
-        raise ParameterError("--seed", args.seed, "an integer >= 0")
+    if args.seed is not None and not 0 <= args.seed < 2**63:
+        raise ParameterError("--seed", args.seed, "an integer from 0 to 2**63 - 1 (it is stored as a 64-bit integer)")
     sc = load_scenario(args.scenario, seed=args.seed)
     if args.set:
         sc = sc.with_values(parse_set(args.set))

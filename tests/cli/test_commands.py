@@ -126,3 +126,10 @@ def test_the_paper_s_own_warning_is_kept_in_the_summary_and_printed_only_when_dt
     argv = ["run", "paper", "--set", "t_final=0.05", "--set", "dt=0.02", "--out", str(tmp_path / "b"), "--quiet"]
     assert main([*argv, "--no-figures"]) == 0
     assert "meanfield: warning: dt = 0.02 exceeds the sampled Step-I" in capsys.readouterr().err
+
+
+def test_a_seed_beyond_64_bits_is_refused_before_the_run(tmp_path, capsys):
+    """A 26-digit seed ran the whole run, then failed to write it (issue "Nothing lost", item 4)."""
+    out = tmp_path / "r"
+    assert main(["run", "paper", "--seed", "9" * 26, "--out", str(out), "--quiet", "--no-figures"]) == 2
+    assert "--seed" in capsys.readouterr().err and not out.exists()
