@@ -211,22 +211,40 @@ def sha256_of(path: Path) -> str:
     return h.hexdigest()
 
 
+SAVE_JOURNAL = ".meanfield-save.json"
+"""The journal of a save under way in a run folder (:func:`write_complete_folder`)."""
+
+
 def write_complete_folder(
     out: str | Path, write_files: Callable[[Path], dict[str, Path]], summary: dict[str, Any]
 ) -> dict[str, Path]:
     """Write one run into ``out`` so that a ``summary.json`` there always describes what is beside it.
 
+    0. A save that was killed (it left its journal, ``.meanfield-save.json``) is cleaned up: the
+       files it wrote, which no summary lists, are removed (the folder's other files stay).
     1. An earlier run's ``summary.json`` is removed first, then the files it listed: from
-       here until step 3 the folder holds no summary, i.e. no complete run.
+       here until step 3 the folder holds no summary, i.e. no complete run.  The journal is
+       written: the folder's files before this save.
     2. ``write_files(out)`` writes this run's files (each atomically) and returns them by name.
     3. ``summary.json`` is written last, with ``files``: each file's name and SHA-256, so a
        reader can check that every file beside it belongs to this run
-       (:func:`check_complete_folder`).
+       (:func:`check_complete_folder`); then the journal is removed.
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     for tmp in out.glob(".*.part*"):  # temporaries of a write that was killed (atomic_write_with's names)
         tmp.unlink(missing_ok=True)
+    journal = out / SAVE_JOURNAL
+    if journal.exists():  # a save was killed: what it wrote is not listed by any summary, remove it
+        try:
+            before = set(json.loads(journal.read_text()).get("before", ()))
+        except (OSError, ValueError, AttributeError):
+            before = None
+        if before is not None:
+            for stray in out.iterdir():
+                if stray.is_file() and stray.name not in before and stray != journal:
+                    stray.unlink()
+        journal.unlink()
     old = out / "summary.json"
     if old.exists():
         try:
@@ -238,9 +256,13 @@ def write_complete_folder(
             stale = out / name
             if stale.parent == out and stale.is_file():
                 stale.unlink()
+    # what the folder holds before this save writes: a save killed from here on leaves the journal,
+    # and the next save removes whatever is not in it (the user's own files stay)
+    atomic_write_json(journal, {"before": sorted(p.name for p in out.iterdir() if p.is_file())})
     paths = write_files(out)
     files = {p.name: sha256_of(p) for p in paths.values()}
     paths["summary"] = atomic_write_json(out / "summary.json", {**summary, "files": files})
+    journal.unlink()
     return paths
 
 
