@@ -34,10 +34,25 @@ def _extent(ds):
 
 
 def _units(result: SimulationResult) -> dict[str, str]:
-    """Axis-label units of the run's scenario: SI, or the paper's dimensionless units."""
+    """Axis-label units of the run's scenario: SI (densities in persons/m²), or the paper's
+    dimensionless units (densities of unit mass, per room width²)."""
     if result.scenario.units == "SI":
-        return {"length": "m", "time": "s", "density": "1/m²"}
+        return {"length": "m", "time": "s", "density": "persons/m²"}
     return {"length": "room widths", "time": "time units", "density": "1/room width²"}
+
+
+def _people(result: SimulationResult, k: int | None = None) -> float:
+    """The factor from the recorded density to what the figures show: in SI the number of people it
+    stands for (persons/m²: the crowd's N for the target; at frame ``k`` the people still inside,
+    as the agents' estimate has unit mass over them and the Fokker–Planck density keeps the mass
+    still inside), 1 in the paper's dimensionless units (a density of unit mass)."""
+    if result.scenario.units != "SI":
+        return 1.0
+    n = float(result.scenario.crowd.n)
+    ds = result.dataset
+    if k is None or "human_x" not in ds or "fraction_evacuated" not in ds:
+        return n
+    return n * (1.0 - float(ds["fraction_evacuated"].values[k]))
 
 
 def _axes_labels(ax, u: dict[str, str]) -> None:
@@ -50,7 +65,7 @@ def plot_target_and_error(result: SimulationResult):
     ds = result.dataset
     u = _units(result)
     fig, (a0, a1) = subplots(1, 2, figsize=(10.5, 4.4), constrained_layout=True)
-    im = a0.imshow(ds["target_density"].values.T, origin="lower", extent=_extent(ds), cmap="viridis")
+    im = a0.imshow(ds["target_density"].values.T * _people(result), origin="lower", extent=_extent(ds), cmap="viridis")
     c = (ds.attrs["target_center_x"], ds.attrs["target_center_y"])
     a0.add_patch(Circle(c, ds.attrs["target_radius"], fill=False, ec="w", ls="--", lw=1))
     a0.set_title("target density ρ* (dashed: target region)")
@@ -160,12 +175,11 @@ def plot_snapshots(result: SimulationResult, count: int = 4):
     n = ds.sizes["time"]
     idx = np.unique(np.round(np.linspace(0, n - 1, count)).astype(int))
     fig, axes = subplots(2, len(idx), figsize=(3.2 * len(idx), 6.4), constrained_layout=True, squeeze=False)
-    vmax = float(np.nanmax(ds["density"].values[idx]))
+    shown = {k: ds["density"].values[k] * _people(result, k) for k in idx}
+    vmax = float(max(np.nanmax(v) for v in shown.values()))
     for col, k in enumerate(idx):
         _draw_crowd(axes[0, col], result, k)
-        im = axes[1, col].imshow(
-            ds["density"].values[k].T, origin="lower", extent=_extent(ds), vmin=0, vmax=vmax, cmap="viridis"
-        )
+        im = axes[1, col].imshow(shown[k].T, origin="lower", extent=_extent(ds), vmin=0, vmax=vmax, cmap="viridis")
         title = "density estimate ρ̂" if "human_x" in ds else "density ρ (Fokker–Planck)"
         axes[1, col].set_title(title, fontsize=9)
         _outline(axes[1, col], result)
