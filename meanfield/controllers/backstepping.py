@@ -288,9 +288,16 @@ class BacksteppingController:
     def from_parts(cls, parts: ControllerParts) -> BacksteppingController:
         """Registry factory (kind ``controller``, name ``backstepping``): the paper's law from parts.
 
-        The law has no ``controller.options`` (they belong to other controllers; a sweep may
-        set them for every kind), so any are ignored here.
+        The law takes no ``controller.options``: its gains are fields of ``[controller]``
+        (``alpha``, ``k_u``, ``k_omega``, ...).  Any option is refused, naming it, as every
+        controller refuses an option it does not know (a misspelt ``alpah`` ran unnoticed).
         """
+        if parts.options:
+            raise ParameterError(
+                "controller.options",
+                sorted(parts.options),
+                "no options: the backstepping law's gains are fields of [controller] (alpha, k_u, k_omega, ...)",
+            )
         return cls(*cls.law_arguments(parts), scales=parts.scales)
 
     @staticmethod

@@ -124,7 +124,7 @@ class CoverageController:
         if v_d == "exits" or (v_d == "auto" and exits):
             law = EvacuationController.from_parts(dataclasses.replace(parts, options=hughes))
         else:
-            law = BacksteppingController.from_parts(parts)
+            law = BacksteppingController.from_parts(dataclasses.replace(parts, options={}))
         opts.setdefault("k_heading", HEADING_GAIN_FACTOR * float(np.max(parts.k_omega)))
         sight = parts.sight if parts.sight is not None else SightLines(parts.region)
         return cls(law, parts.grid, sight, **opts)
