@@ -405,8 +405,13 @@ class NMPCController:
 
         The command carries the backstepping quantities at the same state (for the records).
         """
+        import time
+
         o = observation
+        start = time.perf_counter()
         state = self.robot_inputs(o.density, o.field, o.t, o.dt)
+        # each control step's compute against its period, for the summary's real-time factor
+        self._act_factors = [*getattr(self, "_act_factors", []), (time.perf_counter() - start) / float(o.dt)]
         return Command(state.u, state.omega, state)
 
     def reset(self) -> None:
@@ -416,6 +421,7 @@ class NMPCController:
         self._t_plan = 0.0
         self.stats = []
         self.backstepping_seconds = []
+        self._act_factors = []
         self.backstepping.reset()
 
     def summary(self) -> dict[str, Any]:
@@ -427,8 +433,13 @@ class NMPCController:
             statuses[s["status"]] = statuses.get(s["status"], 0) + 1
         med = float(np.median(secs)) if secs.size else math.nan
         bmed = float(np.median(bs)) if bs.size else math.nan
+        factors = np.array(getattr(self, "_act_factors", []), float)
         return {
             "solves": int(secs.size),
+            # each control step's compute (act: the solve, when there is one, and the law) against the
+            # control period dt; < 1 is faster than real time (the scenario's time unit read as a second)
+            "realtime_factor_mean": float(factors.mean()) if factors.size else math.nan,
+            "realtime_factor_worst": float(factors.max()) if factors.size else math.nan,
             "solve_seconds_median": med,
             "solve_seconds_p90": float(np.percentile(secs, 90)) if secs.size else math.nan,
             "solve_seconds_max": float(secs.max()) if secs.size else math.nan,

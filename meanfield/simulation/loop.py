@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from meanfield._compiled.threads import limited_blas
 from meanfield._compiled.warmup import compile_in_parallel, parallel_compile_possible
 from meanfield.errors import ParameterError, SimulationDiverged
 from meanfield.interfaces import Observation
@@ -217,6 +218,10 @@ class ClosedLoop:
         """
         from tqdm.auto import tqdm
 
+        with limited_blas():  # small products on one BLAS thread (MEANFIELD_BLAS_THREADS to change)
+            return self._run(progress, callback, tqdm)
+
+    def _run(self, progress: bool, callback: Callable[[ClosedLoop], None] | None, tqdm: Any) -> SimulationResult:
         loop = self
         sc = loop.scenario
         target, inputs = TargetTracker(0.9), InputStatistics()

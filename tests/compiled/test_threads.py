@@ -1,0 +1,57 @@
+"""BLAS threads chosen by the toolkit (meanfield._compiled.threads): one by default while a run steps,
+MEANFIELD_BLAS_THREADS or ``--threads`` for another count, the previous count back afterwards."""
+
+from __future__ import annotations
+
+import pytest
+from threadpoolctl import threadpool_info
+
+from meanfield import ClosedLoop, ParameterError, paper_scenario
+from meanfield._compiled.threads import ENV, blas_threads, limited_blas
+
+
+def _blas_threads_now() -> set[int]:
+    return {p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"}
+
+
+def test_a_run_steps_with_blas_on_one_thread_and_gives_the_count_back(monkeypatch):
+    monkeypatch.delenv(ENV, raising=False)
+    before = _blas_threads_now()
+    seen: list[set[int]] = []
+    ClosedLoop(paper_scenario(seed=0).replace(t_final=0.03)).run(
+        progress=False, callback=lambda loop: seen.append(_blas_threads_now())
+    )
+    assert seen and all(s == {1} for s in seen)
+    assert _blas_threads_now() == before
+
+
+def test_the_environment_chooses_another_count_and_a_bad_one_is_refused_by_name(monkeypatch):
+    monkeypatch.setenv(ENV, "2")
+    assert blas_threads() == 2
+    with limited_blas() as n:
+        assert n == 2 and _blas_threads_now() <= {1, 2}  # a BLAS built for one core stays at 1
+    for bad in ("0", "two", "-1"):
+        monkeypatch.setenv(ENV, bad)
+        with pytest.raises(ParameterError) as exc:
+            blas_threads()
+        assert exc.value.name == ENV
+
+
+def test_nmpc_reports_its_real_time_factor():
+    pytest.importorskip("casadi")
+    sc = paper_scenario(seed=0).replace(t_final=0.2).with_values({"controller.kind": "nmpc"})
+    s = ClosedLoop(sc).run(progress=False).summary
+    assert 0 < s["realtime_factor_mean"] <= s["realtime_factor_worst"]
+
+
+def test_the_command_line_sets_the_count_and_refuses_a_bad_one(tmp_path, capsys, monkeypatch):
+    from meanfield.cli.app import main
+
+    monkeypatch.delenv(ENV, raising=False)
+    argv = ["run", "paper", "--set", "t_final=0.02", "--quiet", "--no-figures"]
+    assert main([*argv, "--threads", "0", "--out", str(tmp_path / "a")]) == 2
+    assert "--threads" in capsys.readouterr().err
+    assert main([*argv, "--threads", "2", "--out", str(tmp_path / "b")]) == 0
+    import os
+
+    assert os.environ[ENV] == "2"
