@@ -185,7 +185,7 @@ def check_theorem2(
     for label, schedule in schedules:
         ctrl.alpha = schedule
         dt = feedback_step(min(grid.dx, grid.dy), c.alpha, scenario.dt)
-        fp = FokkerPlanck(grid, ctrl.sigma, method="split", interaction=ctrl.interaction)
+        fp = FokkerPlanck(grid, ctrl.sigma, method="split", interaction=ctrl.interaction, exits=False)  # the sink below
         every = max(1, int(round(0.02 / dt)))
         traj = fokker_planck_trajectory(ctrl, fp, rho0, t_final, dt, w=w, record_every=every, sink=sink)
         alpha_inf = float(traj.alpha_min.min())

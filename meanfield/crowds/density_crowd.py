@@ -9,14 +9,22 @@ solver*) with ``v_r`` (eq. (3)) on the grid faces from the robots' states.  The 
 observe the density itself (no estimate), so the closed loop of
 :class:`~meanfield.simulation.loop.ClosedLoop` run on this crowd is the PDE plant of Theorems 1–3.
 Registered as crowd ``fokker-planck``.
+
+Exits absorb (``ρ = 0`` on them, the solver's :class:`~meanfield.geometry.exits.ExitSink`); without
+congestion the crowd applies them once per control period, as it always has, and with
+``crowd.congestion`` the solver solves ``∂_t ρ + ∇·(ρ g(Nρ) v) = Δ(σρ)`` and its exits pass at
+most their capacity (:mod:`meanfield.fokker_planck.congested`; docs page *The Fokker–Planck
+solver*, "Exits and congestion").
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
 
+from meanfield import plugins
 from meanfield.fokker_planck.solver import FokkerPlanck
 from meanfield.geometry.grid import Grid
 from meanfield.geometry.sight import SightLines
@@ -81,13 +89,15 @@ class DensityCrowd:
         self.kernel = kernel
         self.substeps = bool(substeps)
         self.last_field: NavigationField | None = None
-        from meanfield.geometry.exits import ExitSink, exit_segments
-
-        segs = exit_segments(self.grid.domain)
-        sigma = 0.0 if callable(fp.sigma) else float(fp.sigma)
-        self.sink = ExitSink(self.grid, segs, sigma) if len(segs) else None
+        # the exits: the solver's sink (Dirichlet ρ = 0 on them, the same rates as ever).  A solver
+        # built with exits=False leaves them to the crowd, applied once per control period (Lie
+        # splitting over the period, the toolkit's results number for number); a solver that
+        # absorbs (the default, and always with congestion) applies them after each of its steps.
+        self.sink = fp.sink
+        self._period_sink = fp.sink is not None and not fp.absorbing
+        self._out_before = fp.mass_out.copy()
         self.initial_mass = float(self.grid.integrate(self.rho))
-        self.out_per_exit = np.zeros(len(segs))
+        self.out_per_exit = np.zeros(0 if fp.sink is None else fp.sink.n_exits)
 
     def robot_velocity(self, robots: RobotTeam) -> tuple[np.ndarray, np.ndarray]:
         """``v_r`` (eq. (3)) on the grid faces at the robots' current states."""
@@ -101,9 +111,11 @@ class DensityCrowd:
             self.rho = self.fp.solve(self.rho, t + dt, t0=t, face_velocity=v_r)
         else:
             self.rho = self.fp.step(self.rho, t, dt, face_velocity=v_r)
-        if self.sink is not None:  # the exits' outflow over the step (Lie splitting, exact for the sink)
+        if self._period_sink:  # the exits' outflow over the period (Lie splitting, exact for the sink)
             self.rho, out = self.sink.apply(self.rho, dt)
             self.out_per_exit += out
+        elif self.sink is not None:  # the solver's own count over its steps
+            self.out_per_exit = self.fp.mass_out - self._out_before
 
     def remaining_fraction(self) -> float:
         """The mass still in Ω over the initial mass."""
@@ -129,7 +141,10 @@ class DensityCrowd:
     @classmethod
     def from_context(cls, ctx: CrowdContext, method: str | None = None, substeps: bool = True) -> DensityCrowd:
         """Registry factory (kind ``crowd``, name ``fokker-planck``): eq. (4) from the scenario's
-        initial law, σ, interaction and disturbance, on the loop's grid.
+        initial law, σ, interaction and disturbance, on the loop's grid; with ``crowd.congestion``
+        (not ``"none"``) the congested equation ``∂_t ρ + ∇·(ρ g(Nρ) v) = Δ(σρ)`` with
+        ``N = crowd.n`` and the diagram of ``crowd.congestion``/``crowd.rho_max``
+        (:mod:`meanfield.fokker_planck.congested`; ``method`` ``"split"`` or ``"explicit"``).
 
         The run's generator advances exactly as the agents' initial draw would
         (:func:`~meanfield.crowds.agent_crowd.initial_positions`), so that a seed gives the same
@@ -144,5 +159,17 @@ class DensityCrowd:
                 "crowd.guidance", ctx.scenario.crowd.guidance, "'signs' for the density (the baselines are agents')"
             )
         initial_positions(ctx.scenario, ctx.scenario.crowd.n, ctx.rng)  # the agents' draw, discarded
-        fp = FokkerPlanck(ctx.grid, ctx.sigma, interaction=ctx.interaction, disturbance=ctx.disturbance, method=method)
+        c = ctx.scenario.crowd
+        diagram = plugins.load("congestion", c.congestion)(free_speed=c.free_speed, rho_max=c.rho_max)
+        congested = math.isfinite(float(diagram.rho_max))  # "none": the paper's crowd, unchanged
+        fp = FokkerPlanck(
+            ctx.grid,
+            ctx.sigma,
+            interaction=ctx.interaction,
+            disturbance=ctx.disturbance,
+            method=method,
+            exits=congested,  # uncongested: the exits once per control period, as ever (see __init__)
+            congestion=diagram if congested else None,
+            people=c.n if congested else None,
+        )
         return cls(fp, initial_density(ctx.scenario, ctx.grid), ctx.kernel, substeps=substeps, sight=ctx.sight)

@@ -2,7 +2,8 @@
 
 :mod:`~meanfield.fokker_planck.solver` holds :class:`FokkerPlanck`; :mod:`~meanfield.fokker_planck.stepping`
 its time-stepping methods, one :class:`Stepper` each, chosen by name from :data:`STEPPERS`; ``_sweeps`` their
-compiled tridiagonal sweeps.
+compiled tridiagonal sweeps; :mod:`~meanfield.fokker_planck.congested` the congested (LWR, Godunov) flux and the two
+methods that support it (:data:`CONGESTED_STEPPERS`).
 
 Names are imported on first use (:mod:`meanfield._namespace`).
 """
@@ -11,6 +12,8 @@ from meanfield._namespace import lazy_namespace
 
 _LAZY = {
     "AdiStepper": "meanfield.fokker_planck.stepping",
+    "CONGESTED_STEPPERS": "meanfield.fokker_planck.congested",
+    "CongestedFlux": "meanfield.fokker_planck.congested",
     "ExplicitStepper": "meanfield.fokker_planck.stepping",
     "FaceVelocity": "meanfield.fokker_planck.stepping",
     "FokkerPlanck": "meanfield.fokker_planck.solver",

@@ -31,22 +31,32 @@ chosen by name (:data:`~meanfield.fokker_planck.stepping.STEPPERS`): :class:`Fok
 the solver, holds the one its ``method`` names and hands it each step, around which it
 checks the arguments, chooses the automatic step and drives :meth:`FokkerPlanck.solve`
 (docs/fokker_planck.md, "Time stepping").
+
+Exits (docs/fokker_planck.md, "Exits and congestion"): on a region with exits the solver
+absorbs by default, ``ρ = 0`` on them through the sink of
+:class:`~meanfield.geometry.exits.ExitSink` applied after every step, and counts the mass out
+per exit (:attr:`FokkerPlanck.mass_out`).  Congestion (``congestion=diagram, people=N``)
+replaces the advective part of the flux by Godunov's flux of the LWR model,
+``∂_t ρ + ∇·(ρ g(Nρ) v) = Δ(σρ)`` (:mod:`meanfield.fokker_planck.congested`), with the
+methods ``"split"`` and ``"explicit"`` only.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from scipy import sparse
 
 from meanfield.errors import ParameterError, SigmaLike, check_sigma, positive_number
+from meanfield.fokker_planck.congested import CONGESTED_STEPPERS, CongestedFlux, door_lengths, exit_normals
 from meanfield.fokker_planck.stepping import STEPPERS, Stepper, _check_face_field, _Coefficients, _StepTooLarge
 from meanfield.fokker_planck.stepping import (
     FaceVelocity as FaceVelocity,  # re-exported: the type of solve's face_velocity
 )
+from meanfield.geometry.exits import ExitSink, exit_segments
 from meanfield.geometry.grid import FaceField, Grid
 from meanfield.signs.interaction import InteractionField
 from meanfield.signs.kernels import InteractionPotential
@@ -143,11 +153,28 @@ def _check_point_velocity(name: str, value, shape: tuple[int, int]) -> tuple[np.
     return vx, vy
 
 
-def _stepper_class(method) -> type[Stepper]:
-    """The stepper registered as ``method`` in :data:`~meanfield.fokker_planck.stepping.STEPPERS`."""
+def _stepper_class(method, congestion: CongestedFlux | None = None) -> type[Stepper]:
+    """The stepper registered as ``method`` in :data:`~meanfield.fokker_planck.stepping.STEPPERS`
+    (with congestion, in :data:`~meanfield.fokker_planck.congested.CONGESTED_STEPPERS`)."""
+    if congestion is not None:
+        if method not in CONGESTED_STEPPERS:
+            raise ParameterError("method", method, f"one of {', '.join(map(repr, CONGESTED_STEPPERS))} with congestion")
+        return CONGESTED_STEPPERS[method]
     if method not in STEPPERS:
         raise ParameterError("method", method, f"one of {', '.join(map(repr, STEPPERS))}")
     return STEPPERS[method]
+
+
+def _congested_flux(congestion: Any, people: float | None) -> CongestedFlux | None:
+    """The LWR flux of a fundamental diagram, or None for none (no diagram, or an infinite jam density)."""
+    if congestion is None:
+        return None
+    rho_max = getattr(congestion, "rho_max", None)
+    if rho_max is not None and not math.isfinite(float(rho_max)) and hasattr(congestion, "speed_factor"):
+        return None  # NoCongestion: g ≡ 1, the uncongested code path
+    if people is None:
+        raise ParameterError("people", people, "the number of people N (> 0) with congestion: Nρ is persons/m²")
+    return CongestedFlux(congestion, people)
 
 
 def _check_courant(stepper: type[Stepper], courant) -> None:
@@ -222,6 +249,9 @@ class FokkerPlanck:
         time_dependent: bool = True,
         cfl: float = 0.9,
         courant: float | None = None,
+        exits: bool = True,
+        congestion: Any = None,
+        people: float | None = None,
     ):
         if not isinstance(grid, Grid):
             raise ParameterError("grid", type(grid).__name__, "a meanfield.Grid")
@@ -241,9 +271,10 @@ class FokkerPlanck:
             raise ParameterError(
                 "interaction", type(interaction).__name__, "an InteractionPotential, InteractionField or None"
             )
+        self.congestion: CongestedFlux | None = _congested_flux(congestion, people)
         if method is None:
-            method = "adi" if grid.is_box else "split"
-        stepper = _stepper_class(method)
+            method = "split" if self.congestion is not None or not grid.is_box else "adi"
+        stepper = _stepper_class(method, self.congestion)
         self.time_dependent = bool(time_dependent)
         cfl_v = positive_number("cfl", cfl)
         if cfl_v > 1:
@@ -256,6 +287,18 @@ class FokkerPlanck:
         self._coeff_cache: _Coefficients | None = None
         self._dynamic: _Coefficients | None = None
         self._work: dict[str, np.ndarray] = {}
+        self._diffusion_cache: _Coefficients | None = None
+        segs = exit_segments(grid.domain)
+        #: The region's exits as a sink (:class:`~meanfield.geometry.exits.ExitSink`), None without exits.
+        self.sink: ExitSink | None = (
+            ExitSink(grid, segs, 0.0 if callable(self.sigma) else float(self.sigma)) if len(segs) else None
+        )
+        #: Whether the exits absorb in :meth:`step` and :meth:`solve` (the constructor's ``exits``).
+        self.absorbing: bool = bool(exits)
+        #: The mass that has left through each exit since construction (or :meth:`reset_mass_out`).
+        self.mass_out: np.ndarray = np.zeros(0 if self.sink is None else self.sink.n_exits)
+        self._exit_normals = exit_normals(grid, segs) if len(segs) else np.zeros((0, 2))
+        self._door_lengths = door_lengths(self.sink) if self.sink is not None else None
         #: The time-stepping method (docs/fokker_planck.md, "Time stepping"), built on this operator.
         self.stepper: Stepper = stepper(self)
 
@@ -270,9 +313,18 @@ class FokkerPlanck:
 
     @method.setter
     def method(self, method: Method) -> None:
-        stepper = _stepper_class(method)
+        stepper = _stepper_class(method, self.congestion)
         _check_courant(stepper, self.courant)
         self.stepper = stepper(self)
+
+    @property
+    def mass_out_total(self) -> float:
+        """The mass that has left through all the exits (``Σ mass_out``)."""
+        return float(self.mass_out.sum())
+
+    def reset_mass_out(self) -> None:
+        """Set the count of the mass out through each exit back to zero."""
+        self.mass_out[...] = 0.0
 
     # ------------------------------------------------------------------ validation
     def check_density(self, rho, name: str = "rho") -> np.ndarray:
@@ -427,6 +479,49 @@ class FokkerPlanck:
             c.reset()
         return c
 
+    def _diffusion_coefficients(self, t: float) -> _Coefficients:
+        """Scharfetter–Gummel coefficients of the diffusion ``Δ(σρ)`` alone (drift ``−∇σ``), for congestion.
+
+        For a constant σ they are ``σ_f ℓ / h`` on both sides (central differences); kept while
+        σ does not depend on time.
+        """
+        if self._diffusion_cache is not None:
+            return self._diffusion_cache
+        g = self.grid
+        (dxf, dyf), grad = self._sigma_fields(t)
+        arrays = []
+        for k, (d, h, length) in enumerate(((dxf, g.dx, g._len_x), (dyf, g.dy, g._len_y))):
+            shape = (g.shape[0] - 1, g.shape[1]) if k == 0 else (g.shape[0], g.shape[1] - 1)
+            a = -grad[k] if grad is not None else np.zeros(shape)
+            length = g.dy if (g.is_box and k == 0) else g.dx if g.is_box else length
+            lo, hi = np.empty(shape), np.empty(shape)
+            _scharfetter_gummel_into(a, d, h, length, lo, hi, np.empty(shape), np.empty(shape))
+            arrays += [lo, hi]
+        c = _Coefficients(*arrays)
+        if not callable(self.sigma) or not self.time_dependent:
+            self._diffusion_cache = c
+        return c
+
+    def _state(self, rho: np.ndarray, t: float, face_velocity: FaceField | None) -> Any:
+        """What the stepper's bounds read: the face coefficients, or with congestion the congested state."""
+        if self.congestion is not None:
+            return self.stepper.state(rho, t, face_velocity)
+        return self._coefficients(rho, t, face_velocity)
+
+    def _advance(self, rho: np.ndarray, t: float, dt: float, fv: FaceField | None) -> np.ndarray:
+        """One step of the stepper, then (without congestion) the exits' outflow over it.
+
+        Without congestion the exits are the Dirichlet sink of
+        :class:`~meanfield.geometry.exits.ExitSink`, applied exactly after the step (Lie
+        splitting, ``ρ ← ρ e^{−k dt}``); with congestion they are faces of the congested flux
+        (the stepper counts their outflow).  Either way ``mass_out`` counts the mass that left.
+        """
+        new = self.stepper.step(rho, t, dt, fv, check=True)
+        if self.congestion is None and self.absorbing and self.sink is not None:
+            new, lost = self.sink.apply(new, dt)
+            self.mass_out += lost
+        return new
+
     # ------------------------------------------------------------------ right-hand side
     def flux(self, rho: np.ndarray, t: float = 0.0, face_velocity: FaceField | None = None) -> FaceField:
         """Scharfetter–Gummel flux ``J·n`` on the interior faces (per unit face length)."""
@@ -438,7 +533,15 @@ class FokkerPlanck:
         return lx * rho[:-1, :] - rx * rho[1:, :], ly * rho[:, :-1] - ry * rho[:, 1:]
 
     def rhs(self, rho: np.ndarray, t: float = 0.0, face_velocity: FaceField | None = None) -> np.ndarray:
-        """``∂_t ρ = -∇·J`` (paper, eq. (4)) on the cells, zero flux through the walls."""
+        """``∂_t ρ = -∇·J`` (paper, eq. (4); with congestion eq. (C) of
+        :mod:`~meanfield.fokker_planck.congested`) on the cells, zero flux through the walls and
+        the exits (their outflow is not included: see :attr:`sink`)."""
+        if self.congestion is not None:
+            st = self.stepper.state(rho, t, face_velocity)
+            st.exit_speed = None
+            rate, _ = self.stepper.advective_rate(st, rho)
+            rate += self._apply(st.diffusion, rho, "xy", np.empty(rho.shape))
+            return rate * self.grid._inv_volume
         c = self._coefficients(rho, t, face_velocity)
         return self._apply(c, rho, "xy", np.empty(rho.shape)) * self.grid._inv_volume
 
@@ -493,7 +596,7 @@ class FokkerPlanck:
         :meth:`Stepper.positivity_bound <meanfield.fokker_planck.stepping.Stepper.positivity_bound>`
         and docs/fokker_planck.md, "Time stepping".
         """
-        return self.stepper.positivity_bound(self._coefficients(rho, t, face_velocity))
+        return self.stepper.positivity_bound(self._state(rho, t, face_velocity))
 
     def step(self, rho: np.ndarray, t: float, dt: float, face_velocity: FaceField | None = None) -> np.ndarray:
         """Advance ``ρ`` from ``t`` to ``t + dt`` by one step of ``self.method``.
@@ -508,12 +611,18 @@ class FokkerPlanck:
         face_velocity : FaceField, optional
             An extra drift already on the faces (e.g. ``NavigationField.velocity()`` of the
             robots), held constant over the step.
+
+        Returns
+        -------
+        ndarray
+            ``ρ(t + dt)``; on a region with exits (and ``exits=True``) after their outflow over
+            the step, whose mass is added to :attr:`mass_out`.
         """
         rho = self.check_density(rho)
         dt = positive_number("dt", dt)
         if face_velocity is not None:
             face_velocity = _check_face_field("face_velocity", face_velocity, self.grid)
-        return self.stepper.step(rho, float(t), dt, face_velocity, check=True)
+        return self._advance(rho, float(t), dt, face_velocity)
 
     def automatic_dt(self, rho: np.ndarray, t: float = 0.0, face_velocity: FaceField | None = None) -> float:
         """The step ``solve`` takes when ``dt`` is None.
@@ -528,7 +637,7 @@ class FokkerPlanck:
         :meth:`Stepper.automatic_bound <meanfield.fokker_planck.stepping.Stepper.automatic_bound>`
         and docs/fokker_planck.md, "Time stepping".
         """
-        c = self._coefficients(rho, t, face_velocity)
+        c = self._state(rho, t, face_velocity)
         if self.courant is not None:  # accuracy: the drift crosses `courant` cells per step
             step = self.courant * c.crossing_time(self.grid)
             if math.isfinite(step):
@@ -600,7 +709,7 @@ class FokkerPlanck:
                 h = min(h, t_final - t)
                 for attempt in range(60):
                     try:
-                        new = self.stepper.step(rho, t, h, fv, check=True)
+                        new = self._advance(rho, t, h, fv)
                         break
                     except _StepTooLarge as exc:
                         # automatic step: the drift grew within the step; retry below its bound

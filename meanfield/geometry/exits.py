@@ -80,12 +80,22 @@ class ExitSink:
         The exits.
     sigma : float
         The crowd's diffusion σ.
+
+    Attributes
+    ----------
+    rates : ndarray, shape (E, nx, ny)
+        ``k = σ ℓ / (d V)`` per exit and cell.
+    segments : ndarray, shape (E, 2, 2)
+        The exits.
+    lengths : ndarray, shape (E, nx, ny)
+        ``ℓ``, the exit's length in each cell inside Ω (the door width a congested flux passes through).
     """
 
     def __init__(self, grid: Any, segs: np.ndarray, sigma: float):
         import shapely
 
         self.grid = grid
+        self.segments = np.asarray(segs, float).reshape(-1, 2, 2)
         self.n_exits = len(segs)
         nx, ny = grid.shape
         x0, _, y0, _ = grid.domain.bounds
@@ -95,9 +105,11 @@ class ExitSink:
         X, Y = grid.centers
         centres = np.column_stack([X.ravel(), Y.ravel()])
         self.rates = np.zeros((self.n_exits, nx, ny))  # k per exit and cell (1/time)
+        self.lengths = np.zeros((self.n_exits, nx, ny))  # ℓ: the exit's length in each cell
         volume = np.where(grid.active, grid.volume, np.inf)
         for j, seg in enumerate(segs):
             length = shapely.length(shapely.intersection(boxes, shapely.LineString(seg)))
+            self.lengths[j] = np.where(grid.active, length, 0.0)
             dist = distance_to_segments(centres, seg[None])[:, 0].reshape(nx, ny)
             dist = np.maximum(dist, 1e-3 * min(grid.dx, grid.dy))
             self.rates[j] = np.where(length > 0, sigma * length / (dist * volume), 0.0)
