@@ -12,16 +12,30 @@ with ``v_r`` (eq. (3)) evaluated exactly or sampled on a lattice (large crowds,
 :mod:`meanfield.signs.sampled_field`), replaced by a random walk for the humans who see no robot
 (:mod:`meanfield.crowds.local_view`).  The robots observe the crowd through a Gaussian KDE on the
 grid (paper, Section IV-A; :mod:`meanfield.crowds.kde`).
+
+With congestion (``crowd.congestion`` other than ``"none"``, :mod:`meanfield.crowds.congestion`)
+each human walks at ``g(ρ_j)`` times the velocity it chooses, ``ρ_j`` the density around it in
+persons/m² (:func:`local_density`: its neighbours within :data:`DENSITY_RADIUS`; docs page
+*Congestion*)::
+
+    u_W(X_j) + g(ρ_j) v_r(X_j, t) + v_a(X_j, t)
+
+``v_r`` standing for whatever the human follows: the signs, the random walk out of a robot's
+view, or a baseline's guidance.  The interaction, the disturbance and the Brownian noise are
+not slowed (the mean-field equation keeps ``σΔρ`` as it is: ``∂ₜρ + ∇·(ρ g(ρ) v) = σΔρ``).
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any, Protocol
 
 import numpy as np
 
 from meanfield import plugins
+from meanfield.crowds._congestion_loops import count_neighbours
 from meanfield.crowds._field_loops import bilinear_at, gaussian_field_at
+from meanfield.crowds.congestion import FundamentalDiagram, NoCongestion
 from meanfield.crowds.guidance import Guidance
 from meanfield.crowds.kde import KernelDensityEstimator
 from meanfield.crowds.local_view import LocalView
@@ -36,7 +50,15 @@ from meanfield.signs.kernels import GaussianKernel, NavigationKernel
 from meanfield.signs.robots import RobotTeam, navigation_velocity
 from meanfield.signs.sampled_field import SampledNavigationField
 
-__all__ = ["AgentEngine", "AgentCrowd", "initial_positions", "point_mass_crowd", "SAMPLED_FIELD_ABOVE"]
+__all__ = [
+    "AgentEngine",
+    "AgentCrowd",
+    "initial_positions",
+    "local_density",
+    "point_mass_crowd",
+    "SAMPLED_FIELD_ABOVE",
+    "DENSITY_RADIUS",
+]
 
 SAMPLED_FIELD_ABOVE = 2_000_000
 """``crowd.field_evaluation = "auto"`` samples ``v_r`` on a lattice above this many human-robot pairs."""
@@ -44,6 +66,42 @@ _EVERYONE = np.ones((0, 0), dtype=bool)  # no sight mask: every robot seen
 REACH_FRACTION = 0.05
 """A sign *reaches* a human whose ``|v_r|`` is at least this share of one kernel's peak (and who
 sees a robot): :attr:`AgentCrowd.reached`, the stragglers of ``summary.json``."""
+DENSITY_RADIUS = 0.6
+"""m: the local density of a congested human counts its neighbours within this radius (docs page
+*Congestion*: small enough to resolve a 0.8 m door, large enough to hold a few people at the
+densities where walking slows, 1.1 persons in the disk at 1 person/m²)."""
+
+
+def local_density(
+    positions: np.ndarray, active: np.ndarray | None = None, radius: float = DENSITY_RADIUS
+) -> np.ndarray:
+    """Each human's local density, persons/m²: the other humans within ``radius``, over ``π radius²``.
+
+    One compiled pass over a cell list (:func:`meanfield.crowds._congestion_loops.count_neighbours`),
+    O(N).  The disk is not clipped by walls: a human against a wall sees about half the
+    density there is (docs page *Congestion*).
+
+    Parameters
+    ----------
+    positions : ndarray, shape (N, 2)
+        The humans (rows of those not active are ignored).
+    active : ndarray of bool, shape (N,), optional
+        Who is still here (None: everyone).
+    radius : float
+        ``r > 0``, metres.
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        ``#{k ≠ j active: |X_k − X_j| < r} / (π r²)``; 0 for those not active.
+    """
+    if not radius > 0:
+        raise ParameterError("radius", radius, "a radius > 0 (m)")
+    x = np.ascontiguousarray(positions, dtype=float)
+    here = np.ones(len(x), dtype=bool) if active is None else np.ascontiguousarray(active, dtype=bool)
+    counts = np.empty(len(x), dtype=np.int64)
+    count_neighbours(x, here, float(radius), counts)
+    return counts / (math.pi * radius * radius)
 
 
 class AgentEngine(Protocol):
@@ -102,6 +160,12 @@ class AgentCrowd:
     guidance : Guidance, optional
         A baseline the humans follow instead of the signs (:mod:`meanfield.crowds.guidance`); None:
         the robots' signs.
+    congestion : FundamentalDiagram, optional
+        The speed–density relation the humans walk by (:mod:`meanfield.crowds.congestion`);
+        None or :class:`~meanfield.crowds.congestion.NoCongestion`: no congestion, every number as
+        without it.
+    density_radius : float
+        The radius of each human's local density with congestion, m (:data:`DENSITY_RADIUS`).
     """
 
     def __init__(
@@ -117,6 +181,8 @@ class AgentCrowd:
         sample_cells: tuple[int, int] = (30, 30),
         sight: SightLines | None = None,
         guidance: Guidance | None = None,
+        congestion: FundamentalDiagram | None = None,
+        density_radius: float = DENSITY_RADIUS,
     ):
         self.engine = engine
         self.kernel = kernel
@@ -141,6 +207,13 @@ class AgentCrowd:
             nx, ny = sample_cells
             self.sampled_field = SampledNavigationField(kernel, domain.bounds, (2 * nx + 1, 2 * ny + 1))
         self._drift: np.ndarray | None = None
+        self.congestion = None if congestion is None or isinstance(congestion, NoCongestion) else congestion
+        if self.congestion is not None and not density_radius > 0:
+            raise ParameterError("density_radius", density_radius, "a radius > 0 (m)")
+        self.density_radius = float(density_radius)
+        self.local_density: np.ndarray | None = None  # persons/m² around each human at the last step (congestion)
+        self.peak_local_density = 0.0  # its largest value over the run so far
+        self.peak_local_density_time = 0.0
 
     @property
     def positions(self) -> np.ndarray:
@@ -192,6 +265,8 @@ class AgentCrowd:
             self.view.gate(drift, positions, robots.positions, dt, visible)
             if self.view.gated:  # (otherwise everyone sees a robot)
                 self.reached &= self.view.seen
+        if self.congestion is not None:  # (without congestion not one operation more: every number as before)
+            self._slow_down(drift, positions, t)
         if self.interaction is not None:
             drift += self.interaction.at_points(positions)
         if self.disturbance is not None:
@@ -199,6 +274,16 @@ class AgentCrowd:
             drift[:, 0] += ax
             drift[:, 1] += ay
         return drift
+
+    def _slow_down(self, velocity: np.ndarray, positions: np.ndarray, t: float) -> None:
+        """``velocity *= g(ρ_j)`` in place, ``ρ_j`` the local density of those still here (:func:`local_density`)."""
+        active = getattr(self.engine, "active", None)
+        rho = local_density(positions, active, self.density_radius)
+        velocity *= self.congestion.speed_factor(rho)[:, None]
+        self.local_density = rho
+        peak = float(rho.max()) if len(rho) else 0.0
+        if peak > self.peak_local_density:
+            self.peak_local_density, self.peak_local_density_time = peak, t
 
     def _work(self, n: int) -> tuple[np.ndarray, np.ndarray]:
         """The drift (n, 2) and reached (n,) arrays, kept between steps of the same crowd size."""
@@ -266,12 +351,18 @@ class AgentCrowd:
         return self.sampled_field.error_bound()
 
     def summary(self) -> dict[str, Any]:
-        """``field_evaluation``, the view's ``seen_fraction_final`` and the engine's own figures."""
-        return {
+        """``field_evaluation``, the view's ``seen_fraction_final`` and the engine's own figures; with
+        congestion also the largest local density the humans walked in (persons/m², and when)."""
+        out = {
             "field_evaluation": self.field_evaluation,
             "seen_fraction_final": self.seen_fraction(),
             **self.engine.summary(),
         }
+        if self.congestion is not None:
+            out["congestion_radius"] = self.density_radius
+            out["peak_local_density"] = self.peak_local_density
+            out["peak_local_density_time"] = self.peak_local_density_time
+        return out
 
     @classmethod
     def from_context(cls, engine: AgentEngine, ctx: CrowdContext) -> AgentCrowd:
@@ -286,6 +377,8 @@ class AgentCrowd:
         if mode == "auto":
             mode = "sampled" if n * sc.robots.n > SAMPLED_FIELD_ABOVE and ctx.sight is None else "exact"
         guidance = plugins.load("guidance", sc.crowd.guidance)(ctx, engine.positions)
+        diagram = plugins.load("congestion", sc.crowd.congestion)(sc.crowd.free_speed, sc.crowd.rho_max)
+        congestion = diagram if diagram.slows else None  # "none": the paper's crowd, nothing computed
         return cls(
             engine,
             ctx.kernel,
@@ -298,6 +391,8 @@ class AgentCrowd:
             sc.grid.cells,
             ctx.sight,
             guidance,
+            congestion,
+            DENSITY_RADIUS,
         )
 
 

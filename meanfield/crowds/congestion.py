@@ -60,6 +60,8 @@ class FundamentalDiagram(Protocol):
 
     free_speed: float
     rho_max: float
+    slows: bool
+    """Whether any density slows the crowd (False for ``"none"``: a crowd model then computes nothing)."""
 
     def speed_factor(self, rho: np.ndarray) -> np.ndarray:
         """``g(ρ) ∈ [0, 1]`` at densities ``ρ`` (persons/m²; an array of any shape, ``ρ >= 0``)."""
@@ -92,6 +94,7 @@ class NoCongestion:
 
     free_speed: float = FREE_SPEED
     rho_max: float = math.inf
+    slows = False
 
     def speed_factor(self, rho: np.ndarray) -> np.ndarray:
         """``g ≡ 1``."""
@@ -126,6 +129,7 @@ class Weidmann:
     free_speed: float = FREE_SPEED
     rho_max: float = WEIDMANN_RHO_MAX
     gamma: float = WEIDMANN_GAMMA
+    slows = True
 
     def speed_factor(self, rho: np.ndarray) -> np.ndarray:
         """``1 − exp(−γ (1/ρ − 1/ρ_max))``, 1 at ``ρ = 0`` and 0 from ``ρ_max`` on."""
@@ -152,6 +156,7 @@ class Linear:
 
     free_speed: float = FREE_SPEED
     rho_max: float = WEIDMANN_RHO_MAX
+    slows = True
 
     def speed_factor(self, rho: np.ndarray) -> np.ndarray:
         """``max(0, 1 − ρ/ρ_max)``."""

@@ -19,7 +19,6 @@ solver*, "Exits and congestion").
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -161,7 +160,7 @@ class DensityCrowd:
         initial_positions(ctx.scenario, ctx.scenario.crowd.n, ctx.rng)  # the agents' draw, discarded
         c = ctx.scenario.crowd
         diagram = plugins.load("congestion", c.congestion)(free_speed=c.free_speed, rho_max=c.rho_max)
-        congested = math.isfinite(float(diagram.rho_max))  # "none": the paper's crowd, unchanged
+        congested = bool(diagram.slows)  # "none": the paper's crowd, unchanged
         fp = FokkerPlanck(
             ctx.grid,
             ctx.sigma,

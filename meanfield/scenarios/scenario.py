@@ -203,7 +203,8 @@ class Scenario:
     """All parameters of one closed-loop run (see the module docstring for the layout).
 
     Cross-field checks run on construction: explicit robot positions and the initial
-    crowd centre must lie in Ω, the target must put mass in Ω, ``dt < t_final``.
+    crowd centre must lie in Ω, the target must put mass in Ω, ``dt < t_final``, and a crowd
+    with congestion (``crowd.congestion`` other than ``"none"``) needs ``units = "SI"``.
 
     ``plugins`` lists modules (dotted names or paths to ``.py`` files) that register parts
     in :mod:`meanfield.plugins`; :meth:`from_dict` imports them before it validates any
@@ -270,12 +271,24 @@ class Scenario:
                 "a target Gaussian with mass in the domain (centre inside Ω or within a few std)",
             )
         self._check_crowd()
+        if self._congestion().slows and self.units != "SI":
+            raise ParameterError(
+                "crowd.congestion",
+                self.crowd.congestion,
+                f'"none" in a scenario in {self.units} units: a fundamental diagram takes densities in '
+                'persons/m² and speeds in m/s (units = "SI")',
+            )
         if self.robots.margin > 0:
             x0, x1, y0, y1 = dom.bounds
             if 2 * self.robots.margin >= min(x1 - x0, y1 - y0):
                 raise ParameterError(
                     "robots.margin", self.robots.margin, "less than half the domain's width and height"
                 )
+
+    def _congestion(self) -> Any:
+        """The crowd's fundamental diagram (:mod:`meanfield.crowds.congestion`), from the registry."""
+        c = self.crowd
+        return registry.load("congestion", c.congestion)(free_speed=c.free_speed, rho_max=c.rho_max)
 
     def _check_crowd(self) -> None:
         """The chosen crowd's own cross-field checks (it declares ``check_scenario``)."""

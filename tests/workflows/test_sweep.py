@@ -175,18 +175,20 @@ def test_cli_sweep_against_a_separately_started_scheduler(tiny_toml, tmp_path, s
 
 
 def test_a_run_that_fails_is_recorded_and_the_sweep_goes_on(tiny_toml, tmp_path, scheduler_address, capsys):
-    """NMPC refuses an unknown option when its controller is built, inside the worker, after validation."""
+    """NMPC refuses an option it does not know (static signs' k_position) when its controller is built,
+    inside the worker, after validation; the static signs, which take it, complete."""
     if "nmpc" not in plugins.available("controller"):
         pytest.skip("the nmpc controller plugin (analysis package) is not installed")
     out = tmp_path / "sweep"
-    argv = ["sweep", str(tiny_toml), "--set", "controller.kind=backstepping,nmpc",
-            "--set", "controller.options.bogus=1", "--scheduler", scheduler_address, "--out", str(out), "--quiet"]
+    argv = ["sweep", str(tiny_toml), "--set", "controller.kind=static-signs,nmpc",
+            "--set", "controller.options.k_position=1.0", "--scheduler", scheduler_address, "--out", str(out),
+            "--quiet"]
     assert main(argv) == 1
-    assert "bogus" in capsys.readouterr().err
+    assert "k_position" in capsys.readouterr().err
     with xr.open_dataset(out / "sweep.nc", engine="h5netcdf") as ds:
-        run = ds.isel({"controller.options.bogus": 0, "seed": 0})
+        run = ds.isel({"controller.options.k_position": 0, "seed": 0})
         assert list(run["status"].values) == ["completed", "error"]
-        assert "controller.options.bogus" in str(run["message"].values[1])
+        assert "k_position" in str(run["message"].values[1])
         assert ds.attrs["status"] == "incomplete"
     errors = [json.loads(p.read_text()) for p in (out / "runs").glob("*.json")]
     assert sorted(r["summary"]["status"] for r in errors) == ["completed", "error"]

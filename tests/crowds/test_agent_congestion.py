@@ -1,0 +1,167 @@
+"""Congestion for the agents (meanfield.crowds.agent_crowd, meanfield.crowds._congestion_loops).
+
+* :func:`count_neighbours` (the cell list, compiled) equals its numpy twin and a direct count
+  over every pair, exactly (the counts are integers), with humans who left (NaN rows, or
+  stand-ins) ignored, for crowds from 0 to 2000 humans, radii from a tenth of a crowd's spacing
+  to the whole room, and a crowd far wider than the radius (the lattice's cap);
+* :func:`local_density` is persons/m²: 0 alone, ``k / (π r²)`` with ``k`` neighbours;
+* with ``crowd.congestion = "none"`` nothing changes: no density is computed, the summary has
+  the same keys; with a diagram each human's chosen velocity is multiplied by ``g(ρ_j)``;
+* the run is deterministic for a seed, and the congested crowd leaves the bottleneck far slower;
+* the refusals: congestion outside SI units names ``crowd.congestion``; ``crowd.rho_max <= 0``
+  and ``crowd.free_speed <= 0`` name their fields.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from meanfield._compiled import core as compiled
+from meanfield.crowds._congestion_loops import count_neighbours
+from meanfield.crowds.agent_crowd import DENSITY_RADIUS, AgentCrowd, local_density
+from meanfield.crowds.congestion import Linear, NoCongestion, Weidmann
+from meanfield.errors import ParameterError
+from meanfield.scenarios.scenario import builtin_scenarios
+from meanfield.simulation.loop import ClosedLoop
+
+needs_numba = pytest.mark.skipif(not compiled.numba_available(), reason="numba is not installed")
+
+
+def direct_counts(x: np.ndarray, active: np.ndarray, radius: float) -> np.ndarray:
+    """Every pair compared, the reference of the cell list."""
+    ok = active & np.isfinite(x).all(axis=1)
+    dx = x[:, None, 0] - x[None, :, 0]
+    dy = x[:, None, 1] - x[None, :, 1]
+    with np.errstate(invalid="ignore"):
+        near = (dx * dx + dy * dy < radius * radius) & ok[:, None] & ok[None, :]
+    np.fill_diagonal(near, False)
+    return np.where(ok, near.sum(axis=1), 0)
+
+
+def crowd(n: int, rng: np.random.Generator, width: float = 10.0) -> tuple[np.ndarray, np.ndarray]:
+    x = rng.uniform(0.0, width, size=(n, 2))
+    active = rng.random(n) > 0.1
+    x[~active & (rng.random(n) > 0.5)] = np.nan  # some who left are NaN, the others stand somewhere
+    if n >= 4:
+        x[1] = x[0]  # two at the same point
+        x[2] = x[0] + [DENSITY_RADIUS, 0.0]  # one exactly at the radius: not a neighbour
+        active[:3] = True
+    return x, active
+
+
+@pytest.mark.parametrize("n", [0, 1, 2, 7, 300, 2000])
+@pytest.mark.parametrize("radius", [0.05, DENSITY_RADIUS, 3.0, 50.0])
+def test_cell_list_counts_every_pair_within_the_radius(n, radius):
+    rng = np.random.default_rng(n)
+    x, active = crowd(n, rng)
+    out = np.full(n, -1, dtype=np.int64)
+    count_neighbours(x, active, radius, out)
+    assert np.array_equal(out, direct_counts(x, active, radius))
+    ref = np.full(n, -1, dtype=np.int64)
+    with compiled.numpy_path():
+        count_neighbours(x, active, radius, ref)
+    assert np.array_equal(ref, out)
+
+
+@needs_numba
+def test_compiled_count_equals_numpy_twin_on_a_spread_crowd():
+    """A crowd 1000 radii wide: the lattice's cells grow (at most 4 per human), the counts do not change."""
+    rng = np.random.default_rng(5)
+    x = np.vstack([rng.uniform(0, 600.0, size=(400, 2)), rng.normal(300.0, 0.5, size=(400, 2))])
+    active = np.ones(len(x), dtype=bool)
+    fast, ref = np.empty(len(x), np.int64), np.empty(len(x), np.int64)
+    count_neighbours(x, active, DENSITY_RADIUS, fast)
+    with compiled.numpy_path():
+        count_neighbours(x, active, DENSITY_RADIUS, ref)
+    assert np.array_equal(fast, ref)
+    assert np.array_equal(fast, direct_counts(x, active, DENSITY_RADIUS))
+
+
+def test_local_density_is_persons_per_square_metre():
+    r = 0.5
+    x = np.array([[0.0, 0.0], [0.3, 0.0], [0.0, 0.3], [5.0, 5.0], [np.nan, np.nan]])
+    active = np.array([True, True, True, True, False])
+    rho = local_density(x, active, r)
+    area = math.pi * r * r
+    assert rho[3] == 0.0 and rho[4] == 0.0  # alone; gone
+    assert rho[0] == pytest.approx(2 / area) and rho[1] == pytest.approx(2 / area)  # |(0.3,0)-(0,0.3)| = 0.42 < r
+    assert local_density(x[:4])[3] == 0.0  # everyone active by default
+    with pytest.raises(ParameterError):
+        local_density(x, active, 0.0)
+
+
+def bottleneck(congestion: str = "none", b: float = 1.0, **values):
+    lo, hi = 4.0 - b / 2, 4.0 + b / 2
+    return builtin_scenarios()["bottleneck"](seed=3).with_values(
+        {
+            "domain.wkt": f"POLYGON ((0 0, 10 0, 10 {lo:g}, 12 {lo:g}, 12 {hi:g}, 10 {hi:g}, 10 8, 0 8, 0 0))",
+            "domain.exits": [[[12.0, lo], [12.0, hi]]],
+            "crowd.congestion": congestion,
+            **values,
+        }
+    )
+
+
+def test_no_congestion_computes_nothing_and_keeps_the_summary():
+    loop = ClosedLoop(bottleneck("none", t_final=1.0))
+    assert loop.crowd.congestion is None
+    loop.run(progress=False)
+    assert loop.crowd.local_density is None
+    assert "peak_local_density" not in loop.crowd.summary()
+    c = loop.crowd
+    assert AgentCrowd(c.engine, c.kernel, c.kde, c.view, congestion=NoCongestion()).congestion is None
+
+
+@pytest.mark.parametrize("name, diagram", [("weidmann", Weidmann()), ("linear", Linear())])
+def test_congestion_multiplies_the_chosen_velocity_by_g(name, diagram):
+    loop = ClosedLoop(bottleneck(name, t_final=1.0))
+    crowd = loop.crowd
+    assert crowd.congestion == diagram
+    x = crowd.positions.copy()
+    chosen = crowd.guidance.velocity(x, 0.0, 0.05).copy()
+    drift = crowd.drift(loop.robots, 0.0, 0.05).copy()
+    rho = local_density(x, crowd.engine.active, DENSITY_RADIUS)
+    assert np.array_equal(crowd.local_density, rho)
+    assert np.allclose(drift, chosen * diagram.speed_factor(rho)[:, None], rtol=0, atol=1e-15)
+    assert rho.max() > 0 and np.all(np.hypot(*drift.T) <= 1.34 + 1e-12)
+    assert crowd.peak_local_density == rho.max()
+
+
+def test_congested_runs_are_deterministic_and_slower():
+    def exits(congestion: str) -> np.ndarray:
+        loop = ClosedLoop(bottleneck(congestion, t_final=12.0))
+        result = loop.run(progress=False)
+        if congestion != "none":
+            assert result.summary["peak_local_density"] > 0 and result.summary["congestion_radius"] == DENSITY_RADIUS
+        return loop.crowd.engine.exit_time.copy()
+
+    a, b = exits("weidmann"), exits("weidmann")
+    assert np.array_equal(a, b, equal_nan=True)
+    free = exits("none")
+    assert np.isfinite(free).sum() >= 150  # point masses pour out
+    assert np.isfinite(a).sum() < 40  # Weidmann: about 1.3 persons/s through the 1 m door
+
+
+def test_the_narrowest_door_is_resolved():
+    """b = 0.8 m: the routes (0.1 m cells) reach the exit from every cell, and people leave."""
+    loop = ClosedLoop(bottleneck("linear", b=0.8, t_final=6.0))
+    loop.run(progress=False)
+    assert np.isfinite(loop.crowd.engine.exit_time).sum() >= 3
+
+
+def test_congestion_needs_si_units():
+    with pytest.raises(ParameterError) as info:
+        builtin_scenarios()["paper"](seed=0).with_values({"crowd.congestion": "weidmann"})
+    assert info.value.name == "crowd.congestion"
+    assert builtin_scenarios()["paper"](seed=0).with_values({"crowd.congestion": "none"}).units == "dimensionless"
+
+
+@pytest.mark.parametrize("key", ["crowd.rho_max", "crowd.free_speed"])
+@pytest.mark.parametrize("value", [0.0, -1.0])
+def test_jam_density_and_free_speed_must_be_positive(key, value):
+    with pytest.raises(ParameterError) as info:
+        bottleneck("weidmann", **{key: value})
+    assert info.value.name == key
