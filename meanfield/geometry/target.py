@@ -20,6 +20,15 @@ def gaussian_target(grid: Grid, center: tuple[float, float], std: float) -> np.n
     """``ρ_*(x) ∝ exp(-|x - center|²/(2 std²))`` on the cell centres, zero outside Ω, unit mass."""
     X, Y = grid.centers
     r = np.exp(-((X - center[0]) ** 2 + (Y - center[1]) ** 2) / (2.0 * std * std))
+    if not np.any(np.where(grid.active, r, 0.0) > 0):  # narrower than the cells: nothing on their centres
+        from meanfield.errors import ParameterError
+
+        h = max(grid.dx, grid.dy)
+        raise ParameterError(
+            "target.std",
+            std,
+            f"a width the grid resolves (about a cell, {h:.3g}, or more): ρ* vanishes at every cell centre",
+        )
     return grid.normalize(r)
 
 

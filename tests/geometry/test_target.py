@@ -97,3 +97,12 @@ def test_w2_coarsened_grid_keeps_point_masses_exact_and_smooth_densities_within_
     coarse = wasserstein2_to_grid_density(pts, g, smooth, max_cells=100)
     assert fine != coarse
     assert abs(fine - coarse) <= 4 * math.hypot(g.dx, g.dy)
+
+
+def test_a_target_narrower_than_the_cells_is_refused_naming_its_width():
+    """``target.std = 1e-300`` was reported as ``density = 'mass 0.0'`` (issue "Nothing lost", item 7)."""
+    from meanfield import ClosedLoop, ParameterError, paper_scenario
+
+    with pytest.raises(ParameterError) as exc:
+        ClosedLoop(paper_scenario(seed=0).with_values({"target.std": 1e-300}))
+    assert exc.value.name == "target.std" and "cell" in str(exc.value)
