@@ -12,13 +12,7 @@ its names without a warning.
 
 from __future__ import annotations
 
-import importlib
-import importlib.abc
-import importlib.machinery
-import sys
-import types
-import warnings
-from typing import Any
+from meanfield._namespace import install_moved_modules as _install
 
 __all__ = ["MOVED", "install_moved_modules"]
 
@@ -40,68 +34,7 @@ MOVED: dict[str, str] = {
 """Old module (under ``analysis.``) -> its new module (relative to ``analysis``); the names are unchanged."""
 
 
-def _new_module(old_fullname: str) -> str:
-    """``analysis.nmpc_qp`` -> ``analysis.nmpc.qp``."""
-    return f"{PACKAGE}.{MOVED[old_fullname.removeprefix(PACKAGE + '.')]}"
-
-
-def _warn(message: str) -> None:
-    """Warn, attributed to the first frame outside the import machinery and this module (the user's line)."""
-    from meanfield.errors import MeanfieldDeprecationWarning
-
-    def skipped(f: Any) -> bool:
-        return f.f_code.co_filename == __file__ or "importlib" in f.f_code.co_filename
-
-    def internal(f: Any) -> bool:  # frames that warnings.warn itself skips without counting them
-        return "importlib" in f.f_code.co_filename and "_bootstrap" in f.f_code.co_filename
-
-    frame, level = sys._getframe(1), 2  # level 2: the caller of _warn
-    while frame is not None and skipped(frame):
-        frame = frame.f_back
-        if frame is not None and not internal(frame):
-            level += 1
-    warnings.warn(message, MeanfieldDeprecationWarning, stacklevel=level)
-
-
-class _MovedModule(types.ModuleType):
-    """An old module path: each name read from it is read from its new module, with a warning."""
-
-    def __getattr__(self, name: str) -> Any:
-        if name.startswith("__"):
-            raise AttributeError(f"module {self.__name__!r} has no attribute {name!r}")
-        new = _new_module(self.__name__)
-        module = importlib.import_module(new)
-        if not hasattr(module, name):
-            raise AttributeError(f"module {self.__name__!r} has no attribute {name!r}")
-        value = getattr(module, name)
-        _warn(f"{self.__name__}.{name} is deprecated: use {new}.{name}")
-        return value
-
-    def __dir__(self) -> list[str]:
-        return sorted(getattr(importlib.import_module(_new_module(self.__name__)), "__all__", ()))
-
-
-class _MovedFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
-    """Finds ``analysis.<old>`` for every old module in :data:`MOVED` (and nothing else)."""
-
-    def find_spec(self, fullname: str, path: Any = None, target: Any = None) -> Any:
-        if not fullname.startswith(PACKAGE + ".") or fullname.removeprefix(PACKAGE + ".") not in MOVED:
-            return None
-        return importlib.machinery.ModuleSpec(fullname, self)
-
-    def create_module(self, spec: Any) -> types.ModuleType:
-        return _MovedModule(spec.name)
-
-    def exec_module(self, module: types.ModuleType) -> None:
-        new = _new_module(module.__name__)
-        module.__doc__ = f"Deprecated: moved to {new}."
-        _warn(f"the module {module.__name__} is deprecated: its names moved to {new}")
-
-
-_FINDER = _MovedFinder()
-
-
 def install_moved_modules() -> None:
-    """Let the old module paths of :data:`MOVED` be imported (once per process; ``analysis`` calls it)."""
-    if not any(isinstance(f, _MovedFinder) for f in sys.meta_path):
-        sys.meta_path.append(_FINDER)
+    """Let the old module paths of :data:`MOVED` be imported (once per process; ``analysis`` calls it),
+    by meanfield's finder of moved modules (:func:`meanfield._namespace.install_moved_modules`)."""
+    _install(PACKAGE, MOVED)

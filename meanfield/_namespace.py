@@ -186,19 +186,27 @@ MOVED: dict[str, Any] = {
 are now packages of the same name, whose namespaces give the old names."""
 
 
-def _new_place(old: str, name: str) -> tuple[str, str] | None:
-    """The module and the name that ``meanfield.<old>.<name>`` became (None: it has no such name)."""
-    entry = MOVED[old]
+def _new_place(package: str, table: dict[str, Any], old: str, name: str) -> tuple[str, str] | None:
+    """The module and the name that ``<package>.<old>.<name>`` became (None: it has no such name);
+    ``table`` is a table of moved modules shaped as :data:`MOVED`."""
+    entry = table[old]
     if isinstance(entry, str):
-        return f"meanfield.{entry}", name
+        return f"{package}.{entry}", name
     if isinstance(entry, tuple):
         module, renamed = entry
         new = renamed.get(name, name)
         if ":" in new:
             module, _, new = new.partition(":")
-        return f"meanfield.{module}", new
+        return f"{package}.{module}", new
     module = entry.get(name)
-    return None if module is None else (f"meanfield.{module}", name)
+    return None if module is None else (f"{package}.{module}", name)
+
+
+def _where(package: str, entry: Any) -> str:
+    """The new module(s) of an old one, for messages."""
+    if isinstance(entry, dict):
+        return " and ".join(sorted({f"{package}.{m}" for m in entry.values()}))
+    return f"{package}.{entry if isinstance(entry, str) else entry[0]}"
 
 
 def _warn(message: str) -> None:
@@ -222,53 +230,62 @@ def _warn(message: str) -> None:
 class _MovedModule(types.ModuleType):
     """An old module path: each name read from it is looked up at its new place, with a warning."""
 
+    def __init__(self, name: str, finder: _MovedFinder):
+        super().__init__(name)
+        self._finder = finder
+
+    def _entry(self) -> Any:
+        return self._finder.table[self.__name__.removeprefix(self._finder.package + ".")]
+
     def __getattr__(self, name: str) -> Any:
-        old = self.__name__.removeprefix("meanfield.")
-        place = None if name.startswith("__") else _new_place(old, name)
-        if place is None:
+        if name.startswith("__") or name == "_finder":
             raise AttributeError(f"module {self.__name__!r} has no attribute {name!r}")
-        module, new_name = place
-        value = getattr(importlib.import_module(module), new_name)
-        _warn(f"{self.__name__}.{name} is deprecated: use {module}.{new_name}")
-        return value
+        f = self._finder
+        place = _new_place(f.package, f.table, self.__name__.removeprefix(f.package + "."), name)
+        module = None if place is None else importlib.import_module(place[0])
+        if place is None or not hasattr(module, place[1]):
+            raise AttributeError(f"module {self.__name__!r} has no attribute {name!r}")
+        _warn(f"{self.__name__}.{name} is deprecated: use {place[0]}.{place[1]}")
+        return getattr(module, place[1])
 
     def __dir__(self) -> list[str]:
-        entry = MOVED[self.__name__.removeprefix("meanfield.")]
+        entry = self._entry()
         if isinstance(entry, dict):
             return sorted(entry)
         module = entry if isinstance(entry, str) else entry[0]
-        return sorted(getattr(importlib.import_module(f"meanfield.{module}"), "__all__", ()))
+        return sorted(getattr(importlib.import_module(f"{self._finder.package}.{module}"), "__all__", ()))
 
 
 class _MovedFinder:
-    """Finds ``meanfield.<old>`` for every old module in :data:`MOVED` (and nothing else): a meta-path
+    """Finds ``<package>.<old>`` for every old module of its table (and nothing else): a meta-path
     finder and its loader (the protocols of :mod:`importlib.abc`, without importing it at start-up)."""
 
+    def __init__(self, package: str, table: dict[str, Any]):
+        self.package, self.table = package, table
+
     def find_spec(self, fullname: str, path: Any = None, target: Any = None) -> Any:
-        if not fullname.startswith("meanfield.") or fullname.removeprefix("meanfield.") not in MOVED:
+        prefix = self.package + "."
+        if not fullname.startswith(prefix) or fullname[len(prefix) :] not in self.table:
             return None
         from importlib.machinery import ModuleSpec
 
         return ModuleSpec(fullname, self)
 
     def create_module(self, spec: Any) -> types.ModuleType:
-        return _MovedModule(spec.name)
+        return _MovedModule(spec.name, self)
 
     def exec_module(self, module: types.ModuleType) -> None:
-        old = module.__name__.removeprefix("meanfield.")
-        entry = MOVED[old]
-        if isinstance(entry, dict):
-            where = " and ".join(sorted({f"meanfield.{m}" for m in entry.values()}))
-        else:
-            where = f"meanfield.{entry if isinstance(entry, str) else entry[0]}"
+        where = _where(self.package, self.table[module.__name__.removeprefix(self.package + ".")])
         module.__doc__ = f"Deprecated: moved to {where}."
         _warn(f"the module {module.__name__} is deprecated: its names moved to {where}")
 
 
-_FINDER = _MovedFinder()
+def install_moved_modules(package: str = "meanfield", table: dict[str, Any] | None = None) -> None:
+    """Let the old module paths of ``package`` be imported, once per process (``meanfield`` calls it
+    with :data:`MOVED`; ``analysis`` with its own table, :mod:`analysis._moved`).
 
-
-def install_moved_modules() -> None:
-    """Let the old module paths of :data:`MOVED` be imported (once per process; ``meanfield`` calls it)."""
-    if _FINDER not in sys.meta_path:
-        sys.meta_path.append(_FINDER)
+    ``table`` maps each old module (under ``package``) to its new place, shaped as :data:`MOVED`.
+    """
+    if any(isinstance(f, _MovedFinder) and f.package == package for f in sys.meta_path):
+        return
+    sys.meta_path.append(_MovedFinder(package, MOVED if table is None else table))
