@@ -45,7 +45,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from meanfield.errors import ParameterError, positive_number
-from meanfield.fokker_planck import _sweeps as fp_compiled
 from meanfield.fokker_planck.stepping import Stepper, _Coefficients, _LineStepper, _StepTooLarge
 from meanfield.geometry.grid import FaceField, Grid
 
@@ -353,10 +352,6 @@ class CongestedSplitStepper(_CongestedMixin, _LineStepper):
 
     name = "split"
 
-    def __init__(self, operator: Any) -> None:
-        super().__init__(operator)
-        self._parity = False
-
     def positivity_bound(self, c: Any) -> float:
         """The bound (B) without the diffusion (the implicit sweeps are positive for any ``dt``)."""
         return self.bound_of(c, diffusion=False)
@@ -374,20 +369,7 @@ class CongestedSplitStepper(_CongestedMixin, _LineStepper):
         new, out = self._heun(rho, t, dt, face_velocity, check, diffusion=False)
         c = op._diffusion_coefficients(t + dt)
         key = "diffusion" if (not callable(op.sigma) or not op.time_dependent) else None
-        V = op.grid.volume
-        self._parity = not self._parity
-        first, second = ("x", "y") if self._parity else ("y", "x")
-        if fp_compiled.enabled():
-            res = np.multiply(V, new)
-            for axis in (first, second):
-                if axis == second:
-                    res *= V
-                g, rp = self._thomas(c, dt, axis, key)
-                hi = c.rx if axis == "x" else c.ry
-                fp_compiled.tridiagonal_solve(res, hi, dt, g, rp, 0 if axis == "x" else 1, res)
-        else:
-            r = self._sweep(c, V * new, dt, first, key)
-            res = np.array(self._sweep(c, V * r, dt, second, key))
+        res = self._split_sweeps(c, new, dt, key)
         if len(out):
             op.mass_out += out
         return res

@@ -335,6 +335,9 @@ class _LineStepper(Stepper):
     on the numpy path, kept for a fixed drift.
     """
 
+    _parity = False
+    """Which axis :meth:`_split_sweeps` sweeps first: toggled at each call (an instance's own after the first)."""
+
     def _sweep(self, c: _Coefficients, rhs_mass: np.ndarray, tau: float, axis: str, cache_key) -> np.ndarray:
         """Solve ``(V - τ A_axis) ρ' = rhs_mass`` by tridiagonal solves along ``axis``.
 
@@ -401,34 +404,10 @@ class _LineStepper(Stepper):
         return g, rp
 
 
-class SplitStepper(_LineStepper):
-    """``"split"``: directional splitting, backward-Euler sweeps along x then y, first order in time.
-
-    The order of the two sweeps alternates from step to step (the stepper remembers which
-    came first).  Every sweep matrix is an M-matrix, so ``ρ >= 0`` for any ``dt``
-    (docs/fokker_planck.md, "Time stepping"); the default on cut-cell grids.
-    """
-
-    name = "split"
-
-    def __init__(self, operator: _Operator) -> None:
-        super().__init__(operator)
-        self._parity = False
-
-    def positivity_bound(self, c: _Coefficients) -> float:
-        """Infinite: each sweep matrix ``V - dt A_axis`` is an M-matrix for any ``dt``."""
-        return math.inf
-
-    def automatic_bound(self, c: _Coefficients) -> float:
-        """Four times the explicit bound of the cells at least half inside Ω (first order: an accuracy step)."""
-        return 4.0 * c.bound(self.operator.grid, "xy", typical=True)
-
-    def step(self, rho: np.ndarray, t: float, dt: float, face_velocity: FaceField | None, check: bool) -> np.ndarray:
-        """Two backward-Euler sweeps, coefficients at ``t + dt`` (``check`` is moot: positive for any ``dt``)."""
-        op = self.operator
-        c = op._coefficients(rho, t + dt, face_velocity)
-        key = self._cache_key(face_velocity)
-        V = op.grid.volume
+    def _split_sweeps(self, c: _Coefficients, rho: np.ndarray, dt: float, key: Any) -> np.ndarray:
+        """Two backward-Euler sweeps of ``V - dt A_axis`` from ``ρ``, the order of the axes alternating
+        from one call to the next (``self._parity``): compiled, or by LAPACK's banded solver."""
+        V = self.operator.grid.volume
         self._parity = not self._parity
         first, second = ("x", "y") if self._parity else ("y", "x")
         if fp_compiled.enabled():
@@ -442,6 +421,29 @@ class SplitStepper(_LineStepper):
             return out
         r = self._sweep(c, V * rho, dt, first, key)
         return np.array(self._sweep(c, V * r, dt, second, key))
+
+class SplitStepper(_LineStepper):
+    """``"split"``: directional splitting, backward-Euler sweeps along x then y, first order in time.
+
+    The order of the two sweeps alternates from step to step (the stepper remembers which
+    came first).  Every sweep matrix is an M-matrix, so ``ρ >= 0`` for any ``dt``
+    (docs/fokker_planck.md, "Time stepping"); the default on cut-cell grids.
+    """
+
+    name = "split"
+
+    def positivity_bound(self, c: _Coefficients) -> float:
+        """Infinite: each sweep matrix ``V - dt A_axis`` is an M-matrix for any ``dt``."""
+        return math.inf
+
+    def automatic_bound(self, c: _Coefficients) -> float:
+        """Four times the explicit bound of the cells at least half inside Ω (first order: an accuracy step)."""
+        return 4.0 * c.bound(self.operator.grid, "xy", typical=True)
+
+    def step(self, rho: np.ndarray, t: float, dt: float, face_velocity: FaceField | None, check: bool) -> np.ndarray:
+        """Two backward-Euler sweeps, coefficients at ``t + dt`` (``check`` is moot: positive for any ``dt``)."""
+        c = self.operator._coefficients(rho, t + dt, face_velocity)
+        return self._split_sweeps(c, rho, dt, self._cache_key(face_velocity))
 
 
 class AdiStepper(_LineStepper):
