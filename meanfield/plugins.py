@@ -123,6 +123,19 @@ class _Entry:
 _registered: dict[str, dict[str, _Entry]] = {kind: {} for kind in GROUPS}
 
 
+_INSTALLED: dict[tuple[Any, str], tuple[Any, ...]] = {}
+
+
+def _installed(group: str) -> tuple[Any, ...]:
+    """The installed packages' entry points of ``group``, read once per process (a scan of every
+    distribution's metadata costs about 5 ms, and a scenario asks the registry a dozen times).
+    Keyed by the reader as well, so that a test that replaces :func:`entry_points` reads afresh."""
+    key = (entry_points, group)
+    if key not in _INSTALLED:
+        _INSTALLED[key] = tuple(entry_points(group=group))
+    return _INSTALLED[key]
+
+
 def _check_kind(kind: str) -> None:
     if kind not in GROUPS:
         raise ParameterError("kind", kind, " or ".join(map(repr, GROUPS)))
@@ -150,7 +163,7 @@ def _entries(kind: str) -> dict[str, _Entry]:
 
     for name, ref in BUILTIN[kind].items():
         add(_Entry(name, f"meanfield (built-in {ref})", ref))
-    for ep in entry_points(group=GROUPS[kind]):
+    for ep in _installed(GROUPS[kind]):
         dist = getattr(getattr(ep, "dist", None), "name", None) or "an installed package"
         add(_Entry(ep.name, f"entry point {ep.value} of {dist}", ep))
     for entry in _registered[kind].values():
@@ -209,8 +222,7 @@ def available(kind: str) -> tuple[str, ...]:
 def loaders(kind: str) -> dict[str, Callable[[], Any]]:
     """Every registered name of one kind, sorted, with a function that loads its factory.
 
-    One scan of the installed packages' entry points for all the names (each :func:`load`
-    scans them again, about 5 ms): the ``meanfield`` command builds its parser this way.
+    One look-up for all the names: the ``meanfield`` command builds its parser this way.
     """
     return {name: entry.load for name, entry in sorted(_entries(kind).items())}
 
