@@ -35,7 +35,7 @@ import numpy as np
 from meanfield import plugins
 from meanfield.crowds._congestion_loops import count_neighbours
 from meanfield.crowds._field_loops import bilinear_at, gaussian_field_at
-from meanfield.crowds.congestion import FundamentalDiagram, NoCongestion
+from meanfield.crowds.congestion import FundamentalDiagram
 from meanfield.crowds.guidance import Guidance
 from meanfield.crowds.kde import KernelDensityEstimator
 from meanfield.crowds.local_view import LocalView
@@ -162,7 +162,7 @@ class AgentCrowd:
         the robots' signs.
     congestion : FundamentalDiagram, optional
         The speed–density relation the humans walk by (:mod:`meanfield.crowds.congestion`);
-        None or :class:`~meanfield.crowds.congestion.NoCongestion`: no congestion, every number as
+        None, or a diagram that does not slow (``slows`` false, ``"none"``): no congestion, every number as
         without it.
     density_radius : float
         The radius of each human's local density with congestion, m (:data:`DENSITY_RADIUS`).
@@ -207,7 +207,7 @@ class AgentCrowd:
             nx, ny = sample_cells
             self.sampled_field = SampledNavigationField(kernel, domain.bounds, (2 * nx + 1, 2 * ny + 1))
         self._drift: np.ndarray | None = None
-        self.congestion = None if congestion is None or isinstance(congestion, NoCongestion) else congestion
+        self.congestion = congestion if congestion is not None and congestion.slows else None  # "none": nothing
         if self.congestion is not None and not density_radius > 0:
             raise ParameterError("density_radius", density_radius, "a radius > 0 (m)")
         self.density_radius = float(density_radius)
@@ -377,8 +377,7 @@ class AgentCrowd:
         if mode == "auto":
             mode = "sampled" if n * sc.robots.n > SAMPLED_FIELD_ABOVE and ctx.sight is None else "exact"
         guidance = plugins.load("guidance", sc.crowd.guidance)(ctx, engine.positions)
-        diagram = plugins.load("congestion", sc.crowd.congestion)(sc.crowd.free_speed, sc.crowd.rho_max)
-        congestion = diagram if diagram.slows else None  # "none": the paper's crowd, nothing computed
+        congestion = plugins.load("congestion", sc.crowd.congestion)(sc.crowd.free_speed, sc.crowd.rho_max)
         return cls(
             engine,
             ctx.kernel,
