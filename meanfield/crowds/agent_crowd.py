@@ -212,6 +212,7 @@ class AgentCrowd:
             raise ParameterError("density_radius", density_radius, "a radius > 0 (m)")
         self.density_radius = float(density_radius)
         self.local_density: np.ndarray | None = None  # persons/m² around each human at the last step (congestion)
+        self.congestion_name = "none" if self.congestion is None else type(self.congestion).__name__.lower()
         self.peak_local_density = 0.0  # its largest value over the run so far
         self.peak_local_density_time = 0.0
 
@@ -359,6 +360,7 @@ class AgentCrowd:
             **self.engine.summary(),
         }
         if self.congestion is not None:
+            out["congestion"] = self.congestion_name
             out["congestion_radius"] = self.density_radius
             out["peak_local_density"] = self.peak_local_density
             out["peak_local_density_time"] = self.peak_local_density_time
@@ -377,8 +379,8 @@ class AgentCrowd:
         if mode == "auto":
             mode = "sampled" if n * sc.robots.n > SAMPLED_FIELD_ABOVE and ctx.sight is None else "exact"
         guidance = plugins.load("guidance", sc.crowd.guidance)(ctx, engine.positions)
-        congestion = plugins.load("congestion", sc.crowd.congestion)(sc.crowd.free_speed, sc.crowd.rho_max)
-        return cls(
+        congestion = plugins.load("congestion", sc.congestion_model)(sc.crowd.free_speed, sc.crowd.rho_max)
+        crowd = cls(
             engine,
             ctx.kernel,
             kde,
@@ -393,6 +395,8 @@ class AgentCrowd:
             congestion,
             DENSITY_RADIUS,
         )
+        crowd.congestion_name = sc.congestion_model
+        return crowd
 
 
 def point_mass_crowd(ctx: CrowdContext) -> AgentCrowd:
@@ -400,3 +404,8 @@ def point_mass_crowd(ctx: CrowdContext) -> AgentCrowd:
     sc = ctx.scenario
     humans = initial_positions(sc, sc.crowd.n, ctx.rng)
     return AgentCrowd.from_context(PointMassEngine(humans, sc.domain, ctx.sigma, ctx.rng), ctx)
+
+
+point_mass_crowd.default_congestion = {"SI": "linear"}  # type: ignore[attr-defined]
+"""``crowd.congestion = "auto"``: the linear diagram in metres and seconds (it reproduces the measured
+bottleneck flows, docs page *Congestion*), none in the paper's dimensionless units."""

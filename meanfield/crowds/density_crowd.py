@@ -69,6 +69,10 @@ class DensityCrowd:
 
     models_exits = True
 
+    default_congestion = {"SI": "linear"}
+    """``crowd.congestion = "auto"``: as the point masses, the linear diagram in SI units, none in the
+    paper's dimensionless units (:attr:`~meanfield.scenarios.scenario.Scenario.congestion_model`)."""
+
     def __init__(
         self,
         fp: FokkerPlanck,
@@ -159,7 +163,7 @@ class DensityCrowd:
             )
         initial_positions(ctx.scenario, ctx.scenario.crowd.n, ctx.rng)  # the agents' draw, discarded
         c = ctx.scenario.crowd
-        diagram = plugins.load("congestion", c.congestion)(free_speed=c.free_speed, rho_max=c.rho_max)
+        diagram = plugins.load("congestion", ctx.scenario.congestion_model)(free_speed=c.free_speed, rho_max=c.rho_max)
         congested = bool(diagram.slows)  # "none": the paper's crowd, unchanged
         fp = FokkerPlanck(
             ctx.grid,

@@ -433,6 +433,13 @@ def check_scenario(scenario: Any) -> None:
             f"({p.radius:g} m) and speed ({p.max_speed:g} m/s) are physical; this one is {scenario.units} "
             "(the paper's room widths): use paper-unity, the same study in metres",
         )
+    if scenario.congestion_model != "none":
+        raise ParameterError(
+            "crowd.congestion",
+            scenario.crowd.congestion,
+            '"none" or "auto" for JuPedSim\'s bodies, which queue by their own model (a speed that falls '
+            "with the distance to the one ahead); the diagrams slow point masses and the density",
+        )
     k = scenario.dt / p.time_step
     if round(k) < 1 or abs(k - round(k)) > 1e-9 * k:
         raise ParameterError(

@@ -204,7 +204,7 @@ class Scenario:
 
     Cross-field checks run on construction: explicit robot positions and the initial
     crowd centre must lie in Ω, the target must put mass in Ω, ``dt < t_final``, and a crowd
-    with congestion (``crowd.congestion`` other than ``"none"``) needs ``units = "SI"``.
+    with congestion (a :attr:`congestion_model` other than ``"none"``) needs ``units = "SI"``.
 
     ``plugins`` lists modules (dotted names or paths to ``.py`` files) that register parts
     in :mod:`meanfield.plugins`; :meth:`from_dict` imports them before it validates any
@@ -274,7 +274,7 @@ class Scenario:
         if self._congestion().slows and self.units != "SI":
             raise ParameterError(
                 "crowd.congestion",
-                self.crowd.congestion,
+                self.congestion_model,
                 f'"none" in a scenario in {self.units} units: a fundamental diagram takes densities in '
                 'persons/m² and speeds in m/s (units = "SI")',
             )
@@ -285,10 +285,27 @@ class Scenario:
                     "robots.margin", self.robots.margin, "less than half the domain's width and height"
                 )
 
+    @property
+    def congestion_model(self) -> str:
+        """The speed–density relation the crowd walks by: ``crowd.congestion``, or for ``"auto"``
+        the crowd kind's default for the scenario's units.
+
+        A crowd declares ``default_congestion``, a table from units to a registered diagram
+        (:func:`meanfield.plugins.declared`): the point masses and the density walk by the
+        ``"linear"`` diagram in SI units, the one that puts the bottleneck's measured flows in
+        range (docs page *Congestion*), and by none in the paper's dimensionless units (its
+        study, unchanged); JuPedSim's bodies declare none (they queue by their own model).  A
+        kind that declares nothing walks by ``"none"``.
+        """
+        if self.crowd.congestion != "auto":
+            return self.crowd.congestion
+        defaults = registry.declared("crowd", self.crowd.kind, "default_congestion", None) or {}
+        return defaults.get(self.units, "none")
+
     def _congestion(self) -> Any:
         """The crowd's fundamental diagram (:mod:`meanfield.crowds.congestion`), from the registry."""
         c = self.crowd
-        return registry.load("congestion", c.congestion)(free_speed=c.free_speed, rho_max=c.rho_max)
+        return registry.load("congestion", self.congestion_model)(free_speed=c.free_speed, rho_max=c.rho_max)
 
     def _check_crowd(self) -> None:
         """The chosen crowd's own cross-field checks (it declares ``check_scenario``)."""

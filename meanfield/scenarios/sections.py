@@ -74,8 +74,10 @@ class CrowdSpec:
     kind ``guidance``, :mod:`meanfield.crowds.guidance`).  ``free_speed`` is the free walking speed
     (1.34 m/s, Weidmann), also used by the evacuation lower bound.  ``congestion`` is the
     speed–density relation the humans walk by (registry kind ``congestion``,
-    :mod:`meanfield.crowds.congestion`): ``"none"`` (the paper's crowd, the default),
-    ``"weidmann"`` or ``"linear"``, with the jam density ``rho_max`` (persons/m², 5.4).
+    :mod:`meanfield.crowds.congestion`): ``"none"`` (the paper's crowd), ``"weidmann"`` or
+    ``"linear"``, with the jam density ``rho_max`` (persons/m², 5.4), or ``"auto"`` (the default):
+    the crowd kind's own default for the scenario's units
+    (:attr:`~meanfield.scenarios.scenario.Scenario.congestion_model`; docs page *Congestion*).
     """
 
     kind: str = "point-mass"
@@ -87,7 +89,7 @@ class CrowdSpec:
     field_evaluation: str = "auto"
     guidance: str = "signs"
     free_speed: float = 1.34
-    congestion: str = "none"
+    congestion: str = "auto"
     rho_max: float = 5.4
     options: dict[str, dict[str, Any]] = field(default_factory=dict)
 
@@ -101,7 +103,7 @@ class CrowdSpec:
         self.field_evaluation = choice("crowd.field_evaluation", self.field_evaluation, ("auto", "exact", "sampled"))
         self.guidance = choice("crowd.guidance", self.guidance, plugins.available("guidance"))
         self.free_speed = num("crowd.free_speed", self.free_speed, lo=0.0, lo_open=True)
-        self.congestion = choice("crowd.congestion", self.congestion, plugins.available("congestion"))
+        self.congestion = choice("crowd.congestion", self.congestion, ("auto", *plugins.available("congestion")))
         self.rho_max = num("crowd.rho_max", self.rho_max, lo=0.0, lo_open=True)
         if not isinstance(self.options, dict):
             raise ParameterError("crowd.options", self.options, "a table of tables, one per crowd kind")

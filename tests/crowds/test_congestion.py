@@ -37,7 +37,7 @@ def test_every_diagram_starts_at_one_and_never_speeds_up(diagram):
 def test_the_scenario_names_a_registered_diagram_and_refuses_bad_values():
     assert set(plugins.available("congestion")) >= {"none", "weidmann", "linear"}
     sc = paper_scenario()
-    assert sc.crowd.congestion == "none" and sc.crowd.rho_max == 5.4
+    assert sc.crowd.congestion == "auto" and sc.congestion_model == "none" and sc.crowd.rho_max == 5.4
     for key, value in (("crowd.congestion", "traffic-jam"), ("crowd.rho_max", 0.0), ("crowd.rho_max", -1.0)):
         with pytest.raises(ParameterError) as exc:
             sc.with_values({key: value})
@@ -45,3 +45,22 @@ def test_the_scenario_names_a_registered_diagram_and_refuses_bad_values():
     with pytest.raises(ParameterError) as exc:
         plugins.load("congestion", "weidmann")(free_speed=1.34, rho_max=math.inf)
     assert exc.value.name == "crowd.rho_max"
+
+
+def test_auto_congestion_is_the_crowd_kinds_default_for_the_units():
+    """``"auto"``: the paper's dimensionless room walks by none (the paper, unchanged); SI point masses and
+    density by the linear diagram; JuPedSim's bodies by their own model, which refuses a diagram."""
+    from meanfield.scenarios.scenario import builtin_scenarios
+
+    assert paper_scenario().congestion_model == "none"
+    si = builtin_scenarios()["office"]()
+    assert si.units == "SI" and si.crowd.congestion == "auto" and si.congestion_model == "linear"
+    assert si.with_values({"crowd.kind": "fokker-planck"}).congestion_model == "linear"
+    assert si.with_values({"crowd.congestion": "weidmann"}).congestion_model == "weidmann"
+    assert si.with_values({"crowd.congestion": "none"}).congestion_model == "none"
+    if "jupedsim" in plugins.available("crowd"):
+        bodies = si.with_values({"crowd.kind": "jupedsim"})
+        assert bodies.congestion_model == "none"
+        with pytest.raises(ParameterError) as exc:
+            si.with_values({"crowd.kind": "jupedsim", "crowd.congestion": "linear"})
+        assert exc.value.name == "crowd.congestion"

@@ -90,6 +90,7 @@ def _corridor(guidance: str, **extra):
         "crowd.n": 50,
         "crowd.sigma": 0.0,
         "crowd.guidance": guidance,
+        "crowd.congestion": "none",  # free walking: the speeds and times below are the free speed's
         "robots.n": 2,
         "controller.kind": "static-signs",
         "record_every": 1,
