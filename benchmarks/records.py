@@ -61,6 +61,11 @@ SETTINGS: dict[str, dict[str, dict[str, Any]]] = {
     "compile": {"quick": {"repeats": 1}, "full": {"repeats": 3}},
     "plan": {"quick": {"window": 30, "seeds": 4, "repeats": 2}, "full": {"window": 30, "seeds": 10, "repeats": 3}},
     "controllers": {"quick": {"steps": 60, "repeats": 1}, "full": {"steps": 300, "repeats": 2}},
+    # (steps, seeds, repeats) at N = 200 (the bottleneck) and N = 1e6 (bench_congestion.py)
+    "congestion": {
+        "quick": {"small": (40, 3, 2), "large": (4, 1, 1)},
+        "full": {"small": (40, 10, 3), "large": (10, 1, 3)},
+    },
     # bench_scaling.CROWDS / GRIDS: quick stops at N = 1e6 and 256^2
     "scaling": {
         "quick": {"max_humans": 1_000_000, "max_cells": 256},

@@ -30,6 +30,9 @@ plan            a closed-loop step on the ``office`` plan against the same loop 
                 the same grid and crowd; goal: at most 1.5× (``bench_plan.py``)
 controllers     each installed controller's ``act`` per control step against the paper's law,
                 with its real-time factor in ``paper-unity``'s units (``bench_controllers.py``)
+congestion      a congested closed-loop step (``crowd.congestion = "linear"``) against the same
+                step without congestion, at N = 200 (``bottleneck``) and 10⁶; goal: at most
+                1.3× (``bench_congestion.py``)
 scaling         steps per second and peak memory against N (10² … 10⁷) and the grid (30² …
                 512²), with the fitted exponents (``bench_scaling.py``; the figure of
                 ``docs/scale.md`` with ``--figure``)
@@ -127,6 +130,7 @@ BENCHMARKS: dict[str, Benchmark] = {
         ("compile", "the paper's first run on an empty numba cache (whole processes)", "the same, cache filled"),
         ("plan", "closed-loop step on the office plan", "the same loop on a box"),
         ("controllers", "act() per step of every installed controller", "the paper's law"),
+        ("congestion", "congested closed-loop step, N = 200 and 1e6", "the same step without congestion"),
         ("scaling", "closed-loop step against N and the grid (log-log, fitted exponents)", "linear extrapolation"),
     )
 }

@@ -3,8 +3,11 @@
 :func:`count_neighbours` counts, for every active human ``j``, the other active humans ``k``
 with ``|X_k − X_j|² < r²``, by a cell list: the active humans are sorted into the cells of a
 lattice over their bounding box (cells at least ``r`` wide, at most about four per human),
-and each human looks at the humans of its own cell and of the eight around it.  One pass,
-O(N) for a bounded density.  The count is an integer, so the compiled loop and its numpy
+and each human looks at the humans of its own cell and of the eight around it.  O(N) for a
+bounded density: a counting sort by cell (the humans' positions copied in cell order), then the
+cells in memory order, each human's candidates three contiguous runs of the sorted copy (so
+the search reads memory in order; the random accesses are the sort's scatter and the counts'
+write-back, one pass each).  The count is an integer, so the compiled loop and its numpy
 twin (the same cell list, vectorised) agree exactly, whatever order they visit the pairs in.
 The caller turns the count into persons/m² (:func:`meanfield.crowds.agent_crowd.local_density`).
 """
@@ -17,10 +20,14 @@ import numpy as np
 
 from meanfield._compiled.core import compiled
 
-__all__ = ["count_neighbours", "MAX_CELLS_PER_HUMAN"]
+__all__ = ["count_neighbours", "MAX_CELLS_PER_HUMAN", "MAX_HUMANS"]
 
 MAX_CELLS_PER_HUMAN = 4
 """The cell list has at most ``4 m + 64`` cells for ``m`` active humans (its cells grow, by doubling, beyond)."""
+
+
+MAX_HUMANS = 400_000_000
+"""The most humans :func:`count_neighbours` takes: its cell list's indices are 32-bit (``4 m + 65 < 2³¹``)."""
 
 
 def _lattice(x0: float, x1: float, y0: float, y1: float, radius: float, m: int) -> tuple[float, int, int]:
@@ -109,38 +116,42 @@ def count_neighbours(x, active, radius, out):
         h = 2.0 * h
         nx = int((x1 - x0) / h) + 1
         ny = int((y1 - y0) / h) + 1
-    ci = np.empty(n, dtype=np.int64)
-    ck = np.empty(n, dtype=np.int64)
-    start = np.zeros(nx * ny + 1, dtype=np.int64)
+    cell = np.empty(n, dtype=np.int32)  # 32-bit indices: half the memory traffic (MAX_HUMANS keeps them in range)
+    start = np.zeros(nx * ny + 1, dtype=np.int32)
     for j in range(n):
         if use[j]:
-            i = min(int((x[j, 0] - x0) / h), nx - 1)
-            k = min(int((x[j, 1] - y0) / h), ny - 1)
-            ci[j] = i
-            ck[j] = k
-            start[i * ny + k + 1] += 1
+            c = min(int((x[j, 0] - x0) / h), nx - 1) * ny + min(int((x[j, 1] - y0) / h), ny - 1)
+            cell[j] = c
+            start[c + 1] += 1
     for c in range(nx * ny):
         start[c + 1] += start[c]
     fill = start[:-1].copy()
-    order = np.empty(m, dtype=np.int64)
-    for j in range(n):
+    order = np.empty(m, dtype=np.int32)
+    px = np.empty(m)
+    py = np.empty(m)
+    for j in range(n):  # a counting sort by cell: each cell's humans contiguous, their positions copied beside them
         if use[j]:
-            c = ci[j] * ny + ck[j]
-            order[fill[c]] = j
-            fill[c] += 1
+            q = fill[cell[j]]
+            order[q] = j
+            px[q] = x[j, 0]
+            py[q] = x[j, 1]
+            fill[cell[j]] += 1
     r2 = radius * radius
-    for j in range(n):
-        if not use[j]:
-            continue
-        count = 0
-        for i in range(max(ci[j] - 1, 0), min(ci[j] + 2, nx)):
-            for k in range(max(ck[j] - 1, 0), min(ck[j] + 2, ny)):
-                c = i * ny + k
-                for p in range(start[c], start[c + 1]):
-                    q = order[p]
-                    if q != j:
-                        dx = x[q, 0] - x[j, 0]
-                        dy = x[q, 1] - x[j, 1]
+    for i in range(nx):  # cell by cell, so that the candidates are read in memory order
+        for k in range(ny):
+            c = i * ny + k
+            if start[c] == start[c + 1]:
+                continue
+            for p in range(start[c], start[c + 1]):
+                xp = px[p]
+                yp = py[p]
+                count = 0
+                for a in range(max(i - 1, 0), min(i + 2, nx)):
+                    lo = start[a * ny + max(k - 1, 0)]  # the three cells (a, k-1..k+1) are one contiguous run
+                    hi = start[a * ny + min(k + 2, ny)]
+                    for q in range(lo, hi):
+                        dx = px[q] - xp
+                        dy = py[q] - yp
                         if dx * dx + dy * dy < r2:
                             count += 1
-        out[j] = count
+                out[order[p]] = count - 1  # itself, at distance 0 < r
