@@ -316,6 +316,13 @@ class ControllerParts:
     sight : SightLines or None
         The run's sight lines (:mod:`meanfield.geometry.sight`), shared with the crowd and the loop so
         that their table of which cell sees which is computed once; None: built from ``region``.
+    congestion : FundamentalDiagram or None
+        The plant's fundamental diagram (``crowd.congestion`` resolved, :mod:`meanfield.crowds.congestion`),
+        for a law that models it (:class:`~meanfield.controllers.backstepping.CongestedPlant`), with
+        ``controller.congestion = "compensate"``; None with ``"ignore"`` (the default) or parts built by
+        hand.  A diagram that does not slow (``"none"``) is the paper's crowd.
+    people : int or None
+        ``N`` = ``crowd.n``: a unit-mass density ``ρ`` has ``Nρ`` persons/m², the diagram's argument.
     """
 
     grid: Grid
@@ -336,3 +343,5 @@ class ControllerParts:
     dt: float
     scales: tuple[float, float] | None = None
     sight: SightLines | None = None
+    congestion: Any = None  # a meanfield.crowds.congestion.FundamentalDiagram (the crowds sit above this module)
+    people: int | None = None

@@ -1,7 +1,7 @@
 """verification: each claim of the paper checked numerically, with a verdict.
 
 Built on :mod:`analysis` and :mod:`meanfield`; never imported by them.  One module per
-claim (``theorem1``, ``theorem2``, ``theorem3``, ``mean_field``, ``robot_count``,
+claim (``theorem1``, ``theorem2``, ``theorem3``, ``congested``, ``mean_field``, ``robot_count``,
 ``agents``), the plants they run (``plant``), the hypotheses a scenario's grid meets
 (``hypotheses``: Ω in one piece, no exits), the result type (``result``), the runner and
 the report behind ``meanfield verify`` (``runner``, ``report``, ``cli``), and the mutation
@@ -12,6 +12,7 @@ from meanfield._namespace import lazy_namespace
 
 _LAZY = {
     "check_agents": "verification.agents",
+    "check_congested": "verification.congested",
     "check_pedestrians": "verification.agents",
     "check_mean_field": "verification.mean_field",
     "render_markdown": "verification.report",
@@ -35,6 +36,7 @@ __all__ = [
     "CheckResult",
     "VerificationRun",
     "check_agents",
+    "check_congested",
     "check_mean_field",
     "check_pedestrians",
     "check_robot_count",

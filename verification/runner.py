@@ -22,7 +22,7 @@ from typing import Any
 
 from meanfield.errors import ParameterError
 from meanfield.scenarios.scenario import Scenario
-from verification import agents, mean_field, robot_count, theorem1, theorem2, theorem3
+from verification import agents, congested, mean_field, robot_count, theorem1, theorem2, theorem3
 from verification.result import CheckResult
 
 __all__ = ["CHECKS", "CLAIMS", "VerificationRun", "verify", "unusable_scenario_reason"]
@@ -33,6 +33,7 @@ CHECKS: dict[str, Check] = {
     "theorem1": theorem1.check_theorem1,
     "theorem2": theorem2.check_theorem2,
     "theorem3": theorem3.check_theorem3,
+    "congested": congested.check_congested,
     "mean_field": mean_field.check_mean_field,
     "robot_count": robot_count.check_robot_count,
     "agents": agents.check_agents,
@@ -44,6 +45,7 @@ CLAIMS: dict[str, str] = {
     "theorem1": theorem1.CLAIM,
     "theorem2": theorem2.CLAIM,
     "theorem3": theorem3.CLAIM,
+    "congested": congested.CLAIM,
     "mean_field": mean_field.CLAIM,
     "robot_count": robot_count.CLAIM,
     "agents": agents.CLAIM,

@@ -191,6 +191,7 @@ def check_theorem3(
     runs = []
     for n in counts:
         law = {"controller.dvd_dt": "model", "controller.beta_gamma": "min-norm", "controller.scaling": "paper"}
+        law["controller.congestion"] = "ignore"  # the paper's plant is uncongested (check `congested`: the other)
         base = scenario.with_values({"robots.n": n, **law})  # the paper's law, in the scenario's units
         free = base.with_values({"robots.u_max": None, "robots.omega_max": None})
         tr = robot_loop_trajectory(free, t_free, UNLIMITED_DT, record_every=1)

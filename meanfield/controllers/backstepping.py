@@ -21,6 +21,18 @@ i.e. ``δu_i = A b_i / Z``, ``δω_i = -A g_i / Z``.
 ``∂_t v_d`` is either *model-based* (chain rule through ``ρ`` with
 ``∂_t ρ = -∇·((v_r + u_W) ρ - ∇(σρ))``, the Fokker–Planck right-hand side) or a finite
 difference of successive ``v_d``.
+
+On a congested plant (``crowd.congestion``; docs page *Congestion*) the crowd walks at
+``g(Nρ) v_r``: ``∂_t ρ = -∇·(ρ g(Nρ) v_r + ρ u_W) + Δ(σρ)``.  With a :class:`CongestedPlant`
+(``controller.congestion = "compensate"``; opt-in) Step I is unchanged and Step II tracks
+``v_d / ĝ``, ``ĝ = max(g(Nρ_f), g_min)``::
+
+    ṽ = v_r - v_d/ĝ,   A = ∫ ṽᵀ (ρ g ∇ρ̃ - ∂_t(v_d/ĝ)) dx,
+    dV₂/dt = -∫ α|∇ρ̃|² + J - Σ_i k_u |b_i|² - Σ_i k_ω g_i²,   J = ⟨∇ρ̃, ρ (g/ĝ - 1) v_d⟩,
+
+with ``J = 0`` wherever ``g >= g_min`` (docs page *Verification*, "Steps I and II on the
+congested plant").  Without congestion (``"none"``, the paper's scenarios) the law is the
+paper's, number for number.
 """
 
 from __future__ import annotations
@@ -53,9 +65,22 @@ from meanfield.signs.robots import NavigationField
 
 DVD_DT_OPTIONS = ("model", "fokker-planck", "finite-difference")
 """The ways :class:`BacksteppingController` obtains ``∂_t v_d``."""
+CONGESTION_OPTIONS = ("compensate", "ignore")
+"""``controller.congestion``: track ``v_d / g`` on a congested plant (:class:`CongestedPlant`), or ``v_d``."""
+G_MIN = 0.1
+"""The default floor ``g_min`` of the speed factor the law divides by: at most 10× the walking velocity
+asked of the robots' field; the linear diagram reaches it at 0.9 ρ_max (4.86 persons/m²), Weidmann's at
+4.16 persons/m² (docs page *Verification*, "Steps I and II on the congested plant")."""
+_SLOPE_STEP = 6e-6
+"""Central-difference step of ``g'``, as a fraction of the diagram's ``ρ_max`` (about ε^(1/3))."""
 
 __all__ = [
     "DVD_DT_OPTIONS",
+    "CONGESTION_OPTIONS",
+    "G_MIN",
+    "CongestedPlant",
+    "CongestionFaces",
+    "CongestionReport",
     "AlphaSchedule",
     "ConstantAlpha",
     "SaturatingAlpha",
@@ -184,6 +209,127 @@ class UserBetaGamma:
         return ExtraInputs(du, dw, A - done)
 
 
+# ---------------------------------------------------------------------- the congested plant
+@dataclass(frozen=True)
+class CongestionFaces:
+    """The speed factor of a congested plant on the faces, as the law uses it (:meth:`CongestedPlant.on_faces`).
+
+    Attributes
+    ----------
+    g : FaceField
+        ``g(Nρ_f)``: the plant's speed factor at the face densities.
+    gain : FaceField
+        ``1/ĝ``, ``ĝ = max(g, g_min)``: the tracked field is ``v_d · gain``.
+    gain_slope : FaceField
+        ``d(1/ĝ)/dρ_f = -N g'(Nρ_f)/g²`` where ``g >= g_min``, 0 where capped (``1/ĝ`` is constant there).
+    capped : tuple of bool arrays
+        The faces where ``g < g_min``: the law cannot ask the robots for ``v_d/g`` there.
+    excess : FaceField
+        ``g/ĝ - 1``: 0 where ``g >= g_min`` (exactly), ``g/g_min - 1 ∈ [-1, 0)`` where capped.
+    """
+
+    g: FaceField
+    gain: FaceField
+    gain_slope: FaceField
+    capped: tuple[np.ndarray, np.ndarray]
+    excess: FaceField
+
+
+@dataclass(frozen=True)
+class CongestedPlant:
+    """What the law knows of a congested crowd: its fundamental diagram and its number of people.
+
+    The plant (docs page *Congestion*) is ``∂_t ρ = -∇·(ρ g(Nρ) v_r + ρ u_W) + Δ(σρ)``, ``ρ`` of unit
+    mass, ``Nρ`` persons/m².  The law tracks ``v_d/ĝ`` with ``ĝ = max(g(Nρ_f), g_min)`` (the module
+    docstring; docs page *Verification*, "Steps I and II on the congested plant").
+
+    Parameters
+    ----------
+    diagram : FundamentalDiagram
+        Duck-typed (:mod:`meanfield.crowds.congestion`): ``speed_factor(persons/m²)`` in ``[0, 1]``, a
+        finite ``rho_max`` (persons/m²) and ``slows`` true.  ``g'`` is a central difference of
+        ``speed_factor`` with step ``h = 6e-6 ρ_max`` (:meth:`slope`): exact but for round-off of about
+        1e-11 relative for the linear diagram, whose ``g`` is linear; a truncation error of order
+        ``h² g‴/6`` otherwise.
+    people : float
+        ``N`` (> 0), the number of people.
+    g_min : float
+        The floor of the speed factor the law divides by, in ``(0, 1]`` (:data:`G_MIN`).
+    """
+
+    diagram: Any
+    people: float
+    g_min: float = G_MIN
+
+    def __post_init__(self) -> None:
+        for attr in ("speed_factor", "rho_max"):
+            if not hasattr(self.diagram, attr):
+                raise ParameterError(
+                    "crowd.congestion", type(self.diagram).__name__, "a fundamental diagram (speed_factor, rho_max)"
+                )
+        if not getattr(self.diagram, "slows", True):
+            raise ParameterError("crowd.congestion", "none", "a diagram that slows the crowd")
+        rho_max = float(self.diagram.rho_max)
+        if not (math.isfinite(rho_max) and rho_max > 0):
+            raise ParameterError("crowd.rho_max", rho_max, "a finite jam density > 0 (persons/m²)")
+        object.__setattr__(self, "people", positive_number("crowd.n", self.people))
+        g_min = float(self.g_min)
+        if not (0.0 < g_min <= 1.0):
+            raise ParameterError("g_min", self.g_min, "a speed factor in (0, 1]")
+        object.__setattr__(self, "g_min", g_min)
+
+    def speed_factor(self, rho_f: np.ndarray) -> np.ndarray:
+        """``g(Nρ)`` at unit-mass densities ``rho_f``."""
+        return np.asarray(self.diagram.speed_factor(self.people * np.asarray(rho_f, float)), float)
+
+    def slope(self, rho_f: np.ndarray) -> np.ndarray:
+        """``g'(r)`` at ``r = Nρ_f`` persons/m²: ``(g(r + h) - g(max(r - h, 0))) / (their distance)``."""
+        r = self.people * np.asarray(rho_f, float)
+        h = _SLOPE_STEP * float(self.diagram.rho_max)
+        lo = np.maximum(r - h, 0.0)
+        hi = r + h
+        f = self.diagram.speed_factor
+        return (np.asarray(f(hi), float) - np.asarray(f(lo), float)) / (hi - lo)
+
+    def on_faces(self, rf: FaceField) -> CongestionFaces:
+        """:class:`CongestionFaces` at the face densities ``rf``."""
+        out: dict[str, list[np.ndarray]] = {"g": [], "gain": [], "slope": [], "capped": [], "excess": []}
+        for r in rf:
+            g = self.speed_factor(r)
+            capped = g < self.g_min
+            gain = 1.0 / np.where(capped, self.g_min, g)
+            out["g"].append(g)
+            out["gain"].append(gain)
+            out["slope"].append(np.where(capped, 0.0, -self.people * self.slope(r) * gain * gain))
+            out["capped"].append(capped)
+            out["excess"].append(np.where(capped, g / self.g_min - 1.0, 0.0))
+        pair = {k: (v[0], v[1]) for k, v in out.items()}
+        return CongestionFaces(pair["g"], pair["gain"], pair["slope"], pair["capped"], pair["excess"])
+
+
+@dataclass(frozen=True)
+class CongestionReport:
+    """What one evaluation of the congestion-aware law found (``BacksteppingController.congestion_report``).
+
+    Attributes
+    ----------
+    capped_mass : float
+        The share of the crowd's mass on the faces where ``g < g_min`` (``ρ_f`` weighted as in the face
+        inner product, over both families of faces): where the guarantee does not hold.
+    capped_faces : float
+        The share of the open faces where ``g < g_min``.
+    residual : float
+        ``J = ⟨∇ρ̃, ρ_f (g/ĝ - 1) v_d⟩``: what the capped faces add to ``dV₂/dt`` (0 when none is capped).
+    g_least : float
+        The smallest ``g(Nρ_f)`` over the open faces.
+    """
+
+    capped_mass: float
+    capped_faces: float
+    residual: float
+    g_least: float
+
+
 # ---------------------------------------------------------------------- the controller
 @dataclass
 class _Prepared:
@@ -227,6 +373,10 @@ class BacksteppingController:
         so that it is the same law in any unit of length: ``V₂ = ½ℓ²∫ρ̃² + ½(cℓ)⁻²∫|ṽ|²``,
         dimensionless gains, β/γ of minimum norm in the scaled inputs (docs page
         *The controller*, "A law in any unit of length").  None: the paper's law.
+    congestion : CongestedPlant, optional
+        The plant's congestion: Step II then tracks ``v_d/ĝ`` (the module docstring; docs page
+        *Verification*, "Steps I and II on the congested plant"), on the numpy path.  None: the
+        paper's law (the crowd walks at ``v_r``).
     """
 
     def __init__(
@@ -241,8 +391,12 @@ class BacksteppingController:
         interaction: InteractionField | None = None,
         dvd_dt: Literal["model", "fokker-planck", "finite-difference"] = "finite-difference",
         scales: tuple[float, float] | None = None,
+        congestion: CongestedPlant | None = None,
     ):
         self.grid = grid
+        if congestion is not None and not isinstance(congestion, CongestedPlant):
+            raise ParameterError("congestion", type(congestion).__name__, "a CongestedPlant or None")
+        self.congestion = congestion
         self.scales = None if scales is None else (float(scales[0]), float(scales[1]))
         target = np.asarray(target, float)
         if target.shape != grid.shape:
@@ -261,10 +415,15 @@ class BacksteppingController:
         if dvd_dt not in DVD_DT_OPTIONS:
             raise ParameterError("controller.dvd_dt", dvd_dt, " or ".join(map(repr, DVD_DT_OPTIONS)))
         self.dvd_dt = dvd_dt
-        self._fokker_planck = FokkerPlanck(grid, sigma, interaction=interaction) if dvd_dt == "fokker-planck" else None
+        self._fokker_planck = None
+        if dvd_dt == "fokker-planck":  # the plant's right-hand side, congested as the plant is
+            slows = {} if congestion is None else {"congestion": congestion.diagram, "people": congestion.people}
+            self._fokker_planck = FokkerPlanck(grid, sigma, interaction=interaction, **slows)
         self._previous_vd: tuple[float, FaceField] | None = None
         self._target_gradient = grid.gradient(self.target)
         self._fused_state: dict[str, Any] = {}  # the compiled law's per-run constants (controllers._law_loops)
+        self.congestion_report: CongestionReport | None = None  # the last evaluation's, with a congested plant
+        self._congestion_stats = [0, 0.0, 0.0, 0.0]  # calls, capped mass: sum, max; |residual| max
 
     accepts_sensing = True
     """It runs on a group's knowledge (``[sensing]``, :mod:`meanfield.controllers.local_sensing`)."""
@@ -291,6 +450,10 @@ class BacksteppingController:
         The law takes no ``controller.options``: its gains are fields of ``[controller]``
         (``alpha``, ``k_u``, ``k_omega``, ...).  Any option is refused, naming it, as every
         controller refuses an option it does not know (a misspelt ``alpah`` ran unnoticed).
+
+        With a plant whose diagram slows (``parts.congestion``, filled by the assembly from
+        ``crowd.congestion`` when ``controller.congestion = "compensate"``) the law compensates it
+        (:class:`CongestedPlant`); a diagram that does not slow (``"none"``) leaves the paper's law.
         """
         if parts.options:
             raise ParameterError(
@@ -298,7 +461,7 @@ class BacksteppingController:
                 sorted(parts.options),
                 "no options: the backstepping law's gains are fields of [controller] (alpha, k_u, k_omega, ...)",
             )
-        return cls(*cls.law_arguments(parts), scales=parts.scales)
+        return cls(*cls.law_arguments(parts), scales=parts.scales, congestion=congested_plant(parts))
 
     @staticmethod
     def law_arguments(parts: ControllerParts) -> tuple:
@@ -400,6 +563,87 @@ class BacksteppingController:
         a = (p.q[0] * p.rf[0], p.q[1] * p.rf[1])  # α = (α/ρ)·ρ, as used in v_d
         return self.grid.face_inner((a[0] * p.grt[0], a[1] * p.grt[1]), p.grt)
 
+    # ------------------------------------------------------------------ the congested plant
+    def tracked_velocity(self, rho: np.ndarray, t: float = 0.0) -> FaceField:
+        """What the robots' field tracks: ``v_d/ĝ`` on a congested plant (:class:`CongestedPlant`), else ``v_d``."""
+        p = self._prepare(rho, t)
+        v_d = self._virtual_velocity(p)
+        if self.congestion is None:
+            return v_d
+        gain = self.congestion.on_faces(p.rf).gain
+        return gain[0] * v_d[0], gain[1] * v_d[1]
+
+    def tracked_velocity_rate(self, rho: np.ndarray, rho_dot: np.ndarray, t: float = 0.0) -> FaceField:
+        """``∂_t`` of :meth:`tracked_velocity` along ``∂_t ρ = rho_dot``:
+        ``∂_t(v_d/ĝ) = ∂_t v_d / ĝ + v_d · d(1/ĝ)/dρ_f · ρ̇_f`` (``d(1/ĝ)/dρ_f = 0`` where ``g < g_min``)."""
+        p = self._prepare(rho, t)
+        if self.congestion is None:
+            return self._virtual_velocity_rate(p, rho_dot)
+        return self._tracked_rate(p, self._virtual_velocity(p), self.congestion.on_faces(p.rf), rho_dot)
+
+    def congested_density_rate(self, rho: np.ndarray, v_r: FaceField, t: float = 0.0) -> np.ndarray:
+        """The law's model of the plant: ``-∇·(ρ_f g(Nρ_f) v_r + ρ_f u_W - ∇(σρ))`` (central fluxes, as
+        :meth:`density_rate`; ``g ≡ 1`` without a congested plant)."""
+        p = self._prepare(rho, t)
+        if self.congestion is None:
+            return self._density_rate(p, v_r)
+        return self._congested_rate(p, v_r, self.congestion.on_faces(p.rf))
+
+    def _congested_rate(self, p: _Prepared, v_r: FaceField, cf: CongestionFaces) -> np.ndarray:
+        return self._density_rate(p, (cf.g[0] * v_r[0], cf.g[1] * v_r[1]))
+
+    def _tracked_rate(self, p: _Prepared, v_d: FaceField, cf: CongestionFaces, rho_dot: np.ndarray) -> FaceField:
+        dvd = self._virtual_velocity_rate(p, rho_dot)
+        df = self.grid.face_average(rho_dot)
+        return tuple(cf.gain[k] * dvd[k] + cf.gain_slope[k] * df[k] * v_d[k] for k in range(2))  # type: ignore[return-value]
+
+    def congestion_at(self, rho: np.ndarray, t: float = 0.0) -> CongestionReport | None:
+        """The :class:`CongestionReport` of density ``rho`` (None without a congested plant), not counted in
+        :meth:`summary`."""
+        if self.congestion is None:
+            return None
+        p = self._prepare(rho, t)
+        return self._report(p, self._virtual_velocity(p), self.congestion.on_faces(p.rf), count=False)
+
+    def _report(self, p: _Prepared, v_d: FaceField, cf: CongestionFaces, count: bool = True) -> CongestionReport:
+        """The share of the mass where ``g < g_min``, and ``J = ⟨∇ρ̃, ρ_f (g/ĝ - 1) v_d⟩`` (kept and counted)."""
+        gr = self.grid
+        open_ = (gr.weight_x > 0, gr.weight_y > 0)
+        mass = [(gr.weight_x * p.rf[0]), (gr.weight_y * p.rf[1])]
+        total = float(mass[0].sum() + mass[1].sum())
+        capped = float(mass[0][cf.capped[0]].sum() + mass[1][cf.capped[1]].sum())
+        faces = int(open_[0].sum() + open_[1].sum())
+        n_capped = int((cf.capped[0] & open_[0]).sum() + (cf.capped[1] & open_[1]).sum())
+        residual = gr.face_inner(p.grt, tuple(p.rf[k] * cf.excess[k] * v_d[k] for k in range(2)))  # type: ignore[arg-type]
+        least = min(float(cf.g[k][open_[k]].min()) if open_[k].any() else 1.0 for k in range(2))
+        report = CongestionReport(capped / total if total > 0 else 0.0, n_capped / max(faces, 1), residual, least)
+        if not count:
+            return report
+        self.congestion_report = report
+        st = self._congestion_stats
+        st[0] += 1
+        st[1] += report.capped_mass
+        st[2] = max(st[2], report.capped_mass)
+        st[3] = max(st[3], abs(residual))
+        return report
+
+    def summary(self) -> dict[str, Any]:
+        """A run's congestion figures (``summary.json``), with a congested plant only (the paper's law: none).
+
+        ``congestion_g_min``; ``congestion_capped_mass_mean`` and ``_max``: the share of the mass on faces
+        where ``g < g_min``, where the guarantee does not hold, over the law's evaluations;
+        ``congestion_residual_max``: the largest ``|J|``.
+        """
+        if self.congestion is None:
+            return {}
+        calls, total, most, residual = self._congestion_stats
+        return {
+            "congestion_g_min": self.congestion.g_min,
+            "congestion_capped_mass_mean": total / calls if calls else 0.0,
+            "congestion_capped_mass_max": most,
+            "congestion_residual_max": residual,
+        }
+
     # ------------------------------------------------------------------ the law
     def robot_inputs(
         self, rho: np.ndarray, field: NavigationField, t: float = 0.0, dt: float | None = None
@@ -426,6 +670,8 @@ class BacksteppingController:
         p = self._prepare(rho, t)
         v_d = self._virtual_velocity(p)
         v_r = field.velocity()
+        if self.congestion is not None:
+            return self._congested_inputs(p, v_d, v_r, field, t)
         vt = (v_r[0] - v_d[0], v_r[1] - v_d[1])
         b, gg = field.moments(vt)
         if self.dvd_dt == "model":
@@ -451,6 +697,45 @@ class BacksteppingController:
             dissipation=self._dissipation(p), k_u=self.k_u, k_omega=self.k_omega,
         )  # fmt: skip
 
+    def _congested_inputs(
+        self, p: _Prepared, v_d: FaceField, v_r: FaceField, field: NavigationField, t: float
+    ) -> ControlState:
+        """Step II on the congested plant: track ``w = v_d/ĝ`` (the module docstring).
+
+        ``ṽ = v_r - w``, ``A = ⟨ṽ, ρ_f g ∇ρ̃ - ∂_t w⟩`` with ``∂_t w`` as ``dvd_dt`` says (the chain rule
+        along the congested model or the congested Fokker–Planck right-hand side, or a backward
+        difference of ``w``); the reported ``v_d`` is ``w`` and the reported dissipation is the
+        Step-I term ``∫α|∇ρ̃|² - J``, so that ``dV₂/dt = -dissipation - Σk_u|b_i|² - Σk_ω g_i² + shortfall``.
+        """
+        g = self.grid
+        cf = self.congestion.on_faces(p.rf)
+        w = (cf.gain[0] * v_d[0], cf.gain[1] * v_d[1])
+        vt = (v_r[0] - w[0], v_r[1] - w[1])
+        b, gg = field.moments(vt)
+        if self.dvd_dt == "model":
+            dw = self._tracked_rate(p, v_d, cf, self._congested_rate(p, v_r, cf))
+        elif self.dvd_dt == "fokker-planck":
+            dw = self._tracked_rate(p, v_d, cf, self._fokker_planck.rhs(p.rho, t, face_velocity=v_r))
+        else:
+            prev = self._previous_vd
+            if prev is None or t <= prev[0]:
+                dw = (np.zeros_like(w[0]), np.zeros_like(w[1]))
+            else:
+                dw = ((w[0] - prev[1][0]) / (t - prev[0]), (w[1] - prev[1][1]) / (t - prev[0]))
+            self._previous_vd = (t, w)
+        report = self._report(p, v_d, cf)
+        pull = (p.rf[0] * cf.g[0], p.rf[1] * cf.g[1])
+        k_u = self.k_u[:, None] if self.k_u.ndim else self.k_u
+        if self.scales is not None:
+            return self._scaled_inputs(p, w, vt, b, gg, dw, k_u, pull=pull, residual=report.residual)
+        A = g.face_inner(vt, (pull[0] * p.grt[0] - dw[0], pull[1] * p.grt[1] - dw[1]))
+        extra = self.strategy(b, gg, A)
+        return ControlState(
+            v_d=w, v_tilde=vt, rho_tilde=p.rho_t, b=b, g=gg, A=A,
+            u=extra.du + k_u * b, omega=extra.domega - self.k_omega * gg, shortfall=extra.shortfall,
+            dissipation=self._dissipation(p) - report.residual, k_u=self.k_u, k_omega=self.k_omega,
+        )  # fmt: skip
+
     def _fusable(self, rho: np.ndarray, field: NavigationField) -> bool:
         """Whether one compiled call (:func:`fused_robot_inputs`) computes this law now."""
         return self._fused_law(rho, field) is not None
@@ -461,11 +746,12 @@ class BacksteppingController:
         ``("paper", None)``: :func:`~meanfield.controllers._law_loops.paper_law`, the paper's Step I (eq. (6)) on a
         box, every sign seen; ``("faces", step_one)``: :func:`~meanfield.controllers._law_loops.face_law`, any grid
         (cut cells, signs hidden by walls), Step I as :meth:`_compiled_step_one` says; None: numpy.
-        Both need a constant σ, ``W = 0``, min-norm β/γ, ``∂_t v_d`` by a backward difference, the
-        paper's units, gains per robot at most, the Gaussian kernel on this grid, real C arrays.
+        Both need no congested plant, a constant σ, ``W = 0``, min-norm β/γ, ``∂_t v_d`` by a backward
+        difference, the paper's units, gains per robot at most, the Gaussian kernel on this grid, real C arrays.
         """
         if not (
-            not callable(self.sigma) and self.interaction is None and type(self.strategy) is MinimumNormBetaGamma
+            self.congestion is None
+            and not callable(self.sigma) and self.interaction is None and type(self.strategy) is MinimumNormBetaGamma
             and self.dvd_dt == "finite-difference" and self.scales is None and self.k_u.ndim <= 1
             and self.k_omega.ndim <= 1 and type(field.kernel) is GaussianKernel and field.grid is self.grid
             and rho.dtype == float and rho.shape == self.grid.shape and rho.flags.c_contiguous
@@ -490,30 +776,54 @@ class BacksteppingController:
             return PAPER_STEP_ONE, 0.0, math.inf, None
         return None
 
-    def _scaled_inputs(self, p: _Prepared, v_d: FaceField, vt: FaceField, b, gg, dvd, k_u) -> ControlState:
+    def _scaled_inputs(
+        self,
+        p: _Prepared,
+        v_d: FaceField,
+        vt: FaceField,
+        b,
+        gg,
+        dvd,
+        k_u,
+        pull: FaceField | None = None,
+        residual: float = 0.0,
+    ) -> ControlState:
         """Step II in the units ``ℓ``, ``c`` (``scales``): the law run on ``x/ℓ``, ``t c/ℓ``, ``ρℓ²``, ``v/c``.
 
         ``b̂ = b/(c²ℓ)``, ``ĝ = g/(c²ℓ²)``, ``Â = (ℓ³/c)⟨ṽ, ρ∇ρ̃⟩ − ⟨ṽ, ∂_t v_d⟩/(c³ℓ)``; then
         ``û = k_u b̂ + δû``, ``ω̂ = −k_ω ĝ + δω̂`` and ``u = c û``, ``ω = (c/ℓ) ω̂``, so that
         ``dV̂₂/dt̂ = −D̂ − Σ k_u|b̂|² − Σ k_ω ĝ²`` with ``V̂₂ = ½ℓ²∫ρ̃² + ½(cℓ)⁻²∫|ṽ|²``,
-        ``t̂ = tc/ℓ`` and ``D̂ = (ℓ³/c) D``.
+        ``t̂ = tc/ℓ`` and ``D̂ = (ℓ³/c) D``.  On a congested plant ``pull`` is ``ρ_f g`` (else ``ρ_f``),
+        ``v_d`` the tracked ``v_d/ĝ`` and ``D`` the Step-I term ``∫α|∇ρ̃|² − residual``.
         """
         g = self.grid
         ell, c = self.scales
-        pull = g.face_inner(vt, (p.rf[0] * p.grt[0], p.rf[1] * p.grt[1]))
+        rf = p.rf if pull is None else pull
+        pull = g.face_inner(vt, (rf[0] * p.grt[0], rf[1] * p.grt[1]))
         A = ell**3 / c * pull - g.face_inner(vt, dvd) / (c**3 * ell)
         b, gg = b / (c * c * ell), gg / (c * c * ell * ell)
         extra = self.strategy(b, gg, A)
         return ControlState(
             v_d=v_d, v_tilde=vt, rho_tilde=p.rho_t, b=b, g=gg, A=A,
             u=c * (k_u * b + extra.du), omega=c / ell * (-self.k_omega * gg + extra.domega), shortfall=extra.shortfall,
-            dissipation=ell**3 / c * self._dissipation(p), k_u=self.k_u, k_omega=self.k_omega,
+            dissipation=ell**3 / c * (self._dissipation(p) - residual), k_u=self.k_u, k_omega=self.k_omega,
             input_scale=(c, c / ell), v2_weights=(ell * ell, 1.0 / (c * ell) ** 2),
         )  # fmt: skip
 
     def reset(self) -> None:
-        """Forget the previous ``v_d`` (finite-difference mode)."""
+        """Forget the previous ``v_d`` (finite-difference mode) and the congestion figures."""
         self._previous_vd = None
+        self.congestion_report = None
+        self._congestion_stats = [0, 0.0, 0.0, 0.0]
+
+
+def congested_plant(parts: ControllerParts, g_min: float = G_MIN) -> CongestedPlant | None:
+    """The plant's congestion from the assembled parts (``parts.congestion``, ``parts.people``), or None
+    when there is none to compensate (no diagram, or one that does not slow: ``"none"``)."""
+    diagram = parts.congestion
+    if diagram is None or not getattr(diagram, "slows", False):
+        return None
+    return CongestedPlant(diagram, parts.people, g_min)
 
 
 # ---------------------------------------------------------------------- the law in one compiled call

@@ -40,7 +40,15 @@ from meanfield.signs.kernels import GaussianKernel, GaussianPotential, Navigatio
 from meanfield.signs.robots import RobotTeam
 from meanfield.simulation.preflight import check_fits
 
-__all__ = ["Parts", "assemble", "alpha_schedule_for", "disturbance_for", "initial_robots", "sensing_controllers"]
+__all__ = [
+    "Parts",
+    "assemble",
+    "alpha_schedule_for",
+    "disturbance_for",
+    "initial_robots",
+    "plant_congestion",
+    "sensing_controllers",
+]
 
 
 @dataclass
@@ -138,6 +146,16 @@ def law_scales(scenario: Scenario, region: Region, kernel: NavigationKernel) -> 
     return (float(np.sqrt(region.area)), float(c))
 
 
+def plant_congestion(scenario: Scenario) -> Any:
+    """The fundamental diagram the crowd walks by (``crowd.congestion`` resolved, as the crowds build it),
+    for the controller's parts with ``controller.congestion = "compensate"``; None with ``"ignore"`` (the
+    default: the law ignores it)."""
+    if scenario.controller.congestion != "compensate":
+        return None
+    c = scenario.crowd
+    return plugins.load("congestion", scenario.congestion_model)(free_speed=c.free_speed, rho_max=c.rho_max)
+
+
 def initial_robots(scenario: Scenario, rng: np.random.Generator) -> tuple[RobotTeam, Region]:
     """The robots' initial states (``robots.layout``, headings) and the region they may stand in."""
     r = scenario.robots
@@ -229,6 +247,8 @@ def assemble(
         dt=sc.dt,
         scales=law_scales(sc, region, kern),
         sight=sight,
+        congestion=plant_congestion(sc),
+        people=sc.crowd.n,
     )
     kind = c.kind if controller is None else controller
     factory = plugins.load("controller", kind)
