@@ -10,8 +10,17 @@ Names come from three places, one registration line each:
   plugins extend pytest (``meanfield`` never imports ``analysis`` or ``verification``;
   they register here through ``pyproject.toml``);
 * a user's own module, with :func:`register` (e.g. ``register("controller", "parked",
-  ParkedRobots.from_parts)``), imported before the scenario is validated, for instance
-  through the scenario's top-level ``plugins = ["my_module"]`` list.
+  ParkedRobots.from_parts)``), imported before the scenario is validated: named on the
+  command line (``--plugin my_module.py``), imported by the user's script, or listed in the
+  scenario's top-level ``plugins = ["my_module"]``.
+
+A scenario *read* from a file, TOML text or a table imports the modules its ``plugins`` lists
+only when the user allows it (:func:`allow_scenario_plugins`: ``--allow-plugins`` or
+``--plugin`` on the command line, ``allow_plugins=True`` in Python); otherwise it is refused with
+a :class:`ParameterError` naming ``plugins`` before anything is imported.  Scenario files are
+shared like data (a study's appendix, a colleague's building), and importing a module runs its
+code: reading one must not run code the user did not ask for.  Built-in parts and installed
+entry points are not affected (installing a package is the user's choice).
 
 A name registered twice is refused, naming both origins.
 
@@ -39,14 +48,34 @@ The kinds and what a factory of each kind receives and returns (docs page *Archi
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass
 from importlib.metadata import entry_points
+from pathlib import Path
 from typing import Any
 
 from meanfield.errors import ParameterError
 
-__all__ = ["BUILTIN", "GROUPS", "available", "declared", "load", "loaders", "origin", "register", "unregister"]
+__all__ = [
+    "BUILTIN",
+    "GROUPS",
+    "ALLOW_PLUGINS_HINT",
+    "PluginPermission",
+    "allow_scenario_plugins",
+    "available",
+    "check_scenario_plugins",
+    "current_permission",
+    "declared",
+    "import_plugin_modules",
+    "load",
+    "loaders",
+    "origin",
+    "permitted",
+    "register",
+    "unregister",
+]
 
 GROUPS = {
     "region": "meanfield.regions",
@@ -80,6 +109,7 @@ BUILTIN: dict[str, dict[str, str]] = {
     "guidance": {
         "signs": "meanfield.crowds.guidance:signs",
         "geodesic": "meanfield.crowds.guidance:geodesic",
+        "hughes": "meanfield.crowds.guidance:hughes",
         "random-walk": "meanfield.crowds.guidance:random_walk",
     },
     "congestion": {
@@ -267,14 +297,127 @@ def declared(kind: str, name: str, attribute: str, default: Any = None) -> Any:
     return getattr(getattr(factory, "__self__", None), attribute, default)
 
 
+# ---------------------------------------------------------------------- a scenario's own modules
+ALLOW_PLUGINS_HINT = (
+    "no modules unless the user allows them: a scenario file is shared like data, and its plugins "
+    "would run Python code when it is read. Allow them with --allow-plugins on the command line "
+    "(or name each with --plugin FILE_OR_MODULE), or with allow_plugins=True in Python "
+    "(load_scenario, Scenario.from_toml, Scenario.from_dict)"
+)
+"""What a refused scenario ``plugins`` list is told (the ``allowed`` part of the :class:`ParameterError`)."""
+
+
+@dataclass(frozen=True)
+class PluginPermission:
+    """Which modules a scenario that is read may import (see :func:`allow_scenario_plugins`).
+
+    Attributes
+    ----------
+    every : bool
+        Whatever a scenario lists (``--allow-plugins``).
+    modules : frozenset of str
+        These modules (``--plugin``): dotted names, and ``.py`` files by absolute path.
+    """
+
+    every: bool = False
+    modules: frozenset[str] = frozenset()
+
+    def allows(self, spec: str) -> bool:
+        """Whether the module ``spec`` (a dotted name or a path to a ``.py`` file) may be imported."""
+        return self.every or _module_key(spec) in self.modules
+
+
+_NOTHING_ALLOWED = PluginPermission()  # frozen: safe to share as the default
+_PERMISSION: ContextVar[PluginPermission] = ContextVar("meanfield_scenario_plugins", default=_NOTHING_ALLOWED)
+"""The permission of the code running now (a context variable: it holds within one
+:func:`allow_scenario_plugins` block of one thread or task, and never leaks into another call)."""
+
+
+def _module_key(spec: str) -> str:
+    """A module as the permission compares it: a ``.py`` file by its absolute path, else its dotted name."""
+    return str(Path(spec).resolve()) if spec.endswith(".py") else spec
+
+
+@contextmanager
+def allow_scenario_plugins(modules: Iterable[str] | None = None) -> Iterator[None]:
+    """Within the block, scenarios that are read may import the modules their ``plugins`` lists.
+
+    Parameters
+    ----------
+    modules : iterable of str, optional
+        None (the default) allows every module a scenario lists (the command line's
+        ``--allow-plugins``); a list allows those modules only (``--plugin``: the modules the user
+        named), each a dotted name or a path to a ``.py`` file (compared by absolute path).
+
+    Notes
+    -----
+    The permission is a :class:`contextvars.ContextVar`, set for the block and restored after it:
+    it does not leak into later calls, other threads or other processes.  A sweep's worker is
+    given it with each job (:func:`meanfield.workflows.sweep.run_sweep`).  Loaders take the
+    same permission as a keyword, ``allow_plugins=True``.
+    """
+    current = _PERMISSION.get()
+    if modules is None:
+        granted = PluginPermission(True, current.modules)
+    else:
+        named = [modules] if isinstance(modules, str) else list(modules)
+        keys = {_module_key(m) for m in named if isinstance(m, str) and m}
+        granted = PluginPermission(current.every, current.modules | keys)
+    with permitted(granted):
+        yield
+
+
+def current_permission() -> PluginPermission:
+    """The permission in force here: what a job sent to another process carries (:func:`permitted`)."""
+    return _PERMISSION.get()
+
+
+@contextmanager
+def permitted(permission: PluginPermission) -> Iterator[None]:
+    """Within the block, exactly ``permission`` is in force: a worker runs the job of a process that
+    allowed it (:func:`meanfield.workflows.dask_cluster.map_jobs` sends :func:`current_permission`)."""
+    if not isinstance(permission, PluginPermission):
+        raise ParameterError("permission", permission, "a meanfield.plugins.PluginPermission")
+    token = _PERMISSION.set(permission)
+    try:
+        yield
+    finally:
+        _PERMISSION.reset(token)
+
+
+def check_scenario_plugins(modules: Sequence[str], allow: bool = False, field: str = "plugins") -> None:
+    """Refuse a scenario's ``plugins`` that the user has not allowed, before anything is imported.
+
+    Parameters
+    ----------
+    modules : sequence of str
+        The modules a scenario that is being read lists (checked by :func:`meanfield.errors.module_list`).
+    allow : bool
+        The loader's own ``allow_plugins``: True allows them all.
+    field : str
+        The field named in the error.
+
+    Raises
+    ------
+    ParameterError
+        Naming ``field`` and saying how to allow the modules (:data:`ALLOW_PLUGINS_HINT`), when a
+        module is neither allowed by ``allow`` nor by the enclosing :func:`allow_scenario_plugins`.
+    """
+    if allow or not modules:
+        return
+    permission = _PERMISSION.get()
+    if not all(permission.allows(m) for m in modules):
+        raise ParameterError(field, list(modules), ALLOW_PLUGINS_HINT)
+
+
 def import_plugin_modules(modules: list[str] | tuple[str, ...], field: str = "plugins") -> None:
     """Import user modules (dotted names, or paths to ``.py`` files) that call :func:`register`.
 
-    Importing a module twice is harmless: Python keeps the first import.
+    Importing a module twice is harmless: Python keeps the first import.  This imports whatever
+    it is given: a scenario that is read asks :func:`check_scenario_plugins` first.
     """
     import importlib.util
     import sys
-    from pathlib import Path
 
     for spec in modules:
         if not isinstance(spec, str) or not spec:

@@ -17,7 +17,7 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "docs" / "examples"
 def test_parked_robots_come_from_the_toml_and_park_with_signs_on_the_target():
     # robots start away from their stations; at u_max = 0.2 the farthest needs ~6 time units
     # to arrive, then both errors decay like e^{-t}
-    sc = load_scenario(EXAMPLES / "parked_robots.toml").replace(t_final=12.0)
+    sc = load_scenario(EXAMPLES / "parked_robots.toml", allow_plugins=True).replace(t_final=12.0)
     sc = sc.with_values({"robots.layout": "random"})
     assert sc.controller.kind == "parked"
     loop = ClosedLoop(sc)
@@ -37,7 +37,8 @@ def test_parked_robots_come_from_the_toml_and_park_with_signs_on_the_target():
 
 
 def test_parked_robots_refuse_an_unknown_option():
-    sc = load_scenario(EXAMPLES / "parked_robots.toml").with_values({"controller.options.k_speed": 1.0})
+    sc = load_scenario(EXAMPLES / "parked_robots.toml", allow_plugins=True)
+    sc = sc.with_values({"controller.options.k_speed": 1.0})
     with pytest.raises(ParameterError) as exc:
         ClosedLoop(sc)
     assert exc.value.name == "controller.options" and "k_position" in str(exc.value)
@@ -45,7 +46,8 @@ def test_parked_robots_refuse_an_unknown_option():
 
 def test_obedient_walkers_come_from_the_toml_and_walk_only_where_a_sign_is_strong():
     # 4 robots on the unit square leave humans beyond every sign's reach
-    sc = load_scenario(EXAMPLES / "obedient_walkers.toml").replace(t_final=1.0).with_values({"robots.n": 4})
+    sc = load_scenario(EXAMPLES / "obedient_walkers.toml", allow_plugins=True)
+    sc = sc.replace(t_final=1.0).with_values({"robots.n": 4})
     assert sc.crowd.kind == "obedient-walkers"
     loop = ClosedLoop(sc)
     crowd = loop.crowd
@@ -72,7 +74,8 @@ def test_the_command_line_runs_an_example_and_its_saved_scenario_runs_again(tmp_
 
     out = tmp_path / "run"
     argv = ["run", str(EXAMPLES / "parked_robots.toml"), "--set", "t_final=0.2", "--out", str(out), "--quiet"]
+    argv.append("--allow-plugins")  # the example lists its module in plugins: a file runs no code without it
     assert main([*argv, "--no-figures"]) == 0
-    again = load_scenario(out / "scenario.toml")  # the plugin path is kept absolute
+    again = load_scenario(out / "scenario.toml", allow_plugins=True)  # the plugin path is kept absolute
     assert again.controller.kind == "parked" and again.plugins[0].endswith("parked_robots.py")
     assert ClosedLoop(again.replace(t_final=0.05)).run(progress=False).summary["status"] == "completed"

@@ -14,7 +14,7 @@ it by name once the module is imported, e.g. from TOML::
     [crowd]
     kind = "obedient-walkers"
 
-or ``meanfield run docs/examples/obedient_walkers.toml --out runs/walkers``.
+or ``meanfield run docs/examples/obedient_walkers.toml --allow-plugins --out runs/walkers``.
 """
 
 from __future__ import annotations

@@ -14,6 +14,9 @@ selects it by name once the module is imported, e.g. from TOML::
     kind = "parked"
     options = { k_position = 1.0, k_heading = 2.0 }
 
+read with ``meanfield run FILE.toml --allow-plugins`` or ``load_scenario(path, allow_plugins=True)``
+(a scenario file imports no module unless the user allows it).
+
 Run the comparison with the paper's law (a few seconds)::
 
     python docs/examples/parked_robots.py 10.0     # argument: t_final

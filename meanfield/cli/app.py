@@ -6,6 +6,11 @@ this package) and those of packages built on :mod:`meanfield`, through the ``mea
 entry points (``meanfield analyze`` comes from :mod:`analysis`).  A command module's
 ``register(subparsers)`` adds its parser and returns its handler, ``handler(args) -> int``.
 
+Every command takes ``--allow-plugins`` (a scenario's ``plugins`` may be imported) and
+``--plugin FILE_OR_MODULE`` (import this module first; :func:`~meanfield.cli.arguments.add_plugin_arguments`):
+without them, a scenario file that lists ``plugins`` is refused before any of its modules is
+imported (exit 2).
+
 Exit status: 0 success; 1 the run diverged or was interrupted (outputs of the last good
 state are still written); 2 invalid input (bad parameter, unknown scenario or key).
 """
@@ -29,6 +34,8 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     from importlib.metadata import PackageNotFoundError, version
 
+    from meanfield.cli.arguments import add_plugin_arguments
+
     try:
         installed = version("meanfield-crowd")
     except PackageNotFoundError:  # pragma: no cover - run from a source tree without installing
@@ -42,6 +49,8 @@ def _build_parser() -> argparse.ArgumentParser:
             handler = _unavailable(name, exc)
             stub = sub.add_parser(name, help=f"(unavailable: {exc})", add_help=False)
             stub.add_argument("rest", nargs=argparse.REMAINDER)
+        else:
+            add_plugin_arguments(sub.choices[name])
         sub.choices[name].set_defaults(plugin_handler=handler)
     return p
 
@@ -92,7 +101,10 @@ def _main(argv: Sequence[str] | None) -> int:
     if threading.current_thread() is threading.main_thread():
         previous = signal.signal(signal.SIGTERM, _terminated)
     try:
-        return args.plugin_handler(args)
+        named = getattr(args, "plugin_modules", None) or []
+        with plugins.allow_scenario_plugins(None if getattr(args, "allow_plugins", False) else named):
+            plugins.import_plugin_modules(named, field="--plugin")
+            return args.plugin_handler(args)
     except ParameterError as exc:
         print(f"meanfield: error: {exc}", file=sys.stderr)
         return 2

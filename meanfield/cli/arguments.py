@@ -1,7 +1,10 @@
-"""The arguments the ``meanfield`` commands share: a scenario, ``--out``, ``--seed``, ``--set``.
+"""The arguments the ``meanfield`` commands share: a scenario, ``--out``, ``--seed``, ``--set``,
+and on every command ``--allow-plugins`` and ``--plugin``.
 
 A command plugin (``meanfield.commands`` entry point, :mod:`meanfield.plugins`) adds them with
-:func:`add_scenario_arguments` and reads the scenario back with :func:`scenario_from_args`.
+:func:`add_scenario_arguments` and reads the scenario back with :func:`scenario_from_args`;
+:mod:`meanfield.cli.app` adds :func:`add_plugin_arguments` to every command and applies them
+around its handler.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ from meanfield.errors import ParameterError
 from meanfield.scenarios.overrides import parse_set
 
 __all__ = [
+    "add_plugin_arguments",
     "add_scenario_arguments",
     "scenario_from_args",
     "builtin_names",
@@ -47,6 +51,34 @@ def output_file(text: str) -> Path:
 
 
 SCENARIO_HELP = "a built-in scenario ({}) or a TOML file"
+
+
+def add_plugin_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--allow-plugins`` and ``--plugin FILE_OR_MODULE`` (repeatable), unless the command has them.
+
+    A scenario file is shared like data: the modules its ``plugins`` lists are imported (their
+    code runs) only with ``--allow-plugins``.  ``--plugin`` imports a module the user names,
+    before the command runs, and allows a scenario's ``plugins`` entry naming that same module,
+    no other.  Read back as ``args.allow_plugins`` and ``args.plugin_modules``;
+    :func:`meanfield.cli.app.main` applies them (:func:`meanfield.plugins.allow_scenario_plugins`).
+    """
+    have = parser._option_string_actions  # argparse keeps no public view of the options
+    if "--allow-plugins" not in have:
+        parser.add_argument(
+            "--allow-plugins",
+            action="store_true",
+            help="import the modules the scenario lists in `plugins` (a scenario file runs no code without it)",
+        )
+    if "--plugin" not in have:
+        parser.add_argument(
+            "--plugin",
+            action="append",
+            default=[],
+            dest="plugin_modules",
+            metavar="FILE_OR_MODULE",
+            help="import this module (a .py file or a dotted name), e.g. one that registers a controller, "
+            "before the command runs; allows a scenario's `plugins` entry naming it (repeatable)",
+        )
 
 
 def builtin_names() -> list[str]:

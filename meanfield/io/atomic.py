@@ -120,10 +120,50 @@ def subplots(
 
 # ---------------------------------------------------------------------- output folders
 def _nearest_existing(path: Path) -> Path:
+    """The deepest of ``path`` and its parents that exists, a symbolic link that leads nowhere included."""
     p = path.absolute()
-    while not p.exists() and p != p.parent:
+    while not os.path.lexists(p) and p != p.parent:
         p = p.parent
     return p
+
+
+ROOM_FOR_FILES = 300
+"""Bytes an output folder's path leaves under the system's ``PATH_MAX`` for what a command writes in
+it: a temporary file ``.<name>.XXXXXXXX.part.<suffix>``, a sweep's ``runs/<key>.json`` (its key at
+most about 140 bytes)."""
+
+
+def _path_limits() -> tuple[int, int]:
+    """The system's longest name of one path component and longest path, in bytes (255 and 4096 on Linux)."""
+    try:
+        return os.pathconf("/", "PC_NAME_MAX"), os.pathconf("/", "PC_PATH_MAX")
+    except (OSError, ValueError, AttributeError):  # pragma: no cover - no pathconf (Windows)
+        return 255, 4096
+
+
+def _shown(text: str) -> str:
+    """A path short enough for a message: its start and end, and its length."""
+    return text if len(text) <= 80 else f"{text[:40]}...{text[-24:]} ({len(text)} characters)"
+
+
+def _check_path_length(path: Path, name: str) -> None:
+    """Refuse a path the system cannot create, before any call that would raise ``OSError`` on it."""
+    from meanfield.errors import ParameterError
+
+    name_max, path_max = _path_limits()
+    full = os.fsencode(path.absolute())
+    longest = max((len(os.fsencode(part)) for part in path.parts), default=0)
+    if longest > name_max:
+        raise ParameterError(
+            name, _shown(str(path)), f"a folder path whose every name is at most {name_max} bytes (one has {longest})"
+        )
+    if len(full) + ROOM_FOR_FILES > path_max:
+        raise ParameterError(
+            name,
+            _shown(str(path)),
+            f"a folder path of at most {path_max - ROOM_FOR_FILES} bytes from the root (this one has {len(full)}): "
+            f"the system's limit is {path_max}, and the files written in the folder need room under it",
+        )
 
 
 def check_output_dir(path: str | Path, name: str = "--out") -> Path:
@@ -133,22 +173,40 @@ def check_output_dir(path: str | Path, name: str = "--out") -> Path:
     ------
     ParameterError
         Named ``name``: the path is a file, or lies under a file, or the folder (or the
-        nearest existing one above it) is not writable.
+        nearest existing one above it) is not writable, or the path is longer than the system
+        allows (a name over ``NAME_MAX`` bytes, or a path that leaves less than
+        :data:`ROOM_FOR_FILES` bytes under ``PATH_MAX``), or the system refuses to look at it.
     """
     from meanfield.errors import ParameterError
 
     if isinstance(path, str) and not path.strip():
         raise ParameterError(name, path, "a folder to write into (an empty path names none; '.' is the current one)")
     path = Path(path)
-    if path.is_symlink() and not path.exists():
-        target = os.readlink(path)
-        raise ParameterError(name, str(path), f"a folder to write into (a symbolic link to {target}, which is missing)")
-    base = _nearest_existing(path)
-    if base == path.absolute() and not base.is_dir():
-        raise ParameterError(name, str(path), "a folder to write into (this path is a file)")
-    if not base.is_dir():
-        raise ParameterError(name, str(path), f"a folder to write into ({base} is a file, not a folder)")
-    if not os.access(base, os.W_OK | os.X_OK):
+    _check_path_length(path, name)
+    try:
+        if path.is_symlink() and not path.exists():
+            target = os.readlink(path)
+            raise ParameterError(
+                name, str(path), f"a folder to write into (a symbolic link to {target}, which is missing)"
+            )
+        base = _nearest_existing(path)
+        if base.is_symlink() and not base.exists():  # a link above the folder that leads nowhere
+            raise ParameterError(
+                name,
+                str(path),
+                f"a folder to write into ({base} is a symbolic link to {os.readlink(base)}, which is missing "
+                "or a loop of links)",
+            )
+        if base == path.absolute() and not base.is_dir():
+            raise ParameterError(name, str(path), "a folder to write into (this path is a file)")
+        if not base.is_dir():
+            raise ParameterError(name, str(path), f"a folder to write into ({base} is a file, not a folder)")
+        writable = os.access(base, os.W_OK | os.X_OK)
+    except OSError as exc:  # a loop of links, a name the file system refuses, ...: not a traceback
+        raise ParameterError(
+            name, _shown(str(path)), f"a folder the system can write into ({exc.strerror or exc})"
+        ) from None
+    if not writable:
         raise ParameterError(name, str(path), f"a folder to write into ({base} is not writable)")
     return path
 
@@ -196,9 +254,11 @@ def check_output_file(path: str | Path, name: str = "--out") -> Path:
     from meanfield.errors import ParameterError
 
     path = Path(path)
+    check_output_dir(path.parent, name)  # first: refuses a path too long to ask the system about
+    if len(os.fsencode(path.name)) > _path_limits()[0]:
+        raise ParameterError(name, _shown(str(path)), f"a file name of at most {_path_limits()[0]} bytes")
     if path.is_dir():
         raise ParameterError(name, str(path), "a file path (this is a folder)")
-    check_output_dir(path.parent, name)
     return path
 
 

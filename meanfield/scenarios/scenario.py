@@ -4,7 +4,7 @@ A :class:`Scenario` is a tree of small dataclasses, one per TOML table
 (:mod:`meanfield.scenarios.sections`, re-exported here)::
 
     name, seed, dt, t_final, record_every, record_humans
-    plugins       modules that register parts (imported before anything else is read)
+    plugins       modules that register parts (imported first, when the user allows it)
     [domain]      kind (a registered region: "box" | "disk" | "polygon" | ...) and its sizes
     [grid]        cells = [nx, ny]
     [crowd]       kind (a registered crowd: "point-mass" | "jupedsim" | "fokker-planck" | ...), n, initial
@@ -209,6 +209,17 @@ class Scenario:
     ``plugins`` lists modules (dotted names or paths to ``.py`` files) that register parts
     in :mod:`meanfield.plugins`; :meth:`from_dict` imports them before it validates any
     section, so the scenario may name the parts they register.
+
+    Who may import them: a scenario that is *read* (:func:`load_scenario`, :meth:`from_toml`,
+    :meth:`from_dict`, and :meth:`with_values` for modules the scenario did not list) imports
+    its plugins only when the user allows it, with ``allow_plugins=True`` or within
+    :func:`meanfield.plugins.allow_scenario_plugins` (the command line's ``--allow-plugins``
+    and ``--plugin``); otherwise a :class:`~meanfield.errors.ParameterError` naming ``plugins``
+    is raised before anything is imported (a scenario file is shared like data; importing a
+    module runs its code).  The loaders check this before they build the dataclass, so the
+    permission does not need to reach ``__post_init__``: building ``Scenario(plugins=[...])``
+    (or :meth:`replace`) in Python imports the modules, since the caller is Python code that
+    asked for them by name.
     """
 
     name: str = "custom"
@@ -271,6 +282,15 @@ class Scenario:
                 "a target Gaussian with mass in the domain (centre inside Ω or within a few std)",
             )
         self._check_crowd()
+        c = self.crowd  # pre-movement and compliance are individuals' (docs page Buildings, "People are not all alike")
+        for key, value, default in (("premovement", c.premovement, "none"), ("compliance", c.compliance, 1.0)):
+            if value != default and not registry.declared("crowd", c.kind, "models_individuals", False):
+                raise ParameterError(
+                    f"crowd.{key}",
+                    value,
+                    f"{default!r} with the {c.kind!r} crowd, which does not model individuals (it declares no "
+                    "models_individuals): use a crowd of agents, such as point masses or JuPedSim's bodies",
+                )
         if self._congestion().slows and self.units != "SI":
             raise ParameterError(
                 "crowd.congestion",
@@ -355,6 +375,7 @@ class Scenario:
         """
         d = self.to_dict()
         d.setdefault("plugins", [])  # omitted from to_dict when empty, settable all the same
+        listed = self.plugins
         renamed = {}
         for short, value in assignments.items():
             if short in OLD_FIELDS:
@@ -385,7 +406,10 @@ class Scenario:
                 for k in [k for k in node if k != "kind" and keep is not None and k not in keep]:
                     del node[k]
             node[parts[-1]] = value
-        return Scenario.from_dict(d)
+        # this scenario's own modules are imported already; a module it did not list needs the permission
+        mods = d.get("plugins")
+        kept = isinstance(mods, list | tuple) and all(m in listed for m in mods)
+        return Scenario.from_dict(d, allow_plugins=kept)
 
     # ------------------------------------------------------------------ TOML
     def to_dict(self) -> dict[str, Any]:
@@ -419,11 +443,13 @@ class Scenario:
         return out
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> Scenario:
+    def from_dict(cls, d: dict[str, Any], *, allow_plugins: bool = False) -> Scenario:
         """Build and validate from a nested dict; unknown keys raise :class:`ParameterError`.
 
-        The modules listed in ``plugins`` are imported first; the ``[domain]`` table is
-        read by :func:`meanfield.geometry.region.region_from_table`.
+        The modules listed in ``plugins`` are imported first, when allowed (``allow_plugins``,
+        or :func:`meanfield.plugins.allow_scenario_plugins`), and refused otherwise, before any
+        import (see the class docstring); the ``[domain]`` table is read by
+        :func:`meanfield.geometry.region.region_from_table`.
         """
         if not isinstance(d, dict):
             raise ParameterError("scenario", type(d).__name__, "a table of fields")
@@ -433,7 +459,9 @@ class Scenario:
         if unknown:
             raise ParameterError(sorted(unknown)[0], d[sorted(unknown)[0]], f"a known key: one of {sorted(top)}")
         # first the user's modules, so that the sections may name the parts they register
-        registry.import_plugin_modules(module_list("plugins", d.get("plugins")), field="plugins")
+        modules = module_list("plugins", d.get("plugins"))
+        registry.check_scenario_plugins(modules, allow=allow_plugins)  # nothing is imported before this
+        registry.import_plugin_modules(modules, field="plugins")
         kwargs: dict[str, Any] = {k: d[k] for k in _TOP_LEVEL if k in d}
         if "domain" in d:
             kwargs["domain"] = region_from_table(d["domain"])
@@ -462,13 +490,13 @@ class Scenario:
         return tomli_w.dumps(self.to_dict())
 
     @classmethod
-    def from_toml(cls, text: str) -> Scenario:
-        """Parse TOML text (see :meth:`from_dict`)."""
+    def from_toml(cls, text: str, *, allow_plugins: bool = False) -> Scenario:
+        """Parse TOML text (see :meth:`from_dict`; ``allow_plugins`` lets its ``plugins`` be imported)."""
         try:
             d = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
             raise ParameterError("scenario file", str(exc), "valid TOML") from None
-        return cls.from_dict(d)
+        return cls.from_dict(d, allow_plugins=allow_plugins)
 
     def save(self, path: str | Path) -> None:
         """Write the scenario to a TOML file (atomically)."""
@@ -575,10 +603,13 @@ def _plugins_beside(d: dict[str, Any], folder: Path) -> dict[str, Any]:
     return d
 
 
-def load_scenario(spec: str | Path, seed: int | None = None) -> Scenario:
+def load_scenario(spec: str | Path, seed: int | None = None, *, allow_plugins: bool = False) -> Scenario:
     """A built-in scenario by name, or a TOML file by path; ``seed`` overrides the file's.
 
-    In a file, ``plugins`` paths to ``.py`` files are relative to the file's folder.
+    In a file, ``plugins`` paths to ``.py`` files are relative to the file's folder; they are
+    imported only with ``allow_plugins=True`` (or within
+    :func:`meanfield.plugins.allow_scenario_plugins`), and otherwise refused with a
+    :class:`ParameterError` naming ``plugins``, before anything is imported.
     """
     spec = str(spec)
     table = builtin_scenarios()
@@ -588,7 +619,7 @@ def load_scenario(spec: str | Path, seed: int | None = None) -> Scenario:
         path = Path(spec)
         if not path.is_file():
             raise ParameterError("scenario", spec, f"a built-in name ({', '.join(table)}) or an existing .toml file")
-        sc = Scenario.from_dict(_plugins_beside(_read_toml(path), path.parent))
+        sc = Scenario.from_dict(_plugins_beside(_read_toml(path), path.parent), allow_plugins=allow_plugins)
     if seed is not None:
         sc = sc.replace(seed=seed)
     return sc

@@ -370,7 +370,7 @@ class Recorder:
                 "humans_total": loop.crowd.n if loop.crowd.n is not None else 0,
                 "humans_recorded": len(self.humans) if self.humans is not None else 0,
                 "units_system": loop.scenario.units,
-                "Conventions": "CF-1.10",
+                "Conventions": CF_CONVENTIONS,
             },
         )
         if self.humans is not None:
@@ -419,12 +419,29 @@ _CF: dict[str, tuple[str, str]] = {
 }
 
 
+CF_CONVENTIONS = "CF-1.8"
+"""The ``Conventions`` attribute of ``timeseries.nc``: the newest CF version the CF checker
+(``cfchecker`` 4.1, the reference checker of cfconventions.org) knows, and all the file needs (later
+versions add nothing it uses).  ``tests/io/test_cf_conventions.py`` runs the checker on a saved run."""
+
+_INDEX_COORDINATES = {"robot": "index of the robot", "human": "index of the human in the crowd"}
+"""Integer coordinates: counts, CF ``units = "1"``."""
+
+
 def _label_variables(ds: Any, units: str) -> None:
     """CF attributes: ``long_name`` everywhere, ``units`` in SI or ``"1"`` when dimensionless.
 
     V2, A and the shortfalls mix 1/L² with L⁴/T² (docs page *The paper's slips*, units): they
-    get no physical unit, only their ``long_name``.
+    get no physical unit, only their ``long_name``.  The index coordinates ``robot`` and ``human``
+    are counts (``"1"``); coordinate variables carry no ``_FillValue`` (CF 2.5.1: a coordinate has
+    no missing values).
     """
+    for name, long_name in _INDEX_COORDINATES.items():
+        if name in ds.variables:
+            ds.variables[name].attrs.setdefault("long_name", long_name)
+            ds.variables[name].attrs["units"] = "1"
+    for name in ds.coords:
+        ds.variables[name].encoding["_FillValue"] = None
     for name, (unit, long_name) in _CF.items():
         if name in ds.variables:
             ds.variables[name].attrs.setdefault("long_name", long_name)

@@ -120,6 +120,10 @@ def map_jobs(fn: Callable[[Any], T], jobs: Sequence[Any], workers: int | None, d
     One job, or ``workers == 1`` without a scheduler, runs here, in this process.  Otherwise
     the jobs go to the cluster of the enclosing :func:`jobs_on`, or to a local cluster of
     ``workers`` processes started for this call.  ``fn`` must be a module-level function.
+
+    The permission to import a scenario's ``plugins`` in force here
+    (:func:`meanfield.plugins.current_permission`: ``--allow-plugins``, ``--plugin``) travels with
+    each job, so a worker reads the scenarios this process was allowed to read.
     """
     from tqdm.auto import tqdm
 
@@ -139,11 +143,25 @@ def map_jobs(fn: Callable[[Any], T], jobs: Sequence[Any], workers: int | None, d
         return _on_cluster(fn, jobs, current.get(), bar)
 
 
+def _permitted_call(job: Any, fn: Callable[[Any], T], permission: Any) -> T:
+    """``fn(job)`` on a worker, under the permission of the process that submitted it."""
+    from meanfield.plugins import permitted
+
+    with permitted(permission):
+        return fn(job)
+
+
 def _on_cluster(fn: Callable[[Any], T], jobs: Sequence[Any], client: Any, bar: Any) -> list[T]:
     from distributed import as_completed
 
+    from meanfield.plugins import PluginPermission, current_permission
+
     with client.as_current():
-        futures = client.map(fn, list(jobs), pure=False)
+        permission = current_permission()
+        if permission == PluginPermission():  # nothing allowed: the job as it is
+            futures = client.map(fn, list(jobs), pure=False)
+        else:  # the workers have no command line: the job carries what this process allowed
+            futures = client.map(_permitted_call, list(jobs), fn=fn, permission=permission, pure=False)
         index = {f.key: k for k, f in enumerate(futures)}
         out: list[Any] = [None] * len(futures)
         try:

@@ -32,6 +32,13 @@ Bad input
 Workers of an external cluster must have the same ``meanfield`` (and plugins) installed;
 the runs' outputs travel back to the process that called :func:`run_sweep`, which alone
 writes to ``OUT``.
+
+Plugins
+    A base scenario read from a file imports its ``plugins`` only when allowed
+    (``allow_plugins=True``, or the command line's ``--allow-plugins``), as everywhere
+    (:mod:`meanfield.plugins`).  Every run's scenario is built in this process first, so its
+    modules have been allowed here; each job carries that permission to its worker (a worker
+    trusts the process that submitted the job), which imports them before it reads the rest.
 """
 
 from __future__ import annotations
@@ -70,8 +77,12 @@ __all__ = [
 
 
 # ---------------------------------------------------------------------- worker side
-def _run_one(scenario_toml: str) -> dict[str, Any]:
-    """Run one closed loop from its scenario's TOML; never raises (errors come back as a summary)."""
+def _run_one(scenario_toml: str, allow_plugins: bool = False) -> dict[str, Any]:
+    """Run one closed loop from its scenario's TOML; never raises (errors come back as a summary).
+
+    ``allow_plugins`` is the permission the submitting process gives the job: whether the
+    scenario's ``plugins`` may be imported here (it built the scenario, so it allowed them).
+    """
     import traceback
 
     start = time.perf_counter()
@@ -79,7 +90,8 @@ def _run_one(scenario_toml: str) -> dict[str, Any]:
         from meanfield.scenarios.scenario import Scenario
         from meanfield.simulation.loop import ClosedLoop
 
-        summary = dict(ClosedLoop(Scenario.from_toml(scenario_toml)).run(progress=False).summary)
+        scenario = Scenario.from_toml(scenario_toml, allow_plugins=allow_plugins)
+        summary = dict(ClosedLoop(scenario).run(progress=False).summary)
         summary.pop("scenario", None)
         return summary
     except Exception as exc:  # recorded, the sweep goes on
@@ -99,7 +111,12 @@ def _collect(client: Any, todo: list, runs_dir: Path, records: dict, bar: Any, o
     from meanfield.io.atomic import atomic_write_json
 
     state, pending_exc, executed = "completed", None, 0
-    futures = {client.submit(_run_one, r["toml"], pure=False, retries=0): r for r in todo}
+    # each run's scenario was built in this process (expand_sweep), its plugins allowed here: the job
+    # carries the permission to its worker, where no command line or context variable reaches
+    futures = {
+        client.submit(_run_one, r["toml"], allow_plugins=r["plugins_allowed"], pure=False, retries=0): r
+        for r in todo
+    }
     try:
         for fut in as_completed(futures):
             r = futures[fut]
@@ -137,6 +154,7 @@ def run_sweep(
     progress: bool = True,
     connect_timeout: float = CONNECT_TIMEOUT,
     on_result: Callable[[dict[str, Any]], None] | None = None,
+    allow_plugins: bool = False,
 ):
     """Run the closed loop for every combination of ``sets`` × ``seeds`` on Dask.
 
@@ -164,6 +182,10 @@ def run_sweep(
         holds ``key``, ``values``, ``seed`` and ``summary``).  An exception it raises stops the
         sweep like an interruption does (the outputs so far are written, then it propagates,
         except ``KeyboardInterrupt``, which is reported through ``attrs["status"]``).
+    allow_plugins : bool
+        Let a ``scenario`` read from a file import the modules its ``plugins`` lists (otherwise
+        refused, unless :func:`meanfield.plugins.allow_scenario_plugins` allows them).  The
+        workers are given the permission with each job.
 
     Returns
     -------
@@ -184,7 +206,7 @@ def run_sweep(
     from meanfield.io.atomic import atomic_write_with
 
     # ---- validation: nothing is created or run before all of it passes
-    base, sets, seed_list = check_sweep(scenario, sets, seeds)
+    base, sets, seed_list = check_sweep(scenario, sets, seeds, allow_plugins=allow_plugins)
     if workers is not None and (not isinstance(workers, int) or workers < 1):
         raise ParameterError("--workers", workers, "an integer >= 1")
     plan = expand_sweep(base, sets, seed_list)

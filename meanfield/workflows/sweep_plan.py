@@ -190,7 +190,9 @@ class SweepPlan:
         The dataset coordinate of each swept key (numbers, or the values' text).
     runs : list of dict
         One per combination × seed: ``index`` (its position in the dataset), ``values``,
-        ``seed``, ``key`` (:func:`run_key`) and ``toml`` (its scenario).
+        ``seed``, ``key`` (:func:`run_key`), ``toml`` (its scenario) and ``plugins_allowed``
+        (the permission its worker is given to import the scenario's ``plugins``: they were
+        allowed in this process when the scenario was built).
     """
 
     base: Any
@@ -201,13 +203,13 @@ class SweepPlan:
 
 
 def check_sweep(
-    scenario: Any, sets: dict[str, list], seeds: int | Sequence[int]
+    scenario: Any, sets: dict[str, list], seeds: int | Sequence[int], *, allow_plugins: bool = False
 ) -> tuple[Any, dict[str, list], list[int]]:
     """The base scenario, the swept values and the seeds of a sweep, checked.
 
     Parameters
     ----------
-    scenario, sets, seeds
+    scenario, sets, seeds, allow_plugins
         As for :func:`meanfield.workflows.sweep.run_sweep`.
 
     Returns
@@ -227,7 +229,7 @@ def check_sweep(
     """
     from meanfield.scenarios.scenario import Scenario, load_scenario
 
-    base = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    base = scenario if isinstance(scenario, Scenario) else load_scenario(scenario, allow_plugins=allow_plugins)
     if not isinstance(sets, dict):
         raise ParameterError("sets", sets, "a dict of dotted scenario key -> list of values")
     sets = {str(k): list(v) if isinstance(v, list | tuple) else [v] for k, v in sets.items()}
@@ -291,7 +293,7 @@ def expand_sweep(base: Any, sets: dict[str, list], seed_list: list[int]) -> Swee
             d = run_sc.to_dict()
             runs.append(
                 {"index": (*idx, j), "values": values, "seed": seed, "key": run_key(values, seed, d),
-                 "toml": run_sc.to_toml()}
+                 "toml": run_sc.to_toml(), "plugins_allowed": bool(run_sc.plugins)}
             )
     return SweepPlan(base, sets, seed_list, coords, runs)
 

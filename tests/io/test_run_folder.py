@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from pathlib import Path
 
 import pytest
 
@@ -117,6 +118,54 @@ def test_every_command_refuses_a_bad_out_with_status_2(argv, tmp_path, capsys):
     assert "--out" in err and str(afile) in err and "is a file" in err
 
 
+@pytest.mark.parametrize(
+    ("make", "says"),
+    [
+        (lambda tmp: "a" * 300, "every name is at most"),  # one name over NAME_MAX, relative to the cwd
+        (lambda tmp: str(tmp / "/".join(["b" * 200] * 25)), "from the root"),  # 5000 characters in all
+        (lambda tmp: str(tmp / "/".join(["c" * 200] * 19)), "from the root"),  # under PATH_MAX, no room for files
+    ],
+    ids=["name", "path", "no-room"],
+)
+def test_an_over_long_out_is_refused_naming_out_before_anything_runs(make, says, tmp_path, capsys, monkeypatch):
+    """Over-long ``--out`` paths ended in OSError tracebacks (issue "Nothing lost", item 8)."""
+    monkeypatch.chdir(tmp_path)
+    out = make(tmp_path)
+    with pytest.raises(ParameterError) as exc:
+        check_output_dir(out)
+    assert exc.value.name == "--out" and says in exc.value.allowed and len(exc.value.value) < 120
+    for argv in (["run", "paper", "--quiet", "--no-figures"], ["sweep", "paper", "--set", "robots=4"]):
+        with pytest.raises(SystemExit) as code:
+            main([*argv, "--out", out])
+        assert code.value.code == 2
+        err = capsys.readouterr().err
+        assert "argument --out" in err and says in err and "Traceback" not in err
+    with pytest.raises(SystemExit) as code:
+        main(["bench", "--out", str(Path(out) / "report.json")])
+    assert code.value.code == 2 and "argument --out" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []  # nothing was created
+
+
+def test_an_over_long_report_name_is_refused(tmp_path):
+    with pytest.raises(ParameterError) as exc:
+        check_output_file(tmp_path / ("r" * 300 + ".json"))
+    assert exc.value.name == "--out" and "a file name of at most" in exc.value.allowed
+
+
+def test_a_link_above_the_folder_that_leads_nowhere_is_refused_not_a_traceback(tmp_path):
+    """Accepted before, then an OSError (ELOOP) or FileExistsError when the run created its folder."""
+    loop = tmp_path / "loop"
+    loop.symlink_to(loop)  # a link to itself: ELOOP when the system follows it
+    with pytest.raises(ParameterError) as exc:
+        check_output_dir(loop / "run")
+    assert exc.value.name == "--out" and "a loop of links" in exc.value.allowed
+    dangling = tmp_path / "dangling"
+    dangling.symlink_to(tmp_path / "missing")
+    with pytest.raises(ParameterError) as exc:  # a link that leads nowhere, above the folder
+        check_output_dir(dangling / "deeper" / "run")
+    assert "symbolic link" in exc.value.allowed and not (tmp_path / "missing").exists()
+
+
 def test_bench_refuses_a_folder_as_its_report(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["bench", "--out", str(tmp_path)])
@@ -156,3 +205,15 @@ def test_a_plan_file_that_cannot_be_read_is_refused_not_a_traceback(file):
     with pytest.raises(ParameterError) as exc:
         Scenario.from_dict({"domain": {"kind": "plan", "file": file}})
     assert exc.value.name == "domain.file" and len(str(exc.value)) < 600
+
+
+def test_a_path_the_system_will_not_look_at_is_a_refusal_not_a_traceback(tmp_path, monkeypatch):
+    """A folder under one the user may not search (EACCES; as root nothing is refused, hence the stand-in)."""
+
+    def refuse(self, *args, **kwargs):
+        raise PermissionError(13, "Permission denied", str(self))
+
+    monkeypatch.setattr(Path, "is_symlink", refuse)
+    with pytest.raises(ParameterError) as exc:
+        check_output_dir(tmp_path / "run")
+    assert exc.value.name == "--out" and "the system can write into (Permission denied)" in exc.value.allowed

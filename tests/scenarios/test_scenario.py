@@ -226,10 +226,10 @@ def test_plugin_module_registers_a_controller_the_scenario_names(tmp_path):
     text = f'[controller]\nkind = "{name}"\n'
     try:
         assert _err(lambda: Scenario.from_toml(text)).name == "controller.kind"  # not registered yet
-        sc = Scenario.from_toml(f"plugins = [{json.dumps(str(module))}]\n" + text)
+        sc = Scenario.from_toml(f"plugins = [{json.dumps(str(module))}]\n" + text, allow_plugins=True)
         assert sc.controller.kind == name and sc.plugins == (str(module),)
         assert name in plugins.available("controller")
-        back = Scenario.from_toml(sc.to_toml())  # written back, imported again (once)
+        back = Scenario.from_toml(sc.to_toml(), allow_plugins=True)  # written back, imported again (once)
         assert back == sc and back.to_dict()["plugins"] == [str(module)]
     finally:
         plugins.unregister("controller", name)
@@ -263,6 +263,11 @@ def test_registry_names_and_plugins_refused_naming_the_field(text, name):
     assert _err(lambda: Scenario.from_toml(text)).name == name
 
 
+def test_an_allowed_plugin_that_cannot_be_imported_is_refused_naming_the_field():
+    err = _err(lambda: Scenario.from_toml('plugins = ["meanfield_no_such_plugin_module"]\n', allow_plugins=True))
+    assert err.name == "plugins" and "importable module" in err.allowed
+
+
 def test_unknown_region_kind_refused_listing_the_registered_kinds():
     from meanfield import plugins
 
@@ -289,9 +294,15 @@ def test_region_from_table_passes_the_table_to_the_registered_factory():
 
 
 def test_plugins_settable_with_values():
+    from meanfield import plugins
+
     sc = paper_scenario()
     assert sc.with_values({"plugins": []}) == sc
-    assert _err(lambda: sc.with_values({"plugins": ["meanfield_no_such_plugin_module"]})).name == "plugins"
+    refused = _err(lambda: sc.with_values({"plugins": ["meanfield_no_such_plugin_module"]}))  # a new module
+    assert refused.name == "plugins" and "--allow-plugins" in refused.allowed
+    with plugins.allow_scenario_plugins():
+        err = _err(lambda: sc.with_values({"plugins": ["meanfield_no_such_plugin_module"]}))
+    assert err.name == "plugins" and "importable module" in err.allowed
 
 
 # ---------------------------------------------------------------------- --set on empty fields (issue 16, item 5)

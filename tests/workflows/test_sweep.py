@@ -309,3 +309,78 @@ def test_a_sweep_of_more_runs_than_the_cap_is_refused_before_it_is_spelt_out(tin
     assert main(["sweep", str(tiny_toml), "--seeds", seeds, "--out", str(tmp_path / "s")]) == 2
     err = capsys.readouterr().err
     assert "--seeds" in err and "1,000,000" in err and not (tmp_path / "s").exists()
+
+
+# ---------------------------------------------------------------------- plugins (issue "Nothing lost", item 9)
+def _signs_plugin(folder: Path, name: str) -> Path:
+    """A module registering the controller ``name`` (static signs), leaving a marker when imported."""
+    module = folder / f"{name.replace('-', '_')}.py"
+    module.write_text(
+        "from pathlib import Path\n"
+        "from meanfield import plugins\n"
+        "from meanfield.controllers.static_signs import StaticSigns\n"
+        "Path(__file__).with_suffix('.imported').write_text('ran')\n"
+        f"plugins.register('controller', {name!r}, StaticSigns.from_parts)\n"
+    )
+    return module
+
+
+def _listing(folder: Path, module: Path, controller: str) -> Path:
+    path = folder / "listing.toml"
+    d = _tiny().to_dict()
+    d["plugins"] = [module.name]  # relative to the file
+    d["controller"]["kind"] = controller
+    import tomli_w
+
+    path.write_text(tomli_w.dumps(d))
+    return path
+
+
+def test_a_worker_imports_a_scenario_s_plugins_only_with_the_job_s_permission(tmp_path):
+    from meanfield.workflows.sweep import _run_one
+
+    name = "sweep-worker-signs"
+    module = _signs_plugin(tmp_path, name)
+    toml = f'plugins = ["{module}"]\nt_final = 0.05\n[controller]\nkind = "{name}"\n'
+    try:
+        refused = _run_one(toml)
+        assert refused["status"] == "error" and "invalid plugins" in refused["message"]
+        assert not module.with_suffix(".imported").exists()
+        done = _run_one(toml, allow_plugins=True)
+        assert done["status"] == "completed" and done["controller"] == name
+        assert module.with_suffix(".imported").exists()
+    finally:
+        plugins.unregister("controller", name)
+
+
+def test_a_sweep_of_a_scenario_with_plugins_runs_on_separate_workers_once_allowed(tmp_path, scheduler_address):
+    """The workers (other processes, started apart) have no command line: the job carries the permission."""
+    name = "sweep-external-signs"
+    module = _signs_plugin(tmp_path, name)
+    path = _listing(tmp_path, module, name)
+    try:
+        with pytest.raises(ParameterError) as exc:
+            run_sweep(path, {"robots.n": [4, 9]}, 1, tmp_path / "refused", scheduler=scheduler_address, progress=False)
+        assert exc.value.name == "plugins" and not (tmp_path / "refused").exists()
+        assert not module.with_suffix(".imported").exists()
+        ds = run_sweep(
+            path, {"robots.n": [4, 9]}, 1, tmp_path / "sweep", scheduler=scheduler_address, progress=False,
+            allow_plugins=True,
+        )
+        assert (ds["status"].values == "completed").all(), ds["message"].values
+    finally:
+        plugins.unregister("controller", name)
+
+
+def test_map_jobs_carries_the_permission_to_separate_workers(tmp_path, scheduler_address):
+    """analyze's and verify's fan-outs: a job checks a scenario's plugins under the submitting process's permission."""
+    from meanfield.workflows.dask_cluster import jobs_on, map_jobs
+
+    module = str(tmp_path / "some_plugin.py")
+    jobs = [[module], [module]]  # two jobs: they go to the cluster
+    check = plugins.check_scenario_plugins
+    with jobs_on(scheduler_address):
+        with pytest.raises(ParameterError):  # the job's own refusal, raised here
+            map_jobs(check, jobs, workers=None, desc="t", progress=False)
+        with plugins.allow_scenario_plugins([module]):
+            assert map_jobs(check, jobs, workers=None, desc="t", progress=False) == [None, None]
