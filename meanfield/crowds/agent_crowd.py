@@ -23,6 +23,16 @@ persons/m² (:func:`local_density`: its neighbours within :data:`DENSITY_RADIUS`
 ``v_r`` standing for whatever the human follows: the signs, the random walk out of a robot's
 view, or a baseline's guidance.  The interaction, the disturbance and the Brownian noise are
 not slowed (the mean-field equation keeps ``σΔρ`` as it is: ``∂ₜρ + ∇·(ρ g(ρ) v) = σΔρ``).
+
+People are not all alike (:class:`Individuals`; docs pages *Buildings*, "People are not all
+alike", and *Scenarios*): with ``crowd.premovement`` each human waits its own pre-movement time
+``τ_j`` (RiMEA's test 5) and stands until then: its whole velocity is 0, and no noise moves it
+(an engine that has ``standing`` keeps it still); only other bodies may push it.  With
+``crowd.compliance = c < 1`` a share ``1 − c`` of the humans, drawn once, ignores the robots'
+signs and walks the persistent random walk of ``[view]`` (:mod:`meanfield.crowds.local_view`), as a
+human who sees no robot does.  Both draws come from the run's generator after every draw the
+model made before (at the first step, after the walkers' headings and before the step's noise),
+so with the defaults (``"none"``, ``1.0``) nothing is drawn and every number is as before.
 """
 
 from __future__ import annotations
@@ -33,14 +43,14 @@ from typing import Any, Protocol
 import numpy as np
 
 from meanfield import plugins
-from meanfield.crowds._congestion_loops import count_neighbours
+from meanfield.crowds._congestion_loops import MAX_HUMANS, count_neighbours
 from meanfield.crowds._field_loops import bilinear_at, gaussian_field_at
 from meanfield.crowds.congestion import FundamentalDiagram
 from meanfield.crowds.guidance import Guidance
 from meanfield.crowds.kde import KernelDensityEstimator
 from meanfield.crowds.local_view import LocalView
 from meanfield.crowds.point_mass import PointMassEngine
-from meanfield.errors import ParameterError
+from meanfield.errors import ParameterError, num
 from meanfield.geometry.region import Region
 from meanfield.geometry.sight import SightLines
 from meanfield.geometry.target import fraction_in_disk
@@ -53,6 +63,10 @@ from meanfield.signs.sampled_field import SampledNavigationField
 __all__ = [
     "AgentEngine",
     "AgentCrowd",
+    "Individuals",
+    "PREMOVEMENT_LAWS",
+    "premovement_law",
+    "draw_premovement",
     "initial_positions",
     "local_density",
     "point_mass_crowd",
@@ -97,6 +111,8 @@ def local_density(
     """
     if not radius > 0:
         raise ParameterError("radius", radius, "a radius > 0 (m)")
+    if len(positions) > MAX_HUMANS:
+        raise ParameterError("crowd.n", len(positions), f"at most {MAX_HUMANS:.0e} humans with congestion")
     x = np.ascontiguousarray(positions, dtype=float)
     here = np.ones(len(x), dtype=bool) if active is None else np.ascontiguousarray(active, dtype=bool)
     counts = np.empty(len(x), dtype=np.int64)
@@ -126,6 +142,190 @@ def initial_positions(scenario: Any, n: int, rng: np.random.Generator) -> np.nda
         p = rng.normal(loc=c.initial_center, scale=c.initial_std, size=(2 * (n - len(out)) + 8, 2))
         out = np.vstack([out, p[scenario.domain.contains(p[:, 0], p[:, 1])]])
     return out[:n].copy()
+
+
+# ---------------------------------------------------------------------- people are not all alike
+PREMOVEMENT_LAWS: dict[str, tuple[str, ...]] = {"uniform": ("low", "high"), "lognormal": ("median", "sigma")}
+"""The laws of ``crowd.premovement`` and their parameters, in the scenario's time unit (s in SI).
+
+``uniform``: ``τ ~ U[low, high]``, ``0 <= low <= high`` (RiMEA: uniform or normal between a
+minimum and a maximum; its test 5 takes 10 to 100 s).  ``lognormal``: ``τ = median · exp(sigma Z)``,
+``Z ~ N(0, 1)``, ``median > 0``, ``sigma >= 0``, the law measured pre-movement times fit best
+(Forssberg et al. 2019).  Docs page *Scenarios*, "People who wait, people who do not follow"."""
+
+_PREMOVEMENT_ALLOWED = (
+    '"none", or a table {law = "uniform", low = L, high = H} with 0 <= L <= H, or '
+    '{law = "lognormal", median = M, sigma = S} with M > 0 and S >= 0 (times in the scenario\'s unit, s in SI)'
+)
+
+
+def premovement_law(value: Any, field: str = "crowd.premovement") -> dict[str, Any] | None:
+    """``crowd.premovement`` checked: None for ``"none"``, else the law's table with float parameters.
+
+    Parameters
+    ----------
+    value : str or dict
+        ``"none"``, or ``{"law": "uniform", "low": L, "high": H}`` or
+        ``{"law": "lognormal", "median": M, "sigma": S}`` (:data:`PREMOVEMENT_LAWS`).
+    field : str
+        The field's name in the errors.
+
+    Returns
+    -------
+    dict or None
+        ``{"law": ..., <parameters as floats>}``.
+
+    Raises
+    ------
+    ParameterError
+        Naming ``field`` (not a table, not ``"none"``), ``field.law`` (an unknown law), or the
+        parameter (``field.low`` below 0, ``field.high`` below ``low``, ``field.median <= 0``,
+        ``field.sigma < 0``, a missing or unknown key): no pre-movement time is below 0.
+    """
+    if isinstance(value, str) and value == "none":
+        return None
+    if not isinstance(value, dict):
+        raise ParameterError(field, value, _PREMOVEMENT_ALLOWED)
+    law = value.get("law")
+    if not isinstance(law, str) or law not in PREMOVEMENT_LAWS:
+        raise ParameterError(f"{field}.law", law, f"one of {sorted(PREMOVEMENT_LAWS)}")
+    keys = PREMOVEMENT_LAWS[law]
+    for key in value:
+        if key != "law" and key not in keys:
+            raise ParameterError(f"{field}.{key}", value[key], f"a key of the {law} law: law, {', '.join(keys)}")
+    for key in keys:
+        if key not in value:
+            raise ParameterError(f"{field}.{key}", "missing", f"a number: the {law} law takes {', '.join(keys)}")
+    out: dict[str, Any] = {"law": law}
+    if law == "uniform":
+        out["low"] = num(f"{field}.low", value["low"], lo=0.0, allowed="a time >= 0 (no pre-movement time below 0)")
+        out["high"] = num(f"{field}.high", value["high"], lo=out["low"], allowed=f"a time >= low = {out['low']:g}")
+    else:
+        out["median"] = num(f"{field}.median", value["median"], lo=0.0, lo_open=True, allowed="a time > 0")
+        out["sigma"] = num(f"{field}.sigma", value["sigma"], lo=0.0, allowed="a number >= 0 (the log's spread)")
+    return out
+
+
+def draw_premovement(law: dict[str, Any], n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` pre-movement times from a law of :func:`premovement_law`, drawn from ``rng`` (one call)."""
+    if law["law"] == "uniform":
+        return rng.uniform(law["low"], law["high"], n)
+    return law["median"] * np.exp(law["sigma"] * rng.standard_normal(n))
+
+
+class Individuals:
+    """Who waits and who ignores the signs: each human's pre-movement time and compliance.
+
+    Docs page *Buildings*, "People are not all alike".  Nothing is drawn until :meth:`start`
+    (the crowd's first step), so that the draws come after every draw the model made before:
+    first the ``N`` pre-movement times (with a law), then ``N`` uniforms ``U_j`` (with
+    ``compliance < 1``; human ``j`` ignores the signs when ``U_j >= compliance``), then the
+    non-followers' initial headings; each step after the crowd's own view, their headings'
+    increments.
+
+    Parameters
+    ----------
+    n : int
+        Number of humans.
+    premovement : dict, str or None
+        A law of :func:`premovement_law` (None or ``"none"``: everyone walks from the start).
+    compliance : float
+        The share of the humans who follow the signs, in [0, 1].
+    rng : numpy.random.Generator
+        The run's generator.
+    walk_speed, turning_rate : float
+        The non-followers' random walk (``[view]``: :class:`~meanfield.crowds.local_view.LocalView`).
+    domain : Region
+        Ω, whose walls turn the walkers.
+    clearance : float
+        A body's radius (the walkers keep it from the walls).
+
+    Attributes
+    ----------
+    times : ndarray, shape (N,), or None
+        The pre-movement times (None without a law, or before :meth:`start`).
+    ignores : ndarray of bool, shape (N,), or None
+        Who ignores the signs (None with ``compliance = 1``, or before :meth:`start`).
+    walk : LocalView or None
+        The non-followers' walk (a view that sees no robot, one row per non-follower).
+    """
+
+    def __init__(
+        self,
+        n: int,
+        premovement: Any,
+        compliance: float,
+        rng: np.random.Generator,
+        walk_speed: float = 0.0,
+        turning_rate: float = 0.0,
+        domain: Region | None = None,
+        clearance: float = 0.0,
+    ):
+        self.n = int(n)
+        self.law = premovement_law("none" if premovement is None else premovement)
+        self.compliance = num("crowd.compliance", compliance, lo=0.0, hi=1.0)
+        self.rng = rng
+        self.walk_speed, self.turning_rate = float(walk_speed), float(turning_rate)
+        self.domain, self.clearance = domain, float(clearance)
+        self.times: np.ndarray | None = None
+        self.ignores: np.ndarray | None = None
+        self.walkers = np.zeros(0, dtype=np.intp)  # the rows of the non-followers
+        self.walk: LocalView | None = None
+        self._started = False
+        self._last_start = math.inf  # the latest pre-movement time (then nobody waits any more)
+
+    @property
+    def default(self) -> bool:
+        """Whether everyone walks from the start and follows the signs (nothing to draw)."""
+        return self.law is None and self.compliance == 1.0
+
+    def start(self) -> None:
+        """Draw the times, who ignores the signs and their headings (once; later calls do nothing)."""
+        if self._started:
+            return
+        self._started = True
+        if self.law is not None:
+            self.times = draw_premovement(self.law, self.n, self.rng)
+            self._last_start = float(self.times.max()) if self.n else 0.0
+        if self.compliance < 1.0:
+            self.ignores = self.rng.random(self.n) >= self.compliance
+            self.walkers = np.flatnonzero(self.ignores)
+            self.walk = LocalView.blind(
+                len(self.walkers), self.walk_speed, self.turning_rate, self.domain, self.rng, self.clearance
+            )
+            self.walk.headings  # noqa: B018 -- drawn now, after who ignores the signs
+
+    def waiting(self, t: float) -> np.ndarray | None:
+        """Who has not started at time ``t`` (``t < τ_j``); None when nobody waits any more."""
+        if self.times is None or t >= self._last_start:
+            return None
+        return t < self.times
+
+    def ignore_signs(self, velocity: np.ndarray, positions: np.ndarray, dt: float) -> None:
+        """Replace, in place, the rows of the non-followers of ``velocity`` (N, 2) by their walk."""
+        if len(self.walkers):
+            w = self.walkers
+            velocity[w] = self.walk.walk_velocity(positions[w], dt)
+
+    def advance(self, dt: float) -> None:
+        """After the step: the non-followers' headings diffuse."""
+        if self.walk is not None:
+            self.walk.advance(dt)
+
+    def summary(self) -> dict[str, Any]:
+        """The drawn pre-movement times (smallest, median, largest) and the number of non-followers."""
+        out: dict[str, Any] = {}
+        if self.law is not None:
+            out["premovement_law"] = self.law["law"]
+            if self.times is not None and self.n:
+                out["premovement_min"] = float(self.times.min())
+                out["premovement_median"] = float(np.median(self.times))
+                out["premovement_max"] = float(self.times.max())
+        if self.compliance < 1.0:
+            out["compliance"] = self.compliance
+            if self.ignores is not None:
+                out["non_followers"] = int(self.ignores.sum())
+        return out
 
 
 class AgentCrowd:
@@ -166,6 +366,11 @@ class AgentCrowd:
         without it.
     density_radius : float
         The radius of each human's local density with congestion, m (:data:`DENSITY_RADIUS`).
+    individuals : Individuals, optional
+        Pre-movement times and compliance (:class:`Individuals`); None, or one with the defaults:
+        everyone walks from the start and follows the signs, every number as without it.  A
+        compliance below 1 needs the robots' signs (``guidance`` None): a baseline has no sign
+        to ignore.
     """
 
     def __init__(
@@ -183,6 +388,7 @@ class AgentCrowd:
         guidance: Guidance | None = None,
         congestion: FundamentalDiagram | None = None,
         density_radius: float = DENSITY_RADIUS,
+        individuals: Individuals | None = None,
     ):
         self.engine = engine
         self.kernel = kernel
@@ -215,6 +421,15 @@ class AgentCrowd:
         self.congestion_name = "none" if self.congestion is None else type(self.congestion).__name__.lower()
         self.peak_local_density = 0.0  # its largest value over the run so far
         self.peak_local_density_time = 0.0
+        self.individuals = individuals if individuals is not None and not individuals.default else None
+        if self.individuals is not None and self.individuals.compliance < 1.0 and guidance is not None:
+            raise ParameterError(
+                "crowd.compliance",
+                self.individuals.compliance,
+                "1 with a baseline crowd.guidance (compliance is the share who follow the robots' signs: "
+                'a crowd that follows no sign has none to ignore; use crowd.guidance = "signs")',
+            )
+        self.standing: np.ndarray | None = None  # who stood still at the last step (pre-movement; None: nobody)
 
     @property
     def positions(self) -> np.ndarray:
@@ -240,6 +455,11 @@ class AgentCrowd:
         see no robot (:meth:`LocalView.gate`).  With the Gaussian kernel or a sampled field
         the returned array is a work array, overwritten by the next call; both are one
         compiled pass over the humans (:mod:`meanfield.crowds._field_loops`).
+
+        With :class:`Individuals` (the first call draws them), the humans who ignore the signs
+        walk their random walk instead of ``v_r`` (no sign reaches them), and the whole
+        velocity of those whose pre-movement time has not come (``t < τ_j``) is 0
+        (:attr:`standing`).
         """
         positions = self.positions
         if self.guidance is not None:  # a baseline: the humans ignore the robots
@@ -266,6 +486,13 @@ class AgentCrowd:
             self.view.gate(drift, positions, robots.positions, dt, visible)
             if self.view.gated:  # (otherwise everyone sees a robot)
                 self.reached &= self.view.seen
+        people = self.individuals
+        if people is not None:  # (with the defaults not one operation more)
+            people.start()  # the first step: the draws, after every draw made before
+            if len(people.walkers):
+                people.ignore_signs(drift, positions, dt)
+                if self.reached is not None:
+                    self.reached[people.walkers] = False
         if self.congestion is not None:  # (without congestion not one operation more: every number as before)
             self._slow_down(drift, positions, t)
         if self.interaction is not None:
@@ -274,6 +501,10 @@ class AgentCrowd:
             ax, ay = self.disturbance(positions[:, 0], positions[:, 1], t)
             drift[:, 0] += ax
             drift[:, 1] += ay
+        if people is not None:
+            self.standing = people.waiting(t)
+            if self.standing is not None:
+                drift[self.standing] = 0.0
         return drift
 
     def _slow_down(self, velocity: np.ndarray, positions: np.ndarray, t: float) -> None:
@@ -312,10 +543,14 @@ class AgentCrowd:
             drift[gone] = 0.0
         else:
             drift = self.drift(robots, t, dt)
+        if self.individuals is not None and hasattr(self.engine, "standing"):
+            self.engine.standing = self.standing  # those waiting: no noise, no exit (the point masses)
         self.engine.step(drift, t, dt)  # (raises SimulationDiverged, nobody moved, on a non-finite drift)
         self.view.advance(dt)
         if self.guidance is not None:
             self.guidance.advance(dt)
+        if self.individuals is not None:
+            self.individuals.advance(dt)
 
     def density(self) -> np.ndarray:
         """The robots' KDE of the agents on the grid (with exits: of those still here, mass = their share)."""
@@ -364,6 +599,8 @@ class AgentCrowd:
             out["congestion_radius"] = self.density_radius
             out["peak_local_density"] = self.peak_local_density
             out["peak_local_density_time"] = self.peak_local_density_time
+        if self.individuals is not None:  # pre-movement times and non-followers (nothing with the defaults)
+            out.update(self.individuals.summary())
         return out
 
     @classmethod
@@ -380,6 +617,10 @@ class AgentCrowd:
             mode = "sampled" if n * sc.robots.n > SAMPLED_FIELD_ABOVE and ctx.sight is None else "exact"
         guidance = plugins.load("guidance", sc.crowd.guidance)(ctx, engine.positions)
         congestion = plugins.load("congestion", sc.congestion_model)(sc.crowd.free_speed, sc.crowd.rho_max)
+        c = sc.crowd  # pre-movement and compliance: the non-followers walk as [view] says
+        people = Individuals(
+            n, c.premovement, c.compliance, ctx.rng, v.walk_speed, v.turning_rate, sc.domain, engine.body_radius
+        )
         crowd = cls(
             engine,
             ctx.kernel,
@@ -394,6 +635,7 @@ class AgentCrowd:
             guidance,
             congestion,
             DENSITY_RADIUS,
+            people,
         )
         crowd.congestion_name = sc.congestion_model
         return crowd
@@ -406,6 +648,9 @@ def point_mass_crowd(ctx: CrowdContext) -> AgentCrowd:
     return AgentCrowd.from_context(PointMassEngine(humans, sc.domain, ctx.sigma, ctx.rng), ctx)
 
 
+point_mass_crowd.models_individuals = True  # type: ignore[attr-defined]
+"""Each human is an agent: it may wait its own pre-movement time and ignore the signs
+(``crowd.premovement``, ``crowd.compliance``; :class:`Individuals`)."""
 point_mass_crowd.default_congestion = {"SI": "linear"}  # type: ignore[attr-defined]
 """``crowd.congestion = "auto"``: the linear diagram in metres and seconds (it reproduces the measured
 bottleneck flows, docs page *Congestion*), none in the paper's dimensionless units."""

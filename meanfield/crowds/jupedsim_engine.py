@@ -472,6 +472,10 @@ def jupedsim_crowd(ctx: CrowdContext) -> AgentCrowd:
 
 jupedsim_crowd.options = JuPedSimOptions  # type: ignore[attr-defined]  # what the core asks (plugins.declared)
 jupedsim_crowd.check_scenario = check_scenario  # type: ignore[attr-defined]
+jupedsim_crowd.models_individuals = True  # type: ignore[attr-defined]
+"""Each body may wait its pre-movement time (its desired speed is 0 until then: it stands, and only
+other bodies may push it, by the pedestrian model) and ignore the signs (it walks the random walk of
+``[view]``): :class:`~meanfield.crowds.agent_crowd.Individuals`."""
 
 
 def max_body_overlap(x: np.ndarray, y: np.ndarray, radius: float) -> tuple[float, int]:

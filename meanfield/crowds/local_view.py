@@ -138,10 +138,18 @@ class LocalView:
 
     @classmethod
     def blind(
-        cls, n: int, walk_speed: float, turning_rate: float, domain: Domain, rng: np.random.Generator
+        cls,
+        n: int,
+        walk_speed: float,
+        turning_rate: float,
+        domain: Domain,
+        rng: np.random.Generator,
+        clearance: float = 0.0,
     ) -> LocalView:
-        """A view that sees no robot: everyone walks (the uninformed crowd, :mod:`meanfield.crowds.guidance`)."""
-        view = cls(n, 1.0, walk_speed, turning_rate, domain, rng)
+        """A view that sees no robot: everyone walks (the uninformed crowd, :mod:`meanfield.crowds.guidance`;
+        the humans who ignore the signs, :class:`~meanfield.crowds.agent_crowd.Individuals`), turning
+        ``clearance`` (a body's radius) before the walls."""
+        view = cls(n, 1.0, walk_speed, turning_rate, domain, rng, clearance)
         view.radius = 0.0
         view.seen = np.zeros(n, dtype=bool)
         return view

@@ -36,6 +36,15 @@ class PointMassEngine:
         Diffusion ``σ >= 0`` or ``σ(x, y, t)``; the noise is ``sqrt(2σ) dB``.
     rng : numpy.random.Generator
         Source of the Brownian increments.
+
+    Attributes
+    ----------
+    standing : ndarray of bool, shape (N,), or None
+        Who stands still during the next step (set by the crowd before it: those whose
+        pre-movement time has not come, :class:`~meanfield.crowds.agent_crowd.Individuals`).  Their
+        Brownian increments are drawn as everyone's (one normal draw per human and step, whoever
+        waits), then set to 0; no exit takes them and no bridge test is drawn for them (a person
+        who does not move does not leave).  None (the default): nobody, every number as without it.
     """
 
     body_radius = 0.0  # point masses
@@ -65,6 +74,7 @@ class PointMassEngine:
         self._noise = np.empty_like(positions)  # work array, reused every step
         self._amp_key: tuple | None = None
         self._box = NO_BOX if self._path_reflection else getattr(domain, "box_walls", NO_BOX)
+        self.standing: np.ndarray | None = None  # who waits (pre-movement): no noise, no exit
 
     @property
     def n(self) -> int:
@@ -80,6 +90,8 @@ class PointMassEngine:
         if self._noise.shape != x.shape:  # positions replaced by an array of another size
             self._noise = np.empty_like(x)
         self.rng.standard_normal(out=self._noise)
+        if self.standing is not None:  # those waiting do not move: no noise (their drift is 0)
+            self._noise[self.standing] = 0.0
         if callable(self.sigma):
             s = np.asarray(self.sigma(x[:, 0], x[:, 1], t), float)
             if len(self.exits):  # σ at those who left (NaN positions) is no one's
@@ -116,7 +128,7 @@ class PointMassEngine:
         from meanfield.geometry.exits import leaving
 
         x = self.positions
-        idx = np.flatnonzero(self.active)
+        idx = np.flatnonzero(self.active if self.standing is None else self.active & ~self.standing)
         sigma = 0.0 if callable(self.sigma) else self.sigma  # a σ(x, t): crossings only, no bridge test
         gone = leaving(previous[idx], x[idx], self.exits, sigma, dt, self.rng)
         out = idx[gone >= 0]

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from meanfield import plugins
-from meanfield.controllers.backstepping import DVD_DT_OPTIONS
+from meanfield.controllers.backstepping import CONGESTION_OPTIONS, DVD_DT_OPTIONS
 from meanfield.errors import ParameterError, all_numbers, choice, integer, num, optional_limit, point
 from meanfield.geometry.region import region_keywords
 
@@ -78,6 +78,19 @@ class CrowdSpec:
     ``"linear"``, with the jam density ``rho_max`` (persons/m², 5.4), or ``"auto"`` (the default):
     the crowd kind's own default for the scenario's units
     (:attr:`~meanfield.scenarios.scenario.Scenario.congestion_model`; docs page *Congestion*).
+
+    People are not all alike (docs pages *Scenarios*, "People who wait, people who do not
+    follow", and *Buildings*; :class:`~meanfield.crowds.agent_crowd.Individuals`).
+    ``premovement`` is each human's pre-movement time, in the scenario's time unit (s in SI):
+    ``"none"`` (the default: everyone walks from the start), ``{law = "uniform", low = L, high = H}``
+    (``0 <= L <= H``; RiMEA's test 5 takes 10 to 100 s) or ``{law = "lognormal", median = M,
+    sigma = S}`` (``M > 0``, ``S >= 0``; :data:`~meanfield.crowds.agent_crowd.PREMOVEMENT_LAWS`).
+    Until its time a human stands: its velocity is 0 and no noise moves it.  ``compliance`` in
+    [0, 1] (default 1: everyone follows the signs) is the share of the humans who follow the
+    robots' signs; the others, drawn once, walk the random walk of ``[view]`` as if they saw no
+    robot.  A compliance below 1 needs ``guidance = "signs"`` (a baseline has no sign to ignore:
+    refused when the crowd is built).  Both need a crowd kind that declares
+    ``models_individuals`` (the point masses and JuPedSim's bodies, not the density).
     """
 
     kind: str = "point-mass"
@@ -91,6 +104,8 @@ class CrowdSpec:
     free_speed: float = 1.34
     congestion: str = "auto"
     rho_max: float = 5.4
+    premovement: str | dict[str, Any] = "none"
+    compliance: float = 1.0
     options: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -105,6 +120,11 @@ class CrowdSpec:
         self.free_speed = num("crowd.free_speed", self.free_speed, lo=0.0, lo_open=True)
         self.congestion = choice("crowd.congestion", self.congestion, ("auto", *plugins.available("congestion")))
         self.rho_max = num("crowd.rho_max", self.rho_max, lo=0.0, lo_open=True)
+        from meanfield.crowds.agent_crowd import premovement_law  # (loaded with the crowds anyway)
+
+        law = premovement_law(self.premovement, "crowd.premovement")
+        self.premovement = "none" if law is None else law
+        self.compliance = num("crowd.compliance", self.compliance, lo=0.0, hi=1.0)
         if not isinstance(self.options, dict):
             raise ParameterError("crowd.options", self.options, "a table of tables, one per crowd kind")
         kinds = plugins.available("crowd")
@@ -255,6 +275,10 @@ class ControllerSpec:
     :mod:`meanfield.plugins`.  ``scaling`` is ``"paper"`` (the paper's law, in the scenario's
     units) or ``"kernel"`` (the same law in the units ``√|Ω|`` and the kernel's ``c``: the
     robots' inputs no longer depend on the unit of length, and the gains are dimensionless).
+    ``congestion`` is ``"ignore"`` (the default: the paper's law whatever the crowd) or
+    ``"compensate"`` (on a crowd that a fundamental diagram slows, ``crowd.congestion``, the
+    backstepping law tracks ``v_d / g``; without congestion it is the paper's law, number for
+    number; docs page *Verification*, "Steps I and II on the congested plant").
     """
 
     alpha: float = 0.2
@@ -267,6 +291,7 @@ class ControllerSpec:
     kind: str = "backstepping"
     options: dict[str, Any] = field(default_factory=dict)
     scaling: str = "paper"
+    congestion: str = "ignore"
 
     def __post_init__(self) -> None:
         self.alpha = num("controller.alpha", self.alpha, lo=0.0, lo_open=True)
@@ -277,6 +302,7 @@ class ControllerSpec:
         self.beta_gamma = choice("controller.beta_gamma", self.beta_gamma, plugins.available("beta_gamma"))
         self.dvd_dt = choice("controller.dvd_dt", self.dvd_dt, DVD_DT_OPTIONS)
         self.scaling = choice("controller.scaling", self.scaling, ("paper", "kernel"))
+        self.congestion = choice("controller.congestion", self.congestion, CONGESTION_OPTIONS)
         self.kind = choice("controller.kind", self.kind, plugins.available("controller"))
         if not isinstance(self.options, dict):
             raise ParameterError("controller.options", self.options, "a table of options for the controller kind")
