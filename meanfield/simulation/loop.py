@@ -239,6 +239,9 @@ class ClosedLoop:
         bar = None  # shown once the first step is done: it loads (or compiles) the compiled loops
         try:
             remaining = loop.crowd.remaining_fraction if recorder.exits else None  # only with exits
+            # everyone is out when less than half a person is left: for agents none (a count), for the
+            # density 1 - 0.5/N of its mass out, which never reaches exactly 0 (as the evacuation measures)
+            half_person = 0.5 / (loop.crowd.n if loop.crowd.n is not None else sc.crowd.n)
             with _stop_between_steps() as stop_requested:
                 for _ in range(n_steps):
                     if stop_requested():
@@ -251,7 +254,7 @@ class ClosedLoop:
                         bar.update(loop.step_index - first - bar.n)
                     if callback is not None:
                         callback(loop)
-                    if remaining is not None and remaining() <= 0.0:
+                    if remaining is not None and remaining() < half_person:
                         message = f"everyone left through the exits at t = {loop.t:.4g}"
                         break
         except SimulationDiverged as exc:

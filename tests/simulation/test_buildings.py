@@ -167,9 +167,7 @@ def test_baselines_are_refused_where_they_mean_nothing():
     with pytest.raises(ParameterError) as exc:
         paper_scenario(seed=0).with_values({"crowd.guidance": "follow-the-leader"})
     assert exc.value.name == "crowd.guidance" and "random-walk" in str(exc.value)
-    with pytest.raises(ParameterError) as exc:
-        ClosedLoop(_corridor("geodesic"), crowd="fokker-planck")
-    assert exc.value.name == "crowd.guidance"
+    # (the density takes the baselines too: tests/crowds/test_density_guidance.py)
 
 
 def test_a_robot_driven_into_a_pillar_at_an_angle_slides_round_it():
@@ -221,3 +219,15 @@ def test_a_robot_or_a_crowd_centre_in_a_pillar_is_refused_naming_it():
     with pytest.raises(ParameterError) as exc:
         hall.with_values({"crowd.initial": "gaussian", "crowd.initial_center": [7.5, 6.5]})
     assert exc.value.name == "crowd.initial_center"
+
+
+def test_a_density_run_stops_when_less_than_half_a_person_is_left():
+    """The density's mass never reaches 0 exactly: its run stops, as the evacuation measures say, once
+    ``1 − 0.5/N`` of it is out, at the step where ``evacuation_time_100`` is reached."""
+    sc = _corridor("geodesic", **{"t_final": 40.0, "crowd.sigma": 0.05})
+    result = ClosedLoop(sc, crowd="fokker-planck").run(progress=False)
+    s = result.summary
+    assert s["status"] == "completed" and "everyone left" in s["message"]
+    assert s["evacuation_time_100"] is not None and s["time_final"] == pytest.approx(s["evacuation_time_100"])
+    assert s["time_final"] < sc.t_final
+    assert (1.0 - s["fraction_evacuated"]) * sc.crowd.n < 0.5
