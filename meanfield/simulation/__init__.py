@@ -23,6 +23,7 @@ _LAZY = {
     "Recorder": "meanfield.simulation.observers",
     "RunEstimate": "meanfield.simulation.preflight",
     "SPECIFIC_FLOW": "meanfield.simulation.evacuation_measures",
+    "DESIGN_SPECIFIC_FLOW": "meanfield.simulation.evacuation_measures",
     "SimulationResult": "meanfield.simulation.result",
     "StepRecord": "meanfield.simulation.observers",
     "StragglerTracker": "meanfield.simulation.stragglers",
