@@ -15,6 +15,16 @@ congestion the crowd applies them once per control period, as it always has, and
 ``crowd.congestion`` the solver solves ``∂_t ρ + ∇·(ρ g(Nρ) v) = Δ(σρ)`` and its exits pass at
 most their capacity (:mod:`meanfield.fokker_planck.congested`; docs page *The Fokker–Planck
 solver*, "Exits and congestion").
+
+What the density follows is ``crowd.guidance``, as for the agents: each guidance declares what it
+gives the density (``for_density``, a :class:`~meanfield.crowds.guidance.DensityGuidance`: the
+robots' field, a drift of its own on the faces, a diffusion added to σ), and a guidance that
+declares nothing is refused (docs page *Congestion*, "The PDE").  The informed crowd
+(``geodesic``) walks ``v₀ (−∇φ/|∇φ|)``, the route to the nearest exit; without congestion its
+exits pass what the drift brings them, ``a_n⁺ ρ`` per metre of door (upwind, as the congested
+exits without their capacity), beside the diffusive outflow.  A guidance's drift may depend on
+the density (``velocity_of``: Hughes' route, ``hughes``, the travel time at the crowd's speed):
+it is asked afresh at the start of every control period, from the density then.
 """
 
 from __future__ import annotations
@@ -24,8 +34,10 @@ from typing import Any
 import numpy as np
 
 from meanfield import plugins
+from meanfield.crowds.guidance import DensityGuidance
+from meanfield.errors import ParameterError
 from meanfield.fokker_planck.solver import FokkerPlanck
-from meanfield.geometry.grid import Grid
+from meanfield.geometry.grid import FaceField, Grid
 from meanfield.geometry.sight import SightLines
 from meanfield.geometry.target import gaussian_target
 from meanfield.interfaces import CrowdContext
@@ -62,6 +74,10 @@ class DensityCrowd:
         the sampled-data plant of the theorem checks.
     sight : SightLines, optional
         A plan's walls that hide the signs (:mod:`meanfield.geometry.sight`).
+    guidance : DensityGuidance, optional
+        What the density follows (:mod:`meanfield.crowds.guidance`): the robots' field (None, the
+        default: the paper), or a drift of its own on the faces, fixed or a function of the density
+        (the robots' field then does not act); its added diffusion is already in ``fp``'s σ.
     """
 
     n = None
@@ -80,14 +96,14 @@ class DensityCrowd:
         kernel: NavigationKernel,
         substeps: bool = True,
         sight: SightLines | None = None,
+        guidance: DensityGuidance | None = None,
     ):
         self.fp = fp
+        self.guidance = DensityGuidance(follows_signs=True) if guidance is None else guidance
         self.sight = sight
         self.grid = fp.grid
         self.rho = np.array(rho0, dtype=float)
         if self.rho.shape != self.grid.shape:
-            from meanfield.errors import ParameterError
-
             raise ParameterError("rho0", self.rho.shape, f"an array of grid.shape {self.grid.shape}")
         self.kernel = kernel
         self.substeps = bool(substeps)
@@ -101,19 +117,36 @@ class DensityCrowd:
         self._out_before = fp.mass_out.copy()
         self.initial_mass = float(self.grid.integrate(self.rho))
         self.out_per_exit = np.zeros(0 if fp.sink is None else fp.sink.n_exits)
+        # a drift that depends on the density, without congestion: the exits pass what it brings them, so
+        # their rates follow it (_advective_exits from the solver's own sink, every period)
+        follows = self.guidance.velocity_of is not None
+        self._plain_exits = fp.sink if follows and fp.congestion is None and fp.absorbing else None
 
     def robot_velocity(self, robots: RobotTeam) -> tuple[np.ndarray, np.ndarray]:
         """``v_r`` (eq. (3)) on the grid faces at the robots' current states."""
         self.last_field = NavigationField(self.kernel, self.grid, robots.positions, robots.headings, self.sight)
         return self.last_field.velocity()
 
+    def velocity(self, robots: RobotTeam) -> FaceField | None:
+        """The drift the density follows over the next period: the robots' field (frozen at their
+        current states) when it follows the signs, else its guidance's own (None: none), for a
+        guidance whose drift depends on the density that at the current density (``velocity_of``)."""
+        if self.guidance.follows_signs:
+            return self.robot_velocity(robots)
+        if self.guidance.velocity_of is not None:
+            return self.guidance.velocity_of(self.rho)
+        return self.guidance.velocity
+
     def advance(self, robots: RobotTeam, t: float, dt: float) -> None:
-        """One control period of eq. (4) under the robots' field frozen at their current states."""
-        v_r = self.robot_velocity(robots)
+        """One control period of eq. (4) under the robots' field frozen at their current states
+        (or the guidance's drift, a drift that depends on the density taken at the period's start)."""
+        v = self.velocity(robots)
+        if self._plain_exits is not None and v is not None:
+            self.fp.sink = _advective_exits(self.fp.grid, self._plain_exits, v)
         if self.substeps:
-            self.rho = self.fp.solve(self.rho, t + dt, t0=t, face_velocity=v_r)
+            self.rho = self.fp.solve(self.rho, t + dt, t0=t, face_velocity=v)
         else:
-            self.rho = self.fp.step(self.rho, t, dt, face_velocity=v_r)
+            self.rho = self.fp.step(self.rho, t, dt, face_velocity=v)
         if self._period_sink:  # the exits' outflow over the period (Lie splitting, exact for the sink)
             self.rho, out = self.sink.apply(self.rho, dt)
             self.out_per_exit += out
@@ -136,7 +169,12 @@ class DensityCrowd:
 
     def summary(self) -> dict[str, Any]:
         """The solver's method and the mass (1 up to round-off with zero-flux walls); with exits, the mass out."""
-        out = {"fokker_planck_method": self.fp.method, "mass_final": float(self.grid.integrate(self.rho))}
+        out: dict[str, Any] = {
+            "fokker_planck_method": self.fp.method,
+            "mass_final": float(self.grid.integrate(self.rho)),
+        }
+        if self.guidance.diffusion > 0:
+            out["guidance_diffusion"] = self.guidance.diffusion
         if self.sink is not None:
             out["evacuated_per_exit"] = (self.out_per_exit / self.initial_mass).tolist()
         return out
@@ -149,30 +187,91 @@ class DensityCrowd:
         ``N = crowd.n`` and the diagram of ``crowd.congestion``/``crowd.rho_max``
         (:mod:`meanfield.fokker_planck.congested`; ``method`` ``"split"`` or ``"explicit"``).
 
+        ``crowd.guidance`` says what drives the density: the factory of that guidance declares
+        ``for_density`` (:func:`meanfield.plugins.declared`), which returns a
+        :class:`~meanfield.crowds.guidance.DensityGuidance` (docs page *Congestion*, "The PDE");
+        a guidance that declares nothing is refused, naming ``crowd.guidance`` and those the
+        density takes.
+
         The run's generator advances exactly as the agents' initial draw would
         (:func:`~meanfield.crowds.agent_crowd.initial_positions`), so that a seed gives the same
         robots, initial headings included, whether the crowd is agents or their density:
         the two can be compared under the same robots.
         """
         from meanfield.crowds.agent_crowd import initial_positions
-        from meanfield.errors import ParameterError
 
-        if ctx.scenario.crowd.guidance != "signs":
-            raise ParameterError(
-                "crowd.guidance", ctx.scenario.crowd.guidance, "'signs' for the density (the baselines are agents')"
-            )
-        initial_positions(ctx.scenario, ctx.scenario.crowd.n, ctx.rng)  # the agents' draw, discarded
         c = ctx.scenario.crowd
+        for_density = plugins.declared("guidance", c.guidance, "for_density")
+        if for_density is None:
+            takes = [n for n in plugins.available("guidance") if plugins.declared("guidance", n, "for_density")]
+            raise ParameterError(
+                "crowd.guidance",
+                c.guidance,
+                f"a guidance that declares what it gives the density (for_density): {', '.join(map(repr, takes))}",
+            )
+        guidance = for_density(ctx)
+        if not isinstance(guidance, DensityGuidance):
+            raise ParameterError(
+                "crowd.guidance", c.guidance, "a for_density returning a meanfield.crowds.guidance.DensityGuidance"
+            )
+        initial_positions(ctx.scenario, c.n, ctx.rng)  # the agents' draw, discarded
         diagram = plugins.load("congestion", ctx.scenario.congestion_model)(free_speed=c.free_speed, rho_max=c.rho_max)
         congested = bool(diagram.slows)  # "none": the paper's crowd, unchanged
+        own_drift = guidance.drifts
         fp = FokkerPlanck(
             ctx.grid,
-            ctx.sigma,
+            _added(ctx.sigma, guidance.diffusion),
             interaction=ctx.interaction,
             disturbance=ctx.disturbance,
             method=method,
-            exits=congested,  # uncongested: the exits once per control period, as ever (see __init__)
+            # uncongested: the exits once per control period, as ever (see __init__); a drift of the
+            # guidance's own: after every step of the solver, with the drift's outflow (_advective_exits;
+            # a drift that depends on the density: refreshed every period, in advance)
+            exits=congested or own_drift,
             congestion=diagram if congested else None,
             people=c.n if congested else None,
         )
-        return cls(fp, initial_density(ctx.scenario, ctx.grid), ctx.kernel, substeps=substeps, sight=ctx.sight)
+        if guidance.velocity is not None and not congested and fp.sink is not None:
+            fp.sink = _advective_exits(fp.grid, fp.sink, guidance.velocity)
+        return cls(
+            fp,
+            initial_density(ctx.scenario, ctx.grid),
+            ctx.kernel,
+            substeps=substeps,
+            sight=ctx.sight,
+            guidance=guidance,
+        )
+
+
+def _added(sigma: Any, diffusion: float) -> Any:
+    """``σ + D``: a guidance's diffusion added to the crowd's (a number, or a function of ``(x, y, t)``)."""
+    if diffusion == 0:
+        return sigma
+    if callable(sigma):
+        return lambda x, y, t: np.asarray(sigma(x, y, t), float) + diffusion
+    return float(sigma) + diffusion
+
+
+def _advective_exits(g: Grid, exits: Any, velocity: FaceField) -> Any:
+    """The solver's exits ``exits`` with the drift's outflow added: ``k = σℓ/(dV) + a_n⁺ ℓ/V`` per exit and cell
+    (a copy; ``exits`` is unchanged).
+
+    An exit is a face to an empty outside: the upwind flux through it is ``a_n⁺ ρ ℓ``, ``a_n`` the
+    drift's outward normal component at the cell (the mean over its open faces, as the congested
+    exits take it) and ``ℓ`` the door's length in the cell (:func:`~meanfield.fokker_planck.congested.door_lengths`);
+    beside the diffusive rate ``σℓ/(dV)`` of :class:`~meanfield.geometry.exits.ExitSink` it is a rate
+    linear in ``ρ``, which the sink applies exactly after each step (``ρ e^{−k dt}``).  The congested
+    exits pass ``min(a_n⁺ D(ρ) + σρ/d, q_max/N)`` per metre; this is their limit without congestion.
+    """
+    import copy
+
+    from meanfield.fokker_planck.congested import _cell_velocity, door_lengths, exit_normals
+
+    sink = copy.copy(exits)
+    vx, vy = _cell_velocity(g, *velocity)
+    normal = exit_normals(g, sink.segments)
+    speed = np.maximum(normal[:, 0, None, None] * vx[None] + normal[:, 1, None, None] * vy[None], 0.0)
+    volume = np.where(g.active, g.volume, np.inf)
+    sink.rates = sink.rates + speed * door_lengths(sink) / volume[None]
+    sink.total_rate = sink.rates.sum(axis=0)
+    return sink

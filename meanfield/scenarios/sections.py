@@ -68,10 +68,11 @@ class CrowdSpec:
     ``field_evaluation`` is how ``v_r`` reaches the humans: ``"exact"`` (eq. (3) at each
     human, O(N n)), ``"sampled"`` (on a lattice twice as fine as the grid, interpolated
     bilinearly, O(N + n M): :mod:`meanfield.signs.sampled_field`) or ``"auto"`` (sampled when
-    ``N n > 2·10⁶``).  ``guidance`` is what the agents follow: the robots' ``"signs"``
+    ``N n > 2·10⁶``).  ``guidance`` is what the humans follow: the robots' ``"signs"``
     (the paper), or a baseline, ``"geodesic"`` (the informed crowd, walking the shortest
-    route to an exit at ``free_speed``) or ``"random-walk"`` (the uninformed crowd; registry
-    kind ``guidance``, :mod:`meanfield.crowds.guidance`).  ``free_speed`` is the free walking speed
+    route to an exit at ``free_speed``), ``"random-walk"`` (the uninformed crowd) or, for the
+    density only, ``"hughes"`` (the informed crowd routed by travel time through the crowd;
+    registry kind ``guidance``, :mod:`meanfield.crowds.guidance`).  ``free_speed`` is the free walking speed
     (1.34 m/s, Weidmann), also used by the evacuation lower bound.  ``congestion`` is the
     speed–density relation the humans walk by (registry kind ``congestion``,
     :mod:`meanfield.crowds.congestion`): ``"none"`` (the paper's crowd), ``"weidmann"`` or
