@@ -52,6 +52,7 @@ KEYS = (
     "evacuation_lower_bound",
     "lower_bound_walk",
     "lower_bound_flow",
+    "design_flow_time",
     "peak_density",
     "crush_risk",
     "time_final",
