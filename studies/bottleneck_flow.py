@@ -180,11 +180,9 @@ def steady_flow(exit_times: np.ndarray, n: int, lo: float = 0.1, hi: float = 0.9
 
 def one_run(b: float, model: str, radius: float, seed: int) -> dict[str, Any]:
     """One run's flow and densities."""
-    import meanfield.crowds.agent_crowd as agents
     from meanfield.simulation.loop import ClosedLoop
 
-    agents.DENSITY_RADIUS = radius  # the local-density radius of the congested crowd (no scenario field)
-    sc = scenario(b, model, seed)
+    sc = scenario(b, model, seed).with_values({"crowd.congestion_radius": radius})
     peak = PeakLocalDensity()
     loop = ClosedLoop(sc, observers=[peak])
     result = loop.run(progress=False)

@@ -219,12 +219,10 @@ def scenario(model: str, rho0: float, seed: int) -> Any:
 
 def simulate(model: str, radius: float, rho0: float, seed: int) -> tuple[np.ndarray, float]:
     """The positions ``(frames, N, 2)`` at :data:`FPS` from t = 0 to ``t_final`` (NaN: left), and the wall time."""
-    import meanfield.crowds.agent_crowd as agents
     from meanfield.simulation.loop import ClosedLoop
 
     _register()
-    agents.DENSITY_RADIUS = radius  # the local-density radius of the congested crowd (no scenario field)
-    sc = scenario(model, rho0, seed)
+    sc = scenario(model, rho0, seed).with_values({"crowd.congestion_radius": radius})
     start = time.perf_counter()
     loop = ClosedLoop(sc, crowd="corridor-jupedsim" if model == "jupedsim" else "corridor-point-mass")
     every = int(round(1.0 / (FPS * sc.dt)))

@@ -634,7 +634,7 @@ class AgentCrowd:
             ctx.sight,
             guidance,
             congestion,
-            DENSITY_RADIUS,
+            sc.crowd.congestion_radius,
             people,
         )
         crowd.congestion_name = sc.congestion_model

@@ -79,6 +79,8 @@ class CrowdSpec:
     ``"linear"``, with the jam density ``rho_max`` (persons/m², 5.4), or ``"auto"`` (the default):
     the crowd kind's own default for the scenario's units
     (:attr:`~meanfield.scenarios.scenario.Scenario.congestion_model`; docs page *Congestion*).
+    A congested agent's density is the others within ``congestion_radius`` (m, 0.6) over the
+    disk's area.
 
     People are not all alike (docs pages *Scenarios*, "People who wait, people who do not
     follow", and *Buildings*; :class:`~meanfield.crowds.agent_crowd.Individuals`).
@@ -105,6 +107,7 @@ class CrowdSpec:
     free_speed: float = 1.34
     congestion: str = "auto"
     rho_max: float = 5.4
+    congestion_radius: float = 0.6
     premovement: str | dict[str, Any] = "none"
     compliance: float = 1.0
     options: dict[str, dict[str, Any]] = field(default_factory=dict)
@@ -121,6 +124,9 @@ class CrowdSpec:
         self.free_speed = num("crowd.free_speed", self.free_speed, lo=0.0, lo_open=True)
         self.congestion = choice("crowd.congestion", self.congestion, ("auto", *plugins.available("congestion")))
         self.rho_max = num("crowd.rho_max", self.rho_max, lo=0.0, lo_open=True)
+        self.congestion_radius = num(
+            "crowd.congestion_radius", self.congestion_radius, lo=0.0, lo_open=True, allowed="a radius > 0 (m)"
+        )
         from meanfield.crowds.agent_crowd import premovement_law  # (loaded with the crowds anyway)
 
         law = premovement_law(self.premovement, "crowd.premovement")

@@ -165,3 +165,17 @@ def test_jam_density_and_free_speed_must_be_positive(key, value):
     with pytest.raises(ParameterError) as info:
         bottleneck("weidmann", **{key: value})
     assert info.value.name == key
+
+
+def test_the_local_density_radius_is_a_scenario_field():
+    """``crowd.congestion_radius`` reaches the crowd; a radius <= 0 is refused naming it."""
+    from meanfield.simulation.loop import ClosedLoop
+
+    sc = builtin_scenarios()["bottleneck"](seed=0).with_values({"crowd.congestion_radius": 0.4, "crowd.n": 20})
+    assert sc.congestion_model == "linear"
+    loop = ClosedLoop(sc)
+    assert loop.crowd.density_radius == 0.4
+    for bad in (0.0, -1.0):
+        with pytest.raises(ParameterError) as exc:
+            sc.with_values({"crowd.congestion_radius": bad})
+        assert exc.value.name == "crowd.congestion_radius"
