@@ -17,8 +17,9 @@ fokker_planck   the Fokker–Planck solver (ADI, ``courant=2``) against py-pde a
                 Richardson reference, set-up included and excluded (``bench_fokker_planck.py``)
 jupedsim        the JuPedSim crowd backend steered every step against JuPedSim alone
                 (``bench_jupedsim.py``)
-large_crowd     the closed loop at N = 10⁶ (``stadium``) against the same loop with v_r summed
-                exactly at every human (``bench_large_crowd.py``, child processes)
+large_crowd     the closed loop at N = 10⁶ (``stadium``) against a frozen plain-numpy step of the
+                same scenario written from the equations (``plain_stadium.py``;
+                ``bench_large_crowd.py``, child processes)
 bounded         the bounded β/γ program re-solved (cvxpy DPP) against rebuilt each time, and
                 its closed loop against min-norm's (``bench_bounded.py``)
 nmpc            NMPC solve per control step against the backstepping law (``bench_nmpc.py``)
@@ -123,7 +124,7 @@ BENCHMARKS: dict[str, Benchmark] = {
         ("closed_loop", "closed loop, paper scenario (N = 200)", "plain numpy loop; gaussian_kde calls"),
         ("fokker_planck", "Fokker–Planck solver, 64^2 / 64^2 ... 512^2", "py-pde and FiPy (optional)"),
         ("jupedsim", "JuPedSim crowd backend, steered every step", "JuPedSim alone (optional)"),
-        ("large_crowd", "closed loop at N = 1e6 (stadium)", "v_r summed exactly"),
+        ("large_crowd", "closed loop at N = 1e6 (stadium)", "the frozen plain stadium step"),
         ("bounded", "bounded beta/gamma: re-solve and closed loop", "rebuild; min-norm"),
         ("nmpc", "NMPC solve per control step", "backstepping law"),
         ("startup", "import meanfield; meanfield --help (whole processes)", "python -c pass"),
