@@ -106,7 +106,7 @@ def test_version_and_the_list_of_built_in_scenarios(capsys):
     assert exc.value.code == 0 and capsys.readouterr().out.strip() == f"meanfield {version('meanfield-crowd')}"
     assert main(["scenario", "--list"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
-    names = ["bottleneck", "hall", "l-room", "office", "paper", "paper-unity", "stadium"]
+    names = ["bottleneck", "hall", "l-room", "office", "paper", "paper-unity", "rimea-12", "rimea-9", "stadium"]
     assert [line.split()[0] for line in lines] == names
     assert all(len(line.split(maxsplit=1)) == 2 for line in lines)  # a name and what it is
 
@@ -115,7 +115,8 @@ def test_the_help_lists_every_built_in_scenario(capsys):
     with pytest.raises(SystemExit):
         main(["run", "--help"])
     text = " ".join(capsys.readouterr().out.split())
-    assert "a built-in scenario (bottleneck, hall, l-room, office, paper, paper-unity, stadium) or a TOML file" in text
+    names = "bottleneck, hall, l-room, office, paper, paper-unity, rimea-12, rimea-9, stadium"
+    assert f"a built-in scenario ({names}) or a TOML file" in text
 
 
 def test_the_paper_s_own_warning_is_kept_in_the_summary_and_printed_only_when_dt_changes(tmp_path, capsys):

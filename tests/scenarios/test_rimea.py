@@ -1,0 +1,89 @@
+"""The RiMEA scenarios (``rimea-9``, ``rimea-12``) against the guideline's expectations.
+
+RiMEA, *Richtlinie für Mikroskopische Entfluchtungsanalysen* 3.0.0, tests 9 and 12, as JuPedSim's
+system tests (``systemtest/rimea_tests/test_9`` and ``test_12``) describe and check them. Point
+masses, the informed crowd, the linear diagram (the scenarios' ``congestion = "auto"``);
+docs/buildings.md, *RiMEA tests*, has the measured numbers.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from meanfield.scenarios.scenario import builtin_scenarios
+from meanfield.simulation.loop import ClosedLoop
+
+SOUTH_EXITS = [[[4.0, 0.0], [5.0, 0.0]], [[25.0, 0.0], [26.0, 0.0]]]
+"""Test 9's exits left open in the second variant: those of one long wall (JuPedSim closes the other's)."""
+
+SEEDS = (0, 1, 2)
+
+
+def _evacuation_time(scenario) -> float:
+    result = ClosedLoop(scenario).run(progress=False)
+    t = result.summary["evacuation_time_100"]
+    assert t is not None, "somebody was left in the room at t_final"
+    return float(t)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_rimea_9_closing_two_of_four_exits_about_doubles_the_evacuation_time(seed):
+    """RiMEA test 9: 1000 persons in a 30 m x 20 m room with four 1 m exits; with the two exits of
+    one long wall closed the evacuation time "approximately doubles".
+
+    The tolerance is JuPedSim's reading of "approximately" in its check of the same test: the
+    ratio within [1.6, 2.4], i.e. 2 within 20 %. The full crowd of 1000 runs, on every seed here.
+    """
+    sc = builtin_scenarios()["rimea-9"](seed=seed)
+    assert sc.crowd.n == 1000 and len(sc.domain.exits) == 4
+    t4 = _evacuation_time(sc)
+    t2 = _evacuation_time(sc.with_values({"domain.exits": SOUTH_EXITS}))
+    assert 1.6 <= t2 / t4 <= 2.4, f"seed {seed}: {t2:.1f} s / {t4:.1f} s = {t2 / t4:.2f}"
+
+
+# Test 12: the plan of rimea-12.toml (room 1 x in [0, 10], the corridor x in [10, 15] and y in
+# [4.5, 5.5], room 2 x in [15, 25], the exit at x = 25, y in [4.5, 5.5]). The density is counted in
+# a box 2 m deep and 3 m wide in front of the corridor's entrance and, the same, in front of the
+# exit, at every step, and averaged over 1 s (20 steps).
+BEFORE = (8.0, 10.0, 3.5, 6.5)
+AFTER = (23.0, 25.0, 3.5, 6.5)
+BOX_AREA = 6.0  # m^2
+WINDOW = 20  # steps: 1 s
+
+
+def _in_box(x: np.ndarray, box: tuple[float, float, float, float]) -> int:
+    x0, x1, y0, y1 = box
+    with np.errstate(invalid="ignore"):  # NaN: people who left
+        return int(np.count_nonzero((x[:, 0] >= x0) & (x[:, 0] <= x1) & (x[:, 1] >= y0) & (x[:, 1] <= y1)))
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_rimea_12_congestion_forms_before_the_bottleneck_only(seed):
+    """RiMEA test 12: 150 persons leave a room through a 5 m x 1 m corridor into a second room and
+    out through its 1 m exit: a jam forms at the corridor's entrance, none at the exit.
+
+    A jam is a density on the congested branch of the crowd's fundamental diagram: above the
+    density of the largest flow, ρ_max / 2 = 2.7 persons/m² for the linear diagram the scenario
+    uses (docs/congestion.md). In front of the corridor the 1 s mean density passes it; in front of
+    the exit it stays below it all the time. The scenario draws its crowd from a normal law at
+    room 1's middle (rimea-12.toml says why); the density in front of the corridor is measured
+    after the first 10 s, when the crowd has walked there from where it started."""
+    sc = builtin_scenarios()["rimea-12"](seed=seed)
+    critical = sc.crowd.rho_max / 2
+    before: list[int] = []
+    after: list[int] = []
+
+    def count(loop: ClosedLoop) -> None:
+        x = loop.crowd.positions
+        before.append(_in_box(x, BEFORE))
+        after.append(_in_box(x, AFTER))
+
+    result = ClosedLoop(sc).run(progress=False, callback=count)
+    assert result.summary["evacuation_time_100"] is not None
+    kernel = np.ones(WINDOW) / WINDOW
+    rho_before = np.convolve(before, kernel, mode="valid") / BOX_AREA
+    rho_after = np.convolve(after, kernel, mode="valid") / BOX_AREA
+    settled = int(10.0 / sc.dt)
+    assert rho_before[settled:].max() > critical, f"seed {seed}: no jam before the corridor ({rho_before.max():.2f})"
+    assert rho_after.max() < critical, f"seed {seed}: a jam at the exit ({rho_after.max():.2f} persons/m²)"
