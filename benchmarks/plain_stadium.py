@@ -1,6 +1,7 @@
 """The ``stadium`` scenario's closed-loop step in plain numpy, written straight from the equations: a frozen anchor.
 
-The step uses no module of the toolkit: only :func:`stadium_numbers` imports ``meanfield``,
+The step uses no module of the toolkit (its law is :mod:`benchmarks.plain_loop`'s, the paper's frozen
+anchor): only :func:`stadium_numbers` imports ``meanfield``,
 and only to read the scenario's numbers (counts, grid, bandwidth, gains, limits), so the
 anchor does not change when the toolkit does.  It is what a careful reader of the paper
 would write for a million humans, vectorized with numpy, with no trick (no lattice for the
@@ -44,6 +45,8 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+
+from benchmarks.plain_loop import PlainPaperLoop
 
 __all__ = ["PlainStadiumStep", "stadium_numbers"]
 
@@ -185,6 +188,9 @@ class PlainStadiumStep:
     def robot_inputs(self, rho: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Steps I and II (eqs. (6) and (8)) with the minimum-norm β/γ, saturated (eq. (2)).
 
+        The paper loop's own law (:meth:`benchmarks.plain_loop.PlainPaperLoop.robot_inputs`, another
+        frozen anchor), run on this step's fields of the same names: one copy of the law.
+
         Parameters
         ----------
         rho : ndarray, shape (m, m)
@@ -195,44 +201,7 @@ class PlainStadiumStep:
         u : ndarray, shape (n, 2)
         omega : ndarray, shape (n,)
         """
-        d = self.d
-        rt = rho - self.target
-        rf = (0.5 * (rho[1:] + rho[:-1]), 0.5 * (rho[:, 1:] + rho[:, :-1]))
-        grad_t = ((rt[1:] - rt[:-1]) / d, (rt[:, 1:] - rt[:, :-1]) / d)
-        grad_r = ((rho[1:] - rho[:-1]) / d, (rho[:, 1:] - rho[:, :-1]) / d)
-        vd = [-(self.alpha0 / (rf[k] + self.rho_floor)) * grad_t[k] + self.sigma * grad_r[k] / rf[k] for k in (0, 1)]
-        if self.previous_vd is None:
-            dvd = [np.zeros_like(vd[0]), np.zeros_like(vd[1])]
-        else:
-            dvd = [(vd[k] - self.previous_vd[k]) / self.dt for k in (0, 1)]
-        self.previous_vd = vd
-        e = np.column_stack([np.cos(self.theta), np.sin(self.theta)])
-        kern, grad = [], []
-        for px, py in (self.fx, self.fy):
-            xi_x = px[None] - self.R[:, 0, None, None]
-            xi_y = py[None] - self.R[:, 1, None, None]
-            k = self.c * np.exp(-(xi_x**2 + xi_y**2) / self.eta)
-            kern.append(k)
-            grad.append((-2 / self.eta * xi_x * k, -2 / self.eta * xi_y * k))
-        vr = [np.einsum("i,ijk->jk", e[:, k], kern[k]) for k in (0, 1)]
-        vt = [vr[k] - vd[k] for k in (0, 1)]
-        w = d * d
-        # b_i = ∫ ṽᵀ K_ξ^i = ∫ (ṽ·e_i) ∇K̄_i ; g_i = ∫ ṽᵀ K_θ^i = ∫ K̄_i (ṽ·e⊥_i)
-        b = np.zeros((len(self.R), 2))
-        g = np.zeros(len(self.R))
-        for k in (0, 1):
-            proj = e[:, k, None, None] * vt[k][None]
-            b[:, 0] += (proj * grad[k][0]).sum((1, 2)) * w
-            b[:, 1] += (proj * grad[k][1]).sum((1, 2)) * w
-            perp = -e[:, 1] if k == 0 else e[:, 0]
-            g += (perp[:, None, None] * kern[k] * vt[k][None]).sum((1, 2)) * w
-        A = sum((vt[k] * (rf[k] * grad_t[k] - dvd[k])).sum() * w for k in (0, 1))
-        Z = (b**2).sum() + (g**2).sum()
-        u = self.k_u * b + (A / Z) * b
-        omega = -self.k_w * g - (A / Z) * g
-        speed = np.hypot(u[:, 0], u[:, 1])
-        u = np.where((speed > self.u_max)[:, None], u * (self.u_max / np.maximum(speed, 1e-300))[:, None], u)
-        return u, np.clip(omega, -self.w_max, self.w_max)
+        return PlainPaperLoop.robot_inputs(self, rho, 0.0)  # type: ignore[arg-type]  # the same law, the same fields
 
     def navigation_velocity(self, points: np.ndarray) -> np.ndarray:
         """``v_r(x) = Σ_i c exp(-|x - R_i|²/η) (cos θ_i, sin θ_i)`` (eq. (3)) at each point, exactly.
