@@ -3,7 +3,8 @@
 Run:  python benchmarks/bench_congestion.py [--quick] [--json FILE]
 
 Congestion (docs page *Congestion*) adds one thing to an agents' step: each human's local
-density, the others within 0.6 m (a cell list, :func:`meanfield.crowds.agent_crowd.local_density`),
+density, the others within 0.6 m over the disk's area in Ω (a cell list,
+:class:`meanfield.crowds.local_density.LocalDensity`),
 and the speed factor ``g(ρ)`` of the diagram.  Our figure: steps per second with
 ``crowd.congestion = "linear"``; anchor: the same scenario, seed and crowd with
 ``"none"``, timed in turns in the same run.  Goal (issue 30): a congested step costs at most

@@ -113,27 +113,30 @@ def scenario(b: float, model: str, seed: int, cells_per_metre: int | None = None
 
 
 class PeakLocalDensity:
-    """Observer: the largest local density (:data:`MEASURE_RADIUS`) of the people still in the room, and when."""
+    """Observer: the largest local density (:data:`MEASURE_RADIUS`, the disk cut by the walls, as the agents'
+    own) of the people still in the room, and when."""
 
     def __init__(self) -> None:
         self.peak, self.time = 0.0, 0.0
 
     def start(self, loop: Any) -> None:
+        from meanfield.crowds.local_density import LocalDensity
+
+        self.density = LocalDensity(len(loop.crowd.engine.positions), MEASURE_RADIUS, loop.scenario.domain)
         self.step(loop, None)
 
     def step(self, loop: Any, record: Any) -> None:
-        from meanfield.crowds.agent_crowd import local_density
-
         engine = loop.crowd.engine
-        rho = local_density(engine.positions, engine.active, MEASURE_RADIUS)
+        rho = self.density(engine.positions, engine.active)
         if len(rho) and rho.max() > self.peak:
             self.peak, self.time = float(rho.max()), float(loop.t)
 
 
 def disk_density(grid: Any, persons: np.ndarray, radius: float = MEASURE_RADIUS) -> np.ndarray:
     """The persons within ``radius`` of each cell's centre over ``π radius²`` (persons/m²), the density's
-    twin of the agents' local density (the cells whose centres are within ``radius``; the disk is not
-    clipped by the walls, as the agents' is not).
+    twin of the agents' local density (the cells whose centres are within ``radius``).  Unlike the agents'
+    (:class:`~meanfield.crowds.local_density.LocalDensity`), this disk is not cut by the walls: beside a
+    wall it reads up to half the density there is.
 
     Parameters
     ----------

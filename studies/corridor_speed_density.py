@@ -238,15 +238,16 @@ def measure(frames: np.ndarray, model: str = "none", radius: float = 0.6) -> lis
     """The windows' densities and speeds in the measurement area (PedPy), from :func:`simulate`'s frames.
 
     Besides PedPy's measures, each window has what the people in the area *see*: the mean of their own
-    local density ``ρ_j`` (others within ``radius`` over ``π radius²``, the congested point masses' count,
-    :func:`~meanfield.crowds.agent_crowd.local_density`) and, for a congested ``model``, the mean of
+    local density ``ρ_j`` (others within ``radius`` over the disk's area in the corridor, the congested point
+    masses' count, :class:`~meanfield.crowds.local_density.LocalDensity`) and, for a congested ``model``, the mean of
     ``v₀ g(ρ_j)``, the speed its diagram gives them (None for JuPedSim's bodies).
     """
     import pandas as pd
     import pedpy
 
-    from meanfield.crowds.agent_crowd import local_density
+    from meanfield import Domain
     from meanfield.crowds.congestion import Linear, Weidmann
+    from meanfield.crowds.local_density import LocalDensity
 
     diagram = {"weidmann": Weidmann(), "linear": Linear()}.get(model)
 
@@ -299,9 +300,10 @@ def measure(frames: np.ndarray, model: str = "none", radius: float = 0.6) -> lis
     vor_density = vor_density.set_index("frame")["density"]
     vor_speed = vor_speed.set_index("frame")["speed"]
     seen, given = {}, {}  # per frame: the mean ρ_j and v₀ g(ρ_j) of the people in the area
+    local_density = LocalDensity(x.shape[1], radius, Domain.box(LENGTH, WIDTH))
     for f in range(t_first, t_last):
         pts = x[f - first]
-        rho_j = local_density(pts, None, radius)
+        rho_j = local_density(pts)
         inside = (pts[:, 0] > x0) & (pts[:, 0] < x1)
         if inside.any():
             seen[f] = float(rho_j[inside].mean())
@@ -429,11 +431,12 @@ def uniform_crowd_speed(
 ) -> float:
     """``mean v₀ g(ρ_j)`` over a uniform random crowd of density ``rho`` in the corridor (its middle 20 m):
     the speed the diagram gives a crowd of point masses that has not moved, the count's noise and the walls'
-    cut of the disk included (``ρ_j`` from :func:`~meanfield.crowds.agent_crowd.local_density`).  Without
-    ``walls``: the people farther than ``radius`` from the walls of a crowd 10 m wide, whose disks no wall cuts
-    (the count's noise alone)."""
-    from meanfield.crowds.agent_crowd import local_density
+    walls' share of the disk included (``ρ_j`` from :func:`~meanfield.crowds.local_density.local_density`,
+    the disk cut by the corridor's walls as the agents' is).  Without ``walls``: the people farther than
+    ``radius`` from the walls of a crowd 10 m wide, whose disks no wall cuts (the count's noise alone)."""
+    from meanfield import Domain
     from meanfield.crowds.congestion import Linear, Weidmann
+    from meanfield.crowds.local_density import local_density
 
     diagram = {"weidmann": Weidmann(), "linear": Linear()}[model]
     width = WIDTH if walls else 10.0
@@ -445,7 +448,7 @@ def uniform_crowd_speed(
         if not walls:
             mid &= (p[:, 1] > radius) & (p[:, 1] < width - radius)
         if mid.any():
-            rho_j = local_density(p, None, radius)[mid]
+            rho_j = local_density(p, None, radius, Domain.box(FILL, width))[mid]
             speeds.append(diagram.free_speed * diagram.speed_factor(rho_j))
     return float(np.mean(np.concatenate(speeds)))
 

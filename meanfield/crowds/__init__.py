@@ -4,7 +4,8 @@ The agents under the signs (:mod:`~meanfield.crowds.agent_crowd`) moved by an en
 (:mod:`~meanfield.crowds.point_mass`) or JuPedSim's bodies (:mod:`~meanfield.crowds.jupedsim_engine`);
 the density itself (:mod:`~meanfield.crowds.density_crowd`, eq. (4)); the kernel density estimate the
 robots see (:mod:`~meanfield.crowds.kde`); what the humans follow (:mod:`~meanfield.crowds.guidance`)
-and their local view (:mod:`~meanfield.crowds.local_view`).
+and their local view (:mod:`~meanfield.crowds.local_view`); congestion's speed–density relations
+(:mod:`~meanfield.crowds.congestion`) and each human's local density (:mod:`~meanfield.crowds.local_density`).
 
 Names are imported on first use (:mod:`meanfield._namespace`).
 """
@@ -15,7 +16,7 @@ _LAZY = {
     "AgentCrowd": "meanfield.crowds.agent_crowd",
     "AgentEngine": "meanfield.crowds.agent_crowd",
     "BinnedPlan": "meanfield.crowds.kde",
-    "DENSITY_RADIUS": "meanfield.crowds.agent_crowd",
+    "DENSITY_RADIUS": "meanfield.crowds.local_density",
     "DensityCrowd": "meanfield.crowds.density_crowd",
     "FREE_SPEED": "meanfield.crowds.congestion",
     "FundamentalDiagram": "meanfield.crowds.congestion",
@@ -25,6 +26,7 @@ _LAZY = {
     "JuPedSimOptions": "meanfield.crowds.jupedsim_engine",
     "KernelDensityEstimator": "meanfield.crowds.kde",
     "Linear": "meanfield.crowds.congestion",
+    "LocalDensity": "meanfield.crowds.local_density",
     "LocalView": "meanfield.crowds.local_view",
     "NoCongestion": "meanfield.crowds.congestion",
     "PEDESTRIAN_MODELS": "meanfield.crowds.jupedsim_engine",
@@ -42,7 +44,7 @@ _LAZY = {
     "initial_positions": "meanfield.crowds.agent_crowd",
     "jupedsim_crowd": "meanfield.crowds.jupedsim_engine",
     "kde_direct": "meanfield.crowds.kde",
-    "local_density": "meanfield.crowds.agent_crowd",
+    "local_density": "meanfield.crowds.local_density",
     "max_body_overlap": "meanfield.crowds.jupedsim_engine",
     "persons_per_m2": "meanfield.crowds.congestion",
     "place_bodies": "meanfield.crowds.jupedsim_engine",

@@ -1,15 +1,27 @@
-"""The agents' local density, compiled: how many neighbours each human has within a radius.
+"""The agents' local density, compiled: the neighbours within a radius over the disk's area in Ω.
 
-:func:`count_neighbours` counts, for every active human ``j``, the other active humans ``k``
-with ``|X_k − X_j|² < r²``, by a cell list: the active humans are sorted into the cells of a
-lattice over their bounding box (cells at least ``r`` wide, at most about four per human),
-and each human looks at the humans of its own cell and of the eight around it.  O(N) for a
-bounded density: a counting sort by cell (the humans' positions copied in cell order), then the
-cells in memory order, each human's candidates three contiguous runs of the sorted copy (so
-the search reads memory in order; the random accesses are the sort's scatter and the counts'
-write-back, one pass each).  The count is an integer, so the compiled loop and its numpy
-twin (the same cell list, vectorised) agree exactly, whatever order they visit the pairs in.
-The caller turns the count into persons/m² (:func:`meanfield.crowds.agent_crowd.local_density`).
+:func:`neighbour_density` gives every active human ``j``
+
+    ρ_j = #{k ≠ j active : |X_k − X_j|² < r²} / (π r² max(s(X_j), s_min))
+
+with ``s`` the share of the disk inside Ω (:mod:`meanfield.geometry.disk_share`, read bilinearly)
+or 1 when no table is given (docs page *Congestion*, "The local density").
+
+The count is a cell list: the active humans are sorted into the cells of a lattice over their
+bounding box (cells at least ``r`` wide, at most about four per human) by a counting sort, and
+each pair of humans in the same or neighbouring cells is compared once (a half stencil: the rest
+of one's own cell and the cell above it, one contiguous run, then the three cells of the next
+column, another).  O(N) for a bounded density.
+
+The humans move a few centimetres a step, so the order of one step is nearly the order of the
+next: the caller keeps the permutation (``order``, sorted by cell at the last call, and its
+inverse ``slot``), and each human's position is *written* to its last slot (one sequential read
+of the positions; the random accesses are writes, which the processor buffers, where a gather
+by cell would wait for each read).  The counting sort then moves nearly sorted data, and the
+search reads memory in order.  The permutation changes the speed only: the counts are integers,
+and each human's density is computed from its own count and position, so every order gives the
+same numbers, and the compiled loop and its numpy twin (the same cell list, vectorised, with no
+memory of the order) agree to the last bit.
 """
 
 from __future__ import annotations
@@ -20,14 +32,36 @@ import numpy as np
 
 from meanfield._compiled.core import compiled
 
-__all__ = ["count_neighbours", "MAX_CELLS_PER_HUMAN", "MAX_HUMANS"]
+__all__ = ["neighbour_density", "DensityWork", "MAX_CELLS_PER_HUMAN", "MAX_HUMANS"]
 
 MAX_CELLS_PER_HUMAN = 4
 """The cell list has at most ``4 m + 64`` cells for ``m`` active humans (its cells grow, by doubling, beyond)."""
 
 
 MAX_HUMANS = 400_000_000
-"""The most humans :func:`count_neighbours` takes: its cell list's indices are 32-bit (``4 m + 65 < 2³¹``)."""
+"""The most humans :func:`neighbour_density` takes: its cell list's indices are 32-bit (``4 m + 65 < 2³¹``)."""
+
+
+class DensityWork:
+    """The arrays :func:`neighbour_density` works in for a crowd of ``n``, kept between calls.
+
+    ``order`` (the humans sorted by cell at the last call, then those not counted) and its
+    inverse ``slot`` start as the identity; the rest is scratch.
+    """
+
+    def __init__(self, n: int) -> None:
+        if n > MAX_HUMANS:
+            raise ValueError(f"at most {MAX_HUMANS} humans")
+        self.order = np.arange(n, dtype=np.int32)
+        self.slot = np.arange(n, dtype=np.int32)
+        self.positions = np.empty((4, n))  # last order's x, y; cell order's x, y
+        self.indices = np.empty((3, n), dtype=np.int32)  # cell; humans in cell order; counts
+        self.valid = np.empty(n, dtype=np.bool_)
+        self.starts = np.empty(MAX_CELLS_PER_HUMAN * n + 66, dtype=np.int32)
+
+    def arrays(self) -> tuple[np.ndarray, ...]:
+        """``(order, slot, positions, indices, valid, starts)``, as :func:`neighbour_density` takes them."""
+        return self.order, self.slot, self.positions, self.indices, self.valid, self.starts
 
 
 def _lattice(x0: float, x1: float, y0: float, y1: float, radius: float, m: int) -> tuple[float, int, int]:
@@ -42,13 +76,9 @@ def _lattice(x0: float, x1: float, y0: float, y1: float, radius: float, m: int) 
     return h, nx, ny
 
 
-def _count_neighbours_numpy(x, active, radius, out):
-    out[:] = 0
-    idx = np.flatnonzero(active & np.isfinite(x[:, 0]) & np.isfinite(x[:, 1]))
-    m = len(idx)
-    if m < 2:
-        return
-    p = x[idx]
+def _counts_numpy(p: np.ndarray, radius: float) -> np.ndarray:
+    """For each of the points ``p`` (M, 2), how many others are closer than ``radius`` (full stencil)."""
+    m = len(p)
     x0, y0 = float(p[:, 0].min()), float(p[:, 1].min())
     h, nx, ny = _lattice(x0, float(p[:, 0].max()), y0, float(p[:, 1].max()), radius, m)
     ci = np.minimum(((p[:, 0] - x0) / h).astype(np.int64), nx - 1)
@@ -72,41 +102,94 @@ def _count_neighbours_numpy(x, active, radius, out):
             dy = p[cand, 1] - p[rows, 1]
             hit = (dx * dx + dy * dy < r2) & (cand != rows)
             total += np.bincount(rows[hit], minlength=m)
-    out[idx] = total
+    return total
 
 
-@compiled(fallback=_count_neighbours_numpy)
-def count_neighbours(x, active, radius, out):
-    """For each active human, how many other active humans are closer than ``radius``; in place.
+def _neighbour_density_numpy(
+    x, active, radius, inv_area, table, ox, oy, spacing, floor, clipped,
+    order, slot, positions, indices, valid, starts, out,
+):  # fmt: skip
+    out[:] = 0.0
+    idx = np.flatnonzero(active & np.isfinite(x[:, 0]) & np.isfinite(x[:, 1]))
+    if len(idx) < 2:
+        return
+    p = x[idx]
+    counts = _counts_numpy(p, radius)
+    if clipped:
+        nx, ny = table.shape
+        fx = (p[:, 0] - ox) / spacing
+        fy = (p[:, 1] - oy) / spacing
+        i = np.clip(np.floor(fx), 0, nx - 2).astype(np.int64)
+        k = np.clip(np.floor(fy), 0, ny - 2).astype(np.int64)
+        wx = np.clip(fx - i, 0.0, 1.0)
+        wy = np.clip(fy - k, 0.0, 1.0)
+        lo = table[i, k] + wy * (table[i, k + 1] - table[i, k])
+        hi = table[i + 1, k] + wy * (table[i + 1, k + 1] - table[i + 1, k])
+        out[idx] = counts * inv_area / np.maximum(lo + wx * (hi - lo), floor)
+    else:
+        out[idx] = counts * inv_area
+
+
+@compiled(fallback=_neighbour_density_numpy)
+def neighbour_density(
+    x, active, radius, inv_area, table, ox, oy, spacing, floor, clipped,
+    order, slot, positions, indices, valid, starts, out,
+):  # fmt: skip
+    """Each active human's neighbours within ``radius`` over the disk's area in Ω; in place.
 
     Parameters
     ----------
     x : ndarray, shape (N, 2)
-        Positions (rows of humans who are not active, NaN or not, are ignored; so is a
-        non-finite row).
+        Positions (rows of humans who are not active, and non-finite rows, are ignored).
     active : ndarray of bool, shape (N,)
         Who counts and is counted.
     radius : float
         ``r > 0``: a neighbour is closer than ``r`` (``|X_k − X_j|² < r²``).
-    out : ndarray of int64, shape (N,)
-        The counts; 0 for the humans who are not active.
+    inv_area : float
+        ``1 / (π r²)``.
+    table, ox, oy, spacing : ndarray (nx >= 2, ny >= 2), float, float, float
+        The disk's share in Ω at the cells' centres ``(ox + i spacing, oy + k spacing)``
+        (:class:`meanfield.geometry.disk_share.DiskShare`); read only when ``clipped``.
+    floor : float
+        ``s_min``: the share is taken as at least this.
+    clipped : bool
+        Divide by the share (else by the whole disk).
+    order, slot, positions, indices, valid, starts : ndarray
+        The work arrays of :class:`DensityWork`.  ``order`` (a permutation of the humans) and its
+        inverse ``slot`` carry the last call's order to the next; any permutation will do: it
+        changes the speed, not the numbers.  The numpy twin neither reads nor changes them.
+    out : ndarray of float, shape (N,)
+        ``ρ_j``, persons per unit area; 0 for the humans who are not active.
     """
     n = x.shape[0]
-    m = 0
+    px = positions[0]
+    py = positions[1]
+    sx = positions[2]
+    sy = positions[3]
+    cell = indices[0]
+    ids = indices[1]
+    cnt = indices[2]
     x0 = math.inf
     x1 = -math.inf
     y0 = math.inf
     y1 = -math.inf
-    use = np.zeros(n, dtype=np.bool_)
-    for j in range(n):
-        out[j] = 0
-        if active[j] and math.isfinite(x[j, 0]) and math.isfinite(x[j, 1]):
-            use[j] = True
+    m = 0
+    for j in range(n):  # each position to its last slot: a sequential read, scattered writes
+        a = x[j, 0]
+        b = x[j, 1]
+        s = slot[j]
+        out[j] = 0.0
+        if active[j] and math.isfinite(a) and math.isfinite(b):
+            px[s] = a
+            py[s] = b
+            valid[s] = True
             m += 1
-            x0 = min(x0, x[j, 0])
-            x1 = max(x1, x[j, 0])
-            y0 = min(y0, x[j, 1])
-            y1 = max(y1, x[j, 1])
+            x0 = min(x0, a)
+            x1 = max(x1, a)
+            y0 = min(y0, b)
+            y1 = max(y1, b)
+        else:
+            valid[s] = False
     if m < 2:
         return
     h = radius
@@ -116,42 +199,85 @@ def count_neighbours(x, active, radius, out):
         h = 2.0 * h
         nx = int((x1 - x0) / h) + 1
         ny = int((y1 - y0) / h) + 1
-    cell = np.empty(n, dtype=np.int32)  # 32-bit indices: half the memory traffic (MAX_HUMANS keeps them in range)
-    start = np.zeros(nx * ny + 1, dtype=np.int32)
-    for j in range(n):
-        if use[j]:
-            c = min(int((x[j, 0] - x0) / h), nx - 1) * ny + min(int((x[j, 1] - y0) / h), ny - 1)
-            cell[j] = c
+    nc = nx * ny
+    start = starts
+    for c in range(nc + 1):
+        start[c] = 0
+    for p in range(n):  # nearly in cell order already: the histogram's increments are local
+        if valid[p]:
+            c = min(int((px[p] - x0) / h), nx - 1) * ny + min(int((py[p] - y0) / h), ny - 1)
+            cell[p] = c
             start[c + 1] += 1
-    for c in range(nx * ny):
+    for c in range(nc):
         start[c + 1] += start[c]
-    fill = start[:-1].copy()
-    order = np.empty(m, dtype=np.int32)
-    px = np.empty(m)
-    py = np.empty(m)
-    for j in range(n):  # a counting sort by cell: each cell's humans contiguous, their positions copied beside them
-        if use[j]:
-            q = fill[cell[j]]
-            order[q] = j
-            px[q] = x[j, 0]
-            py[q] = x[j, 1]
-            fill[cell[j]] += 1
+    for p in range(n):  # the counting sort (stable); start[c] ends as the end of cell c
+        if valid[p]:
+            c = cell[p]
+            q = start[c]
+            start[c] = q + 1
+            sx[q] = px[p]
+            sy[q] = py[p]
+            ids[q] = order[p]
+    for c in range(nc, 0, -1):
+        start[c] = start[c - 1]
+    start[0] = 0
+    for q in range(m):
+        cnt[q] = 0
     r2 = radius * radius
-    for i in range(nx):  # cell by cell, so that the candidates are read in memory order
+    for i in range(nx):  # each pair once: the rest of one's cell and the cell above, then the next column's three
         for k in range(ny):
             c = i * ny + k
-            if start[c] == start[c + 1]:
+            s0 = start[c]
+            s1 = start[c + 1]
+            if s0 == s1:
                 continue
-            for p in range(start[c], start[c + 1]):
-                xp = px[p]
-                yp = py[p]
-                count = 0
-                for a in range(max(i - 1, 0), min(i + 2, nx)):
-                    lo = start[a * ny + max(k - 1, 0)]  # the three cells (a, k-1..k+1) are one contiguous run
-                    hi = start[a * ny + min(k + 2, ny)]
-                    for q in range(lo, hi):
-                        dx = px[q] - xp
-                        dy = py[q] - yp
-                        if dx * dx + dy * dy < r2:
-                            count += 1
-                out[order[p]] = count - 1  # itself, at distance 0 < r
+            lo = 0
+            hi = 0
+            if i + 1 < nx:
+                lo = start[(i + 1) * ny + max(k - 1, 0)]
+                hi = start[(i + 1) * ny + min(k + 2, ny)]
+            up = s1 if k + 1 >= ny else start[c + 2]
+            for p in range(s0, s1):
+                xp = sx[p]
+                yp = sy[p]
+                mine = 0
+                for q in range(p + 1, up):
+                    dx = sx[q] - xp
+                    dy = sy[q] - yp
+                    hit = 1 if dx * dx + dy * dy < r2 else 0
+                    mine += hit
+                    cnt[q] += hit
+                for q in range(lo, hi):
+                    dx = sx[q] - xp
+                    dy = sy[q] - yp
+                    hit = 1 if dx * dx + dy * dy < r2 else 0
+                    mine += hit
+                    cnt[q] += hit
+                cnt[p] += mine
+    for p in range(n):  # (cell[p] is free for those not counted: keep who they are before order is rewritten)
+        if not valid[p]:
+            cell[p] = order[p]
+    tx = table.shape[0]
+    ty = table.shape[1]
+    for q in range(m):  # in cell order, so the table is read where the last human read it
+        rho = cnt[q] * inv_area
+        if clipped:
+            fx = (sx[q] - ox) / spacing
+            fy = (sy[q] - oy) / spacing
+            i = min(max(math.floor(fx), 0), tx - 2)
+            k = min(max(math.floor(fy), 0), ty - 2)
+            wx = min(max(fx - i, 0.0), 1.0)
+            wy = min(max(fy - k, 0.0), 1.0)
+            lo = table[i, k] + wy * (table[i, k + 1] - table[i, k])  # as DiskShare.at: exactly 1 among 1s
+            hi = table[i + 1, k] + wy * (table[i + 1, k + 1] - table[i + 1, k])
+            rho = rho / max(lo + wx * (hi - lo), floor)
+        j = ids[q]
+        out[j] = rho
+        order[q] = j
+        slot[j] = q
+    t = m
+    for p in range(n):  # those not counted go after the others, in their last order
+        if not valid[p]:
+            order[t] = cell[p]
+            slot[cell[p]] = t
+            t += 1

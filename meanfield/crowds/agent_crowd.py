@@ -15,8 +15,8 @@ grid (paper, Section IV-A; :mod:`meanfield.crowds.kde`).
 
 With congestion (``crowd.congestion`` other than ``"none"``, :mod:`meanfield.crowds.congestion`)
 each human walks at ``g(ρ_j)`` times the velocity it chooses, ``ρ_j`` the density around it in
-persons/m² (:func:`local_density`: its neighbours within :data:`DENSITY_RADIUS`; docs page
-*Congestion*)::
+persons/m² (:mod:`meanfield.crowds.local_density`: its neighbours within 0.6 m, over the part of
+the disk inside Ω; docs page *Congestion*)::
 
     u_W(X_j) + g(ρ_j) v_r(X_j, t) + v_a(X_j, t)
 
@@ -43,11 +43,11 @@ from typing import Any, Protocol
 import numpy as np
 
 from meanfield import plugins
-from meanfield.crowds._congestion_loops import MAX_HUMANS, count_neighbours
 from meanfield.crowds._field_loops import bilinear_at, gaussian_field_at
 from meanfield.crowds.congestion import FundamentalDiagram
 from meanfield.crowds.guidance import Guidance
 from meanfield.crowds.kde import KernelDensityEstimator
+from meanfield.crowds.local_density import DENSITY_RADIUS, LocalDensity
 from meanfield.crowds.local_view import LocalView
 from meanfield.crowds.point_mass import PointMassEngine
 from meanfield.errors import ParameterError, num
@@ -68,10 +68,8 @@ __all__ = [
     "premovement_law",
     "draw_premovement",
     "initial_positions",
-    "local_density",
     "point_mass_crowd",
     "SAMPLED_FIELD_ABOVE",
-    "DENSITY_RADIUS",
 ]
 
 SAMPLED_FIELD_ABOVE = 2_000_000
@@ -80,44 +78,6 @@ _EVERYONE = np.ones((0, 0), dtype=bool)  # no sight mask: every robot seen
 REACH_FRACTION = 0.05
 """A sign *reaches* a human whose ``|v_r|`` is at least this share of one kernel's peak (and who
 sees a robot): :attr:`AgentCrowd.reached`, the stragglers of ``summary.json``."""
-DENSITY_RADIUS = 0.6
-"""m: the local density of a congested human counts its neighbours within this radius (docs page
-*Congestion*: small enough to resolve a 0.8 m door, large enough to hold a few people at the
-densities where walking slows, 1.1 persons in the disk at 1 person/m²)."""
-
-
-def local_density(
-    positions: np.ndarray, active: np.ndarray | None = None, radius: float = DENSITY_RADIUS
-) -> np.ndarray:
-    """Each human's local density, persons/m²: the other humans within ``radius``, over ``π radius²``.
-
-    One compiled pass over a cell list (:func:`meanfield.crowds._congestion_loops.count_neighbours`),
-    O(N).  The disk is not clipped by walls: a human against a wall sees about half the
-    density there is (docs page *Congestion*).
-
-    Parameters
-    ----------
-    positions : ndarray, shape (N, 2)
-        The humans (rows of those not active are ignored).
-    active : ndarray of bool, shape (N,), optional
-        Who is still here (None: everyone).
-    radius : float
-        ``r > 0``, metres.
-
-    Returns
-    -------
-    ndarray, shape (N,)
-        ``#{k ≠ j active: |X_k − X_j| < r} / (π r²)``; 0 for those not active.
-    """
-    if not radius > 0:
-        raise ParameterError("radius", radius, "a radius > 0 (m)")
-    if len(positions) > MAX_HUMANS:
-        raise ParameterError("crowd.n", len(positions), f"at most {MAX_HUMANS:.0e} humans with congestion")
-    x = np.ascontiguousarray(positions, dtype=float)
-    here = np.ones(len(x), dtype=bool) if active is None else np.ascontiguousarray(active, dtype=bool)
-    counts = np.empty(len(x), dtype=np.int64)
-    count_neighbours(x, here, float(radius), counts)
-    return counts / (math.pi * radius * radius)
 
 
 class AgentEngine(Protocol):
@@ -365,7 +325,8 @@ class AgentCrowd:
         None, or a diagram that does not slow (``slows`` false, ``"none"``): no congestion, every number as
         without it.
     density_radius : float
-        The radius of each human's local density with congestion, m (:data:`DENSITY_RADIUS`).
+        The radius of each human's local density with congestion, m
+        (:data:`meanfield.crowds.local_density.DENSITY_RADIUS`); the disk is cut by ``domain``'s walls.
     individuals : Individuals, optional
         Pre-movement times and compliance (:class:`Individuals`); None, or one with the defaults:
         everyone walks from the start and follows the signs, every number as without it.  A
@@ -417,6 +378,7 @@ class AgentCrowd:
         if self.congestion is not None and not density_radius > 0:
             raise ParameterError("density_radius", density_radius, "a radius > 0 (m)")
         self.density_radius = float(density_radius)
+        self._density = None if self.congestion is None else LocalDensity(len(engine.positions), density_radius, domain)
         self.local_density: np.ndarray | None = None  # persons/m² around each human at the last step (congestion)
         self.congestion_name = "none" if self.congestion is None else type(self.congestion).__name__.lower()
         self.peak_local_density = 0.0  # its largest value over the run so far
@@ -508,9 +470,8 @@ class AgentCrowd:
         return drift
 
     def _slow_down(self, velocity: np.ndarray, positions: np.ndarray, t: float) -> None:
-        """``velocity *= g(ρ_j)`` in place, ``ρ_j`` the local density of those still here (:func:`local_density`)."""
-        active = getattr(self.engine, "active", None)
-        rho = local_density(positions, active, self.density_radius)
+        """``velocity *= g(ρ_j)`` in place, ``ρ_j`` the local density of those still here (:class:`LocalDensity`)."""
+        rho = self._density(positions, getattr(self.engine, "active", None))
         velocity *= self.congestion.speed_factor(rho)[:, None]
         self.local_density = rho
         peak = float(rho.max()) if len(rho) else 0.0

@@ -5,8 +5,9 @@ box, disk, polygon; :mod:`~meanfield.geometry.plan`: floor plans with holes, fro
 DXF (:mod:`~meanfield.geometry.dxf`)), the finite-volume grid with its cut cells
 (:mod:`~meanfield.geometry.grid`, :mod:`~meanfield.geometry.cut_cells`), walls
 (:mod:`~meanfield.geometry.walls`), exits (:mod:`~meanfield.geometry.exits`), geodesic routes
-(:mod:`~meanfield.geometry.geodesic`), line of sight (:mod:`~meanfield.geometry.sight`) and the target
-density (:mod:`~meanfield.geometry.target`). The private ``_*_loops`` modules are their compiled loops.
+(:mod:`~meanfield.geometry.geodesic`), line of sight (:mod:`~meanfield.geometry.sight`), the target
+density (:mod:`~meanfield.geometry.target`) and the share of a disk inside Ω
+(:mod:`~meanfield.geometry.disk_share`). The private ``_*_loops`` modules are their compiled loops.
 
 Names are imported on first use (:mod:`meanfield._namespace`).
 """
@@ -16,6 +17,7 @@ from meanfield._namespace import lazy_namespace
 _LAZY = {
     "BoundaryPart": "meanfield.geometry.region",
     "CONVEX_RTOL": "meanfield.geometry.region",
+    "DiskShare": "meanfield.geometry.disk_share",
     "Domain": "meanfield.geometry.domain",
     "ExitRoutes": "meanfield.geometry.geodesic",
     "ExitSink": "meanfield.geometry.exits",
@@ -34,6 +36,7 @@ _LAZY = {
     "convex_polygon": "meanfield.geometry.region",
     "convex_polygon_cut_cells": "meanfield.geometry.cut_cells",
     "disk_cut_cells": "meanfield.geometry.cut_cells",
+    "disk_share": "meanfield.geometry.disk_share",
     "distance_to_segments": "meanfield.geometry.exits",
     "exit_distance": "meanfield.geometry.geodesic",
     "exit_segments": "meanfield.geometry.exits",

@@ -18,6 +18,7 @@ import numpy as np
 
 from meanfield import plugins
 from meanfield.controllers.backstepping import CONGESTION_OPTIONS, DVD_DT_OPTIONS
+from meanfield.crowds.local_density import DENSITY_RADIUS
 from meanfield.errors import ParameterError, all_numbers, choice, integer, num, optional_limit, point
 from meanfield.geometry.region import region_keywords
 
@@ -79,8 +80,8 @@ class CrowdSpec:
     ``"linear"``, with the jam density ``rho_max`` (persons/m², 5.4), or ``"auto"`` (the default):
     the crowd kind's own default for the scenario's units
     (:attr:`~meanfield.scenarios.scenario.Scenario.congestion_model`; docs page *Congestion*).
-    A congested agent's density is the others within ``congestion_radius`` (m, 0.6) over the
-    disk's area.
+    A congested agent's density is the others within ``congestion_radius`` (m, 0.5) over the
+    disk's area inside Ω (:mod:`meanfield.crowds.local_density`).
 
     People are not all alike (docs pages *Scenarios*, "People who wait, people who do not
     follow", and *Buildings*; :class:`~meanfield.crowds.agent_crowd.Individuals`).
@@ -107,7 +108,7 @@ class CrowdSpec:
     free_speed: float = 1.34
     congestion: str = "auto"
     rho_max: float = 5.4
-    congestion_radius: float = 0.6
+    congestion_radius: float = DENSITY_RADIUS
     premovement: str | dict[str, Any] = "none"
     compliance: float = 1.0
     options: dict[str, dict[str, Any]] = field(default_factory=dict)

@@ -1,10 +1,13 @@
 """Congestion for the agents (meanfield.crowds.agent_crowd, meanfield.crowds._congestion_loops).
 
-* :func:`count_neighbours` (the cell list, compiled) equals its numpy twin and a direct count
-  over every pair, exactly (the counts are integers), with humans who left (NaN rows, or
+* :func:`neighbour_density` (the cell list, compiled) equals its numpy twin and a direct count
+  over every pair, to the last bit (the counts are integers), with humans who left (NaN rows, or
   stand-ins) ignored, for crowds from 0 to 2000 humans, radii from a tenth of a crowd's spacing
-  to the whole room, and a crowd far wider than the radius (the lattice's cap);
-* :func:`local_density` is persons/m²: 0 alone, ``k / (π r²)`` with ``k`` neighbours;
+  to the whole room, and a crowd far wider than the radius (the lattice's cap); the order it
+  keeps between calls stays a permutation and changes no number, whoever leaves;
+* :func:`local_density` is persons/m²: 0 alone, ``k / (π r²)`` with ``k`` neighbours, and beside
+  a wall ``k / (π r² s)`` with ``s`` the disk's share in Ω: a uniform crowd's density is seen as
+  it is up to the wall (half of it without the share);
 * with ``crowd.congestion = "none"`` nothing changes: no density is computed, the summary has
   the same keys; with a diagram each human's chosen velocity is multiplied by ``g(ρ_j)``;
 * the run is deterministic for a seed, and the congested crowd leaves the bottleneck far slower;
@@ -20,10 +23,13 @@ import numpy as np
 import pytest
 
 from meanfield._compiled import core as compiled
-from meanfield.crowds._congestion_loops import count_neighbours
-from meanfield.crowds.agent_crowd import DENSITY_RADIUS, AgentCrowd, local_density
+from meanfield.crowds._congestion_loops import DensityWork, neighbour_density
+from meanfield.crowds.agent_crowd import AgentCrowd
 from meanfield.crowds.congestion import Linear, NoCongestion, Weidmann
+from meanfield.crowds.local_density import DENSITY_RADIUS, SHARE_FLOOR, LocalDensity, local_density
 from meanfield.errors import ParameterError
+from meanfield.geometry.disk_share import disk_share
+from meanfield.geometry.domain import Domain
 from meanfield.scenarios.scenario import builtin_scenarios
 from meanfield.simulation.loop import ClosedLoop
 
@@ -52,17 +58,26 @@ def crowd(n: int, rng: np.random.Generator, width: float = 10.0) -> tuple[np.nda
     return x, active
 
 
+def counted(x, active, radius, work=None):
+    """``neighbour_density`` without walls, times ``π r²``: the counts (exact: an integer times 1/(π r²) and back)."""
+    n = len(x)
+    work = DensityWork(n) if work is None else work
+    out = np.full(n, -1.0)
+    inv = 1.0 / (math.pi * radius * radius)
+    neighbour_density(x, active, radius, inv, np.ones((2, 2)), 0.0, 0.0, 1.0, SHARE_FLOOR, False, *work.arrays(), out)
+    return np.rint(out / inv).astype(np.int64), out
+
+
 @pytest.mark.parametrize("n", [0, 1, 2, 7, 300, 2000])
 @pytest.mark.parametrize("radius", [0.05, DENSITY_RADIUS, 3.0, 50.0])
 def test_cell_list_counts_every_pair_within_the_radius(n, radius):
     rng = np.random.default_rng(n)
     x, active = crowd(n, rng)
-    out = np.full(n, -1, dtype=np.int64)
-    count_neighbours(x, active, radius, out)
-    assert np.array_equal(out, direct_counts(x, active, radius))
-    ref = np.full(n, -1, dtype=np.int64)
+    counts, out = counted(x, active, radius)
+    assert np.array_equal(counts, direct_counts(x, active, radius))
+    assert np.array_equal(out, direct_counts(x, active, radius) * (1.0 / (math.pi * radius * radius)))
     with compiled.numpy_path():
-        count_neighbours(x, active, radius, ref)
+        _, ref = counted(x, active, radius)
     assert np.array_equal(ref, out)
 
 
@@ -72,12 +87,74 @@ def test_compiled_count_equals_numpy_twin_on_a_spread_crowd():
     rng = np.random.default_rng(5)
     x = np.vstack([rng.uniform(0, 600.0, size=(400, 2)), rng.normal(300.0, 0.5, size=(400, 2))])
     active = np.ones(len(x), dtype=bool)
-    fast, ref = np.empty(len(x), np.int64), np.empty(len(x), np.int64)
-    count_neighbours(x, active, DENSITY_RADIUS, fast)
+    fast, _ = counted(x, active, DENSITY_RADIUS)
     with compiled.numpy_path():
-        count_neighbours(x, active, DENSITY_RADIUS, ref)
+        ref, _ = counted(x, active, DENSITY_RADIUS)
     assert np.array_equal(fast, ref)
     assert np.array_equal(fast, direct_counts(x, active, DENSITY_RADIUS))
+
+
+def test_the_order_kept_between_calls_changes_no_number():
+    """A crowd that walks and leaves: at every call the counts are the direct ones, ``order`` and ``slot``
+    stay inverse permutations, and the active humans come first in ``order``, in cell order."""
+    rng = np.random.default_rng(11)
+    n = 1500
+    x = rng.uniform(0.0, 12.0, size=(n, 2))
+    active = np.ones(n, dtype=bool)
+    work = DensityWork(n)
+    for step in range(12):
+        x += rng.normal(0.0, 0.2, size=(n, 2))
+        active &= rng.random(n) > 0.05 * (step % 3)  # some leave at some steps
+        if step == 7:
+            active[:] = True  # and a call with everyone back changes nothing either
+        counts, _ = counted(x, active, DENSITY_RADIUS, work)
+        assert np.array_equal(counts, direct_counts(x, active, DENSITY_RADIUS))
+        assert np.array_equal(np.sort(work.order), np.arange(n))
+        assert np.array_equal(work.slot[work.order], np.arange(n))
+        if compiled.enabled():  # (the numpy twin keeps no order)
+            assert set(work.order[: active.sum()]) == set(np.flatnonzero(active))
+
+
+def test_a_uniform_crowd_is_seen_at_its_density_up_to_the_walls():
+    """``n`` people drawn uniformly in a 10 m × 8 m room: the others lie in ``B(x, r) ∩ Ω`` with
+    probability ``|B ∩ Ω| / |Ω|`` each, so the clipped density has the mean ``(n − 1)/|Ω|`` at every
+    point, at the wall as in the middle, and the whole disk's has ``s(x) (n − 1)/|Ω|``: about 0.6
+    of it within 0.3 m of a wall.  40 rooms of 160 (2 persons/m²), pooled."""
+    room = Domain.box(10.0, 8.0)
+    rng = np.random.default_rng(0)
+    n, rooms = 160, 40
+    x = np.concatenate([room.sample_uniform(n, rng) for _ in range(rooms)])
+    clipped = np.concatenate([local_density(x[i * n : (i + 1) * n], None, DENSITY_RADIUS, room) for i in range(rooms)])
+    whole = np.concatenate([local_density(x[i * n : (i + 1) * n], None, DENSITY_RADIUS) for i in range(rooms)])
+    exact = (n - 1) / 80.0
+    d = np.minimum.reduce([x[:, 0], 10.0 - x[:, 0], x[:, 1], 8.0 - x[:, 1]])
+    near, middle = d < DENSITY_RADIUS / 2, d > DENSITY_RADIUS + 0.2  # (the table's cells read beside one: 0.075 m)
+    assert near.sum() > 500 and middle.sum() > 2000
+    assert clipped[near].mean() == pytest.approx(exact, rel=0.1)  # about 3 % statistical error
+    assert clipped[middle].mean() == pytest.approx(exact, rel=0.1)
+    assert whole[near].mean() < 0.75 * exact
+    assert np.array_equal(clipped[middle], whole[middle])  # away from the walls the share is 1 exactly
+
+
+def test_the_share_divides_the_count_and_is_floored():
+    """``ρ_j = k / (π r² max(s, s_min))``, ``s`` read from the table at the human; the twins agree to the bit."""
+    room = Domain.polygon([(0.0, 0.0), (10.0, 0.0), (2.0, 0.4)])  # an acute corner at the origin: s < s_min there
+    share = disk_share(room, DENSITY_RADIUS)
+    rng = np.random.default_rng(3)
+    x = room.sample_uniform(400, rng)
+    x[0] = (0.02, 0.002)  # deep in the acute corner
+    rho = LocalDensity(len(x), DENSITY_RADIUS, room)(x)
+    k = direct_counts(x, np.ones(len(x), bool), DENSITY_RADIUS)
+    s = share.at(x)
+    assert s[0] < SHARE_FLOOR
+    assert np.array_equal(rho, k * (1.0 / (math.pi * DENSITY_RADIUS**2)) / np.maximum(s, SHARE_FLOOR))
+    with compiled.numpy_path():
+        assert np.array_equal(LocalDensity(len(x), DENSITY_RADIUS, room)(x), rho)
+
+
+def test_local_density_refuses_a_crowd_of_another_size():
+    with pytest.raises(ParameterError, match="positions"):
+        LocalDensity(5)(np.zeros((4, 2)))
 
 
 def test_local_density_is_persons_per_square_metre():
@@ -123,8 +200,9 @@ def test_congestion_multiplies_the_chosen_velocity_by_g(name, diagram):
     x = crowd.positions.copy()
     chosen = crowd.guidance.velocity(x, 0.0, 0.05).copy()
     drift = crowd.drift(loop.robots, 0.0, 0.05).copy()
-    rho = local_density(x, crowd.engine.active, DENSITY_RADIUS)
+    rho = local_density(x, crowd.engine.active, DENSITY_RADIUS, loop.scenario.domain)  # the disk cut by the walls
     assert np.array_equal(crowd.local_density, rho)
+    assert np.any(rho > local_density(x, crowd.engine.active, DENSITY_RADIUS))
     assert np.allclose(drift, chosen * diagram.speed_factor(rho)[:, None], rtol=0, atol=1e-15)
     assert rho.max() > 0 and np.all(np.hypot(*drift.T) <= 1.34 + 1e-12)
     assert crowd.peak_local_density == rho.max()
