@@ -316,7 +316,10 @@ def _label(model: str, radius: float | None) -> str:
 
 def report() -> dict[str, Any]:
     """Medians and worst seeds per model and width (``specific_flow_min``/``_max`` over the seeds; ``_worst``: the seed
-    farthest outside the measured range, the first seed when every one is inside)."""
+    farthest outside the measured range, the first seed when every one is inside; NaN where every seed clogged)."""
+    import warnings
+
+    warnings.filterwarnings("ignore", "All-NaN slice", RuntimeWarning)  # every seed clogged: NaN, shown as "–"
     rows = _rows()
     groups: dict[str, dict[float, list[dict]]] = {}
     for r in rows:
@@ -404,7 +407,9 @@ def table(rep: dict[str, Any]) -> str:
                 if p["seeds_without_flow"]:
                     k, n = len(p["seeds_without_flow"]), p["seeds"]
                     clogged = f"; {k} of {n} seeds clogged, {p['out_least']} out"
-                if p["seeds"] == 1 and not clogged:  # one run (the density): no spread to show
+                if len(p["seeds_without_flow"]) == p["seeds"]:  # every seed clogged: no flow to show
+                    cells.append(f"– ({clogged[2:]})")
+                elif p["seeds"] == 1 and not clogged:  # one run (the density): no spread to show
                     cells.append(f"{p['specific_flow_median']:.2f}")
                 else:
                     cells.append(f"{p['specific_flow_median']:.2f} ({lo:.2f}–{hi:.2f}{clogged})")

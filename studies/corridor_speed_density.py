@@ -7,7 +7,7 @@ Run from the repository's root::
     python studies/corridor_speed_density.py --report   # only the tables, JSON and figures
 
 What an experimenter measures, not the diagram itself: a point mass walks at ``g(ρ_j) v₀`` by
-construction (``ρ_j`` its own count of neighbours within 0.6 m), so plotting that is circular.
+construction (``ρ_j`` its own count of neighbours within 0.5 m), so plotting that is circular.
 Here the crowd walks one way along a corridor and we measure, in a *measurement area* across the
 corridor, the density (persons in the area over its area, PedPy's *classic* method, and PedPy's
 *Voronoi* method) and the mean speed of the people in it, over time windows, at several initial
@@ -70,6 +70,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from meanfield.crowds.local_density import DENSITY_RADIUS
 
 WIDTH = 3.0
 """m: the corridor's width."""
@@ -234,7 +236,7 @@ def simulate(model: str, radius: float, rho0: float, seed: int) -> tuple[np.ndar
     return np.array(frames), time.perf_counter() - start
 
 
-def measure(frames: np.ndarray, model: str = "none", radius: float = 0.6) -> list[dict[str, Any]]:
+def measure(frames: np.ndarray, model: str = "none", radius: float = DENSITY_RADIUS) -> list[dict[str, Any]]:
     """The windows' densities and speeds in the measurement area (PedPy), from :func:`simulate`'s frames.
 
     Besides PedPy's measures, each window has what the people in the area *see*: the mean of their own
@@ -376,7 +378,7 @@ def run_all(
             for radius in radii if model in ("weidmann", "linear") else [None]:
                 for rho0 in densities:
                     if (model, radius, rho0, seed) not in done:
-                        jobs.append((model, radius if radius is not None else 0.6, rho0, seed))
+                        jobs.append((model, radius if radius is not None else DENSITY_RADIUS, rho0, seed))
     print(f"{len(jobs)} runs to do", flush=True)
     with ProcessPoolExecutor(workers) as pool, RESULTS.open("a") as out:
         futures = {pool.submit(one_run, *job): job for job in jobs}
@@ -427,7 +429,7 @@ def _bins(rows: list[dict[str, Any]], method: str) -> dict[int, dict[int, tuple[
 
 
 def uniform_crowd_speed(
-    model: str, rho: float, radius: float = 0.6, walls: bool = True, samples: int = 40, seed: int = 0
+    model: str, rho: float, radius: float = DENSITY_RADIUS, walls: bool = True, samples: int = 40, seed: int = 0
 ) -> float:
     """``mean v₀ g(ρ_j)`` over a uniform random crowd of density ``rho`` in the corridor (its middle 20 m):
     the speed the diagram gives a crowd of point masses that has not moved, the count's noise and the walls'
@@ -547,9 +549,11 @@ def report() -> dict[str, Any]:
         out["models"][label] = m
     out["uniform_random_crowd"] = {  # the diagrams on crowds that have not moved: the count's noise, the walls
         "densities": [1.0, 2.0, 3.0, 4.0, 5.0],
-        "radius_m": 0.6,
+        "radius_m": DENSITY_RADIUS,
         **{
-            f"{model}_{where}": [uniform_crowd_speed(model, d, 0.6, walls, samples=10) for d in (1, 2, 3, 4, 5)]
+            f"{model}_{where}": [
+                uniform_crowd_speed(model, d, DENSITY_RADIUS, walls, samples=10) for d in (1, 2, 3, 4, 5)
+            ]
             for model in ("weidmann", "linear")
             for where, walls in (("corridor", True), ("no_walls", False))
         },
@@ -599,9 +603,10 @@ def table(rep: dict[str, Any], method: str = "classic") -> str:
 
 def table_by_initial_density(rep: dict[str, Any]) -> str:
     """Per model and initial density ρ₀: the medians over the seeds of the measured densities (classic, Voronoi),
-    of the mean local density the people in the area see (0.6 m disk, the point masses' count), of the speed
-    along the corridor, of the speed the diagram gives them ``v₀ g(ρ_j)``, of PedPy's default speed (the norm
-    of the displacement), and the density's drift over the measurement (last window minus first)."""
+    of the mean local density the people in the area see (0.5 m disk cut by the walls, the point masses'
+    count), of the speed along the corridor, of the speed the diagram gives them ``v₀ g(ρ_j)``, of PedPy's
+    default speed (the norm of the displacement), and the density's drift over the measurement (last window
+    minus first)."""
     lines = [
         "| model | ρ₀ | people | ρ classic | ρ Voronoi | ρ_j seen | v along | v₀ g(ρ_j) | ‖v‖ | ρ drift |",
         "|---|---|---|---|---|---|---|---|---|---|",
@@ -701,7 +706,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=10, help="seeds of the point masses")
     parser.add_argument("--body-seeds", type=int, default=3, help="seeds of JuPedSim's bodies")
     parser.add_argument("--models", nargs="+", default=["weidmann", "linear", "jupedsim"])
-    parser.add_argument("--radii", nargs="+", type=float, default=[0.6])
+    parser.add_argument("--radii", nargs="+", type=float, default=[DENSITY_RADIUS])
     parser.add_argument("--densities", nargs="+", type=float, default=list(DENSITIES))
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--report", action="store_true", help="only the JSON, the tables and the figures")
