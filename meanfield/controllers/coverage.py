@@ -178,6 +178,12 @@ class CoverageController:
         state = dataclasses.replace(law, u=u, omega=omega, shortfall=float("nan"), k_u=0.0, k_omega=self.k_heading)
         return Command(u, omega, state)
 
+    def exits_closed(self, open_exits: np.ndarray) -> None:
+        """Tell the law whose headings the signs follow (its field towards the exits) which exits are open."""
+        closed = getattr(self.law, "exits_closed", None)
+        if closed is not None:
+            closed(open_exits)
+
     def reset(self) -> None:
         """Forget the law's previous ``v_d`` and the idle count."""
         self.law.reset()

@@ -164,6 +164,18 @@ class EvacuationController(BacksteppingController):
         return cls(*cls.law_arguments(parts), phi=eikonal.distance, scales=parts.scales, potential=potential,
                    eikonal=eikonal, **opts)  # fmt: skip
 
+    def exits_closed(self, open_exits: np.ndarray) -> None:
+        """The robots learn that only the exits with ``open_exits[k]`` are open (a scenario's ``[[events]]``):
+        the potential is solved again to those (with no exit left it stays as it was)."""
+        open_exits = np.asarray(open_exits, dtype=bool)
+        if self.eikonal is None or not open_exits.any():
+            return
+        if not hasattr(self, "_all_exits"):
+            self._all_exits = self.eikonal.segs
+        e = self.eikonal
+        self.eikonal = ExitEikonal(e.grid, self._all_exits[open_exits], e.sight)
+        self.grad_phi = self._face_gradient(self.eikonal.distance)
+
     # ------------------------------------------------------------------ the walking speed
     def _face_gradient(self, phi: np.ndarray) -> FaceField:
         return self.grid.gradient(np.where(np.isfinite(phi), phi, 0.0))

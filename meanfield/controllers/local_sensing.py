@@ -130,6 +130,13 @@ class LocalSensing:
                 u[i], omega[i] = command.u[k], command.omega[k]
         return Command(u, omega, None)
 
+    def exits_closed(self, open_exits: np.ndarray) -> None:
+        """Tell every group's controller which exits are open (those that plan to the exits plan again)."""
+        for c in self.controllers:
+            closed = getattr(c, "exits_closed", None)
+            if closed is not None:
+                closed(open_exits)
+
     def reset(self) -> None:
         """Reset every robot's controller and the counts."""
         for c in self.controllers:

@@ -537,6 +537,17 @@ class AgentCrowd:
         """Whether the engine lets agents leave through exits (the point-mass SDE does)."""
         return hasattr(self.engine, "exit_time")
 
+    def exits_closed(self, open_exits: np.ndarray) -> None:
+        """From now on only the exits with ``open_exits[k]`` take people (a scenario's ``[[events]]``).
+
+        The engine stops taking people through the others and a guidance that walks to the exits
+        plans again (each part that has ``exits_closed`` is told).
+        """
+        for part in (self.engine, self.guidance):
+            closed = getattr(part, "exits_closed", None)
+            if closed is not None:
+                closed(open_exits)
+
     def fraction_in_disk(self, center: tuple[float, float], radius: float) -> float:
         return fraction_in_disk(self.positions, center, radius)
 
@@ -612,6 +623,9 @@ def point_mass_crowd(ctx: CrowdContext) -> AgentCrowd:
 point_mass_crowd.models_individuals = True  # type: ignore[attr-defined]
 """Each human is an agent: it may wait its own pre-movement time and ignore the signs
 (``crowd.premovement``, ``crowd.compliance``; :class:`Individuals`)."""
+point_mass_crowd.closes_exits = True  # type: ignore[attr-defined]
+"""An exit can close during a run (``[[events]]``, :meth:`AgentCrowd.exits_closed`): the engine stops
+taking people through it and the informed crowd's routes lead to the exits still open."""
 point_mass_crowd.default_congestion = {"SI": "linear"}  # type: ignore[attr-defined]
 """``crowd.congestion = "auto"``: the linear diagram in metres and seconds (it reproduces the measured
 bottleneck flows, docs page *Congestion*), none in the paper's dimensionless units."""

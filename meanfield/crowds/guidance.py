@@ -109,9 +109,22 @@ class GeodesicGuidance:
     def __init__(self, routes: Any, speed: float):
         self.routes = routes
         self.speed = float(speed)
+        self._all_routes = routes
 
     def velocity(self, positions: np.ndarray, t: float, dt: float) -> np.ndarray:
         return self.speed * self.routes.heading(positions)
+
+    def exits_closed(self, open_exits: np.ndarray) -> None:
+        """Plan again: the routes to the nearest of the exits still open (a scenario's ``[[events]]``).
+
+        With no exit left the routes stay as they were (nobody can leave; the run ends).
+        """
+        from meanfield.geometry.geodesic import ExitRoutes
+
+        open_exits = np.asarray(open_exits, dtype=bool)
+        if open_exits.any():
+            r = self._all_routes
+            self.routes = ExitRoutes(r.grid, r.segs[open_exits], r.sight)
 
     def advance(self, dt: float) -> None:
         """No memory."""

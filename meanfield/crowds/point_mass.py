@@ -75,6 +75,14 @@ class PointMassEngine:
         self._amp_key: tuple | None = None
         self._box = NO_BOX if self._path_reflection else getattr(domain, "box_walls", NO_BOX)
         self.standing: np.ndarray | None = None  # who waits (pre-movement): no noise, no exit
+        self._open: np.ndarray | None = None  # the exits still open, by index (None: all; exits_closed)
+
+    def exits_closed(self, open_exits: np.ndarray) -> None:
+        """From now on nobody leaves through the exits ``k`` with ``open_exits[k]`` false: they are walls."""
+        open_exits = np.asarray(open_exits, dtype=bool)
+        if open_exits.shape != (len(self.exits),):
+            raise ParameterError("open_exits", open_exits.shape, f"one flag per exit, shape ({len(self.exits)},)")
+        self._open = None if open_exits.all() else np.flatnonzero(open_exits)
 
     @property
     def n(self) -> int:
@@ -130,7 +138,13 @@ class PointMassEngine:
         x = self.positions
         idx = np.flatnonzero(self.active if self.standing is None else self.active & ~self.standing)
         sigma = 0.0 if callable(self.sigma) else self.sigma  # a σ(x, t): crossings only, no bridge test
-        gone = leaving(previous[idx], x[idx], self.exits, sigma, dt, self.rng)
+        if self._open is None:
+            gone = leaving(previous[idx], x[idx], self.exits, sigma, dt, self.rng)
+        elif len(self._open):  # some exits closed: only the open ones take people (their indices mapped back)
+            gone = leaving(previous[idx], x[idx], self.exits[self._open], sigma, dt, self.rng)
+            gone = np.where(gone >= 0, self._open[np.maximum(gone, 0)], -1)
+        else:  # every exit closed: the boundary is all wall
+            gone = np.full(len(idx), -1, dtype=np.intp)
         out = idx[gone >= 0]
         self.active[out] = False
         self.exit_time[out] = t + dt

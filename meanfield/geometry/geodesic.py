@@ -127,6 +127,7 @@ class ExitEikonal:
         if not len(segs):
             raise ParameterError("domain.exits", "none", "at least one exit (the geodesic Step I leads to them)")
         self.grid = grid
+        self.segs, self.sight = segs, sight  # (to solve again with fewer exits)
         nx, ny = grid.shape
         x0, _, y0, _ = grid.domain.bounds
         self.spacing = (0.5 * grid.dx, 0.5 * grid.dy)
@@ -375,6 +376,8 @@ class ExitRoutes:
         ``φ`` at each cell's waypoint: its geodesic distance to the exit (0 for a point of the exit).
     tree : str
         ``"descent"`` (the routes go down ``φ``) or ``"dijkstra"`` (the fallback, module docstring).
+    segs, sight
+        The exits and the walls the routes were planned with.
     """
 
     def __init__(self, grid: Grid, segs: np.ndarray, sight: SightLines | None = None,
@@ -386,6 +389,7 @@ class ExitRoutes:
         sight = SightLines(grid.domain) if sight is None else sight
         eikonal = ExitEikonal(grid, segs, sight) if eikonal is None else eikonal
         self.grid = grid
+        self.segs, self.sight = np.asarray(segs, float), sight  # (to plan again with fewer exits)
         self.phi = eikonal.distance
         active = grid.active
         n = int(active.sum())

@@ -190,7 +190,7 @@ def plot_snapshots(result: SimulationResult, count: int = 4):
 
 
 def plot_evacuation(result: SimulationResult):
-    """The fraction of the crowd out over time, with RSET (95 %, 100 %) and the lower bound."""
+    """The fraction of the crowd out over time, with RSET (95 %, 100 %), the lower bound and the events."""
     ds, s = result.dataset, result.summary
     u = _units(result)
     fig, ax = subplots(figsize=(6.4, 4.0), constrained_layout=True)
@@ -202,6 +202,9 @@ def plot_evacuation(result: SimulationResult):
     ):
         if s.get(key) is not None:
             ax.axvline(s[key], color="0.3", ls=style, lw=1, label=f"{label}: {s[key]:.1f} {u['time']}")
+    for event in s.get("events") or ():  # the scenario's [[events]]: when each exit closed
+        label = f"exit {event['close_exit']} closes: {event['at']:.1f} {u['time']}"
+        ax.axvline(event["at"], color="tab:red", ls="-", lw=1, alpha=0.7, label=label)
     ax.set(xlabel=f"time ({u['time']})", ylabel="fraction of the crowd out", ylim=(0, 1.02))
     peak = s.get("peak_density")
     title = "evacuation" if peak is None else f"evacuation (peak density {peak:.1f} {u['density'].replace('1/', '/')})"

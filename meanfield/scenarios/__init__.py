@@ -21,6 +21,7 @@ _LAZY = {
     "SECTIONS": "meanfield.scenarios.sections",
     "Scenario": "meanfield.scenarios.scenario",
     "SensingSpec": "meanfield.scenarios.sections",
+    "EventSpec": "meanfield.scenarios.sections",
     "TargetSpec": "meanfield.scenarios.sections",
     "ViewSpec": "meanfield.scenarios.sections",
     "builtin_scenarios": "meanfield.scenarios.scenario",

@@ -62,6 +62,7 @@ from meanfield.scenarios.sections import (
     CrowdSpec,
     DensitySpec,
     DisturbanceSpec,
+    EventSpec,
     GridSpec,
     InteractionSpec,
     KernelSpec,
@@ -94,7 +95,7 @@ __all__ = [
     "resolve_key",
 ]
 
-_TOP_LEVEL = ("name", "seed", "dt", "t_final", "record_every", "record_humans", "units", "plugins")
+_TOP_LEVEL = ("name", "seed", "dt", "t_final", "record_every", "record_humans", "units", "plugins", "events")
 
 UNIT_SYSTEMS = ("SI", "dimensionless")
 """``units``: ``"SI"`` (lengths in metres, times in seconds: floor plans, the Unity study) or
@@ -242,6 +243,7 @@ class Scenario:
     view: ViewSpec = field(default_factory=ViewSpec)
     sensing: SensingSpec = field(default_factory=SensingSpec)
     plugins: tuple[str, ...] = ()
+    events: tuple[EventSpec, ...] = ()
 
     def __post_init__(self) -> None:
         self.plugins = module_list("plugins", self.plugins)
@@ -298,12 +300,61 @@ class Scenario:
                 f'"none" in a scenario in {self.units} units: a fundamental diagram takes densities in '
                 'persons/m² and speeds in m/s (units = "SI")',
             )
+        self.events = self._checked_events(self.events)
         if self.robots.margin > 0:
             x0, x1, y0, y1 = dom.bounds
             if 2 * self.robots.margin >= min(x1 - x0, y1 - y0):
                 raise ParameterError(
                     "robots.margin", self.robots.margin, "less than half the domain's width and height"
                 )
+
+    def _checked_events(self, events: Any) -> tuple[EventSpec, ...]:
+        """``events`` as :class:`EventSpec` in time order, each checked against the plan and the crowd.
+
+        Refused, naming ``events[i]...``: an exit index that ``domain.exits`` does not have; any event
+        with a crowd kind that does not declare ``closes_exits`` (naming ``events``).  A warning: an
+        event before 0 or after ``t_final`` (it happens at the first step, or never).
+        """
+        import warnings
+
+        from meanfield.geometry.exits import exit_segments
+
+        if events is None or (isinstance(events, (list, tuple)) and not events):
+            return ()
+        if not isinstance(events, (list, tuple)):
+            raise ParameterError("events", events, "an array of tables [[events]] with time and close_exit")
+        out = []
+        n_exits = len(exit_segments(self.domain))
+        for i, e in enumerate(events):
+            name = f"events[{i}]"
+            if isinstance(e, EventSpec):
+                e = e.to_dict()
+            if not isinstance(e, dict):
+                raise ParameterError(name, e, "a table with time and close_exit")
+            unknown = sorted(set(e) - {"time", "close_exit", "block"})
+            if unknown:
+                raise ParameterError(f"{name}.{unknown[0]}", e[unknown[0]], "time, close_exit (or block)")
+            if "time" not in e:
+                raise ParameterError(f"{name}.time", None, "the time the event happens")
+            ev = EventSpec(**e, name=name)
+            if ev.close_exit >= n_exits:
+                allowed = f"an index into domain.exits, 0 to {n_exits - 1}" if n_exits else "none (no exits)"
+                raise ParameterError(f"{name}.close_exit", ev.close_exit, allowed)
+            if not 0.0 <= ev.time <= self.t_final:
+                warnings.warn(
+                    f"{name}.time = {ev.time:g} is outside the run [0, {self.t_final:g}]: "
+                    + ("it happens at the first step" if ev.time < 0 else "it never happens"),
+                    stacklevel=4,
+                )
+            out.append(ev)
+        if not registry.declared("crowd", self.crowd.kind, "closes_exits", False):
+            raise ParameterError(
+                "events",
+                f"{len(out)} event(s)",
+                f"no events with the {self.crowd.kind!r} crowd, which cannot close an exit during a run "
+                "(it declares no closes_exits): use point masses",
+            )
+        return tuple(sorted(out, key=lambda ev: ev.time))
 
     @property
     def congestion_model(self) -> str:
@@ -375,6 +426,7 @@ class Scenario:
         """
         d = self.to_dict()
         d.setdefault("plugins", [])  # omitted from to_dict when empty, settable all the same
+        d.setdefault("events", [])
         listed = self.plugins
         renamed = {}
         for short, value in assignments.items():
@@ -425,6 +477,8 @@ class Scenario:
         }
         if self.plugins:
             out["plugins"] = list(self.plugins)
+        if self.events:
+            out["events"] = [e.to_dict() for e in self.events]
         out["domain"] = self.domain.to_dict()
         for key in _SECTIONS:
             sec = {}

@@ -38,6 +38,8 @@ __all__ = [
     "ControllerSpec",
     "ViewSpec",
     "SensingSpec",
+    "EventSpec",
+    "EVENT_ACTIONS",
 ]
 
 
@@ -361,6 +363,42 @@ class SensingSpec:
     def local(self) -> bool:
         """True when some robot knows less than everything."""
         return self.radius is not None or self.comm_radius is not None
+
+
+EVENT_ACTIONS = ("close_exit", "block")
+"""What an event does (one of them per event): close an exit, or make a region a wall (``block``, not built)."""
+
+
+@dataclass
+class EventSpec:
+    """Something that happens during a run: one ``[[events]]`` table (docs page *Buildings*, "Events").
+
+    ``time`` (in the scenario's time unit) and one action: ``close_exit = k``, the index into
+    ``domain.exits`` of an exit nobody leaves through from then on.  ``block = "POLYGON (...)"``
+    (a region that becomes a wall) is part of the format but not built: it is refused, naming it.
+    ``name`` is how errors name the event (``events[i]``, set by the scenario).
+    """
+
+    time: float = 0.0
+    close_exit: int | None = None
+    block: str | None = None
+    name: str = field(default="events[0]", compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.time = num(f"{self.name}.time", self.time)
+        if self.block is not None:
+            raise ParameterError(
+                f"{self.name}.block",
+                self.block,
+                "close_exit: a blocking region (a zone that becomes a wall during the run) is not built yet",
+            )
+        if self.close_exit is None:
+            raise ParameterError(self.name, "no action", "an event with close_exit = k (an index into domain.exits)")
+        self.close_exit = integer(f"{self.name}.close_exit", self.close_exit, 0)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``[[events]]`` table (TOML-ready)."""
+        return {"time": self.time, "close_exit": self.close_exit}
 
 
 SECTIONS: dict[str, type] = {

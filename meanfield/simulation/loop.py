@@ -30,6 +30,7 @@ import numpy as np
 from meanfield._compiled.threads import limited_blas
 from meanfield._compiled.warmup import compile_in_parallel, parallel_compile_possible
 from meanfield.errors import ParameterError, SimulationDiverged
+from meanfield.geometry.exits import exit_segments
 from meanfield.interfaces import Observation
 from meanfield.scenarios.scenario import Scenario, load_scenario
 from meanfield.signs.robots import NavigationField, limited_inputs
@@ -94,6 +95,11 @@ class ClosedLoop:
         self._plant_beside_first_act = [plant_half] if plant_half and parallel_compile_possible() else None
         self.last: StepRecord | None = None  # the latest step, as observers saw it
         self._started = False
+        # the scenario's [[events]], in time order: each closes an exit before the first step that starts at its time
+        self._events = list(parts.scenario.events)
+        n_exits = len(exit_segments(parts.region)) if self._events else 0
+        self.open_exits = np.ones(n_exits, dtype=bool)
+        self.events_done: list[dict[str, Any]] = []
 
     def _first_step_halves(self) -> tuple[Callable[[], Any] | None, Callable[[], Any] | None]:
         """The first step in two halves, the controller's and the plant's, for
@@ -173,6 +179,8 @@ class ClosedLoop:
         """
         self.start()
         k, dt = self.step_index, self.dt
+        while self._events and self._events[0].time <= self.t + 1e-9 * dt:
+            self._close_exit(self._events.pop(0))
         observation = self.observe()
         command = self.controller.act(observation) if self._plant_beside_first_act is None else self._act(observation)
         u, w, report = limited_inputs(command.u, command.omega, self.robots.u_max, self.robots.omega_max)
@@ -194,6 +202,23 @@ class ClosedLoop:
         for obs in self.observers:
             obs.step(self, record)
         return record
+
+    def _close_exit(self, event: Any) -> None:
+        """An event: exit ``event.close_exit`` closes now; every part that has ``exits_closed`` is told
+        (the crowd stops taking people through it and re-plans; a controller planning to the exits learns it)."""
+        self.open_exits[event.close_exit] = False
+        for part in (self.crowd, self.controller):
+            closed = getattr(part, "exits_closed", None)
+            if closed is not None:
+                closed(self.open_exits.copy())
+        self.events_done.append(
+            {"time": event.time, "at": self.t, "close_exit": event.close_exit, "exits_open": int(self.open_exits.sum())}
+        )
+
+    @property
+    def no_exit_left(self) -> bool:
+        """True once events have closed every exit (nobody can leave any more)."""
+        return bool(self.events_done) and not self.open_exits.any()
 
     def run(self, progress: bool = True, callback: Callable[[ClosedLoop], None] | None = None) -> SimulationResult:
         """Run to ``t_final`` with the standard observers, recording every ``record_every`` steps.
@@ -257,6 +282,10 @@ class ClosedLoop:
                     if remaining is not None and remaining() < half_person:
                         message = f"everyone left through the exits at t = {loop.t:.4g}"
                         break
+                    if loop.no_exit_left:  # the events closed every exit: nobody can leave any more
+                        at = loop.events_done[-1]["at"]
+                        message = f"no exit left: the last open exit closed at t = {at:.4g}"
+                        break
         except SimulationDiverged as exc:
             status, message = "diverged", str(exc)
         except KeyboardInterrupt:
@@ -284,12 +313,20 @@ class ClosedLoop:
             rho_err0=rho_err0,
             wall=wall,
             steps_run=loop.step_index - first,
-            measures={**evacuation.summary(), **stragglers.summary(loop)},
+            measures={**evacuation.summary(), **stragglers.summary(loop), **_events_summary(loop)},
         )
         rid = run_id(loop, status)
         summary = {"run_id": rid, **summary, "warnings": stability_warnings(sc, loop.grid, summary)}
         dataset.attrs.update(run_id=rid, status=status, message=message)
         return SimulationResult(sc, dataset, summary, p.kernel)
+
+
+def _events_summary(loop: ClosedLoop) -> dict[str, Any]:
+    """``events`` (what happened, when, and how many exits were left open) and ``no_exit_left``; nothing
+    without events."""
+    if not loop.scenario.events:
+        return {}
+    return {"events": list(loop.events_done), "no_exit_left": loop.no_exit_left}
 
 
 def _all_finite(a: np.ndarray) -> bool:
