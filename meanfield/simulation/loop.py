@@ -2,6 +2,8 @@
 
 One step of :class:`ClosedLoop` (``dt``; docs page *Architecture*):
 
+0. the scenario's events due now happen (``[[events]]``: an exit closes, and every part that
+   declares ``exits_closed`` is told; docs page *Buildings*, "Events");
 1. observe: the crowd's density on the grid (a KDE of agents, or the PDE's density) and
    the robots' kernels at their states (:class:`~meanfield.interfaces.Observation`);
 2. act: the controller's robot inputs ``(u_i, ω_i)`` (eq. (8) for the paper's law);
