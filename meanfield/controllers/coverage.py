@@ -180,9 +180,9 @@ class CoverageController:
 
     def exits_closed(self, open_exits: np.ndarray) -> None:
         """Tell the law whose headings the signs follow (its field towards the exits) which exits are open."""
-        closed = getattr(self.law, "exits_closed", None)
-        if closed is not None:
-            closed(open_exits)
+        from meanfield.geometry.exits import tell_exits_closed
+
+        tell_exits_closed((self.law,), open_exits)
 
     def reset(self) -> None:
         """Forget the law's previous ``v_d`` and the idle count."""

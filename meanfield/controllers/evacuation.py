@@ -144,6 +144,7 @@ class EvacuationController(BacksteppingController):
             raise ParameterError("eikonal", None, "the exits' ExitEikonal on this grid, for Hughes' potential")
         self.v_free, self.rho_max = float(v_free), float(rho_max)
         self.potential, self.eikonal, self.speed_floor = potential, eikonal, float(speed_floor)
+        self._all_exits = None if eikonal is None else eikonal.segs  # (exits_closed solves to a subset of these)
         self.grad_phi = self._face_gradient(phi)
 
     @classmethod
@@ -170,8 +171,6 @@ class EvacuationController(BacksteppingController):
         open_exits = np.asarray(open_exits, dtype=bool)
         if self.eikonal is None or not open_exits.any():
             return
-        if not hasattr(self, "_all_exits"):
-            self._all_exits = self.eikonal.segs
         e = self.eikonal
         self.eikonal = ExitEikonal(e.grid, self._all_exits[open_exits], e.sight)
         self.grad_phi = self._face_gradient(self.eikonal.distance)

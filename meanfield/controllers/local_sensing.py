@@ -132,10 +132,9 @@ class LocalSensing:
 
     def exits_closed(self, open_exits: np.ndarray) -> None:
         """Tell every group's controller which exits are open (those that plan to the exits plan again)."""
-        for c in self.controllers:
-            closed = getattr(c, "exits_closed", None)
-            if closed is not None:
-                closed(open_exits)
+        from meanfield.geometry.exits import tell_exits_closed
+
+        tell_exits_closed(self.controllers, open_exits)
 
     def reset(self) -> None:
         """Reset every robot's controller and the counts."""

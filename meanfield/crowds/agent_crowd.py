@@ -543,10 +543,9 @@ class AgentCrowd:
         The engine stops taking people through the others and a guidance that walks to the exits
         plans again (each part that has ``exits_closed`` is told).
         """
-        for part in (self.engine, self.guidance):
-            closed = getattr(part, "exits_closed", None)
-            if closed is not None:
-                closed(open_exits)
+        from meanfield.geometry.exits import tell_exits_closed
+
+        tell_exits_closed((self.engine, self.guidance), open_exits)
 
     def fraction_in_disk(self, center: tuple[float, float], radius: float) -> float:
         return fraction_in_disk(self.positions, center, radius)

@@ -53,6 +53,7 @@ _LAZY = {
     "segment_hits": "meanfield.geometry.walls",
     "square_lattice": "meanfield.geometry.region",
     "target_region_radius": "meanfield.geometry.target",
+    "tell_exits_closed": "meanfield.geometry.exits",
 }
 
 __getattr__, __dir__ = lazy_namespace(__name__, globals(), _LAZY)

@@ -24,7 +24,7 @@ import numpy as np
 from meanfield.geometry._exit_loops import bridge_exits, first_exit_crossed
 from meanfield.geometry._exit_loops import segment_distances as distance_to_segments
 
-__all__ = ["exit_segments", "distance_to_segments", "leaving", "ExitSink"]
+__all__ = ["exit_segments", "distance_to_segments", "leaving", "tell_exits_closed", "ExitSink"]
 
 
 def exit_segments(region: Any) -> np.ndarray:
@@ -34,6 +34,15 @@ def exit_segments(region: Any) -> np.ndarray:
     parts = [p.points for p in (boundary() if boundary else ()) if p.kind == "exit"]
     segs = [np.stack([pts[k], pts[k + 1]]) for pts in parts for k in range(len(pts) - 1)]
     return np.array(segs, float).reshape(-1, 2, 2)
+
+
+def tell_exits_closed(parts: Any, open_exits: np.ndarray) -> None:
+    """Tell each of ``parts`` that declares ``exits_closed`` which exits are still open (a scenario's
+    ``[[events]]``; docs page *Buildings*, "Events"): the parts that plan to the exits plan again."""
+    for part in parts:
+        closed = getattr(part, "exits_closed", None)
+        if closed is not None:
+            closed(np.asarray(open_exits, dtype=bool).copy())
 
 
 def leaving(

@@ -56,8 +56,8 @@ from meanfield import plugins as registry
 from meanfield.errors import ParameterError, choice, integer, module_list, num
 from meanfield.geometry.domain import Domain
 from meanfield.geometry.region import Region, region_from_table
-from meanfield.scenarios.sections import SECTIONS as _SECTIONS
 from meanfield.scenarios.sections import (
+    EVENT_ACTIONS,
     ControllerSpec,
     CrowdSpec,
     DensitySpec,
@@ -74,6 +74,7 @@ from meanfield.scenarios.sections import (
     region_keys,
     settable,
 )
+from meanfield.scenarios.sections import SECTIONS as _SECTIONS
 
 __all__ = [
     "Scenario",
@@ -331,7 +332,7 @@ class Scenario:
                 e = e.to_dict()
             if not isinstance(e, dict):
                 raise ParameterError(name, e, "a table with time and close_exit")
-            unknown = sorted(set(e) - {"time", "close_exit", "block"})
+            unknown = sorted(set(e) - {"time", *EVENT_ACTIONS})
             if unknown:
                 raise ParameterError(f"{name}.{unknown[0]}", e[unknown[0]], "time, close_exit (or block)")
             if "time" not in e:

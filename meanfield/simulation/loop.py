@@ -32,7 +32,7 @@ import numpy as np
 from meanfield._compiled.threads import limited_blas
 from meanfield._compiled.warmup import compile_in_parallel, parallel_compile_possible
 from meanfield.errors import ParameterError, SimulationDiverged
-from meanfield.geometry.exits import exit_segments
+from meanfield.geometry.exits import exit_segments, tell_exits_closed
 from meanfield.interfaces import Observation
 from meanfield.scenarios.scenario import Scenario, load_scenario
 from meanfield.signs.robots import NavigationField, limited_inputs
@@ -209,10 +209,7 @@ class ClosedLoop:
         """An event: exit ``event.close_exit`` closes now; every part that has ``exits_closed`` is told
         (the crowd stops taking people through it and re-plans; a controller planning to the exits learns it)."""
         self.open_exits[event.close_exit] = False
-        for part in (self.crowd, self.controller):
-            closed = getattr(part, "exits_closed", None)
-            if closed is not None:
-                closed(self.open_exits.copy())
+        tell_exits_closed((self.crowd, self.controller), self.open_exits)
         self.events_done.append(
             {"time": event.time, "at": self.t, "close_exit": event.close_exit, "exits_open": int(self.open_exits.sum())}
         )
