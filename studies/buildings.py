@@ -13,6 +13,12 @@ For each built-in plan (``l-room``, ``office``, ``hall``), seed and backend it r
   default) with 4, 8 and 16 robots;
 * the informed crowd (``crowd.guidance = "geodesic"``) and the uninformed crowd
   (``crowd.guidance = "random-walk"``), which have no use for robots;
+* coverage with either metric (``walking coverage n``, ``straight coverage n``: the option
+  ``controller.options.metric``);
+* the closed-exit variant of the informed crowd, static 8, coverage 8 and 16 and evacuation 8
+  (the label's ending ``, exit 0 shut at 10 s``: ``[[events]]`` closes exit 0 at t = 10 s, the
+  informed crowd re-plans), on the plans with two exits or more; its ratios are to the
+  informed crowd of the same variant;
 
 and keeps each run's evacuation figures in ``studies/results/buildings.jsonl`` (one line per
 run, appended as each finishes, so that an interrupted study resumes where it stopped).  The
@@ -41,9 +47,22 @@ SETTINGS = {  # label: overrides
     **{f"evacuation {n}": {"robots.n": n, "controller.kind": "evacuation"} for n in (4, 8, 16)},
     **{f"static {n}": {"robots.n": n, "controller.kind": "static-signs"} for n in (4, 8, 16)},
     **{f"coverage {n}": {"robots.n": n, "controller.kind": "coverage"} for n in (4, 8, 16)},
+    **{
+        f"{m} coverage {n}": {"robots.n": n, "controller.kind": "coverage", "controller.options.metric": m}
+        for m in ("walking", "straight")
+        for n in (8, 16)
+    },
     "informed": {"crowd.guidance": "geodesic", "robots.n": 4, "controller.kind": "static-signs"},
     "uninformed": {"crowd.guidance": "random-walk", "robots.n": 4, "controller.kind": "static-signs"},
 }
+SHUT = ", exit 0 shut at 10 s"
+"""The closed-exit variant of a setting: exit 0 closes at t = 10 s (``[[events]]``); on plans with two exits or more."""
+SETTINGS.update(
+    {
+        s + SHUT: {**SETTINGS[s], "events": [{"time": 10.0, "close_exit": 0}]}
+        for s in ("informed", "static 8", "coverage 8", "coverage 16", "evacuation 8")
+    }
+)
 RESULTS = Path("studies/results/buildings.jsonl")
 KEYS = (
     "fraction_evacuated",
@@ -82,6 +101,13 @@ def one_run(plan: str, setting: str, seed: int, backend: str, congestion: str = 
     }
 
 
+def _exits(plan: str) -> int:
+    """How many exits the plan has."""
+    from meanfield.scenarios.scenario import builtin_scenarios
+
+    return len(builtin_scenarios()[plan]().domain.exits)
+
+
 def _model(plan: str, backend: str, congestion: str) -> str:
     """The congestion model a run of ``plan`` with ``backend`` walks by (``auto``: the plan's default)."""
     from meanfield.scenarios.scenario import builtin_scenarios
@@ -115,7 +141,7 @@ def run_all(
         for p in PLANS
         for s in (settings or SETTINGS)
         for k in range(seeds)
-        if (p, s, k, b) not in done
+        if (p, s, k, b) not in done and (not s.endswith(SHUT) or _exits(p) > 1)
     ]
     print(f"{len(todo)} runs to do")
     with ProcessPoolExecutor(workers) as pool, RESULTS.open("a") as out:
@@ -160,10 +186,14 @@ def table(backends: list[str], congestion: str = "auto") -> str:
         for p in PLANS:
             here = [r for r in rows if r["plan"] == p and r["backend"] == b]
             runs = {s: [r for r in here if r["setting"] == s] for s in SETTINGS}
-            informed = float(np.median(times(runs["informed"], "evacuation_time_100"))) if runs["informed"] else np.inf
+            def informed_time(label: str) -> float:
+                rs = runs[label]
+                return float(np.median(times(rs, "evacuation_time_100"))) if rs else np.inf
+
             for s, rs in runs.items():
                 if not rs:
                     continue
+                informed = informed_time("informed" + SHUT if s.endswith(SHUT) else "informed")
                 horizon = max(r["time_final"] for r in rs)
                 out = np.array([r["fraction_evacuated"] for r in rs])
                 t95, t100 = times(rs, "evacuation_time_95"), times(rs, "evacuation_time_100")

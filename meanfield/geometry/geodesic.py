@@ -281,11 +281,16 @@ def exit_distance(grid: Grid, segs: np.ndarray) -> np.ndarray:
     return ExitEikonal(grid, segs).distance.copy()
 
 
-def _links(grid: Grid, index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+OPEN_APERTURE = 1e-9
+"""A face whose aperture is at most this is shut for the routes: the round-off of a face inside a wall
+(a face between two cells cut by a wall that lies on their centres measured 2e-15)."""
+
+
+def cell_links(grid: Grid, index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The cells' 8-neighbour links ``(a, b, length)``: through an open face, or diagonally when a path
     along two faces is open."""
-    ox = grid.aperture_x > 0  # open x-faces between (i, j) and (i+1, j)
-    oy = grid.aperture_y > 0  # open y-faces between (i, j) and (i, j+1)
+    ox = grid.aperture_x > OPEN_APERTURE  # open x-faces between (i, j) and (i+1, j)
+    oy = grid.aperture_y > OPEN_APERTURE  # open y-faces between (i, j) and (i, j+1)
     a, b, w = [], [], []
 
     def link(p: np.ndarray, q: np.ndarray, length: float) -> None:
@@ -398,7 +403,7 @@ class ExitRoutes:
         dist = self.phi[active]
         X, Y = grid.centers
         centre = np.column_stack([X[active], Y[active]])
-        la, lb, lw = _links(grid, index)
+        la, lb, lw = cell_links(grid, index)
         # the cells an exit crosses, joined to the exits by their centre's distance to it
         crossed = (ExitSink(grid, segs, 1.0).total_rate > 0)[active]
         exit_cells = np.flatnonzero(crossed)

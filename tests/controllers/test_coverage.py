@@ -90,3 +90,18 @@ def test_a_paper_run_with_coverage_reports_its_idle_robots_and_bad_options_are_r
     with pytest.raises(ParameterError) as exc:
         ClosedLoop(sc.with_values({"controller.options.gain": 1.0}))
     assert exc.value.name == "controller.options"
+
+
+def test_coverage_passes_the_potential_to_the_field_its_signs_follow_and_its_metric_to_the_positions():
+    from meanfield import ClosedLoop, load_scenario
+    from meanfield.controllers.evacuation import EvacuationController
+
+    sc = load_scenario("hall").with_values(
+        {"controller.options.potential": "hughes", "controller.options.metric": "walking", "t_final": 0.2}
+    )
+    loop = ClosedLoop(sc)
+    assert isinstance(loop.controller.law, EvacuationController) and loop.controller.law.potential == "hughes"
+    assert loop.controller.metric == "walking" and loop.controller.walking is not None
+    loop.run(progress=False)
+    with pytest.raises(ParameterError, match="controller.options.potential"):
+        ClosedLoop(sc.with_values({"controller.options.potential": "travel"}))

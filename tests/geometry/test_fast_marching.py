@@ -37,7 +37,7 @@ def _dijkstra_distance(grid: Grid, segs: np.ndarray) -> np.ndarray:
     n = int(act.sum())
     index = -np.ones(grid.shape, dtype=np.int64)
     index[act] = np.arange(n)
-    a, b, w = geodesic._links(grid, index)
+    a, b, w = geodesic.cell_links(grid, index)
     X, Y = grid.centers
     src = np.flatnonzero((ExitSink(grid, segs, 1.0).total_rate > 0)[act])
     start = distance_to_segments(np.column_stack([X[act], Y[act]])[src], segs).min(axis=1)

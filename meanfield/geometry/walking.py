@@ -1,0 +1,155 @@
+"""Walking distances from a few points to every cell: geodesic Voronoi cells and first legs.
+
+A robot in a building reaches a cell by walking round walls and through doors, not along
+the straight line.  This module gives, for points ``R_1 … R_n`` (the robots) and every
+active cell ``c`` of the grid:
+
+* ``d_i(c)``, the walking distance from ``R_i`` to ``c``: straight to the *anchor*
+  ``a_i(c)``, the last cell of the route that ``R_i`` sees, then along the route::
+
+      d_i(c) = |x_{a_i(c)} − R_i| + D_i(c) − D_i(a_i(c)),
+
+  with ``D_i`` Dijkstra's distance from the cell of ``R_i`` over the cells' 8-neighbour
+  links (:func:`meanfield.geometry.geodesic.cell_links`: through open faces, diagonally
+  where a path along two faces is open).  Where ``R_i`` sees ``c``, ``a_i(c) = c`` and
+  ``d_i(c) = |x_c − R_i|`` exactly; behind a wall the route's part beyond the anchor is the
+  8-neighbour path (at most 8 % long, docs page *Buildings*, "Routes to the exits");
+* ``e_i(c)``, the unit vector from ``R_i`` towards the anchor: the first leg of the route,
+  the direction in which ``d_i(c)`` falls fastest as ``R_i`` moves (``−∇_{R_i} d_i(c)``);
+* the geodesic Voronoi cells ``V_i = {c : d_i(c) ≤ d_j(c) for all j}``.
+
+The anchor is found by pointer jumping on Dijkstra's trees: ``a_i(c) = c`` where ``R_i``
+sees ``c`` or ``c`` is next to its start on the route (through an open face or diagonal, as
+the informed walker's next cell), else ``a_i(pred_i(c))``; the chain halves at each pass, so a route of ``L``
+cells needs ``log₂ L`` passes.  Sight is the grid's (:meth:`SightLines.cell_rows`), the
+same the signs and the coverage controller use.
+
+Reference: A. Bhattacharya, R. Ghrist, V. Kumar, "Multi-robot coverage and exploration on
+Riemannian manifolds with boundaries", *Int. J. Robotics Research* 33(1), 2014: Lloyd's
+coverage in the geodesic metric, whose cost gradient is the one used by
+:mod:`meanfield.controllers.coverage` with ``metric = "walking"``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from meanfield.geometry.grid import Grid
+from meanfield.geometry.sight import SightLines
+
+__all__ = ["WalkingDistances", "WalkingField"]
+
+KEPT_BYTES = 256e6
+"""At most about this many bytes of kept trees (a tree and its anchors per start cell); then they are planted again."""
+
+
+@dataclasses.dataclass(frozen=True)
+class WalkingField:
+    """The walking distances from ``n`` points to the ``M`` active cells (module docstring).
+
+    Attributes
+    ----------
+    distance : ndarray, shape (n, M)
+        ``d_i(c)``, metres of the grid; ``inf`` for a cell no route reaches.
+    leg : ndarray, shape (n, M, 2)
+        ``e_i(c)``: unit vectors of the routes' first legs (0 where ``R_i`` stands on the anchor).
+    anchor : ndarray of int, shape (n, M)
+        ``a_i(c)``, as an index into the active cells.
+    """
+
+    distance: np.ndarray
+    leg: np.ndarray
+    anchor: np.ndarray
+
+    def owners(self) -> np.ndarray:
+        """For each active cell, the point whose walking distance is least (ties: the first): ``(M,)``."""
+        return np.argmin(self.distance, axis=0)
+
+
+class WalkingDistances:
+    """Walking distances on a grid's cells from any points (module docstring).
+
+    Parameters
+    ----------
+    grid : Grid
+        The cells; their region's walls block the routes and the sight lines.
+    sight : SightLines, optional
+        The walls that hide a cell (built from ``grid.domain`` when omitted).
+    """
+
+    def __init__(self, grid: Grid, sight: SightLines | None = None):
+        from scipy import ndimage
+        from scipy.sparse import coo_matrix
+
+        from meanfield.geometry.geodesic import cell_links
+
+        self.grid = grid
+        self.sight = SightLines(grid.domain) if sight is None else sight
+        active = grid.active
+        self.cells = np.flatnonzero(active.ravel())
+        m = len(self.cells)
+        index = -np.ones(grid.shape, dtype=np.int64)
+        index[active] = np.arange(m)
+        a, b, w = cell_links(grid, index)
+        self.graph = coo_matrix((np.r_[w, w], (np.r_[a, b], np.r_[b, a])), shape=(m, m)).tocsr()
+        X, Y = grid.centers
+        self.xy = np.column_stack([X[active], Y[active]])
+        # a point in a cell without volume starts from the nearest cell that has some
+        _, (ii, jj) = ndimage.distance_transform_edt(~active, return_indices=True)
+        self._nearest = index[ii, jj]
+        self.keep = max(64, int(KEPT_BYTES // (16 * max(m, 1))))
+        self._trees: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+    def _plant(self, starts: np.ndarray, points: np.ndarray) -> None:
+        """Dijkstra's trees from the cells ``starts`` and their anchors, kept: both depend on the start cell only."""
+        from scipy.sparse.csgraph import dijkstra
+
+        n, m = len(starts), len(self.cells)
+        if len(self._trees) + n > self.keep:
+            self._trees.clear()
+        D, pred = dijkstra(self.graph, directed=False, indices=starts, return_predecessors=True)
+        D, pred = D.reshape(n, m), pred.reshape(n, m)
+        seen = self.sight.cell_rows(self.grid, points).reshape(n, -1)[:, self.cells]
+        seen[np.arange(n), starts] = True  # a point sees the cell it starts from,
+        seen |= pred == starts[:, None]  # and walks to its neighbours on the routes (open faces or diagonals)
+        own = np.broadcast_to(np.arange(m), (n, m))
+        anchor = np.where(seen | (pred < 0), own, pred)
+        while True:  # pointer jumping to the nearest ancestor in sight
+            nxt = np.take_along_axis(anchor, anchor, axis=1)
+            if np.array_equal(nxt, anchor):
+                break
+            anchor = nxt
+        for k, d, a in zip(starts, D, anchor):
+            self._trees[int(k)] = (d, a)
+
+    def cell_of(self, points: np.ndarray) -> np.ndarray:
+        """The active cell (index into :attr:`cells`) each point starts from: ``(n,)``."""
+        g = self.grid
+        x0, _, y0, _ = g.domain.bounds
+        p = np.asarray(points, float).reshape(-1, 2)
+        i = np.clip(((p[:, 0] - x0) / g.dx).astype(np.intp), 0, g.cells[0] - 1)
+        j = np.clip(((p[:, 1] - y0) / g.dy).astype(np.intp), 0, g.cells[1] - 1)
+        return self._nearest[i, j]
+
+    def from_points(self, points: np.ndarray) -> WalkingField:
+        """The walking distances, first legs and anchors from each of ``points`` (``(n, 2)``) to every active cell.
+
+        Dijkstra's tree and the anchors depend only on the cell a point starts from: they are computed the first
+        time a point stands in a cell and kept (the straight first leg is the point's own).
+        """
+        p = np.real(np.asarray(points, float)).reshape(-1, 2)
+        start = self.cell_of(p)
+        cells, first = np.unique(start, return_index=True)
+        new = np.array([int(k) not in self._trees for k in cells], dtype=bool)
+        if new.any():
+            self._plant(cells[new], p[first[new]])
+        D = np.stack([self._trees[int(k)][0] for k in start])
+        anchor = np.stack([self._trees[int(k)][1] for k in start])
+        to_anchor = self.xy[anchor] - p[:, None, :]  # (n, m, 2)
+        straight = np.hypot(to_anchor[..., 0], to_anchor[..., 1])
+        with np.errstate(invalid="ignore"):  # inf − inf where no route reaches a cell
+            distance = np.where(np.isfinite(D), straight + D - np.take_along_axis(D, anchor, axis=1), np.inf)
+        leg = np.divide(to_anchor, straight[..., None], out=np.zeros_like(to_anchor), where=straight[..., None] > 0)
+        return WalkingField(distance, leg, anchor)
