@@ -4,7 +4,7 @@ Run from the repository's root::
 
     python studies/buildings.py [--seeds 5] [--backends point-mass jupedsim] [--workers 2] [--settings ...]
 
-For each built-in plan (``l-room``, ``office``, ``hall``), seed and backend it runs
+For each built-in plan (``l-room``, ``office``, ``hall``, ``hall-crowded-west``), seed and backend it runs
 
 * robot guidance by the paper's Step II towards the exits (``controller.kind = "evacuation"``)
   with 4, 8 and 16 robots;
@@ -14,7 +14,9 @@ For each built-in plan (``l-room``, ``office``, ``hall``), seed and backend it r
 * the informed crowd (``crowd.guidance = "geodesic"``) and the uninformed crowd
   (``crowd.guidance = "random-walk"``), which have no use for robots;
 * coverage with either metric (``walking coverage n``, ``straight coverage n``: the option
-  ``controller.options.metric``);
+  ``controller.options.metric``), and with its signs turned to the nearest exits or to the exits
+  balanced by their capacities (``nearest coverage 8``, ``balanced coverage 8``: the option
+  ``controller.options.potential``, ``"distance"`` or ``"balanced"``);
 * the closed-exit variant of the informed crowd, static 8, coverage 8 and 16 and evacuation 8
   (the label's ending ``, exit 0 shut at 10 s``: ``[[events]]`` closes exit 0 at t = 10 s, the
   informed crowd re-plans), on the plans with two exits or more; its ratios are to the
@@ -42,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-PLANS = ("l-room", "office", "hall")
+PLANS = ("l-room", "office", "hall", "hall-crowded-west")
 SETTINGS = {  # label: overrides
     **{f"evacuation {n}": {"robots.n": n, "controller.kind": "evacuation"} for n in (4, 8, 16)},
     **{f"static {n}": {"robots.n": n, "controller.kind": "static-signs"} for n in (4, 8, 16)},
@@ -55,6 +57,12 @@ SETTINGS = {  # label: overrides
     "informed": {"crowd.guidance": "geodesic", "robots.n": 4, "controller.kind": "static-signs"},
     "uninformed": {"crowd.guidance": "random-walk", "robots.n": 4, "controller.kind": "static-signs"},
 }
+SETTINGS.update(
+    {
+        f"{name} coverage 8": {"robots.n": 8, "controller.kind": "coverage", "controller.options.potential": p}
+        for name, p in (("nearest", "distance"), ("balanced", "balanced"))
+    }
+)
 SHUT = ", exit 0 shut at 10 s"
 """The closed-exit variant of a setting: exit 0 closes at t = 10 s (``[[events]]``); on plans with two exits or more."""
 SETTINGS.update(
@@ -186,14 +194,14 @@ def table(backends: list[str], congestion: str = "auto") -> str:
         for p in PLANS:
             here = [r for r in rows if r["plan"] == p and r["backend"] == b]
             runs = {s: [r for r in here if r["setting"] == s] for s in SETTINGS}
-            def informed_time(label: str) -> float:
-                rs = runs[label]
-                return float(np.median(times(rs, "evacuation_time_100"))) if rs else np.inf
-
+            informed_of = {
+                label: float(np.median(times(runs[label], "evacuation_time_100"))) if runs[label] else np.inf
+                for label in ("informed", "informed" + SHUT)
+            }
             for s, rs in runs.items():
                 if not rs:
                     continue
-                informed = informed_time("informed" + SHUT if s.endswith(SHUT) else "informed")
+                informed = informed_of["informed" + SHUT if s.endswith(SHUT) else "informed"]
                 horizon = max(r["time_final"] for r in rs)
                 out = np.array([r["fraction_evacuated"] for r in rs])
                 t95, t100 = times(rs, "evacuation_time_95"), times(rs, "evacuation_time_100")

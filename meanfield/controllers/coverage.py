@@ -93,7 +93,8 @@ class CoverageController:
         The distance of the coverage (module docstring).
     """
 
-    OPTIONS = ("k_position", "k_heading", "weight", "metric", "v_d", "potential", "v_free", "rho_max")
+    OPTIONS = ("k_position", "k_heading", "weight", "metric", "v_d", "potential", "v_free", "rho_max", "specific_flow",
+               "rebalance_period")
 
     def __init__(
         self,
@@ -150,7 +151,8 @@ class CoverageController:
         v_d = opts.pop("v_d", "auto")
         if v_d not in V_D:
             raise ParameterError("controller.options.v_d", v_d, " or ".join(map(repr, V_D)))
-        hughes = {k: opts.pop(k) for k in ("potential", "v_free", "rho_max") if k in opts}
+        passed = ("potential", "v_free", "rho_max", "specific_flow", "rebalance_period")  # the law's options
+        hughes = {k: opts.pop(k) for k in passed if k in opts}
         exits = len(exit_segments(parts.region)) > 0
         if v_d == "exits" or (v_d == "auto" and exits):
             law = EvacuationController.from_parts(dataclasses.replace(parts, options=hughes))
@@ -248,4 +250,5 @@ class CoverageController:
     def summary(self) -> dict[str, Any]:
         """``coverage_idle_fraction``: the share of robot-steps in which a robot's cells held no weight."""
         n = max(len(self.idle), 1)
-        return {"coverage_idle_fraction": self.idle_robot_steps / max(self.steps * n, 1)}
+        balance = {k: v for k, v in self.law.summary().items() if k in ("exit_offsets", "balanced_makespan")}
+        return {"coverage_idle_fraction": self.idle_robot_steps / max(self.steps * n, 1), **balance}

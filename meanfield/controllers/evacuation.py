@@ -5,6 +5,11 @@
   - ``"distance"`` (the default): the geodesic distance to the nearest exit inside Ω, the
     eikonal solution ``|∇φ| = 1`` by fast marching
     (:func:`meanfield.geometry.geodesic.exit_distance`), computed once;
+  - ``"balanced"``: the exits balanced by their capacities,
+    ``φ = min_k (d_k + v_free τ_k)`` with ``d_k`` the distance to exit ``k`` and the offsets ``τ_k``
+    that minimise the time the last person is out, re-solved from the observed density every
+    ``rebalance_period`` (:mod:`meanfield.controllers.exit_assignment`, options ``specific_flow``
+    and ``rebalance_period``);
   - ``"hughes"``: Hughes' full model (R. L. Hughes, "A continuum theory for the flow of
     pedestrians", Transp. Res. B 36 (2002) 507–535, with his discomfort factor ``g ≡ 1``):
     ``φ`` is the remaining travel time, ``|∇φ| = 1/f̂(ρ)`` with ``φ = 0`` on the exits, solved by
@@ -17,7 +22,8 @@
   ``f(ρ) = v_free (1 − ρ/ρ_max)`` (0 beyond ``ρ_max``; ``ρ`` the toolkit's unit-mass density,
   as the option ``rho_max`` says):
 
-  - ``"distance"``: ``v_d = −f(ρ) ∇φ − u_W[ρ]``, ``|∇φ| = 1``;
+  - ``"distance"`` and ``"balanced"``: ``v_d = −f(ρ) ∇φ − u_W[ρ]``, ``|∇φ| = 1`` (the balanced ``φ`` is
+    constant between two solutions, and ``∂_t v_d`` below is the distance's between them);
   - ``"hughes"``: Hughes' ``v_d = −f(ρ) f̂(ρ) ∇φ − u_W[ρ]`` with ``f̂ = max(f, f_min)``, which is his
     ``−f(ρ)² ∇φ`` wherever ``f >= f_min``, so that ``|v_d| = f(ρ)`` there (his conservation law
     is ``∂_t ρ − ∇·(ρ g(ρ) f(ρ)² ∇φ) = 0`` with ``g(ρ) f(ρ) = 1/|∇φ|``; here ``g ≡ 1``).  The floor
@@ -66,15 +72,19 @@ import numpy as np
 
 from meanfield.controllers._law_loops import HUGHES_STEP_ONE
 from meanfield.controllers.backstepping import BacksteppingController, _Prepared
+from meanfield.controllers.exit_assignment import ExitAssignment
 from meanfield.errors import ParameterError
 from meanfield.geometry.geodesic import ExitEikonal, exit_distance
 from meanfield.geometry.grid import FaceField
 from meanfield.interfaces import ControllerParts
 
-__all__ = ["exit_distance", "EvacuationController", "POTENTIALS", "SPEED_FLOOR", "RATE_STEP"]
+__all__ = ["exit_distance", "EvacuationController", "POTENTIALS", "REBALANCE_PERIOD", "SPEED_FLOOR", "RATE_STEP"]
 
-POTENTIALS = ("distance", "hughes")
-"""``controller.options.potential``: the static distance to the exits, or Hughes' travel time at the density."""
+POTENTIALS = ("distance", "hughes", "balanced")
+"""``controller.options.potential``: the static distance to the exits, Hughes' travel time at the density, or the
+distance to the exits balanced by their capacities (:mod:`meanfield.controllers.exit_assignment`)."""
+REBALANCE_PERIOD = 1.0
+"""Default ``controller.options.rebalance_period``: the balanced potential is solved again this often (s in SI)."""
 SPEED_FLOOR = 0.05
 """``f_min / v_free``: the floor of the walking speed in Hughes' eikonal equation (module docstring)."""
 RATE_STEP = 1e-6
@@ -111,6 +121,10 @@ class EvacuationController(BacksteppingController):
         needed by ``potential = "hughes"``.
     speed_floor : float
         ``f_min / v_free`` in ``(0, 1]`` (:data:`SPEED_FLOOR`).
+    assignment : ExitAssignment, optional
+        The exits' balance (:mod:`meanfield.controllers.exit_assignment`); needed by ``potential = "balanced"``.
+    rebalance_period : float
+        How often the balanced potential is solved again, > 0 (:data:`REBALANCE_PERIOD`).
     **kwargs : Any
         Keyword arguments of :class:`~meanfield.controllers.backstepping.BacksteppingController`.
     """
@@ -129,6 +143,8 @@ class EvacuationController(BacksteppingController):
         potential: str = "distance",
         eikonal: ExitEikonal | None = None,
         speed_floor: float = SPEED_FLOOR,
+        assignment: ExitAssignment | None = None,
+        rebalance_period: float = REBALANCE_PERIOD,
         **kwargs: Any,
     ):
         super().__init__(*args, **kwargs)
@@ -142,6 +158,13 @@ class EvacuationController(BacksteppingController):
             raise ParameterError("speed_floor", speed_floor, "a share of v_free in (0, 1]")
         if potential == "hughes" and eikonal is None:
             raise ParameterError("eikonal", None, "the exits' ExitEikonal on this grid, for Hughes' potential")
+        if potential == "balanced" and assignment is None:
+            raise ParameterError("assignment", None, "the exits' ExitAssignment, for the balanced potential")
+        if not (math.isfinite(rebalance_period) and rebalance_period > 0):
+            raise ParameterError("controller.options.rebalance_period", rebalance_period, "a period > 0")
+        self.assignment = assignment if potential == "balanced" else None
+        self.rebalance_period = float(rebalance_period)
+        self._next_balance = -math.inf
         self.v_free, self.rho_max = float(v_free), float(rho_max)
         self.potential, self.eikonal, self.speed_floor = potential, eikonal, float(speed_floor)
         self._all_exits = None if eikonal is None else eikonal.segs  # (exits_closed solves to a subset of these)
@@ -153,17 +176,44 @@ class EvacuationController(BacksteppingController):
         ``potential`` (refused, naming ``controller.options.potential``, unless one of :data:`POTENTIALS`)."""
         from meanfield.geometry.exits import exit_segments
 
-        allowed = {"v_free", "rho_max", "potential"}
+        allowed = {"v_free", "rho_max", "potential", "specific_flow", "rebalance_period"}
         unknown = sorted(set(parts.options) - allowed)
         if unknown:
             raise ParameterError("controller.options", unknown, f"options among {sorted(allowed)}")
-        opts: dict[str, Any] = {k: float(v) for k, v in parts.options.items() if k != "potential"}
+        opts: dict[str, Any] = {}
+        for k, v in parts.options.items():
+            if k == "potential":
+                continue
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise ParameterError(f"controller.options.{k}", v, "a number")
+            opts[k] = float(v)
         potential = parts.options.get("potential", "distance")
         if potential not in POTENTIALS:
             raise ParameterError("controller.options.potential", potential, " or ".join(map(repr, POTENTIALS)))
-        eikonal = ExitEikonal(parts.grid, exit_segments(parts.region), parts.sight)
+        flow = opts.pop("specific_flow", None)
+        segs = exit_segments(parts.region)
+        eikonal = ExitEikonal(parts.grid, segs, parts.sight)
+        if potential == "balanced":
+            opts["assignment"] = cls.balance(parts, segs, eikonal, opts.get("v_free", 1.34), flow)
         return cls(*cls.law_arguments(parts), phi=eikonal.distance, scales=parts.scales, potential=potential,
                    eikonal=eikonal, **opts)  # fmt: skip
+
+    @staticmethod
+    def balance(parts: ControllerParts, segs: np.ndarray, eikonal: ExitEikonal, v_free: float,
+                specific_flow: float | None) -> ExitAssignment:  # fmt: skip
+        """The exits' :class:`ExitAssignment`: one fast march per exit alone, the exits' widths, ``N`` of the crowd."""
+        from meanfield.controllers.exit_assignment import SPECIFIC_FLOW
+
+        if parts.people is None:
+            raise ParameterError("crowd.n", None, "the crowd's size, for the balanced potential (persons per exit)")
+        if len(segs) == 1:
+            distances = eikonal.distance[None]
+        else:
+            alone = [ExitEikonal(parts.grid, segs[k : k + 1], parts.sight) for k in range(len(segs))]
+            distances = np.stack([e.distance for e in alone])
+        widths = np.hypot(*(segs[:, 1] - segs[:, 0]).T)
+        flow = SPECIFIC_FLOW if specific_flow is None else specific_flow
+        return ExitAssignment(distances, widths, parts.grid.volume, parts.people, v_free, flow)
 
     def exits_closed(self, open_exits: np.ndarray) -> None:
         """The robots learn that only the exits with ``open_exits[k]`` are open (a scenario's ``[[events]]``):
@@ -171,9 +221,34 @@ class EvacuationController(BacksteppingController):
         open_exits = np.asarray(open_exits, dtype=bool)
         if self.eikonal is None or not open_exits.any():
             return
+        if self.assignment is not None:  # balanced again over the open exits at the next evaluation
+            self.assignment.open = open_exits.copy()
+            self._next_balance = -math.inf
         e = self.eikonal
         self.eikonal = ExitEikonal(e.grid, self._all_exits[open_exits], e.sight)
         self.grad_phi = self._face_gradient(self.eikonal.distance)
+
+    # ------------------------------------------------------------------ the exits' balance
+    def robot_inputs(self, rho: np.ndarray, field: Any, t: float = 0.0, dt: float | None = None) -> Any:
+        """Step II (:meth:`BacksteppingController.robot_inputs`), the balanced potential solved again first when due."""
+        if self.assignment is not None and t >= self._next_balance:
+            self.assignment.solve(rho)
+            self.grad_phi = self._face_gradient(self.assignment.potential())
+            self._next_balance = t + self.rebalance_period * (1 - 1e-9)
+        return super().robot_inputs(rho, field, t, dt)
+
+    def summary(self) -> dict[str, Any]:
+        """The law's figures, and with the balanced potential the exits' last offsets ``τ_k`` and makespan."""
+        out = dict(super().summary())
+        if self.assignment is not None:
+            out["exit_offsets"] = [float(x) for x in self.assignment.offsets]
+            out["balanced_makespan"] = float(getattr(self.assignment, "makespan", math.nan))
+        return out
+
+    def reset(self) -> None:
+        """Forget the previous ``v_d``, and solve the balanced potential again at the next evaluation."""
+        super().reset()
+        self._next_balance = -math.inf
 
     # ------------------------------------------------------------------ the walking speed
     def _face_gradient(self, phi: np.ndarray) -> FaceField:
@@ -231,7 +306,7 @@ class EvacuationController(BacksteppingController):
 
     def _prepare(self, rho: np.ndarray, t: float) -> _Prepared:
         p = super()._prepare(rho, t)
-        if self.potential == "distance":
+        if self.potential != "hughes":
             return p
         phi = self.hughes_potential(rho)
         shared = {f.name: getattr(p, f.name) for f in fields(p)}
@@ -242,7 +317,7 @@ class EvacuationController(BacksteppingController):
         """Hughes' Step I for :func:`~meanfield.controllers._law_loops.face_law` with the static distance (this class
         exactly: a subclass may change Step I again, and then takes the numpy path); Hughes' potential takes the
         numpy path."""
-        if type(self) is not EvacuationController or self.potential != "distance":
+        if type(self) is not EvacuationController or self.potential == "hughes":
             return None
         return HUGHES_STEP_ONE, self.v_free, self.rho_max, self.grad_phi
 

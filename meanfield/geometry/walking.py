@@ -121,7 +121,7 @@ class WalkingDistances:
             if np.array_equal(nxt, anchor):
                 break
             anchor = nxt
-        for k, d, a in zip(starts, D, anchor):
+        for k, d, a in zip(starts, D, anchor, strict=True):
             self._trees[int(k)] = (d, a)
 
     def cell_of(self, points: np.ndarray) -> np.ndarray:

@@ -161,7 +161,7 @@ def test_every_shipped_plan_is_metres_reaches_its_exits_and_runs(name):
     assert loop.crowd.remaining() <= 30
 
 
-@pytest.mark.parametrize("name", ["l-room", "office", "hall", "bottleneck", "rimea-9", "rimea-12"])
+@pytest.mark.parametrize("name", ["l-room", "office", "hall", "hall-crowded-west", "bottleneck", "rimea-9", "rimea-12"])
 def test_no_congested_crowd_on_a_shipped_plan_beats_the_flow_bound(name):
     """The informed crowd, the fastest there is, with the plans' default congestion (the linear diagram,
     the local density cut by the walls): everyone out, and not sooner than the whole crowd takes through
@@ -172,7 +172,8 @@ def test_no_congested_crowd_on_a_shipped_plan_beats_the_flow_bound(name):
     s = ClosedLoop(sc.with_values({"crowd.guidance": "geodesic"})).run(progress=False).summary
     assert s["evacuation_time_100"] is not None, "somebody was left behind"
     assert s["rset_over_bound"] >= 1.0, s["rset_over_bound"]
-    assert max(f["persons_per_metre_second"] for f in s["exit_flows"]) <= 2.5 * 1.2  # no door far above it
+    flows = [f["persons_per_metre_second"] for f in s["exit_flows"] if f["persons_per_metre_second"] is not None]
+    assert flows and max(flows) <= 2.5 * 1.2  # no door far above it (a door nobody took has no flow)
 
 
 def test_baselines_are_refused_where_they_mean_nothing():

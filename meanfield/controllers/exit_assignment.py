@@ -1,0 +1,175 @@
+"""Exit balancing: which exit each part of the crowd should take so that the building empties soonest.
+
+The informed crowd takes its nearest exit and queues there while another stands idle.  This
+module assigns the observed crowd to the exits by their capacities, and gives the potential
+whose field sends each part to its exit (``controller.options.potential = "balanced"`` of
+:mod:`meanfield.controllers.evacuation`).
+
+**The model** (a fluid crowd and a point queue at each exit).  People in cell ``c`` reach
+exit ``k`` after ``a_k(c) = d_k(c)/v_free``, ``d_k`` the walking distance to exit ``k`` alone
+(fast marching, :class:`meanfield.geometry.geodesic.ExitEikonal`).  Exit ``k`` passes at most
+``C_k = w_k J`` persons/s (``w_k`` its width, ``J`` the specific flow, persons/(m·s)).  With the
+cells assigned to it sorted by arrival, ``a_1 <= … <= a_m``, holding ``P_1 … P_m`` persons, the
+exit is clear at::
+
+    T_k = max_j ( a_j + (P_j + … + P_m) / C_k ),                                   (B1)
+
+the time the queue fed from ``a_j`` on has passed (exact for a fluid point queue; ``j`` runs
+over the cells before which at least half a person is still to come, the toolkit's "everyone
+out").
+
+**The assignment.**  Cell ``c`` takes the exit ``argmin_k (a_k(c) + τ_k)``: each exit carries an
+offset ``τ_k >= 0``, the wait the crowd accepts there, and the offsets minimise the makespan
+``max_k T_k``.  Without offsets this is the informed crowd's choice (nearest exit); raising
+``τ_k`` moves the cells on the watershed away from exit ``k``.  The offsets are found by a damped
+price iteration, ``τ_k ← τ_k + s_i (T_k − mean T)`` with ``s_i = ½/(1 + i/10)``, shifted so that
+``min τ = 0``, keeping the offsets of the least makespan met (:data:`ITERATIONS` passes, started
+from the previous solution).  They are kept only where queues matter: when the queues add at
+least :data:`MIN_GAIN` (5 %) to the nearest exits' makespan (all ``τ_k = 0``, against the last
+person's walk alone), and the offsets shorten it by at least as much.  Otherwise the fluid
+optimum would split a few stragglers' density across the watershed, where two signs point
+apart and hold them between.
+
+**The potential.**  ``φ = min_k (d_k + v_free τ_k)``: ``|∇φ| = 1`` away from the watersheds, and
+its descent leads each cell to its exit, so Hughes' ``v_d = −f(ρ) ∇φ`` sends each part of the
+crowd to the exit it is assigned.  It is re-solved from the observed density every
+``rebalance_period`` and constant in between: Step II's ``∂_t v_d`` sees it as the distance
+potential's between two solutions.
+
+Hughes' potential (R. L. Hughes, *Transp. Res. B* 36, 2002) sees a queue only by the speed
+inside it, and only where the observed density is near jam; (B1) counts the people who will
+join the queue, so a crowd gathered by one door is split before any queue has formed.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from meanfield.errors import ParameterError
+
+__all__ = ["ExitAssignment", "clearing_time", "ITERATIONS", "SPECIFIC_FLOW"]
+
+SPECIFIC_FLOW = 1.8
+"""Default ``J``, persons/(m·s): the congested point masses' measured door flow, 1.6–1.9 at widths of
+0.8–2.5 m (docs page *Congestion*, the bottleneck study), inside the experiments' 1.6–2.5."""
+ITERATIONS = 40
+"""Passes of the price iteration per solution."""
+MIN_GAIN = 0.05
+"""The offsets are kept only where the queues add at least this share to the nearest exits' makespan and the
+offsets shorten it by as much (module docstring)."""
+LAST_PERSON = 0.5
+"""A queue is clear when less than this many persons are still to pass (the toolkit's "everyone out")."""
+
+
+def clearing_time(arrival: np.ndarray, persons: np.ndarray, capacity: float) -> float:
+    """Eq. (B1): when an exit of ``capacity`` persons/s has passed everyone who arrives at ``arrival``.
+
+    Parameters
+    ----------
+    arrival : ndarray, shape (m,)
+        Arrival times ``a_j`` (any order).
+    persons : ndarray, shape (m,)
+        Persons arriving at each ``a_j`` (>= 0).
+    capacity : float
+        ``C_k`` > 0.
+
+    Returns
+    -------
+    float
+        ``max_j (a_j + Σ_{i: a_i >= a_j} P_i / C_k)`` over the ``j`` with at least :data:`LAST_PERSON`
+        persons from ``a_j`` on; 0 when fewer than that arrive at all.
+    """
+    order = np.argsort(arrival, kind="stable")
+    a, p = arrival[order], persons[order]
+    rest = np.cumsum(p[::-1])[::-1]  # persons from a_j on
+    due = rest >= LAST_PERSON
+    if not due.any():
+        return 0.0
+    return float((a[due] + rest[due] / capacity).max())
+
+
+class ExitAssignment:
+    """Offsets ``τ_k`` per exit that minimise the crowd's makespan, and the balanced potential (module docstring).
+
+    Parameters
+    ----------
+    distances : ndarray, shape (K, nx, ny)
+        ``d_k``: the walking distance to each exit alone (``inf`` off Ω).
+    widths : ndarray, shape (K,)
+        The exits' widths (metres of the grid).
+    volume : ndarray, shape (nx, ny)
+        The cells' areas inside Ω.
+    people : int
+        ``N``: the unit-mass density ``ρ`` has ``N ρ`` persons per unit area.
+    v_free : float
+        Free walking speed, > 0.
+    specific_flow : float
+        ``J``, persons per unit width and time, > 0 (:data:`SPECIFIC_FLOW`).
+    """
+
+    def __init__(self, distances: np.ndarray, widths: np.ndarray, volume: np.ndarray, people: int,
+                 v_free: float, specific_flow: float = SPECIFIC_FLOW):  # fmt: skip
+        if not (isinstance(specific_flow, (int, float)) and math.isfinite(specific_flow) and specific_flow > 0):
+            raise ParameterError("controller.options.specific_flow", specific_flow, "a flow > 0, persons/(m·s)")
+        self.distances = np.asarray(distances, float)
+        self.capacity = np.asarray(widths, float) * float(specific_flow)
+        self.active = np.isfinite(self.distances).all(axis=0) & (np.asarray(volume) > 0)
+        self.arrival = self.distances[:, self.active] / float(v_free)  # (K, M)
+        self.volume = np.asarray(volume, float)[self.active]
+        self.people = int(people)
+        self.v_free = float(v_free)
+        self.open = np.ones(len(self.capacity), dtype=bool)
+        self.offsets = np.zeros(len(self.capacity))
+
+    def assign(self, offsets: np.ndarray) -> np.ndarray:
+        """Each active cell's exit, ``argmin_k (a_k(c) + τ_k)`` over the open exits: ``(M,)``."""
+        cost = self.arrival + np.where(self.open, offsets, np.inf)[:, None]
+        return np.argmin(cost, axis=0)
+
+    def clearing_times(self, persons: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+        """``T_k`` of eq. (B1) for each exit under the assignment of ``offsets`` (0 for an exit nobody takes)."""
+        exit_of = self.assign(offsets)
+        out = np.zeros(len(self.capacity))
+        for k in np.flatnonzero(self.open):
+            mine = exit_of == k
+            out[k] = clearing_time(self.arrival[k, mine], persons[mine], self.capacity[k])
+        return out
+
+    def last_arrival(self, persons: np.ndarray, offsets: np.ndarray) -> float:
+        """When the last person (:data:`LAST_PERSON`) reaches its exit under ``offsets``, without queues."""
+        exit_of = self.assign(offsets)
+        a = self.arrival[exit_of, np.arange(len(exit_of))]
+        order = np.argsort(a, kind="stable")
+        rest = np.cumsum(persons[order][::-1])[::-1]
+        due = rest >= LAST_PERSON
+        return float(a[order][due].max()) if due.any() else 0.0
+
+    def solve(self, rho: np.ndarray) -> np.ndarray:
+        """The offsets ``τ`` for the unit-mass density ``rho`` on the cells (price iteration, module docstring)."""
+        persons = self.people * np.maximum(np.real(rho)[self.active], 0.0) * self.volume
+        tau = np.where(self.open, self.offsets, 0.0)
+        best, best_tau = math.inf, tau.copy()
+        for i in range(ITERATIONS):
+            T = self.clearing_times(persons, tau)
+            makespan = float(T[self.open].max())
+            if makespan < best:
+                best, best_tau = makespan, tau.copy()
+            step = 0.5 / (1.0 + i / 10.0)
+            tau = tau + step * np.where(self.open, T - T[self.open].mean(), 0.0)
+            tau = np.where(self.open, tau - tau[self.open].min(), 0.0)
+        zero = np.zeros_like(tau)
+        nearest = float(self.clearing_times(persons, zero)[self.open].max())
+        queued = nearest - self.last_arrival(persons, zero)  # what the queues add to the nearest exits' makespan
+        if queued < MIN_GAIN * nearest or best > (1.0 - MIN_GAIN) * nearest:  # balancing does not pay
+            best, best_tau = nearest, zero
+        self.offsets = best_tau
+        self.makespan = best
+        return best_tau
+
+    def potential(self, offsets: np.ndarray | None = None) -> np.ndarray:
+        """``φ = min_k (d_k + v_free τ_k)`` over the open exits, on the cells (``inf`` off Ω)."""
+        tau = self.offsets if offsets is None else offsets
+        shifted = self.distances[self.open] + self.v_free * tau[self.open][:, None, None]
+        return shifted.min(axis=0)

@@ -1,0 +1,162 @@
+"""Exits balanced by their capacities (issue 31, item 2): the clearing time (B1), the offsets against a brute-force
+optimum, the potential's field, closed exits, Step II's identity on the balanced potential, bad options."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from meanfield import ClosedLoop, Domain, GaussianKernel, Grid, NavigationField, ParameterError
+from meanfield.controllers.backstepping import MinimumNormBetaGamma, SaturatingAlpha
+from meanfield.controllers.evacuation import EvacuationController
+from meanfield.controllers.exit_assignment import ExitAssignment, clearing_time
+from meanfield.geometry.exits import exit_segments
+from meanfield.geometry.geodesic import ExitEikonal
+from meanfield.geometry.target import gaussian_target
+from meanfield.scenarios.scenario import builtin_scenarios
+from tests.conftest import smooth_density
+
+EPS = 1e-30  # complex step
+
+
+def test_the_clearing_time_of_a_point_queue():
+    # three persons at 0, 1, 2 s through 1 person/s: the queue holds them back to 3 s
+    assert clearing_time(np.array([2.0, 0.0, 1.0]), np.ones(3), 1.0) == pytest.approx(3.0)
+    # a latecomer after the queue has cleared leaves at its arrival plus its own passage
+    assert clearing_time(np.array([0.0, 10.0]), np.array([2.0, 1.0]), 1.0) == pytest.approx(11.0)
+    # the last half person is "everyone out": a quarter person far away does not count
+    assert clearing_time(np.array([0.0, 50.0]), np.array([4.0, 0.25]), 2.0) == pytest.approx(2.125)
+    assert clearing_time(np.array([1.0]), np.array([0.4]), 1.0) == 0.0
+
+
+def _corridor(n_cells=60, length=30.0, people=200, centre=6.0, std=3.0, widths=(2.0, 2.0)):
+    """A straight corridor, exits at both ends: d_0 = x, d_1 = L − x; the crowd a normal law round ``centre``."""
+    x = (np.arange(n_cells) + 0.5) * length / n_cells
+    dist = np.stack([x, length - x])[:, :, None]  # (K, nx, 1)
+    volume = np.full((n_cells, 1), length / n_cells)
+    rho = np.exp(-0.5 * ((x - centre) / std) ** 2)[:, None]
+    rho /= (rho * volume).sum()
+    return ExitAssignment(dist, np.array(widths), volume, people, 1.34, 1.8), rho, x
+
+
+def test_the_offsets_reach_the_best_watershed_found_by_brute_force():
+    """In a corridor every assignment that a watershed can make is a split point: the iteration's makespan is
+    within half a cell's walk of the best split's."""
+    a, rho, x = _corridor()
+    persons = a.people * rho[:, 0] * a.volume
+    best = min(
+        max(clearing_time(a.arrival[0, :s], persons[:s], a.capacity[0]),
+            clearing_time(a.arrival[1, s:], persons[s:], a.capacity[1]))  # fmt: skip
+        for s in range(len(x) + 1)
+    )
+    tau = a.solve(rho)
+    assert tau[0] > 0 and tau[1] == 0  # the crowded west exit carries the wait
+    nearest = float(a.clearing_times(persons, np.zeros(2)).max())
+    assert a.makespan <= best + 0.5 * (x[1] - x[0]) / 1.34 + 1e-9
+    assert a.makespan < 0.8 * nearest  # here balancing pays: the nearest exits' makespan is 1.25 times longer
+    assert (a.assign(tau)[x > 20] == 1).all() and (a.assign(tau)[x < 3] == 0).all()
+
+
+def test_balancing_that_does_not_pay_keeps_everyone_on_the_nearest_exit():
+    a, rho, _ = _corridor(people=1)  # one person: no queue worth balancing
+    assert (a.solve(rho) == 0).all()
+    a, rho, _ = _corridor(centre=15.0, std=4.0)  # a symmetric crowd: the nearest exits are balanced already
+    assert np.abs(a.solve(rho)).max() < 1.0
+
+
+def test_a_closed_exit_takes_no_one():
+    a, rho, _ = _corridor()
+    a.open = np.array([False, True])
+    a.solve(rho)
+    assert (a.assign(a.offsets) == 1).all()
+    phi = a.potential()
+    np.testing.assert_allclose(phi, a.distances[1], rtol=0, atol=1e-12)
+
+
+def _hall(**values):
+    return builtin_scenarios()["hall-crowded-west"](seed=0).with_values({"t_final": 0.2, **values})
+
+
+def test_on_the_crowded_hall_the_signs_field_sends_the_east_of_the_crowd_east():
+    loop = ClosedLoop(_hall())
+    law = loop.controller.law
+    assert isinstance(law, EvacuationController) and law.potential == "balanced"
+    loop.step()
+    tau = law.assignment.offsets
+    assert tau[0] > 5.0 and tau[1] == 0.0  # the west door, where everyone stands, waits
+    gx, _ = loop.grid.to_cells(law.grad_phi)
+    X, Y = loop.grid.centers
+    row = np.abs(Y - 10.25) < 0.3
+    assert (gx[row & (X < 2.5)] > 0).all()  # by the west door: down φ is west
+    assert (gx[row & (X > 12.0) & (X < 28.0)] < 0).all()  # east of the crowd's middle: down φ is east
+    s = loop.controller.summary()
+    assert s["exit_offsets"] == pytest.approx(list(tau)) and s["balanced_makespan"] > 0
+
+
+def test_closing_an_exit_balances_again_over_the_open_ones():
+    loop = ClosedLoop(_hall(events=[{"time": 0.1, "close_exit": 1}], t_final=0.3))
+    loop.run(progress=False)
+    law = loop.controller.law
+    assert law.assignment.open.tolist() == [True, False]
+    np.testing.assert_allclose(law.grad_phi[0], loop.grid.gradient(np.where(np.isfinite(law.assignment.distances[0]),
+                               law.assignment.distances[0], 0.0))[0], rtol=0, atol=1e-12)  # fmt: skip
+
+
+def test_step_two_identity_holds_for_the_balanced_potential_between_two_solutions():
+    """dV₂/dt = S − Σ k_u|b_i|² − Σ k_ω g_i² by complex-step differentiation, with φ solved at this instant."""
+    room = Domain.box(1.0, 1.0, exits=[((0.0, 0.4), (0.0, 0.6)), ((1.0, 0.4), (1.0, 0.6))])
+    grid = Grid(room, (20, 20))
+    target = gaussian_target(grid, (0.2, 0.5), 0.15)
+    segs = exit_segments(room)
+    eikonal = ExitEikonal(grid, segs)
+    distances = np.stack([ExitEikonal(grid, segs[k : k + 1]).distance for k in range(2)])
+    assignment = ExitAssignment(distances, np.full(2, 0.2), grid.volume, 400, 0.3, 1.8)
+    ctrl = EvacuationController(
+        grid, target, 0.003, SaturatingAlpha(0.1, 0.2), 1.0, 2.0, MinimumNormBetaGamma(), None, "model",
+        phi=eikonal.distance, v_free=0.3, rho_max=4.0, potential="balanced", eikonal=eikonal, assignment=assignment,
+    )  # fmt: skip
+    kernel = GaussianKernel(0.5, 0.03)
+    X, _ = grid.centers
+    rho = smooth_density(grid) * np.exp(-((X - 0.25) ** 2) / 0.02) + 0.05
+    rho /= grid.integrate(rho)
+    rng = np.random.default_rng(2)
+    R, th = rng.uniform(0.1, 0.9, (5, 2)), rng.uniform(0, 2 * np.pi, 5)
+    field = NavigationField(kernel, grid, R, th)
+    st = ctrl.robot_inputs(rho, field)
+    assert assignment.offsets[0] > 0  # balanced, not the distance
+    rho_dot = ctrl.density_rate(rho, field.velocity())
+
+    def V2(r, pos, head):
+        v_r = NavigationField(kernel, grid, pos, head).velocity()
+        v_d = ctrl.virtual_velocity(r)
+        vt = (v_r[0] - v_d[0], v_r[1] - v_d[1])
+        rt = r - target
+        return 0.5 * grid.inner(rt, rt) + 0.5 * grid.face_inner(vt, vt)
+
+    dV = V2(rho + 1j * EPS * rho_dot, R + 1j * EPS * st.u, th + 1j * EPS * st.omega).imag / EPS
+    action = (st.b**2).sum() + 2.0 * (st.g**2).sum()
+    expected = -st.dissipation - action
+    scale = abs(st.dissipation) + abs(st.A) + action
+    assert abs(dV - expected) <= 1e-9 * scale, (dV, expected)
+
+
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [("specific_flow", 0.0), ("specific_flow", "fast"), ("rebalance_period", -1.0), ("potential", "b")],
+)
+def test_bad_balance_options_are_refused_naming_them(key, value):
+    with pytest.raises(ParameterError) as exc:
+        ClosedLoop(_hall(**{f"controller.options.{key}": value}))
+    assert exc.value.name == f"controller.options.{key}"
+
+
+def test_the_rebalance_period_sets_how_often_the_offsets_are_solved():
+    loop = ClosedLoop(_hall(**{"controller.options.rebalance_period": 0.25, "t_final": 1.0}))
+    law = loop.controller.law
+    calls = []
+    solve = law.assignment.solve
+    law.assignment.solve = lambda rho: calls.append(loop.t) or solve(rho)
+    loop.run(progress=False)
+    assert calls == pytest.approx([0.0, 0.3, 0.6, 0.9]) and math.isclose(law.rebalance_period, 0.25)
