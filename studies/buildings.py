@@ -47,15 +47,19 @@ import numpy as np
 PLANS = ("l-room", "office", "hall", "hall-crowded-west")
 SETTINGS = {  # label: overrides
     **{f"evacuation {n}": {"robots.n": n, "controller.kind": "evacuation"} for n in (4, 8, 16)},
-    **{f"static {n}": {"robots.n": n, "controller.kind": "static-signs"} for n in (4, 8, 16)},
+    **{f"static {n}": {"robots.n": n, "controller.kind": "static-signs", "controller.options": {}} for n in (4, 8, 16)},
     **{f"coverage {n}": {"robots.n": n, "controller.kind": "coverage"} for n in (4, 8, 16)},
     **{
         f"{m} coverage {n}": {"robots.n": n, "controller.kind": "coverage", "controller.options.metric": m}
         for m in ("walking", "straight")
         for n in (8, 16)
     },
-    "informed": {"crowd.guidance": "geodesic", "robots.n": 4, "controller.kind": "static-signs"},
-    "uninformed": {"crowd.guidance": "random-walk", "robots.n": 4, "controller.kind": "static-signs"},
+    "informed": {
+        "crowd.guidance": "geodesic", "robots.n": 4, "controller.kind": "static-signs", "controller.options": {}
+    },
+    "uninformed": {
+        "crowd.guidance": "random-walk", "robots.n": 4, "controller.kind": "static-signs", "controller.options": {}
+    },
 }
 SETTINGS.update(
     {
@@ -225,7 +229,9 @@ def figure(backends: list[str], congestion: str = "auto", path: str = "docs/figu
 
     rows = _rows(congestion)
     fig, axes = subplots(len(backends), len(PLANS), figsize=(4.2 * len(PLANS), 3.4 * len(backends)), squeeze=False)
-    shown = ("evacuation 8", "evacuation 16", "coverage 8", "coverage 16", "static 8", "informed", "uninformed")
+    shown = ("evacuation 8", "evacuation 16", "coverage 8", "coverage 16", "static 8", "informed", "uninformed",
+             "nearest coverage 8")  # fmt: skip
+    colour = {s: f"C{i}" for i, s in enumerate(shown)}  # the same colour for a setting on every panel
     for bi, b in enumerate(backends):
         for pi, p in enumerate(PLANS):
             ax = axes[bi][pi]
@@ -236,12 +242,15 @@ def figure(backends: list[str], congestion: str = "auto", path: str = "docs/figu
                 t = max((r["curve_t"] for r in rs), key=len)
                 curves = np.array([np.interp(t, r["curve_t"], r["curve"], right=r["curve"][-1]) for r in rs])
                 wide = s.startswith(("evacuation", "coverage"))
-                ax.plot(t, np.median(curves, axis=0), label=s, lw=1.6 if wide else 1.1, ls="--" if "16" in s else "-")
+                ax.plot(t, np.median(curves, axis=0), label=s, color=colour[s], lw=1.6 if wide else 1.1,
+                        ls="--" if "16" in s else (":" if s.startswith("nearest") else "-"))  # fmt: skip
             model = rs[0]["congestion"] if rs else "?"
             ax.set(title=f"{p} — {b} ({model})", xlabel="time (s)", ylabel="fraction evacuated (median of seeds)")
             ax.set_ylim(0, 1.02)
             ax.grid(alpha=0.3)
-    axes[0][0].legend(fontsize=8, loc="lower right")
+    for ax in axes[0]:
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
     save_figure(fig, path)
     print(f"wrote {path}")

@@ -15,8 +15,9 @@ exit is clear at::
     T_k = max_j ( a_j + (P_j + … + P_m) / C_k ),                                   (B1)
 
 the time the queue fed from ``a_j`` on has passed (exact for a fluid point queue; ``j`` runs
-over the cells before which at least half a person is still to come, the toolkit's "everyone
-out").
+over the cells before which at least ``1/(2K)`` of a person is still to come at each of the
+``K`` open exits, so that half a person in all is the toolkit's "everyone out": half a person
+per exit would let the assignment hide ``K/2`` persons by splitting them among the exits).
 
 **The assignment.**  Cell ``c`` takes the exit ``argmin_k (a_k(c) + τ_k)``: each exit carries an
 offset ``τ_k >= 0``, the wait the crowd accepts there, and the offsets minimise the makespan
@@ -24,11 +25,11 @@ offset ``τ_k >= 0``, the wait the crowd accepts there, and the offsets minimise
 ``τ_k`` moves the cells on the watershed away from exit ``k``.  The offsets are found by a damped
 price iteration, ``τ_k ← τ_k + s_i (T_k − mean T)`` with ``s_i = ½/(1 + i/10)``, shifted so that
 ``min τ = 0``, keeping the offsets of the least makespan met (:data:`ITERATIONS` passes, started
-from the previous solution).  They are kept only where queues matter: when the queues add at
-least :data:`MIN_GAIN` (5 %) to the nearest exits' makespan (all ``τ_k = 0``, against the last
-person's walk alone), and the offsets shorten it by at least as much.  Otherwise the fluid
-optimum would split a few stragglers' density across the watershed, where two signs point
-apart and hold them between.
+from the previous solution).  They are kept only where queues matter: when some queue at the
+nearest exits (all ``τ_k = 0``) would hold at least :data:`MIN_QUEUE` (5) persons, and the
+offsets shorten the nearest exits' makespan by at least :data:`MIN_GAIN` (5 %).  Otherwise the
+fluid optimum would split a few stragglers' smeared density across the watershed, where two
+signs point apart and hold them between.
 
 **The potential.**  ``φ = min_k (d_k + v_free τ_k)``: ``|∇φ| = 1`` away from the watersheds, and
 its descent leads each cell to its exit, so Hughes' ``v_d = −f(ρ) ∇φ`` sends each part of the
@@ -57,13 +58,14 @@ SPECIFIC_FLOW = 1.8
 ITERATIONS = 40
 """Passes of the price iteration per solution."""
 MIN_GAIN = 0.05
-"""The offsets are kept only where the queues add at least this share to the nearest exits' makespan and the
-offsets shorten it by as much (module docstring)."""
+"""The offsets are kept only where they shorten the nearest exits' makespan by at least this share."""
+MIN_QUEUE = 5.0
+"""Persons: the exits are balanced only when some queue at the nearest exits would hold at least this many."""
 LAST_PERSON = 0.5
 """A queue is clear when less than this many persons are still to pass (the toolkit's "everyone out")."""
 
 
-def clearing_time(arrival: np.ndarray, persons: np.ndarray, capacity: float) -> float:
+def clearing_time(arrival: np.ndarray, persons: np.ndarray, capacity: float, last: float = LAST_PERSON) -> float:
     """Eq. (B1): when an exit of ``capacity`` persons/s has passed everyone who arrives at ``arrival``.
 
     Parameters
@@ -74,17 +76,19 @@ def clearing_time(arrival: np.ndarray, persons: np.ndarray, capacity: float) -> 
         Persons arriving at each ``a_j`` (>= 0).
     capacity : float
         ``C_k`` > 0.
+    last : float
+        The persons still to come below which the exit counts as clear (:data:`LAST_PERSON`).
 
     Returns
     -------
     float
-        ``max_j (a_j + Σ_{i: a_i >= a_j} P_i / C_k)`` over the ``j`` with at least :data:`LAST_PERSON`
-        persons from ``a_j`` on; 0 when fewer than that arrive at all.
+        ``max_j (a_j + Σ_{i: a_i >= a_j} P_i / C_k)`` over the ``j`` with at least ``last`` persons from
+        ``a_j`` on; 0 when fewer than that arrive at all.
     """
     order = np.argsort(arrival, kind="stable")
     a, p = arrival[order], persons[order]
     rest = np.cumsum(p[::-1])[::-1]  # persons from a_j on
-    due = rest >= LAST_PERSON
+    due = rest >= last
     if not due.any():
         return 0.0
     return float((a[due] + rest[due] / capacity).max())
@@ -130,25 +134,35 @@ class ExitAssignment:
 
     def clearing_times(self, persons: np.ndarray, offsets: np.ndarray) -> np.ndarray:
         """``T_k`` of eq. (B1) for each exit under the assignment of ``offsets`` (0 for an exit nobody takes)."""
+        return self._times(persons, offsets)[0]
+
+    def queues(self, persons: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+        """Persons each exit's queue holds at its worst under ``offsets``: ``C_k`` times what it adds to the walk,
+        ``C_k (T_k − a_last,k)`` with ``a_last,k`` the last arrival that (B1) counts."""
+        T, walk = self._times(persons, offsets)
+        return np.maximum(T - walk, 0.0) * self.capacity
+
+    def _times(self, persons: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         exit_of = self.assign(offsets)
-        out = np.zeros(len(self.capacity))
+        clear, walk = np.zeros(len(self.capacity)), np.zeros(len(self.capacity))
+        last = LAST_PERSON / max(int(self.open.sum()), 1)  # half a person in all: not half a person per exit
         for k in np.flatnonzero(self.open):
             mine = exit_of == k
-            out[k] = clearing_time(self.arrival[k, mine], persons[mine], self.capacity[k])
-        return out
-
-    def last_arrival(self, persons: np.ndarray, offsets: np.ndarray) -> float:
-        """When the last person (:data:`LAST_PERSON`) reaches its exit under ``offsets``, without queues."""
-        exit_of = self.assign(offsets)
-        a = self.arrival[exit_of, np.arange(len(exit_of))]
-        order = np.argsort(a, kind="stable")
-        rest = np.cumsum(persons[order][::-1])[::-1]
-        due = rest >= LAST_PERSON
-        return float(a[order][due].max()) if due.any() else 0.0
+            a, p = self.arrival[k, mine], persons[mine]
+            clear[k] = clearing_time(a, p, self.capacity[k], last)
+            order = np.argsort(a, kind="stable")
+            due = np.cumsum(p[order][::-1])[::-1] >= last
+            walk[k] = float(a[order][due].max()) if due.any() else 0.0
+        return clear, walk
 
     def solve(self, rho: np.ndarray) -> np.ndarray:
         """The offsets ``τ`` for the unit-mass density ``rho`` on the cells (price iteration, module docstring)."""
         persons = self.people * np.maximum(np.real(rho)[self.active], 0.0) * self.volume
+        zero = np.zeros(len(self.capacity))
+        nearest = float(self.clearing_times(persons, zero)[self.open].max())
+        if self.queues(persons, zero).max() < MIN_QUEUE:  # no queue at the nearest exits: nothing to balance
+            self.offsets, self.makespan = zero, nearest
+            return zero
         tau = np.where(self.open, self.offsets, 0.0)
         best, best_tau = math.inf, tau.copy()
         for i in range(ITERATIONS):
@@ -159,10 +173,7 @@ class ExitAssignment:
             step = 0.5 / (1.0 + i / 10.0)
             tau = tau + step * np.where(self.open, T - T[self.open].mean(), 0.0)
             tau = np.where(self.open, tau - tau[self.open].min(), 0.0)
-        zero = np.zeros_like(tau)
-        nearest = float(self.clearing_times(persons, zero)[self.open].max())
-        queued = nearest - self.last_arrival(persons, zero)  # what the queues add to the nearest exits' makespan
-        if queued < MIN_GAIN * nearest or best > (1.0 - MIN_GAIN) * nearest:  # balancing does not pay
+        if best >= (1.0 - MIN_GAIN) * nearest:  # balancing does not pay
             best, best_tau = nearest, zero
         self.offsets = best_tau
         self.makespan = best

@@ -85,6 +85,10 @@ class DensityCrowd:
 
     models_exits = True
 
+    closes_exits = True
+    """An exit can close during a run (``[[events]]``, :meth:`exits_closed`): it becomes a wall for the density's
+    flux and its sink, and a guidance that walks to the exits plans again."""
+
     default_congestion = {"SI": "linear"}
     """``crowd.congestion = "auto"``: as the point masses, the linear diagram in SI units, none in the
     paper's dimensionless units (:attr:`~meanfield.scenarios.scenario.Scenario.congestion_model`)."""
@@ -113,6 +117,7 @@ class DensityCrowd:
         # splitting over the period, the toolkit's results number for number); a solver that
         # absorbs (the default, and always with congestion) applies them after each of its steps.
         self.sink = fp.sink
+        self._all_exits = getattr(fp.sink, "plain", fp.sink)  # the exits without a drift's outflow (exits_closed)
         self._period_sink = fp.sink is not None and not fp.absorbing
         self._out_before = fp.mass_out.copy()
         self.initial_mass = float(self.grid.integrate(self.rho))
@@ -152,6 +157,32 @@ class DensityCrowd:
             self.out_per_exit += out
         elif self.sink is not None:  # the solver's own count over its steps
             self.out_per_exit = self.fp.mass_out - self._out_before
+
+    def exits_closed(self, open_exits: np.ndarray) -> None:
+        """From now on only the exits with ``open_exits[k]`` take mass (a scenario's ``[[events]]``).
+
+        The others become walls wherever the exits act: the solver's sink and congested doors
+        (:meth:`~meanfield.fokker_planck.solver.FokkerPlanck.exits_closed`), the sink applied once per control
+        period, and the drift's outflow of a guidance of its own (``_advective_exits``), built again on the open
+        exits; a guidance that walks to the exits plans again (:attr:`DensityGuidance.replan`, and Hughes' route
+        through its own ``exits_closed``).
+        """
+        from meanfield.geometry.exits import tell_exits_closed
+
+        if self._all_exits is None:
+            return
+        open_exits = np.asarray(open_exits, dtype=bool)
+        if self.guidance.replan is not None and open_exits.any():
+            self.guidance = self.guidance.replan(open_exits)
+        tell_exits_closed((self.guidance.velocity_of,), open_exits)
+        plain = self._all_exits.closed(open_exits)
+        self.fp.exits_closed(open_exits)
+        if self._period_sink:
+            self.sink = plain
+        if self._plain_exits is not None:
+            self._plain_exits = plain
+        elif self.guidance.velocity is not None and self.fp.congestion is None and self.fp.sink is not None:
+            self.fp.sink = _advective_exits(self.grid, plain, self.guidance.velocity)
 
     def remaining_fraction(self) -> float:
         """The mass still in Ω over the initial mass."""
@@ -268,6 +299,7 @@ def _advective_exits(g: Grid, exits: Any, velocity: FaceField) -> Any:
     from meanfield.fokker_planck.congested import _cell_velocity, door_lengths, exit_normals
 
     sink = copy.copy(exits)
+    sink.plain = getattr(exits, "plain", exits)  # (to close exits on the exits without the drift's outflow)
     vx, vy = _cell_velocity(g, *velocity)
     normal = exit_normals(g, sink.segments)
     speed = np.maximum(normal[:, 0, None, None] * vx[None] + normal[:, 1, None, None] * vy[None], 0.0)

@@ -214,13 +214,18 @@ class DensityGuidance:
         faces for the current density ``ρ`` (unit mass, on the grid's cells), which the density
         follows over the next control period (:meth:`~meanfield.crowds.density_crowd.DensityCrowd.advance`
         asks it at the start of every period); Hughes' route (:class:`HughesRoute`).  At most one of
-        ``velocity``, ``velocity_of`` and ``follows_signs``.
+        ``velocity``, ``velocity_of`` and ``follows_signs``.  One that declares ``exits_closed`` is told
+        when exits close (a scenario's ``[[events]]``).
+    replan : callable, optional
+        ``replan(open_exits)``: the guidance planned again to the exits with ``open_exits[k]`` (a
+        scenario's ``[[events]]``); None: nothing to plan (it does not walk to the exits).
     """
 
     velocity: FaceField | None = None
     diffusion: float = 0.0
     follows_signs: bool = False
     velocity_of: Callable[[np.ndarray], FaceField] | None = None
+    replan: Callable[[np.ndarray], DensityGuidance] | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.diffusion) and self.diffusion >= 0):
@@ -342,8 +347,13 @@ def geodesic_for_density(ctx: CrowdContext) -> DensityGuidance:
     segs = exit_segments(ctx.scenario.domain)
     if not len(segs):
         raise ParameterError("crowd.guidance", "geodesic", "a plan with exits (domain.exits) for the informed crowd")
-    phi = exit_distance(ctx.grid, segs)
-    return DensityGuidance(velocity=route_velocity(ctx.grid, phi, ctx.scenario.crowd.free_speed))
+    grid, speed = ctx.grid, ctx.scenario.crowd.free_speed
+
+    def to(open_exits: np.ndarray) -> DensityGuidance:  # the route to the nearest of the open exits
+        velocity = route_velocity(grid, exit_distance(grid, segs[open_exits]), speed)
+        return DensityGuidance(velocity=velocity, replan=to)
+
+    return to(np.ones(len(segs), dtype=bool))
 
 
 HUGHES_SPEED_FLOOR = 0.05
@@ -392,6 +402,7 @@ class HughesRoute:
         self.people, self.floor = float(people), float(floor)
         self.free_speed = float(diagram.free_speed)
         self._still: FaceField | None = None  # a diagram that does not slow: the geodesic route, once
+        self._all_exits = eikonal.segs  # (exits_closed plans to a subset of these)
 
     def speed(self, rho: np.ndarray) -> np.ndarray:
         """``f̂ = max(v₀ g(Nρ), f_min)`` on the cells (``v₀`` on the inactive ones)."""
@@ -401,6 +412,16 @@ class HughesRoute:
         persons = self.people * np.where(self.grid.active, np.maximum(rho, 0.0), 0.0)
         f = self.free_speed * np.asarray(self.diagram.speed_factor(persons), float)
         return np.where(self.grid.active, np.maximum(f, self.floor * self.free_speed), self.free_speed)
+
+    def exits_closed(self, open_exits: np.ndarray) -> None:
+        """Plan to the exits with ``open_exits[k]`` from now on (a scenario's ``[[events]]``; none left: unchanged)."""
+        from meanfield.geometry.geodesic import ExitEikonal
+
+        open_exits = np.asarray(open_exits, dtype=bool)
+        if open_exits.any():
+            e = self.eikonal
+            self.eikonal = ExitEikonal(e.grid, self._all_exits[open_exits], e.sight)
+            self._still = None
 
     def potential(self, rho: np.ndarray) -> np.ndarray:
         """Hughes' ``φ`` (s): the travel time to the exits at the speed :meth:`speed` (``inf`` off Ω)."""

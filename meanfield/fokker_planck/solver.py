@@ -299,8 +299,17 @@ class FokkerPlanck:
         self.mass_out: np.ndarray = np.zeros(0 if self.sink is None else self.sink.n_exits)
         self._exit_normals = exit_normals(grid, segs) if len(segs) else np.zeros((0, 2))
         self._door_lengths = door_lengths(self.sink) if self.sink is not None else None
+        self._all_exits = self.sink  # (exits_closed closes some of these)
         #: The time-stepping method (docs/fokker_planck.md, "Time stepping"), built on this operator.
         self.stepper: Stepper = stepper(self)
+
+    def exits_closed(self, open_exits: np.ndarray) -> None:
+        """From now on only the exits with ``open_exits[k]`` take mass (a scenario's ``[[events]]``): the others are
+        walls, for the sink and for the congested doors (:meth:`~meanfield.geometry.exits.ExitSink.closed`)."""
+        if self._all_exits is None:
+            return
+        self.sink = self._all_exits.closed(open_exits)
+        self._door_lengths = door_lengths(self.sink)
 
     @property
     def method(self) -> str:

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from meanfield.errors import ParameterError
 from meanfield.geometry._exit_loops import bridge_exits, first_exit_crossed
 from meanfield.geometry._exit_loops import segment_distances as distance_to_segments
 
@@ -123,6 +124,24 @@ class ExitSink:
             dist = np.maximum(dist, 1e-3 * min(grid.dx, grid.dy))
             self.rates[j] = np.where(length > 0, sigma * length / (dist * volume), 0.0)
         self.total_rate = self.rates.sum(axis=0)
+
+    def closed(self, open_exits: np.ndarray) -> ExitSink:
+        """A copy in which only the exits with ``open_exits[k]`` take anyone (a scenario's ``[[events]]``).
+
+        The others' rates and lengths are 0, so the density's face on them is a wall (zero flux) and no
+        congested flux passes there; the per-exit arrays keep their ``E`` rows, so the mass out per exit
+        goes on being counted in the same places.
+        """
+        import copy
+
+        keep = np.asarray(open_exits, dtype=bool).reshape(-1, 1, 1)
+        if keep.shape[0] != self.n_exits:
+            raise ParameterError("open_exits", keep.shape[0], f"one flag per exit ({self.n_exits})")
+        out = copy.copy(self)
+        out.rates = np.where(keep, self.rates, 0.0)
+        out.lengths = np.where(keep, self.lengths, 0.0)
+        out.total_rate = out.rates.sum(axis=0)
+        return out
 
     def apply(self, rho: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """``ρ e^{−k Δt}`` and the mass that left through each exit over the step."""

@@ -7,7 +7,10 @@
 * closing the last exit ends the run, reported as "no exit left";
 * summary.json lists the events, the evacuation figure draws them;
 * a scenario's events survive TOML; bad events are refused naming ``events[i]...`` (a warning for a
-  time outside the run), and the command line exits with 2.
+  time outside the run), and the command line exits with 2;
+* the density: the closed exit takes no mass in any of the ways its exits act (the solver's sink, the
+  congested doors, the sink once per period, a drift's outflow), mass is conserved, and its guidance
+  plans again.
 """
 
 from __future__ import annotations
@@ -120,7 +123,43 @@ def test_bad_events_are_refused_naming_them(event, field, tmp_path):
 def test_an_event_outside_the_run_is_a_warning_and_other_crowds_refuse_events():
     with pytest.warns(UserWarning, match=r"events\[0\]\.time = 500"):
         hall(events=[{"time": 500.0, "close_exit": 0}])
-    for kind in ("jupedsim", "fokker-planck"):
-        with pytest.raises(ParameterError) as exc:
-            hall(**{"crowd.kind": kind})
-        assert exc.value.name == "events"
+    with pytest.raises(ParameterError) as exc:
+        hall(**{"crowd.kind": "jupedsim"})
+    assert exc.value.name == "events"
+
+
+@pytest.mark.parametrize(
+    ("guidance", "congestion"),
+    [
+        ("geodesic", "none"),  # a drift of the guidance's own: the sink with its outflow, after each solver step
+        ("geodesic", "linear"),  # the congested doors
+        ("signs", "none"),  # the sink once per control period
+        ("hughes", "none"),  # a drift that depends on the density: its outflow refreshed every period
+        ("hughes", "linear"),
+    ],
+)
+def test_the_density_s_exit_closes_in_every_way_its_exits_act(guidance, congestion):
+    """The density: no mass leaves through exit 0 after it closes, the mass in Ω plus the mass out is the initial
+    mass to round-off, the other exits go on taking mass, and a guidance that walks to the exits plans again."""
+    sc = hall(**{"crowd.kind": "fokker-planck", "crowd.guidance": guidance, "crowd.congestion": congestion,
+                 "t_final": 12.0})  # fmt: skip
+    loop = ClosedLoop(sc)
+    crowd = loop.crowd
+    X, Y = loop.grid.centers
+    above_exit_0 = (np.abs(X - 15.25) < 0.3) & (np.abs(Y - 1.25) < 0.3)  # exit 0: the south door, x in [14, 16]
+    while loop.t < CLOSE_AT - 1e-9:
+        loop.step()
+    at_event = crowd.out_per_exit.copy()
+    assert at_event[0] > 0
+    drift_before = crowd.velocity(loop.robots)
+    loop.step()  # the event is applied before this step
+    drift_after = crowd.velocity(loop.robots)
+    while loop.t < sc.t_final - 1e-9:
+        loop.step()
+    out = crowd.out_per_exit
+    assert out[0] == pytest.approx(at_event[0], rel=0, abs=1e-15)
+    assert (out[1:] > at_event[1:]).all()
+    total = loop.grid.integrate(crowd.rho) + out.sum()
+    assert total == pytest.approx(crowd.initial_mass, rel=1e-12)
+    if guidance != "signs":  # down the route just above the south door: towards it before, away after
+        assert drift_before[1][above_exit_0[:, :-1]].mean() < 0 < drift_after[1][above_exit_0[:, :-1]].mean()
