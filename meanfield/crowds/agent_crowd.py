@@ -49,6 +49,7 @@ from meanfield.crowds.guidance import Guidance
 from meanfield.crowds.kde import KernelDensityEstimator
 from meanfield.crowds.local_density import DENSITY_RADIUS, LocalDensity
 from meanfield.crowds.local_view import LocalView
+from meanfield.crowds.memory import RouteMemory
 from meanfield.crowds.point_mass import PointMassEngine
 from meanfield.errors import ParameterError, num
 from meanfield.geometry.region import Region
@@ -332,6 +333,9 @@ class AgentCrowd:
         everyone walks from the start and follows the signs, every number as without it.  A
         compliance below 1 needs the robots' signs (``guidance`` None): a baseline has no sign
         to ignore.
+    memory : RouteMemory, optional
+        People who remember the way once a sign has reached them (``view.memory = "route"``,
+        :mod:`meanfield.crowds.memory`); None: the paper's humans.
     """
 
     def __init__(
@@ -350,8 +354,10 @@ class AgentCrowd:
         congestion: FundamentalDiagram | None = None,
         density_radius: float = DENSITY_RADIUS,
         individuals: Individuals | None = None,
+        memory: RouteMemory | None = None,
     ):
         self.engine = engine
+        self.memory = memory
         self.kernel = kernel
         self.kde = kde
         self.view = view
@@ -455,6 +461,8 @@ class AgentCrowd:
                 people.ignore_signs(drift, positions, dt)
                 if self.reached is not None:
                     self.reached[people.walkers] = False
+        if self.memory is not None and self.reached is not None:  # who a sign reached knows the way from then on
+            self.memory.walk(drift, positions, self.reached)
         if self.congestion is not None:  # (without congestion not one operation more: every number as before)
             self._slow_down(drift, positions, t)
         if self.interaction is not None:
@@ -545,7 +553,7 @@ class AgentCrowd:
         """
         from meanfield.geometry.exits import tell_exits_closed
 
-        tell_exits_closed((self.engine, self.guidance), open_exits)
+        tell_exits_closed((self.engine, self.guidance, self.memory), open_exits)
 
     def fraction_in_disk(self, center: tuple[float, float], radius: float) -> float:
         return fraction_in_disk(self.positions, center, radius)
@@ -572,6 +580,8 @@ class AgentCrowd:
             out["peak_local_density_time"] = self.peak_local_density_time
         if self.individuals is not None:  # pre-movement times and non-followers (nothing with the defaults)
             out.update(self.individuals.summary())
+        if self.memory is not None:
+            out.update(self.memory.summary())
         return out
 
     @classmethod
@@ -592,6 +602,15 @@ class AgentCrowd:
         people = Individuals(
             n, c.premovement, c.compliance, ctx.rng, v.walk_speed, v.turning_rate, sc.domain, engine.body_radius
         )
+        memory = None
+        if v.memory == "route" and guidance is None:  # (a baseline follows no sign, and learns nothing from one)
+            from meanfield.geometry.exits import exit_segments
+            from meanfield.geometry.geodesic import ExitRoutes
+
+            segs = exit_segments(sc.domain)
+            if not len(segs):
+                raise ParameterError("view.memory", v.memory, '"none" on a plan without exits: the way is to an exit')
+            memory = RouteMemory(n, ExitRoutes(ctx.grid, segs, ctx.sight), c.free_speed)
         crowd = cls(
             engine,
             ctx.kernel,
@@ -607,6 +626,7 @@ class AgentCrowd:
             congestion,
             sc.crowd.congestion_radius,
             people,
+            memory,
         )
         crowd.congestion_name = sc.congestion_model
         return crowd

@@ -285,11 +285,15 @@ class Scenario:
                 "a target Gaussian with mass in the domain (centre inside Ω or within a few std)",
             )
         self._check_crowd()
-        c = self.crowd  # pre-movement and compliance are individuals' (docs page Buildings, "People are not all alike")
-        for key, value, default in (("premovement", c.premovement, "none"), ("compliance", c.compliance, 1.0)):
+        c = self.crowd  # individuals' traits (docs page Buildings, "People are not all alike")
+        for key, value, default in (
+            ("crowd.premovement", c.premovement, "none"),
+            ("crowd.compliance", c.compliance, 1.0),
+            ("view.memory", self.view.memory, "none"),
+        ):
             if value != default and not registry.declared("crowd", c.kind, "models_individuals", False):
                 raise ParameterError(
-                    f"crowd.{key}",
+                    key,
                     value,
                     f"{default!r} with the {c.kind!r} crowd, which does not model individuals (it declares no "
                     "models_individuals): use a crowd of agents, such as point masses or JuPedSim's bodies",

@@ -19,6 +19,7 @@ import numpy as np
 from meanfield import plugins
 from meanfield.controllers.backstepping import CONGESTION_OPTIONS, DVD_DT_OPTIONS
 from meanfield.crowds.local_density import DENSITY_RADIUS
+from meanfield.crowds.memory import MEMORIES
 from meanfield.errors import ParameterError, all_numbers, choice, integer, num, optional_limit, point
 from meanfield.geometry.region import region_keywords
 
@@ -327,17 +328,21 @@ class ViewSpec:
     ``radius`` of it; otherwise it walks a persistent random walk at ``walk_speed`` whose
     heading diffuses with ``turning_rate`` (rad²/s, so the heading decorrelates as
     ``exp(-turning_rate t)``; see :mod:`meanfield.crowds.local_view`).  ``radius = "none"`` (the
-    default) is the paper's model (eq. (1)): every human feels every robot.
+    default) is the paper's model (eq. (1)): every human feels every robot.  ``memory = "route"``:
+    a person a sign has reached knows the way out from then on (:mod:`meanfield.crowds.memory`);
+    ``"none"`` (the default): the paper's humans, who follow a sign only while they feel it.
     """
 
     radius: float | None = None
     walk_speed: float = 0.0
     turning_rate: float = 0.0
+    memory: str = "none"
 
     def __post_init__(self) -> None:
         self.radius = optional_limit("view.radius", self.radius, what='a view radius > 0, or "none" (no gating)')
         self.walk_speed = num("view.walk_speed", self.walk_speed, lo=0.0)
         self.turning_rate = num("view.turning_rate", self.turning_rate, lo=0.0)
+        self.memory = choice("view.memory", self.memory, MEMORIES)
 
 
 @dataclass

@@ -1,0 +1,81 @@
+"""People who remember the way (``view.memory = "route"``, :mod:`meanfield.crowds.memory`).
+
+* who a sign reached walks the informed route at the free speed from then on, others are untouched;
+* nobody forgets: once the robots are out of sight they still walk the route;
+* the default is the paper's humans, number for number; the routes are planned again when an exit closes;
+* bad values and crowds that do not model individuals are refused, naming ``view.memory``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from meanfield import ClosedLoop, Grid, ParameterError
+from meanfield.crowds.memory import RouteMemory
+from meanfield.geometry.exits import exit_segments
+from meanfield.geometry.geodesic import ExitRoutes
+from meanfield.scenarios.scenario import builtin_scenarios
+
+
+def _hall(**values):
+    return builtin_scenarios()["hall"](seed=0).with_values(values)
+
+
+def test_who_a_sign_reached_walks_the_route_and_the_others_keep_their_velocity():
+    sc = _hall()
+    grid = Grid(sc.domain, sc.grid.cells)
+    routes = ExitRoutes(grid, exit_segments(sc.domain))
+    memory = RouteMemory(4, routes, 1.34)
+    positions = np.array([[5.0, 5.0], [25.0, 15.0], [10.0, 18.0], [20.0, 3.0]])
+    velocity = np.full((4, 2), 0.1)
+    memory.walk(velocity, positions, np.array([True, False, True, False]))
+    np.testing.assert_allclose(velocity[[0, 2]], 1.34 * routes.heading(positions[[0, 2]]), rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(velocity[[1, 3]], 0.1)
+    velocity = np.full((4, 2), 0.1)
+    memory.walk(velocity, positions, np.array([False, False, False, True]))  # nobody forgets
+    assert memory.knows.tolist() == [True, False, True, True]
+    np.testing.assert_array_equal(velocity[1], 0.1)
+    assert memory.summary() == {"knew_the_way_fraction": 0.75}
+
+
+def test_a_person_who_knew_the_way_walks_on_when_no_robot_is_in_view():
+    """Static signs on the hall: people the signs reached go on to the exits out of every robot's view,
+    and more people get out than without memory, when nobody walks the route once out of a sign's reach."""
+    values = {"controller.kind": "static-signs", "t_final": 60.0}
+    loop = ClosedLoop(_hall(**values, **{"view.memory": "route"}))
+    s = loop.run(progress=False).summary
+    knows = loop.crowd.memory.knows
+    assert 0 < s["knew_the_way_fraction"] == pytest.approx(knows.mean())
+    gone = loop.crowd.engine.exit_time >= 0
+    assert gone[knows].mean() > 0.99  # who knew the way got out within the minute
+    without = ClosedLoop(_hall(**values)).run(progress=False).summary
+    assert s["fraction_evacuated"] > without["fraction_evacuated"] + 0.2
+    assert "knew_the_way_fraction" not in without
+
+
+def test_the_default_is_the_paper_s_humans_number_for_number():
+    a = ClosedLoop(_hall(t_final=3.0)).run(progress=False)
+    b = ClosedLoop(_hall(t_final=3.0, **{"view.memory": "none"})).run(progress=False)
+    np.testing.assert_array_equal(a.dataset["fraction_evacuated"].values, b.dataset["fraction_evacuated"].values)
+    assert a.summary["l2_error_final"] == b.summary["l2_error_final"]
+
+
+def test_the_routes_are_planned_again_when_an_exit_closes():
+    loop = ClosedLoop(_hall(t_final=1.0, events=[{"time": 0.5, "close_exit": 0}], **{"view.memory": "route"}))
+    loop.run(progress=False)
+    m = loop.crowd.memory
+    assert len(m.routes.segs) == 3 and len(m._all_routes.segs) == 4
+
+
+@pytest.mark.parametrize(
+    ("values", "why"),
+    [
+        ({"view.memory": "forever"}, "'none'"),
+        ({"view.memory": "route", "crowd.kind": "fokker-planck"}, "models_individuals"),
+    ],
+)
+def test_bad_memory_is_refused_naming_it(values, why):
+    with pytest.raises(ParameterError, match=why) as exc:
+        ClosedLoop(_hall(**values))
+    assert exc.value.name == "view.memory"
