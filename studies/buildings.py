@@ -18,7 +18,8 @@ For each built-in plan (``l-room``, ``office``, ``hall``, ``hall-crowded-west``)
   balanced by their capacities (``nearest coverage 8``, ``balanced coverage 8``: the option
   ``controller.options.potential``, ``"distance"`` or ``"balanced"``);
 * coverage 8 and 16, static 8 and evacuation 8 with people who remember the way once a sign has
-  reached them (the label's ending ``, people remember``: ``view.memory = "route"``);
+  reached them (the label's ending ``, people remember``: ``view.memory = "route"``, the nearest
+  exit; ``, people remember the sign's exit``: ``"sign"``);
 * the closed-exit variant of the informed crowd, static 8, coverage 8 and 16 and evacuation 8
   (the label's ending ``, exit 0 shut at 10 s``: ``[[events]]`` closes exit 0 at t = 10 s, the
   informed crowd re-plans), on the plans with two exits or more; its ratios are to the
@@ -71,8 +72,9 @@ SETTINGS.update(
 )
 SETTINGS.update(
     {
-        f"{s}, people remember": {**SETTINGS[s], "view.memory": "route"}
+        f"{s}, people remember{what}": {**SETTINGS[s], "view.memory": memory}
         for s in ("coverage 8", "coverage 16", "static 8", "evacuation 8")
+        for what, memory in (("", "route"), (" the sign's exit", "sign"))
     }
 )
 SHUT = ", exit 0 shut at 10 s"

@@ -5,14 +5,21 @@ it: a person the robot has just passed stops where the field fades (and, with a 
 walks randomly once no robot is in view; :mod:`meanfield.crowds.local_view`).  People who have
 read a "THIS WAY" sign remember it: in robot-guided evacuation experiments the subjects who had
 met the robot went on to the exit (Nayyar et al., SSRR 2023: 95.28 % of 112 subjects followed
-the robot out).  ``view.memory = "route"`` models that:
+the robot out).  ``view.memory = "route"`` or ``"sign"`` models that:
 
 * a person whom a sign has *reached* (``|v_r| >= REACH_FRACTION`` of one kernel's peak while it
   sees a robot: :attr:`meanfield.crowds.agent_crowd.AgentCrowd.reached`) knows the way from then on;
-* who knows the way walks the informed crowd's route to the nearest open exit at the free speed
-  (:class:`meanfield.geometry.geodesic.ExitRoutes`, as ``crowd.guidance = "geodesic"``), slowed by
-  congestion like everyone, and no longer follows the signs;
-* nobody forgets, and the routes are planned again when an exit closes (``[[events]]``).
+* with ``"route"`` the way is the informed crowd's route to the nearest open exit
+  (:class:`meanfield.geometry.geodesic.ExitRoutes`): a sign tells a person to leave and which way
+  is out, as a crowd that knows the building;
+* with ``"sign"`` it is the way the sign showed: of the routes to each exit, the shortest among those whose
+  first leg at the person lies within 45° of the field ``v_r`` it felt (:data:`SHOWN_COS`), or, if
+  none does, the one whose first leg is most nearly along it; so a sign pointing roughly towards
+  the nearest exit sends people there, and signs that send part of a crowd to a farther exit
+  (``controller.options.potential = "balanced"``) are remembered as such;
+* who knows the way walks that route at the free speed, slowed by congestion like everyone, and no
+  longer follows the signs; nobody forgets.  When an exit closes, those who were walking to it take
+  the route to the nearest exit still open (``[[events]]``).
 
 So the robots' task becomes reaching everyone once, not carrying everyone out.  The default,
 ``"none"``, is the paper's model, every number unchanged.
@@ -20,53 +27,85 @@ So the robots' task becomes reaching everyone once, not carrying everyone out.  
 
 from __future__ import annotations
 
+import math
+from typing import Any
+
 import numpy as np
 
 from meanfield.errors import ParameterError
 
 __all__ = ["MEMORIES", "RouteMemory"]
 
-MEMORIES = ("none", "route")
-"""``view.memory``: the paper's humans, who follow a sign only while they feel it, or people who remember the way."""
+SHOWN_COS = math.cos(math.radians(45.0))
+"""A sign shows the way to the exits whose route's first leg is within 45° of its field at the person."""
+MEMORIES = ("none", "route", "sign")
+"""``view.memory``: the paper's humans, who follow a sign only while they feel it; people whom a sign has reached and
+who then know the way to the nearest exit (``route``); or who walk to the exit the sign showed them (``sign``)."""
 
 
 class RouteMemory:
-    """Who knows the way (a sign reached them once) and the route they walk (module docstring).
+    """Who knows the way (a sign reached them once), to which exit, and the routes they walk (module docstring).
 
     Parameters
     ----------
     n : int
         Number of humans.
-    routes : ExitRoutes
-        The routes to the nearest exit from every cell (:class:`meanfield.geometry.geodesic.ExitRoutes`).
+    grid : Grid
+        The cells the routes are planned on.
+    segs : ndarray, shape (E, 2, 2)
+        The exits (:func:`meanfield.geometry.exits.exit_segments`).
     speed : float
         The free walking speed, > 0 (``crowd.free_speed``).
+    sight : SightLines, optional
+        The walls that block a straight line (built from the grid's region when omitted).
+    shown : bool
+        Whether a person walks to the exit the sign showed (``view.memory = "sign"``) or to the nearest (``"route"``).
     """
 
-    def __init__(self, n: int, routes: object, speed: float):
+    def __init__(self, n: int, grid: Any, segs: np.ndarray, speed: float, sight: Any = None, shown: bool = False):
+        from meanfield.geometry.geodesic import ExitRoutes
+
         if not speed > 0:
             raise ParameterError("crowd.free_speed", speed, "a walking speed > 0")
-        self.routes = routes
-        self._all_routes = routes
+        segs = np.asarray(segs, float).reshape(-1, 2, 2)
+        self.shown = bool(shown)
+        self.to_exit = [ExitRoutes(grid, segs[k : k + 1], sight) for k in range(len(segs))] if shown else []
+        self.nearest = ExitRoutes(grid, segs, sight)  # to the nearest open exit ("route", and when an exit closes)
+        self.segs, self.sight, self.grid = segs, sight, grid
         self.speed = float(speed)
         self.knows = np.zeros(int(n), dtype=bool)
+        self.exit = np.full(int(n), -1, dtype=np.intp)  # the exit each walks to; -1: the nearest open one
+        self.open = np.ones(len(segs), dtype=bool)
 
     def walk(self, velocity: np.ndarray, positions: np.ndarray, reached: np.ndarray) -> None:
-        """In place: who was ``reached`` now knows the way; everyone who knows it walks the route at the free speed."""
-        self.knows |= reached
-        rows = np.flatnonzero(self.knows)
-        if len(rows):
-            velocity[rows] = self.speed * self.routes.heading(positions[rows])
+        """In place: who was ``reached`` now knows the way (with ``shown``, the one the sign showed: ``velocity``
+        holds the field it felt); everyone who knows it walks the route to its exit at the free speed."""
+        new = np.flatnonzero(reached & ~self.knows)
+        self.knows[new] = True  # (without shown: all walk to the nearest open exit, self.exit = -1)
+        if len(new) and self.shown:
+            open_k = np.flatnonzero(self.open)
+            p, v = positions[new], velocity[new]
+            along = v / np.hypot(v[:, 0], v[:, 1])[:, None]  # (reached: |v| > 0)
+            cos = np.stack([(self.to_exit[k].heading(p) * along).sum(axis=1) for k in open_k])  # (K, m)
+            far = np.stack([self.to_exit[k].distance(p) for k in open_k])
+            shown = np.where(cos >= SHOWN_COS, far, np.inf)  # the nearest of the exits the sign points towards
+            pick = np.where(np.isfinite(shown).any(axis=0), np.argmin(shown, axis=0), np.argmax(cos, axis=0))
+            self.exit[new] = open_k[pick]
+        for k in np.unique(self.exit[self.knows]):
+            rows = np.flatnonzero(self.knows & (self.exit == k))
+            routes = self.nearest if k < 0 else self.to_exit[k]
+            velocity[rows] = self.speed * routes.heading(positions[rows])
 
     def exits_closed(self, open_exits: np.ndarray) -> None:
-        """Plan the routes again to the exits with ``open_exits[k]`` (none left: unchanged)."""
+        """Those walking to a closed exit take the route to the nearest open one (none left: unchanged)."""
         from meanfield.geometry.geodesic import ExitRoutes
 
         open_exits = np.asarray(open_exits, dtype=bool)
         if open_exits.any():
-            r = self._all_routes
-            self.routes = ExitRoutes(r.grid, r.segs[open_exits], r.sight)
+            self.open = open_exits.copy()
+            self.nearest = ExitRoutes(self.grid, self.segs[open_exits], self.sight)
+            self.exit[(self.exit >= 0) & ~open_exits[np.maximum(self.exit, 0)]] = -1
 
-    def summary(self) -> dict[str, float]:
+    def summary(self) -> dict[str, Any]:
         """``knew_the_way_fraction``: the share of the crowd a sign had reached by the end."""
         return {"knew_the_way_fraction": float(self.knows.mean()) if len(self.knows) else 0.0}
