@@ -19,7 +19,8 @@ For each built-in plan (``l-room``, ``office``, ``hall``, ``hall-crowded-west``)
   ``controller.options.potential``, ``"distance"`` or ``"balanced"``);
 * coverage 8 and 16, static 8 and evacuation 8 with people who remember the way once a sign has
   reached them (the label's ending ``, people remember``: ``view.memory = "route"``, the nearest
-  exit; ``, people remember the sign's exit``: ``"sign"``);
+  exit; ``, people remember the sign's exit``: ``"sign"``), and coverage whose robots go where no
+  sign has reached lately (``sweeping coverage n``: ``controller.options.weight = "unswept"``);
 * the closed-exit variant of the informed crowd, static 8, coverage 8 and 16 and evacuation 8
   (the label's ending ``, exit 0 shut at 10 s``: ``[[events]]`` closes exit 0 at t = 10 s, the
   informed crowd re-plans), on the plans with two exits or more; its ratios are to the
@@ -77,12 +78,24 @@ SETTINGS.update(
         for what, memory in (("", "route"), (" the sign's exit", "sign"))
     }
 )
+SETTINGS.update(
+    {
+        f"sweeping coverage {n}, people remember{what}": {
+            "robots.n": n, "controller.kind": "coverage", "controller.options.weight": "unswept", "view.memory": memory
+        }
+        for n in (8, 16)
+        for what, memory in (("", "route"), (" the sign's exit", "sign"))
+    }
+)
 SHUT = ", exit 0 shut at 10 s"
 """The closed-exit variant of a setting: exit 0 closes at t = 10 s (``[[events]]``); on plans with two exits or more."""
 SETTINGS.update(
     {
         s + SHUT: {**SETTINGS[s], "events": [{"time": 10.0, "close_exit": 0}]}
-        for s in ("informed", "static 8", "coverage 8", "coverage 16", "evacuation 8")
+        for s in (
+            "informed", "static 8", "coverage 8", "coverage 16", "evacuation 8", "static 8, people remember",
+            "sweeping coverage 8, people remember",
+        )
     }
 )
 RESULTS = Path("studies/results/buildings.jsonl")

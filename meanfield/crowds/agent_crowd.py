@@ -57,7 +57,7 @@ from meanfield.geometry.sight import SightLines
 from meanfield.geometry.target import fraction_in_disk
 from meanfield.interfaces import CrowdContext, Disturbance
 from meanfield.signs.interaction import InteractionField
-from meanfield.signs.kernels import GaussianKernel, NavigationKernel
+from meanfield.signs.kernels import REACH_FRACTION, GaussianKernel, NavigationKernel
 from meanfield.signs.robots import RobotTeam, navigation_velocity
 from meanfield.signs.sampled_field import SampledNavigationField
 
@@ -76,9 +76,6 @@ __all__ = [
 SAMPLED_FIELD_ABOVE = 2_000_000
 """``crowd.field_evaluation = "auto"`` samples ``v_r`` on a lattice above this many human-robot pairs."""
 _EVERYONE = np.ones((0, 0), dtype=bool)  # no sight mask: every robot seen
-REACH_FRACTION = 0.05
-"""A sign *reaches* a human whose ``|v_r|`` is at least this share of one kernel's peak (and who
-sees a robot): :attr:`AgentCrowd.reached`, the stragglers of ``summary.json``."""
 
 
 class AgentEngine(Protocol):

@@ -7,8 +7,9 @@ read a "THIS WAY" sign remember it: in robot-guided evacuation experiments the s
 met the robot went on to the exit (Nayyar et al., SSRR 2023: 95.28 % of 112 subjects followed
 the robot out).  ``view.memory = "route"`` or ``"sign"`` models that:
 
-* a person whom a sign has *reached* (``|v_r| >= REACH_FRACTION`` of one kernel's peak while it
-  sees a robot: :attr:`meanfield.crowds.agent_crowd.AgentCrowd.reached`) knows the way from then on;
+* a person whom a sign has *reached* (``|v_r|`` at least
+  :data:`~meanfield.signs.kernels.REACH_FRACTION` of one kernel's peak while it sees a robot:
+  :attr:`meanfield.crowds.agent_crowd.AgentCrowd.reached`) knows the way from then on;
 * with ``"route"`` the way is the informed crowd's route to the nearest open exit
   (:class:`meanfield.geometry.geodesic.ExitRoutes`): a sign tells a person to leave and which way
   is out, as a crowd that knows the building;

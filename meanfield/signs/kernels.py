@@ -25,6 +25,7 @@ import numpy as np
 from meanfield.errors import ParameterError, positive_number
 
 __all__ = [
+    "REACH_FRACTION",
     "NavigationKernel",
     "GaussianKernel",
     "CustomKernel",
@@ -34,6 +35,11 @@ __all__ = [
     "InteractionPotential",
     "GaussianPotential",
 ]
+
+REACH_FRACTION = 0.05
+"""A sign *reaches* a point where its field is at least this share of one kernel's peak: a human there who sees the
+robot is guided (:attr:`meanfield.crowds.agent_crowd.AgentCrowd.reached`, the stragglers of ``summary.json``, who
+learns the way with ``view.memory``), and coverage's ``unswept`` weight counts the cell as swept."""
 
 
 @runtime_checkable

@@ -3,7 +3,7 @@
 A median over the crowd hides the few people a controller never fetches (design notes,
 section 7).  :class:`StragglerTracker` watches the agents' :attr:`~meanfield.crowds.agent_crowd.AgentCrowd.reached`
 (a human is reached at a step when a robot is in view and ``|v_r|`` at the human is at least
-:data:`~meanfield.crowds.agent_crowd.REACH_FRACTION` of one kernel's peak) from the middle of the
+:data:`~meanfield.signs.kernels.REACH_FRACTION` of one kernel's peak) from the middle of the
 run (``t >= t_final / 2``) to its end, and counts those still in Ω that were never reached:
 ``stragglers`` and ``stragglers_fraction`` in ``summary.json`` (absent for the density and
 for the baselines, whose humans follow no sign).

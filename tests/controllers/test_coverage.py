@@ -105,3 +105,35 @@ def test_coverage_passes_the_potential_to_the_field_its_signs_follow_and_its_met
     loop.run(progress=False)
     with pytest.raises(ParameterError, match="controller.options.potential"):
         ClosedLoop(sc.with_values({"controller.options.potential": "travel"}))
+
+
+def test_the_unswept_weight_leaves_out_where_a_sign_reached_lately_and_counts_it_again_later():
+    """A cell counts as reached when a robot sees it and its kernel there is at least 5 % of its peak; it weighs
+    again ``revisit_after`` later; behind a wall nothing is reached; nothing unswept left: the tracking error."""
+    from meanfield.signs.kernels import GaussianKernel
+
+    plan = Plan.from_wkt(TWO_ROOMS)
+    grid = Grid(plan, (20, 20))
+    cov = CoverageController(None, grid, SightLines(plan), weight="unswept", revisit_after=2.0)
+    kernel = GaussianKernel(1.0, 0.02)  # 5 % of the peak at r = sqrt(0.02 ln 20) = 0.245
+    robots = np.array([[0.2, 0.3]])
+    field = NavigationField(kernel, grid, robots, np.zeros(1), SightLines(plan))
+    last = cov.sweep(field, 1.0)
+    X, Y = grid.centers
+    near = np.hypot(X - 0.2, Y - 0.3) <= 0.2
+    far = np.hypot(X - 0.2, Y - 0.3) >= 0.3
+    assert (last[near & grid.active] == 1.0).all() and np.isinf(last[far]).all()
+    behind = grid.active & (X > 0.55) & (Y < 0.5)  # the right room, hidden by the wall, within 0.6 of the robot
+    assert np.isinf(last[behind]).all()
+    rho = np.ones(grid.shape)
+
+    class State:  # the law's state the weight reads: ṽ = 1 on every face
+        v_tilde = (np.ones((19, 20)), np.zeros((20, 19)))
+        rho_tilde = None
+
+    w = cov._weight(rho, State, field, 1.5)
+    assert (w[near & grid.active] == 0).all() and (w[far & grid.active] > 0).all()
+    w = cov._weight(rho, State, NavigationField(kernel, grid, np.array([[0.8, 0.8]]), np.zeros(1)), 3.5)
+    assert (w[near & grid.active] > 0).all()  # 2.5 s later: counted again
+    with pytest.raises(ParameterError, match="controller.options.revisit_after"):
+        CoverageController(None, grid, SightLines(plan), weight="unswept", revisit_after=0.0)
