@@ -253,7 +253,7 @@ def figure(backends: list[str], congestion: str = "auto", path: str = "docs/figu
     rows = _rows(congestion)
     fig, axes = subplots(len(backends), len(PLANS), figsize=(4.2 * len(PLANS), 3.4 * len(backends)), squeeze=False)
     shown = ("evacuation 8", "evacuation 16", "coverage 8", "coverage 16", "static 8", "informed", "uninformed",
-             "nearest coverage 8")  # fmt: skip
+             "nearest coverage 8", "sweeping coverage 8, people remember")  # fmt: skip
     colour = {s: f"C{i}" for i, s in enumerate(shown)}  # the same colour for a setting on every panel
     for bi, b in enumerate(backends):
         for pi, p in enumerate(PLANS):
@@ -265,8 +265,8 @@ def figure(backends: list[str], congestion: str = "auto", path: str = "docs/figu
                 t = max((r["curve_t"] for r in rs), key=len)
                 curves = np.array([np.interp(t, r["curve_t"], r["curve"], right=r["curve"][-1]) for r in rs])
                 wide = s.startswith(("evacuation", "coverage"))
-                ax.plot(t, np.median(curves, axis=0), label=s, color=colour[s], lw=1.6 if wide else 1.1,
-                        ls="--" if "16" in s else (":" if s.startswith("nearest") else "-"))  # fmt: skip
+                style = "--" if "16" in s else ":" if s.startswith("nearest") else "-." if "remember" in s else "-"
+                ax.plot(t, np.median(curves, axis=0), label=s, color=colour[s], lw=1.6 if wide else 1.1, ls=style)
             model = rs[0]["congestion"] if rs else "?"
             ax.set(title=f"{p} — {b} ({model})", xlabel="time (s)", ylabel="fraction evacuated (median of seeds)")
             ax.set_ylim(0, 1.02)
