@@ -255,6 +255,7 @@ class JuPedSimEngine:
         self.time_step = float(time_step)
         # a plan's holes (pillars) are kept: JuPedSim's geometry takes the polygon's interiors
         self.exits = exit_segments(domain)
+        self.open_exits = np.ones(len(self.exits), dtype=bool)  # (an exit may close during a run: [[events]])
         area = domain.to_shapely(resolution=256)
         walkable, exit_areas = door_areas(area, self.exits, 2.0 * self.radius)
         # a region that is not convex (a plan): steering targets go to Ω shrunk by a radius
@@ -367,7 +368,18 @@ class JuPedSimEngine:
         x = self.positions[rows]
         ahead = x + (self.look_ahead(dt) / speed[rows])[:, None] * velocity[rows]
         routes[rows] = leaving(x, ahead, self.exits, 0.0, dt, None)  # crossings only: no draw
+        closed = routes >= 0
+        closed[closed] = ~self.open_exits[routes[closed]]
+        routes[closed] = -1  # a closed exit's journey takes nobody (those on it are steered back)
         return routes
+
+    def exits_closed(self, open_exits: np.ndarray) -> None:
+        """From now on nobody leaves through the exits without ``open_exits[k]`` (a scenario's ``[[events]]``).
+
+        No body is put on a closed exit's journey any more, and those on it are switched back to direct
+        steering at the next step (:meth:`exit_routes`); its door area stays walkable, a recess in the wall.
+        """
+        self.open_exits = np.asarray(open_exits, dtype=bool).copy()
 
     def step(self, drift: np.ndarray, t: float, dt: float) -> None:
         """Walk the bodies for one control period ``dt`` towards the desired velocities ``drift``.
@@ -472,6 +484,9 @@ def jupedsim_crowd(ctx: CrowdContext) -> AgentCrowd:
 
 jupedsim_crowd.options = JuPedSimOptions  # type: ignore[attr-defined]  # what the core asks (plugins.declared)
 jupedsim_crowd.check_scenario = check_scenario  # type: ignore[attr-defined]
+jupedsim_crowd.closes_exits = True  # type: ignore[attr-defined]
+"""An exit can close during a run (``[[events]]``, :meth:`JuPedSimEngine.exits_closed`): no body is routed
+through it any more, and the informed crowd's routes lead to the exits still open."""
 jupedsim_crowd.models_individuals = True  # type: ignore[attr-defined]
 """Each body may wait its pre-movement time (its desired speed is 0 until then: it stands, and only
 other bodies may push it, by the pedestrian model) and ignore the signs (it walks the random walk of

@@ -357,7 +357,7 @@ class Scenario:
                 "events",
                 f"{len(out)} event(s)",
                 f"no events with the {self.crowd.kind!r} crowd, which cannot close an exit during a run "
-                "(it declares no closes_exits): use point masses or the density (fokker-planck)",
+                "(it declares no closes_exits): use point masses, JuPedSim's bodies or the density",
             )
         return tuple(sorted(out, key=lambda ev: ev.time))
 

@@ -8,6 +8,7 @@
 * summary.json lists the events, the evacuation figure draws them;
 * a scenario's events survive TOML; bad events are refused naming ``events[i]...`` (a warning for a
   time outside the run), and the command line exits with 2;
+* JuPedSim's bodies: none is routed through the closed exit;
 * the density: the closed exit takes no mass in any of the ways its exits act (the solver's sink, the
   congested doors, the sink once per period, a drift's outflow), mass is conserved, and its guidance
   plans again.
@@ -120,12 +121,21 @@ def test_bad_events_are_refused_naming_them(event, field, tmp_path):
     assert main(["run", "hall", "--out", str(out), "--quiet", "--set", f"events={toml}"]) == 2
 
 
-def test_an_event_outside_the_run_is_a_warning_and_other_crowds_refuse_events():
+def test_an_event_outside_the_run_is_a_warning():
     with pytest.warns(UserWarning, match=r"events\[0\]\.time = 500"):
         hall(events=[{"time": 500.0, "close_exit": 0}])
-    with pytest.raises(ParameterError) as exc:
-        hall(**{"crowd.kind": "jupedsim"})
-    assert exc.value.name == "events"
+
+
+def test_jupedsim_s_bodies_stop_leaving_through_a_closed_exit():
+    """No body is routed through the closed exit after the event (the last passage is at the event's step) and the
+    informed bodies all get out by the other three."""
+    loop = ClosedLoop(hall(**{"crowd.kind": "jupedsim"}))
+    s = loop.run(progress=False).summary
+    engine = loop.crowd.engine
+    through_0 = engine.exit_time[engine.exit_index == 0]
+    assert len(through_0) > 0 and through_0.max() <= CLOSE_AT + 1e-9
+    assert s["evacuation_time_100"] is not None and s["evacuated_per_exit"][0] == len(through_0)
+    assert engine.open_exits.tolist() == [False, True, True, True]
 
 
 @pytest.mark.parametrize(
