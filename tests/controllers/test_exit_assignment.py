@@ -160,3 +160,15 @@ def test_the_rebalance_period_sets_how_often_the_offsets_are_solved():
     law.assignment.solve = lambda rho: calls.append(loop.t) or solve(rho)
     loop.run(progress=False)
     assert calls == pytest.approx([0.0, 0.3, 0.6, 0.9]) and math.isclose(law.rebalance_period, 0.25)
+
+
+def test_the_balanced_signs_send_part_of_the_crowded_hall_to_the_idle_door():
+    """Point masses by the west door, 8 robots with coverage: with the balanced potential people leave by the east
+    door too; with the nearest-exit potential nearly nobody does (the informed crowd: nobody)."""
+    out = {}
+    for potential in ("balanced", "distance"):
+        sc = builtin_scenarios()["hall-crowded-west"](seed=1).with_values(
+            {"controller.options.potential": potential, "t_final": 60.0}
+        )
+        out[potential] = ClosedLoop(sc).run(progress=False).summary["evacuated_per_exit"]
+    assert out["balanced"][1] >= 40 and out["distance"][1] <= 5, out
