@@ -20,7 +20,8 @@ For each built-in plan (``l-room``, ``office``, ``hall``, ``hall-crowded-west``)
 * coverage 8 and 16, static 8 and evacuation 8 with people who remember the way once a sign has
   reached them (the label's ending ``, people remember``: ``view.memory = "route"``, the nearest
   exit; ``, people remember the sign's exit``: ``"sign"``), and coverage whose robots go where no
-  sign has reached lately (``sweeping coverage n``: ``controller.options.weight = "unswept"``);
+  sign has reached lately (``sweeping coverage n``: ``controller.options.weight = "unswept"``), its
+  robots walking to a centroid they do not see (``routed ...``: ``controller.options.metric = "routed"``);
 * the closed-exit variant of the informed crowd, static 8, coverage 8 and 16 and evacuation 8
   (the label's ending ``, exit 0 shut at 10 s``: ``[[events]]`` closes exit 0 at t = 10 s, the
   informed crowd re-plans), on the plans with two exits or more; its ratios are to the
@@ -87,6 +88,15 @@ SETTINGS.update(
         for what, memory in (("", "route"), (" the sign's exit", "sign"))
     }
 )
+SETTINGS.update(
+    {
+        "routed coverage 8": {"robots.n": 8, "controller.kind": "coverage", "controller.options.metric": "routed"},
+        "routed sweeping coverage 8, people remember": {
+            "robots.n": 8, "controller.kind": "coverage", "controller.options.metric": "routed",
+            "controller.options.weight": "unswept", "view.memory": "route",
+        },
+    }
+)
 SHUT = ", exit 0 shut at 10 s"
 """The closed-exit variant of a setting: exit 0 closes at t = 10 s (``[[events]]``); on plans with two exits or more."""
 SETTINGS.update(
@@ -94,7 +104,7 @@ SETTINGS.update(
         s + SHUT: {**SETTINGS[s], "events": [{"time": 10.0, "close_exit": 0}]}
         for s in (
             "informed", "static 8", "coverage 8", "coverage 16", "evacuation 8", "static 8, people remember",
-            "sweeping coverage 8, people remember",
+            "sweeping coverage 8, people remember", "routed sweeping coverage 8, people remember",
         )
     }
 )

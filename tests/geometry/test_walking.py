@@ -1,7 +1,7 @@
 """Walking distances from robots (geodesic Voronoi, first legs) and the coverage that uses them (issue 31, item 1).
 
-Exact answers: in a convex room the walking distance is the straight one and the pull is Lloyd's
-``C − R``; round one corner the geodesic is two straight legs (the first exact, the rest within the
+Exact answers: in a convex room the walking distance is the straight one and the pull (walking or
+routed) is Lloyd's ``C − R``; round one corner the geodesic is two straight legs (the first exact, the rest within the
 8-neighbour links' bound); the pull is ``−½ ∂H/∂R`` of the walking
 Lloyd cost, checked by finite differences.
 """
@@ -87,17 +87,37 @@ def _coverage(region, cells, metric):
     return CoverageController(None, grid, SightLines(region), metric=metric), grid
 
 
-def test_in_a_convex_room_walking_coverage_pulls_as_straight_coverage():
+@pytest.mark.parametrize("metric", ["walking", "routed"])
+def test_in_a_convex_room_walking_and_routed_coverage_pull_as_straight_coverage(metric):
     rng = np.random.default_rng(3)
-    walking, grid = _coverage(Domain.box(4.0, 3.0), (16, 12), "walking")
+    other, grid = _coverage(Domain.box(4.0, 3.0), (16, 12), metric)
     straight, _ = _coverage(Domain.box(4.0, 3.0), (16, 12), "straight")
-    assert walking.metric == "walking" and straight.metric == "straight"
+    assert other.metric == metric and straight.metric == "straight"
     R = rng.uniform((0.1, 0.1), (3.9, 2.9), (4, 2))
     w = rng.random(grid.shape)
-    pw, idle_w = walking.pulls(R, w)
+    pw, idle_w = other.pulls(R, w)
     ps, idle_s = straight.pulls(R, w)
     np.testing.assert_allclose(pw, ps, rtol=0, atol=1e-12)
     assert np.array_equal(idle_w, idle_s)
+
+
+def test_routed_coverage_walks_to_a_hidden_centroid_and_goes_straight_to_a_seen_one():
+    cov, grid = _coverage(TWO_ROOMS, (40, 20), "routed")
+    X, Y = grid.centers
+    R = np.array([[1.0, 1.0]])
+    right = np.where((X > 5.0) & (Y < 2.0), 1.0, 0.0)  # behind the wall: the walk's first leg, to the gap
+    pull, _ = cov.pulls(R, right)
+    c, _ = cov.centroids(R, right)
+    f = cov.walking.from_points(R)
+    leg = f.leg[0, f.distance[0] > 0]
+    assert pull[0] @ (c[0] - R[0]) < np.linalg.norm(pull[0]) * np.linalg.norm(c[0] - R[0])  # not straight at C
+    gap = np.array([3.9, 3.0]) - R[0]
+    assert np.degrees(np.arccos(pull[0] @ gap / np.linalg.norm(pull[0]) / np.linalg.norm(gap))) < 5.0
+    assert len(leg)
+    left = np.where((X < 3.0) & (Y < 2.0), 1.0, 0.0)  # in sight: straight to the centroid
+    pull, _ = cov.pulls(R, left)
+    c, _ = cov.centroids(R, left)
+    np.testing.assert_allclose(pull[0], c[0] - R[0], rtol=0, atol=1e-12)
 
 
 def test_the_walking_pull_is_the_descent_direction_of_lloyd_s_walking_cost():
@@ -127,7 +147,7 @@ def test_a_robot_walks_round_the_wall_to_the_people_of_the_next_room():
     """All the weight low in the right room, the robot low in the left: straight coverage drives it into the
     wall between the rooms, where it stays; walking coverage takes it through the gap into the right room."""
     ends = {}
-    for metric in ("straight", "walking"):
+    for metric in ("straight", "routed", "walking"):
         cov, grid = _coverage(TWO_ROOMS, (40, 20), metric)
         X, Y = grid.centers
         w = np.where((X > 5.0) & (Y < 2.0), 1.0, 0.0)
@@ -137,7 +157,8 @@ def test_a_robot_walks_round_the_wall_to_the_people_of_the_next_room():
             team.step(pull, np.zeros(1), 0.1, TWO_ROOMS)
         ends[metric] = team.positions[0].copy()
     assert ends["straight"][0] < 4.0  # held at the wall
-    assert ends["walking"][0] > 5.0 and ends["walking"][1] < 2.5  # among the people
+    for metric in ("routed", "walking"):
+        assert ends[metric][0] > 5.0 and ends[metric][1] < 2.5, metric  # among the people
 
 
 def test_an_unknown_metric_is_refused_naming_the_option():
