@@ -6,7 +6,7 @@ pulls a robot there and stragglers stay behind (design notes, section 7).  The a
 follow-up work (Zheng et al., 2023) splits the robots' job, and so does this controller
 (registered as ``coverage``):
 
-**Positions: density-weighted coverage** (Lloyd's iteration on the grid), in one of two
+**Positions: density-weighted coverage** (Lloyd's iteration on the grid), in one of three
 metrics (``options.metric``):
 
 * ``"straight"``: each cell of Ω belongs to the nearest robot that sees it
@@ -105,8 +105,8 @@ class CoverageController:
         Gain of the drive to the centroid, 1/s, > 0.
     k_heading : float
         Gain of the heading feedback, > 0 (from a scenario: :data:`HEADING_GAIN_FACTOR` × ``controller.k_omega``).
-    weight : {"tracking-error", "density", "excess"}
-        The coverage weight.
+    weight : {"tracking-error", "density", "excess", "unswept"}
+        The coverage weight (module docstring).
     metric : {"straight", "routed", "walking"}
         The distance of the coverage (module docstring).
     revisit_after : float
@@ -177,10 +177,10 @@ class CoverageController:
         if v_d not in V_D:
             raise ParameterError("controller.options.v_d", v_d, " or ".join(map(repr, V_D)))
         passed = ("potential", "v_free", "rho_max", "specific_flow", "rebalance_period")  # the law's options
-        hughes = {k: opts.pop(k) for k in passed if k in opts}
+        law_options = {k: opts.pop(k) for k in passed if k in opts}
         exits = len(exit_segments(parts.region)) > 0
         if v_d == "exits" or (v_d == "auto" and exits):
-            law = EvacuationController.from_parts(dataclasses.replace(parts, options=hughes))
+            law = EvacuationController.from_parts(dataclasses.replace(parts, options=law_options))
         else:
             law = BacksteppingController.from_parts(dataclasses.replace(parts, options={}))
         opts.setdefault("k_heading", HEADING_GAIN_FACTOR * float(np.max(parts.k_omega)))
@@ -217,7 +217,8 @@ class CoverageController:
     def pulls(self, robots: np.ndarray, weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each robot's pull ``u_i / k_position`` in the coverage's metric (module docstring), and which are idle.
 
-        ``straight``: ``C_i − R_i``; ``walking``: ``Σ w_c |c| d_i(c) e_i(c) / Σ w_c |c|`` over the geodesic
+        ``straight``: ``C_i − R_i``; ``routed``: the same where the robot sees ``C_i``, else the first leg of its
+        walk there (:meth:`_routed_pulls`); ``walking``: ``Σ w_c |c| d_i(c) e_i(c) / Σ w_c |c|`` over the geodesic
         Voronoi cell.  A robot whose cells hold no weight is idle and pulled nowhere.
         """
         robots = np.real(np.asarray(robots, float)).reshape(-1, 2)

@@ -242,7 +242,7 @@ class EvacuationController(BacksteppingController):
         out = dict(super().summary())
         if self.assignment is not None:
             out["exit_offsets"] = [float(x) for x in self.assignment.offsets]
-            out["balanced_makespan"] = float(getattr(self.assignment, "makespan", math.nan))
+            out["balanced_makespan"] = float(self.assignment.makespan)
         return out
 
     def reset(self) -> None:

@@ -126,6 +126,7 @@ class ExitAssignment:
         self.v_free = float(v_free)
         self.open = np.ones(len(self.capacity), dtype=bool)
         self.offsets = np.zeros(len(self.capacity))
+        self.makespan = math.nan  # the last solution's (eq. B1), s
 
     def assign(self, offsets: np.ndarray) -> np.ndarray:
         """Each active cell's exit, ``argmin_k (a_k(c) + τ_k)`` over the open exits: ``(M,)``."""

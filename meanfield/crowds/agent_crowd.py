@@ -331,7 +331,7 @@ class AgentCrowd:
         compliance below 1 needs the robots' signs (``guidance`` None): a baseline has no sign
         to ignore.
     memory : RouteMemory, optional
-        People who remember the way once a sign has reached them (``view.memory = "route"``,
+        People who remember the way once a sign has reached them (``view.memory = "route"`` or ``"sign"``,
         :mod:`meanfield.crowds.memory`); None: the paper's humans.
     """
 
