@@ -45,6 +45,7 @@ import numpy as np
 from meanfield import plugins
 from meanfield.crowds._field_loops import bilinear_at, gaussian_field_at
 from meanfield.crowds.congestion import FundamentalDiagram
+from meanfield.crowds.groups import group_positions
 from meanfield.crowds.guidance import Guidance
 from meanfield.crowds.kde import KernelDensityEstimator
 from meanfield.crowds.local_density import DENSITY_RADIUS, LocalDensity
@@ -90,11 +91,14 @@ class AgentEngine(Protocol):
 
 
 def initial_positions(scenario: Any, n: int, rng: np.random.Generator) -> np.ndarray:
-    """``n`` initial positions from the scenario's crowd law (uniform on Ω, or a normal law
-    restricted to Ω by rejection), drawn from ``rng``."""
+    """``n`` initial positions from the scenario's crowd law (uniform on Ω, a normal law
+    restricted to Ω by rejection, or groups in their regions: :mod:`meanfield.crowds.groups`),
+    drawn from ``rng``."""
     c = scenario.crowd
     if c.initial == "uniform":
         return scenario.domain.sample_uniform(n, rng)
+    if c.initial == "groups":  # (n is the groups' sum, checked with the scenario)
+        return group_positions(c.groups, scenario.domain, rng)
     out = np.empty((0, 2))
     while len(out) < n:
         p = rng.normal(loc=c.initial_center, scale=c.initial_std, size=(2 * (n - len(out)) + 8, 2))
@@ -638,6 +642,9 @@ def point_mass_crowd(ctx: CrowdContext) -> AgentCrowd:
 point_mass_crowd.models_individuals = True  # type: ignore[attr-defined]
 """Each human is an agent: it may wait its own pre-movement time and ignore the signs
 (``crowd.premovement``, ``crowd.compliance``; :class:`Individuals`)."""
+point_mass_crowd.places_groups = True  # type: ignore[attr-defined]
+"""People may be placed in groups, each in its region with its own exit (``crowd.initial = "groups"``,
+:mod:`meanfield.crowds.groups`)."""
 point_mass_crowd.closes_exits = True  # type: ignore[attr-defined]
 """An exit can close during a run (``[[events]]``, :meth:`AgentCrowd.exits_closed`): the engine stops
 taking people through it and the informed crowd's routes lead to the exits still open."""

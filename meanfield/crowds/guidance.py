@@ -96,7 +96,7 @@ class Guidance(Protocol):
 
 
 class GeodesicGuidance:
-    """The informed crowd: each human walks its route to the nearest exit at ``speed``.
+    """The informed crowd: each human walks its route to the nearest exit (or its assigned one) at ``speed``.
 
     Parameters
     ----------
@@ -104,18 +104,35 @@ class GeodesicGuidance:
         The routes from every cell (:mod:`meanfield.geometry.geodesic`).
     speed : float
         The free walking speed, > 0 (1.34 m/s, Weidmann).
+    exit_of : ndarray of int, shape (N,), optional
+        Each human's assigned exit, an index into ``routes.segs`` (-1: the nearest); people in groups
+        (:mod:`meanfield.crowds.groups`).
     """
 
-    def __init__(self, routes: Any, speed: float):
+    def __init__(self, routes: Any, speed: float, exit_of: np.ndarray | None = None):
+        from meanfield.geometry.geodesic import ExitRoutes
+
         self.routes = routes
         self.speed = float(speed)
         self._all_routes = routes
+        self.exit_of = None if exit_of is None else np.asarray(exit_of, dtype=np.intp).copy()
+        self.to_exit: dict[int, Any] = {}  # the routes to each assigned exit alone
+        if self.exit_of is not None:
+            for k in np.unique(self.exit_of[self.exit_of >= 0]):
+                self.to_exit[int(k)] = ExitRoutes(routes.grid, routes.segs[k : k + 1], routes.sight)
 
     def velocity(self, positions: np.ndarray, t: float, dt: float) -> np.ndarray:
-        return self.speed * self.routes.heading(positions)
+        out = self.speed * self.routes.heading(positions)
+        if self.to_exit:  # people in groups with their own exit (meanfield.crowds.groups)
+            for k, routes in self.to_exit.items():
+                rows = np.flatnonzero(self.exit_of == k)
+                if len(rows):
+                    out[rows] = self.speed * routes.heading(positions[rows])
+        return out
 
     def exits_closed(self, open_exits: np.ndarray) -> None:
-        """Plan again: the routes to the nearest of the exits still open (a scenario's ``[[events]]``).
+        """Plan again: the routes to the nearest of the exits still open (a scenario's ``[[events]]``); those
+        assigned to an exit that closes take them too.
 
         With no exit left the routes stay as they were (nobody can leave; the run ends).
         """
@@ -125,6 +142,9 @@ class GeodesicGuidance:
         if open_exits.any():
             r = self._all_routes
             self.routes = ExitRoutes(r.grid, r.segs[open_exits], r.sight)
+            for k in [k for k in self.to_exit if not open_exits[k]]:
+                self.exit_of[self.exit_of == k] = -1
+                del self.to_exit[k]
 
     def advance(self, dt: float) -> None:
         """No memory."""
@@ -156,13 +176,16 @@ def signs(ctx: CrowdContext, positions: np.ndarray) -> None:
 
 def geodesic(ctx: CrowdContext, positions: np.ndarray) -> GeodesicGuidance:
     """Registry factory (``geodesic``): the informed crowd, at ``crowd.free_speed``, to the exits."""
+    from meanfield.crowds.groups import assigned_exits
     from meanfield.geometry.exits import exit_segments
     from meanfield.geometry.geodesic import ExitRoutes
 
     segs = exit_segments(ctx.scenario.domain)
     if not len(segs):
         raise ParameterError("crowd.guidance", "geodesic", "a plan with exits (domain.exits) for the informed crowd")
-    return GeodesicGuidance(ExitRoutes(ctx.grid, segs, ctx.sight), ctx.scenario.crowd.free_speed)
+    c = ctx.scenario.crowd
+    exit_of = assigned_exits(c.groups) if c.initial == "groups" else None
+    return GeodesicGuidance(ExitRoutes(ctx.grid, segs, ctx.sight), c.free_speed, exit_of)
 
 
 def random_walk(ctx: CrowdContext, positions: np.ndarray) -> RandomWalkGuidance:

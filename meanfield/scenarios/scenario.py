@@ -285,6 +285,7 @@ class Scenario:
                 "a target Gaussian with mass in the domain (centre inside Ω or within a few std)",
             )
         self._check_crowd()
+        self._check_groups()
         c = self.crowd  # individuals' traits (docs page Buildings, "People are not all alike")
         for key, value, default in (
             ("crowd.premovement", c.premovement, "none"),
@@ -312,6 +313,32 @@ class Scenario:
                 raise ParameterError(
                     "robots.margin", self.robots.margin, "less than half the domain's width and height"
                 )
+
+    def _check_groups(self) -> None:
+        """``crowd.groups`` against the plan (each region inside it, each exit one it has) and the crowd kind."""
+        c = self.crowd
+        if c.initial != "groups":
+            return
+        import shapely
+
+        from meanfield.crowds.groups import group_region
+        from meanfield.geometry.exits import exit_segments
+
+        if not registry.declared("crowd", c.kind, "places_groups", False):
+            raise ParameterError(
+                "crowd.initial", c.initial, f"'uniform' or 'gaussian' with the {c.kind!r} crowd (it declares no "
+                "places_groups): use point masses"
+            )  # fmt: skip
+        n_exits = len(exit_segments(self.domain))
+        to_shapely = getattr(self.domain, "to_shapely", None)
+        plan = to_shapely() if to_shapely is not None else None
+        for i, g in enumerate(c.groups):
+            region = group_region(g["region"], f"crowd.groups[{i}].region")
+            if plan is not None and shapely.intersection(region, plan).area < 0.5 * region.area:
+                raise ParameterError(f"crowd.groups[{i}].region", g["region"], "a region inside the plan (domain)")
+            if g.get("exit") is not None and g["exit"] >= n_exits:
+                allowed = f"an index into domain.exits, 0 to {n_exits - 1}" if n_exits else "none (no exits)"
+                raise ParameterError(f"crowd.groups[{i}].exit", g["exit"], allowed)
 
     def _checked_events(self, events: Any) -> tuple[EventSpec, ...]:
         """``events`` as :class:`EventSpec` in time order, each checked against the plan and the crowd.

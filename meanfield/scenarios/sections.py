@@ -18,6 +18,7 @@ import numpy as np
 
 from meanfield import plugins
 from meanfield.controllers.backstepping import CONGESTION_OPTIONS, DVD_DT_OPTIONS
+from meanfield.crowds.groups import crowd_groups
 from meanfield.crowds.local_density import DENSITY_RADIUS
 from meanfield.crowds.memory import MEMORIES
 from meanfield.errors import ParameterError, all_numbers, choice, integer, num, optional_limit, point
@@ -98,6 +99,10 @@ class CrowdSpec:
     robot.  A compliance below 1 needs ``guidance = "signs"`` (a baseline has no sign to ignore:
     refused when the crowd is built).  Both need a crowd kind that declares
     ``models_individuals`` (the point masses and JuPedSim's bodies, not the density).
+
+    ``initial = "groups"`` places the people group by group, ``[[crowd.groups]]`` tables with a
+    ``region`` (a WKT polygon in the plan), a size ``n`` and optionally the ``exit`` its people
+    walk to (:mod:`meanfield.crowds.groups`; RiMEA's test 10); ``n`` is the groups' sum.
     """
 
     kind: str = "point-mass"
@@ -114,12 +119,14 @@ class CrowdSpec:
     congestion_radius: float = DENSITY_RADIUS
     premovement: str | dict[str, Any] = "none"
     compliance: float = 1.0
+    groups: list[dict[str, Any]] = field(default_factory=list)
     options: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.kind = choice("crowd.kind", self.kind, plugins.available("crowd"))
         self.n = integer("crowd.n", self.n, 1)
-        self.initial = choice("crowd.initial", self.initial, ("uniform", "gaussian"))
+        self.initial = choice("crowd.initial", self.initial, ("uniform", "gaussian", "groups"))
+        self.groups = crowd_groups(self.groups, self.initial, self.n)
         self.initial_center = point("crowd.initial_center", self.initial_center)
         self.initial_std = num("crowd.initial_std", self.initial_std, lo=0.0, lo_open=True)
         self.sigma = num("crowd.sigma", self.sigma, lo=0.0)

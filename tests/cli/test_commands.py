@@ -106,8 +106,8 @@ def test_version_and_the_list_of_built_in_scenarios(capsys):
     assert exc.value.code == 0 and capsys.readouterr().out.strip() == f"meanfield {version('meanfield-crowd')}"
     assert main(["scenario", "--list"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
-    names = ["bottleneck", "hall", "hall-crowded-west", "l-room", "office", "paper", "paper-unity", "rimea-12",
-             "rimea-9", "stadium"]  # fmt: skip
+    names = ["bottleneck", "hall", "hall-crowded-west", "l-room", "office", "paper", "paper-unity", "rimea-10",
+             "rimea-12", "rimea-9", "stadium"]  # fmt: skip
     assert [line.split()[0] for line in lines] == names
     assert all(len(line.split(maxsplit=1)) == 2 for line in lines)  # a name and what it is
 
@@ -116,7 +116,8 @@ def test_the_help_lists_every_built_in_scenario(capsys):
     with pytest.raises(SystemExit):
         main(["run", "--help"])
     text = " ".join(capsys.readouterr().out.split()).replace("- ", "-")  # (argparse may wrap a name at a hyphen)
-    names = "bottleneck, hall, hall-crowded-west, l-room, office, paper, paper-unity, rimea-12, rimea-9, stadium"
+    names = ("bottleneck, hall, hall-crowded-west, l-room, office, paper, paper-unity, rimea-10, rimea-12, rimea-9, "
+             "stadium")
     assert f"a built-in scenario ({names}) or a TOML file" in text
 
 

@@ -53,6 +53,28 @@ def test_rimea_9_closing_two_of_four_exits_about_doubles_the_evacuation_time(see
     assert 1.6 <= t2 / t4 <= 2.4, f"seed {seed}: {t2:.1f} s / {t4:.1f} s = {t2 / t4:.2f}"
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_rimea_10_every_person_leaves_by_the_exit_allocated_to_it(seed):
+    """RiMEA test 10: 23 persons in twelve rooms, 15 allocated to the main exit and 8 to the secondary one
+    (JuPedSim's allocation); each leaves by its own.  Without the allocation (everyone to the nearest exit)
+    the persons of the north room 3 (x in [9, 12]) would take the secondary exit, nearer to them: the check
+    tells the two apart."""
+    from meanfield.crowds.groups import assigned_exits
+
+    sc = builtin_scenarios()["rimea-10"](seed=seed)
+    allocated = assigned_exits(sc.crowd.groups)
+    assert sc.crowd.n == 23 and (allocated == 0).sum() == 15 and (allocated == 1).sum() == 8
+    loop = ClosedLoop(sc)
+    s = loop.run(progress=False).summary
+    assert s["evacuation_time_100"] is not None
+    np.testing.assert_array_equal(loop.crowd.engine.exit_index, allocated)
+    nearest = [{k: v for k, v in g.items() if k != "exit"} for g in sc.crowd.groups]
+    free = ClosedLoop(sc.with_values({"crowd.groups": nearest}))
+    free.run(progress=False)
+    room_3 = slice(5, 7)  # the groups' order: north rooms 0, 1, 2 (one person), 3, ...
+    assert (free.crowd.engine.exit_index[room_3] == 1).all()
+
+
 # Test 12: the plan of rimea-12.toml (room 1 x in [0, 10], the corridor x in [10, 15] and y in
 # [4.5, 5.5], room 2 x in [15, 25], the exit at x = 25, y in [4.5, 5.5]). The density is counted in
 # a box 2 m deep and 3 m wide in front of the corridor's entrance and, the same, in front of the

@@ -142,8 +142,8 @@ def test_builtins_are_toml_package_data():
     from meanfield.scenarios.scenario import builtin_scenarios
 
     folder = resources.files("meanfield") / "scenarios"
-    names = ["bottleneck", "hall", "hall-crowded-west", "l-room", "office", "paper", "paper-unity", "rimea-12",
-             "rimea-9", "stadium"]  # fmt: skip
+    names = ["bottleneck", "hall", "hall-crowded-west", "l-room", "office", "paper", "paper-unity", "rimea-10",
+             "rimea-12", "rimea-9", "stadium"]  # fmt: skip
     assert list(builtin_scenarios()) == names
     for name in builtin_scenarios():
         assert (folder / f"{name}.toml").is_file()

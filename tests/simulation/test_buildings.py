@@ -161,7 +161,9 @@ def test_every_shipped_plan_is_metres_reaches_its_exits_and_runs(name):
     assert loop.crowd.remaining() <= 30
 
 
-@pytest.mark.parametrize("name", ["l-room", "office", "hall", "hall-crowded-west", "bottleneck", "rimea-9", "rimea-12"])
+@pytest.mark.parametrize(
+    "name", ["l-room", "office", "hall", "hall-crowded-west", "bottleneck", "rimea-9", "rimea-10", "rimea-12"]
+)
 def test_no_congested_crowd_on_a_shipped_plan_beats_the_flow_bound(name):
     """The informed crowd, the fastest there is, with the plans' default congestion (the linear diagram,
     the local density cut by the walls): everyone out, and not sooner than the whole crowd takes through
