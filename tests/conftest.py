@@ -46,6 +46,18 @@ def smooth_density(grid: Grid, floor: float = 0.05) -> np.ndarray:
     return f / grid.integrate(f)
 
 
+def lyapunov_v2(ctrl, kernel, rho, positions, headings) -> float:
+    """``V₂ = ½‖ρ − ρ_*‖² + ½‖v_r − v_d‖²`` on ``ctrl``'s grid (complex arguments allowed, for complex steps)."""
+    from meanfield import NavigationField
+
+    g = ctrl.grid
+    v_r = NavigationField(kernel, g, positions, headings).velocity()
+    v_d = ctrl.virtual_velocity(rho)
+    vt = (v_r[0] - v_d[0], v_r[1] - v_d[1])
+    rt = rho - ctrl.target
+    return 0.5 * g.inner(rt, rt) + 0.5 * g.face_inner(vt, vt)
+
+
 def all_domains() -> list[Domain]:
     """One domain of each shape: an offset box, a disk and a convex pentagon."""
     return [

@@ -110,25 +110,21 @@ class GeodesicGuidance:
     """
 
     def __init__(self, routes: Any, speed: float, exit_of: np.ndarray | None = None):
-        from meanfield.geometry.geodesic import ExitRoutes
+        from meanfield.geometry.geodesic import AssignedRoutes
 
-        self.routes = routes
         self.speed = float(speed)
-        self._all_routes = routes
-        self.exit_of = None if exit_of is None else np.asarray(exit_of, dtype=np.intp).copy()
-        self.to_exit: dict[int, Any] = {}  # the routes to each assigned exit alone
-        if self.exit_of is not None:
-            for k in np.unique(self.exit_of[self.exit_of >= 0]):
-                self.to_exit[int(k)] = ExitRoutes(routes.grid, routes.segs[k : k + 1], routes.sight)
+        self.plan = AssignedRoutes(routes.grid, routes.segs, routes.sight, nearest=routes)
+        self.exit_of = np.full(0, -1, dtype=np.intp) if exit_of is None else np.asarray(exit_of, np.intp).copy()
+
+    @property
+    def routes(self) -> Any:
+        """The routes to the nearest open exit (:class:`~meanfield.geometry.geodesic.ExitRoutes`)."""
+        return self.plan.nearest
 
     def velocity(self, positions: np.ndarray, t: float, dt: float) -> np.ndarray:
-        out = self.speed * self.routes.heading(positions)
-        if self.to_exit:  # people in groups with their own exit (meanfield.crowds.groups)
-            for k, routes in self.to_exit.items():
-                rows = np.flatnonzero(self.exit_of == k)
-                if len(rows):
-                    out[rows] = self.speed * routes.heading(positions[rows])
-        return out
+        if not len(self.exit_of):  # everyone to the nearest exit
+            return self.speed * self.plan.nearest.heading(positions)
+        return self.speed * self.plan.heading(positions, self.exit_of)  # people in groups with their own exit
 
     def exits_closed(self, open_exits: np.ndarray) -> None:
         """Plan again: the routes to the nearest of the exits still open (a scenario's ``[[events]]``); those
@@ -136,15 +132,7 @@ class GeodesicGuidance:
 
         With no exit left the routes stay as they were (nobody can leave; the run ends).
         """
-        from meanfield.geometry.geodesic import ExitRoutes
-
-        open_exits = np.asarray(open_exits, dtype=bool)
-        if open_exits.any():
-            r = self._all_routes
-            self.routes = ExitRoutes(r.grid, r.segs[open_exits], r.sight)
-            for k in [k for k in self.to_exit if not open_exits[k]]:
-                self.exit_of[self.exit_of == k] = -1
-                del self.to_exit[k]
+        self.plan.exits_closed(open_exits, self.exit_of)
 
     def advance(self, dt: float) -> None:
         """No memory."""

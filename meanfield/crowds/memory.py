@@ -64,19 +64,15 @@ class RouteMemory:
     """
 
     def __init__(self, n: int, grid: Any, segs: np.ndarray, speed: float, sight: Any = None, shown: bool = False):
-        from meanfield.geometry.geodesic import ExitRoutes
+        from meanfield.geometry.geodesic import AssignedRoutes
 
         if not speed > 0:
             raise ParameterError("crowd.free_speed", speed, "a walking speed > 0")
-        segs = np.asarray(segs, float).reshape(-1, 2, 2)
         self.shown = bool(shown)
-        self.to_exit = [ExitRoutes(grid, segs[k : k + 1], sight) for k in range(len(segs))] if shown else []
-        self.nearest = ExitRoutes(grid, segs, sight)  # to the nearest open exit ("route", and when an exit closes)
-        self.segs, self.sight, self.grid = segs, sight, grid
+        self.plan = AssignedRoutes(grid, segs, sight)  # to the nearest open exit, or to each exit alone ("sign")
         self.speed = float(speed)
         self.knows = np.zeros(int(n), dtype=bool)
         self.exit = np.full(int(n), -1, dtype=np.intp)  # the exit each walks to; -1: the nearest open one
-        self.open = np.ones(len(segs), dtype=bool)
 
     def walk(self, velocity: np.ndarray, positions: np.ndarray, reached: np.ndarray) -> None:
         """In place: who was ``reached`` now knows the way (with ``shown``, the one the sign showed: ``velocity``
@@ -84,28 +80,21 @@ class RouteMemory:
         new = np.flatnonzero(reached & ~self.knows)
         self.knows[new] = True  # (without shown: all walk to the nearest open exit, self.exit = -1)
         if len(new) and self.shown:
-            open_k = np.flatnonzero(self.open)
+            open_k = np.flatnonzero(self.plan.open)
             p, v = positions[new], velocity[new]
             along = v / np.hypot(v[:, 0], v[:, 1])[:, None]  # (reached: |v| > 0)
-            cos = np.stack([(self.to_exit[k].heading(p) * along).sum(axis=1) for k in open_k])  # (K, m)
-            far = np.stack([self.to_exit[k].distance(p) for k in open_k])
+            cos = np.stack([(self.plan.to(k).heading(p) * along).sum(axis=1) for k in open_k])  # (K, m)
+            far = np.stack([self.plan.to(k).distance(p) for k in open_k])
             shown = np.where(cos >= SHOWN_COS, far, np.inf)  # the nearest of the exits the sign points towards
             pick = np.where(np.isfinite(shown).any(axis=0), np.argmin(shown, axis=0), np.argmax(cos, axis=0))
             self.exit[new] = open_k[pick]
-        for k in np.unique(self.exit[self.knows]):
-            rows = np.flatnonzero(self.knows & (self.exit == k))
-            routes = self.nearest if k < 0 else self.to_exit[k]
-            velocity[rows] = self.speed * routes.heading(positions[rows])
+        rows = np.flatnonzero(self.knows)
+        if len(rows):
+            velocity[rows] = self.speed * self.plan.heading(positions[rows], self.exit[rows])
 
     def exits_closed(self, open_exits: np.ndarray) -> None:
         """Those walking to a closed exit take the route to the nearest open one (none left: unchanged)."""
-        from meanfield.geometry.geodesic import ExitRoutes
-
-        open_exits = np.asarray(open_exits, dtype=bool)
-        if open_exits.any():
-            self.open = open_exits.copy()
-            self.nearest = ExitRoutes(self.grid, self.segs[open_exits], self.sight)
-            self.exit[(self.exit >= 0) & ~open_exits[np.maximum(self.exit, 0)]] = -1
+        self.plan.exits_closed(open_exits, self.exit)
 
     def summary(self) -> dict[str, Any]:
         """``knew_the_way_fraction``: the share of the crowd a sign had reached by the end."""

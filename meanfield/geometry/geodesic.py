@@ -75,7 +75,7 @@ from meanfield.errors import ParameterError
 from meanfield.geometry.grid import Grid
 from meanfield.geometry.sight import SightLines
 
-__all__ = ["ExitEikonal", "exit_distance", "ExitRoutes", "routes_for", "LOOK_AHEAD", "FRONT_CELLS"]
+__all__ = ["ExitEikonal", "exit_distance", "ExitRoutes", "AssignedRoutes", "routes_for", "LOOK_AHEAD", "FRONT_CELLS"]
 
 LOOK_AHEAD = 16
 """How many cells ahead along its route a cell looks for the farthest one in sight."""
@@ -469,6 +469,58 @@ class ExitRoutes:
         """Each point's distance to the exit: straight to its cell's waypoint (in sight), then ``φ`` from there."""
         i, j = self._cells(points)
         return np.hypot(*(self.waypoint[i, j] - points).T) + self.remaining[i, j]
+
+
+class AssignedRoutes:
+    """Routes to an assigned exit: each walker to its own exit, or to the nearest open one.
+
+    The informed crowd's groups (:mod:`meanfield.crowds.groups`) and people who remember the exit a sign
+    showed (:mod:`meanfield.crowds.memory`) walk to one exit; the others, and those whose exit closed, to
+    the nearest open exit.  The routes to an exit alone (:class:`ExitRoutes` of that exit) are planned the
+    first time someone is assigned to it, and kept.
+
+    Parameters
+    ----------
+    grid : Grid
+    segs : ndarray, shape (E, 2, 2)
+        The exits.
+    sight : SightLines, optional
+        The walls that block a straight line (built from ``grid.domain`` when omitted).
+    nearest : ExitRoutes, optional
+        The routes to the nearest of these exits, if already planned.
+    """
+
+    def __init__(self, grid: Grid, segs: np.ndarray, sight: SightLines | None = None,
+                 nearest: ExitRoutes | None = None):  # fmt: skip
+        self.grid, self.sight = grid, sight
+        self.segs = np.asarray(segs, float).reshape(-1, 2, 2)
+        self.nearest = ExitRoutes(grid, self.segs, sight) if nearest is None else nearest
+        self.open = np.ones(len(self.segs), dtype=bool)
+        self.planned: dict[int, ExitRoutes] = {}  # the routes to each exit alone, once someone is assigned to it
+
+    def to(self, k: int) -> ExitRoutes:
+        """The routes to exit ``k`` alone (planned at the first call)."""
+        k = int(k)
+        if k not in self.planned:
+            self.planned[k] = ExitRoutes(self.grid, self.segs[k : k + 1], self.sight)
+        return self.planned[k]
+
+    def heading(self, points: np.ndarray, exit_of: np.ndarray) -> np.ndarray:
+        """Unit vectors ``(N, 2)`` along each point's route to its exit ``exit_of[j]`` (-1: the nearest open)."""
+        out = self.nearest.heading(points)
+        for k in np.unique(exit_of[exit_of >= 0]):
+            rows = np.flatnonzero(exit_of == k)
+            out[rows] = self.to(k).heading(points[rows])
+        return out
+
+    def exits_closed(self, open_exits: np.ndarray, exit_of: np.ndarray) -> None:
+        """Only the exits with ``open_exits[k]`` are open: the nearest is planned again, and ``exit_of`` (in place)
+        sends those assigned to a closed exit to the nearest open one (none left: unchanged)."""
+        open_exits = np.asarray(open_exits, dtype=bool)
+        if open_exits.any():
+            self.open = open_exits.copy()
+            self.nearest = ExitRoutes(self.grid, self.segs[open_exits], self.sight)
+            exit_of[(exit_of >= 0) & ~open_exits[np.maximum(exit_of, 0)]] = -1
 
 
 def routes_for(region: Any, grid: Grid, sight: SightLines | None = None) -> ExitRoutes:

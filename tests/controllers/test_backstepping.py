@@ -21,7 +21,7 @@ from meanfield import (
     UserBetaGamma,
 )
 from meanfield.geometry.target import gaussian_target
-from tests.conftest import smooth_density
+from tests.conftest import lyapunov_v2, smooth_density
 
 EPS = 1e-30  # complex step: Im f(x + iεẋ)/ε = f'(x)ẋ with no cancellation error
 
@@ -45,13 +45,6 @@ ALPHAS = [SaturatingAlpha(0.1, 0.2), ConstantAlpha(0.05)]
 
 
 # ---------------------------------------------------------------------- Theorem 3 (semi-discrete)
-def _V2(ctrl, kernel, rho, R, th):
-    g = ctrl.grid
-    v_r = NavigationField(kernel, g, R, th).velocity()
-    v_d = ctrl.virtual_velocity(rho)
-    vt = (v_r[0] - v_d[0], v_r[1] - v_d[1])
-    rt = rho - ctrl.target
-    return 0.5 * g.inner(rt, rt) + 0.5 * g.face_inner(vt, vt)
 
 
 CASES = [
@@ -83,7 +76,7 @@ def test_lyapunov_identity_semi_discrete(alpha, sigma, n, k_u, k_omega, interact
     field = NavigationField(kernel, g, R, th)
     st = ctrl.robot_inputs(rho, field)
     rho_dot = ctrl.density_rate(rho, field.velocity())
-    dV = _V2(ctrl, kernel, rho + 1j * EPS * rho_dot, R + 1j * EPS * st.u, th + 1j * EPS * st.omega).imag / EPS
+    dV = lyapunov_v2(ctrl, kernel, rho + 1j * EPS * rho_dot, R + 1j * EPS * st.u, th + 1j * EPS * st.omega).imag / EPS
     ku = np.broadcast_to(np.asarray(k_u, float), (n,))
     kw = np.broadcast_to(np.asarray(k_omega, float), (n,))
     expected = -st.dissipation - (ku * (st.b**2).sum(1)).sum() - (kw * st.g**2).sum()

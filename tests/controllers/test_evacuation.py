@@ -15,7 +15,7 @@ from meanfield.geometry.exits import exit_segments
 from meanfield.geometry.geodesic import ExitEikonal
 from meanfield.geometry.plan import Plan
 from meanfield.geometry.target import gaussian_target
-from tests.conftest import smooth_density
+from tests.conftest import lyapunov_v2, smooth_density
 
 EPS = 1e-30  # complex step
 L_PLAN = Plan(Plan.from_wkt("POLYGON ((0 0, 1 0, 1 0.4, 0.4 0.4, 0.4 1, 0 1, 0 0))").polygon, [((1, 0), (1, 0.4))])
@@ -85,11 +85,7 @@ def test_step_two_identity_holds_for_hughes_v_d_on_a_plan(rho_max, potential):
     rho_dot = ctrl.density_rate(rho, field.velocity())
 
     def V2(r, pos, head):
-        v_r = NavigationField(kernel, grid, pos, head).velocity()
-        v_d = ctrl.virtual_velocity(r)
-        vt = (v_r[0] - v_d[0], v_r[1] - v_d[1])
-        rt = r - target
-        return 0.5 * grid.inner(rt, rt) + 0.5 * grid.face_inner(vt, vt)
+        return lyapunov_v2(ctrl, kernel, r, pos, head)
 
     dV = V2(rho + 1j * EPS * rho_dot, R + 1j * EPS * st.u, th + 1j * EPS * st.omega).imag / EPS
     action = (st.b**2).sum() + 2.0 * (st.g**2).sum()

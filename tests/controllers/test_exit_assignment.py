@@ -16,7 +16,7 @@ from meanfield.geometry.exits import exit_segments
 from meanfield.geometry.geodesic import ExitEikonal
 from meanfield.geometry.target import gaussian_target
 from meanfield.scenarios.scenario import builtin_scenarios
-from tests.conftest import smooth_density
+from tests.conftest import lyapunov_v2, smooth_density
 
 EPS = 1e-30  # complex step
 
@@ -128,14 +128,7 @@ def test_step_two_identity_holds_for_the_balanced_potential_between_two_solution
     assert assignment.offsets[0] > 0  # balanced, not the distance
     rho_dot = ctrl.density_rate(rho, field.velocity())
 
-    def V2(r, pos, head):
-        v_r = NavigationField(kernel, grid, pos, head).velocity()
-        v_d = ctrl.virtual_velocity(r)
-        vt = (v_r[0] - v_d[0], v_r[1] - v_d[1])
-        rt = r - target
-        return 0.5 * grid.inner(rt, rt) + 0.5 * grid.face_inner(vt, vt)
-
-    dV = V2(rho + 1j * EPS * rho_dot, R + 1j * EPS * st.u, th + 1j * EPS * st.omega).imag / EPS
+    dV = lyapunov_v2(ctrl, kernel, rho + 1j * EPS * rho_dot, R + 1j * EPS * st.u, th + 1j * EPS * st.omega).imag / EPS
     action = (st.b**2).sum() + 2.0 * (st.g**2).sum()
     expected = -st.dissipation - action
     scale = abs(st.dissipation) + abs(st.A) + action

@@ -62,7 +62,7 @@ def test_with_route_who_a_sign_reached_walks_to_the_nearest_exit_whatever_the_si
     velocity = felt.copy()
     memory.walk(velocity, positions, np.array([True, True]))
     np.testing.assert_allclose(velocity, 1.34 * ExitRoutes(grid, segs).heading(positions), rtol=0, atol=1e-15)
-    assert memory.exit.tolist() == [-1, -1] and memory.to_exit == []
+    assert memory.exit.tolist() == [-1, -1] and memory.plan.planned == {}  # no exit alone was planned
 
 
 def test_a_person_who_knew_the_way_walks_on_when_no_robot_is_in_view():
@@ -91,7 +91,7 @@ def test_the_routes_are_planned_again_when_an_exit_closes_in_a_run():
     loop = ClosedLoop(_hall(t_final=1.0, events=[{"time": 0.5, "close_exit": 0}], **{"view.memory": "route"}))
     loop.run(progress=False)
     m = loop.crowd.memory
-    assert m.open.tolist() == [False, True, True, True] and len(m.nearest.segs) == 3
+    assert m.plan.open.tolist() == [False, True, True, True] and len(m.plan.nearest.segs) == 3
     assert not (m.exit == 0).any()
 
 
