@@ -26,6 +26,10 @@ For each built-in plan (``l-room``, ``office``, ``hall``, ``hall-crowded-west``)
   (the label's ending ``, exit 0 shut at 10 s``: ``[[events]]`` closes exit 0 at t = 10 s, the
   informed crowd re-plans), on the plans with two exits or more; its ratios are to the
   informed crowd of the same variant;
+* the blocked variant of the informed crowd, static 8, evacuation 8 and coverage 8, static 8 and
+  routed sweeping coverage 8 with people who remember (the label's ending ``, a region blocked at
+  10 s``: ``[[events]] block``, the region :data:`BLOCKS` of the plan becomes wall at t = 10 s, on
+  ``l-room`` and ``hall``); its ratios are to the informed crowd of the same variant;
 
 and keeps each run's evacuation figures in ``studies/results/buildings.jsonl`` (one line per
 run, appended as each finishes, so that an interrupted study resumes where it stopped).  The
@@ -108,6 +112,24 @@ SETTINGS.update(
         )
     }
 )
+BLOCK = ", a region blocked at 10 s"
+"""The blocked variant of a setting: at t = 10 s the plan's region :data:`BLOCKS` becomes wall (``[[events]]``)."""
+BLOCKS = {
+    "l-room": "POLYGON ((14 -1, 17 -1, 17 5.5, 14 5.5, 14 -1))",  # the corridor before the door, 2.5 m left open
+    "hall": "POLYGON ((24 2, 27 2, 27 18, 24 18, 24 2))",  # before the east door, 2 m left open at either end
+}
+"""Where the blocked variant's region is, on the plans that have one (m)."""
+SETTINGS.update(
+    {
+        s + BLOCK: dict(SETTINGS[s])
+        for s in (
+            "informed", "static 8", "coverage 8", "evacuation 8", "static 8, people remember",
+            "routed sweeping coverage 8, people remember",
+        )
+    }
+)
+VARIANTS = (SHUT, BLOCK)
+"""The endings of the variants' labels: each setting's ratio is to the informed crowd of the same variant."""
 RESULTS = Path("studies/results/buildings.jsonl")
 KEYS = (
     "fraction_evacuated",
@@ -129,7 +151,10 @@ def one_run(plan: str, setting: str, seed: int, backend: str, congestion: str = 
     from meanfield import run
     from meanfield.scenarios.scenario import builtin_scenarios
 
-    sc = builtin_scenarios()[plan](seed=seed).with_values({**SETTINGS[setting], "crowd.kind": backend})
+    values = dict(SETTINGS[setting])
+    if setting.endswith(BLOCK):
+        values["events"] = [{"time": 10.0, "block": BLOCKS[plan]}]
+    sc = builtin_scenarios()[plan](seed=seed).with_values({**values, "crowd.kind": backend})
     sc = sc.with_values({"crowd.congestion": congestion}) if congestion != "auto" else sc
     result = run(sc, progress=False)
     s = result.summary
@@ -187,6 +212,7 @@ def run_all(
         for s in (settings or SETTINGS)
         for k in range(seeds)
         if (p, s, k, b) not in done and (not s.endswith(SHUT) or _exits(p) > 1)
+        and (not s.endswith(BLOCK) or p in BLOCKS)
     ]
     print(f"{len(todo)} runs to do")
     with ProcessPoolExecutor(workers) as pool, RESULTS.open("a") as out:
@@ -233,12 +259,12 @@ def table(backends: list[str], congestion: str = "auto") -> str:
             runs = {s: [r for r in here if r["setting"] == s] for s in SETTINGS}
             informed_of = {
                 label: float(np.median(times(runs[label], "evacuation_time_100"))) if runs[label] else np.inf
-                for label in ("informed", "informed" + SHUT)
+                for label in ("informed", *("informed" + v for v in VARIANTS))
             }
             for s, rs in runs.items():
                 if not rs:
                     continue
-                informed = informed_of["informed" + SHUT if s.endswith(SHUT) else "informed"]
+                informed = informed_of["informed" + next((v for v in VARIANTS if s.endswith(v)), "")]
                 horizon = max(r["time_final"] for r in rs)
                 out = np.array([r["fraction_evacuated"] for r in rs])
                 t95, t100 = times(rs, "evacuation_time_95"), times(rs, "evacuation_time_100")

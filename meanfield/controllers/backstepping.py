@@ -415,10 +415,7 @@ class BacksteppingController:
         if dvd_dt not in DVD_DT_OPTIONS:
             raise ParameterError("controller.dvd_dt", dvd_dt, " or ".join(map(repr, DVD_DT_OPTIONS)))
         self.dvd_dt = dvd_dt
-        self._fokker_planck = None
-        if dvd_dt == "fokker-planck":  # the plant's right-hand side, congested as the plant is
-            slows = {} if congestion is None else {"congestion": congestion.diagram, "people": congestion.people}
-            self._fokker_planck = FokkerPlanck(grid, sigma, interaction=interaction, **slows)
+        self._fokker_planck = self._plant_model(grid)
         self._previous_vd: tuple[float, FaceField] | None = None
         self._target_gradient = grid.gradient(self.target)
         self._fused_state: dict[str, Any] = {}  # the compiled law's per-run constants (controllers._law_loops)
@@ -427,6 +424,27 @@ class BacksteppingController:
 
     accepts_sensing = True
     """It runs on a group's knowledge (``[sensing]``, :mod:`meanfield.controllers.local_sensing`)."""
+    changes_walls = True
+    """A region can become wall during a run (``[[events]] block``, :meth:`walls_changed`)."""
+
+    def _plant_model(self, grid: Grid) -> FokkerPlanck | None:
+        """With ``dvd_dt = "fokker-planck"`` the plant's right-hand side on ``grid``, congested as the plant is."""
+        if self.dvd_dt != "fokker-planck":
+            return None
+        c = self.congestion
+        slows = {} if c is None else {"congestion": c.diagram, "people": c.people}
+        return FokkerPlanck(grid, self.sigma, interaction=self.interaction, **slows)
+
+    def walls_changed(self, change: Any) -> None:
+        """A region became wall (a ``block`` event, :class:`~meanfield.geometry.blocking.WallsChange`): the law
+        works on the new grid and its ``ρ_*`` from now on; ``v_d``'s time derivative starts again (its previous
+        value lived on the old faces)."""
+        self.grid = change.grid
+        self.target = np.asarray(change.target, float)
+        self._target_gradient = self.grid.gradient(self.target)
+        self._fokker_planck = self._plant_model(self.grid)
+        self._previous_vd = None
+        self._fused_state = {}
 
     @staticmethod
     def stability_step(scenario: Any, grid: Any) -> StabilityStep | None:

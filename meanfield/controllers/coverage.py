@@ -139,27 +139,43 @@ class CoverageController:
         if metric not in METRICS:
             raise ParameterError("controller.options.metric", metric, " or ".join(map(repr, METRICS)))
         self.law = law
-        self.grid = grid
-        self.sight = None if sight is None or sight.trivial else sight
         self.metric = metric
-        self.walking = None
-        if self.metric != "straight":
-            from meanfield.geometry.walking import WalkingDistances
-
-            self.walking = WalkingDistances(grid, sight)
+        self._cover(grid, sight)
         self.k_position = float(k_position)
         self.k_heading = float(k_heading)
         self.weight = weight
-        X, Y = grid.centers
-        self._cells = np.flatnonzero(grid.active.ravel())
-        self._xy = np.column_stack([X.ravel()[self._cells], Y.ravel()[self._cells]])
-        self._volume = grid.volume.ravel()[self._cells]
         self.steps = 0
         self.idle_robot_steps = 0
         self.idle = np.zeros(0, dtype=bool)  # robots whose cells held no weight at the last step
 
     accepts_sensing = True
     """It runs on a group's knowledge (``[sensing]``, :mod:`meanfield.controllers.local_sensing`)."""
+    changes_walls = True
+    """A region can become wall during a run (``[[events]] block``, :meth:`walls_changed`)."""
+
+    def _cover(self, grid: Any, sight: Any) -> None:
+        """The cells to cover on ``grid``, the walls that hide them and, unless ``metric`` is straight, the walking
+        distances between them."""
+        self.grid = grid
+        self.sight = None if sight is None or sight.trivial else sight
+        self.walking = None
+        if self.metric != "straight":
+            from meanfield.geometry.walking import WalkingDistances
+
+            self.walking = WalkingDistances(grid, sight)
+        X, Y = grid.centers
+        self._cells = np.flatnonzero(grid.active.ravel())
+        self._xy = np.column_stack([X.ravel()[self._cells], Y.ravel()[self._cells]])
+        self._volume = grid.volume.ravel()[self._cells]
+
+    def walls_changed(self, change: Any) -> None:
+        """A region became wall (a ``block`` event, :class:`~meanfield.geometry.blocking.WallsChange`): the law plans
+        again, and the cells, sight and walking distances are those of the new grid (when a sign last reached each
+        cell is kept: the cells are the same)."""
+        from meanfield.geometry.blocking import tell_walls_changed
+
+        tell_walls_changed((self.law,), change)
+        self._cover(change.grid, change.sight)
 
     @classmethod
     def from_parts(cls, parts: ControllerParts) -> CoverageController:

@@ -100,6 +100,11 @@ class _HughesPrepared(_Prepared):
     grad_phi: FaceField | None = None
 
 
+def _distance_to_each_exit(grid: Any, segs: np.ndarray, sight: Any) -> np.ndarray:
+    """``d_k``, the walking distance to each exit alone, ``(K, nx, ny)`` (one fast march per exit)."""
+    return np.stack([ExitEikonal(grid, segs[k : k + 1], sight).distance for k in range(len(segs))])
+
+
 class EvacuationController(BacksteppingController):
     """The paper's Step II tracking Hughes' desired field towards the exits (see the module docstring).
 
@@ -168,6 +173,7 @@ class EvacuationController(BacksteppingController):
         self.v_free, self.rho_max = float(v_free), float(rho_max)
         self.potential, self.eikonal, self.speed_floor = potential, eikonal, float(speed_floor)
         self._all_exits = None if eikonal is None else eikonal.segs  # (exits_closed solves to a subset of these)
+        self._open: np.ndarray | None = None  # the exits open, by exits_closed (None: all)
         self.grad_phi = self._face_gradient(phi)
 
     @classmethod
@@ -206,11 +212,7 @@ class EvacuationController(BacksteppingController):
 
         if parts.people is None:
             raise ParameterError("crowd.n", None, "the crowd's size, for the balanced potential (persons per exit)")
-        if len(segs) == 1:
-            distances = eikonal.distance[None]
-        else:
-            alone = [ExitEikonal(parts.grid, segs[k : k + 1], parts.sight) for k in range(len(segs))]
-            distances = np.stack([e.distance for e in alone])
+        distances = eikonal.distance[None] if len(segs) == 1 else _distance_to_each_exit(parts.grid, segs, parts.sight)
         widths = np.hypot(*(segs[:, 1] - segs[:, 0]).T)
         flow = SPECIFIC_FLOW if specific_flow is None else specific_flow
         return ExitAssignment(distances, widths, parts.grid.volume, parts.people, v_free, flow)
@@ -221,11 +223,26 @@ class EvacuationController(BacksteppingController):
         open_exits = np.asarray(open_exits, dtype=bool)
         if self.eikonal is None or not open_exits.any():
             return
+        self._open = open_exits.copy()
         if self.assignment is not None:  # balanced again over the open exits at the next evaluation
             self.assignment.open = open_exits.copy()
             self._next_balance = -math.inf
         e = self.eikonal
         self.eikonal = ExitEikonal(e.grid, self._all_exits[open_exits], e.sight)
+        self.grad_phi = self._face_gradient(self.eikonal.distance)
+
+    def walls_changed(self, change: Any) -> None:
+        """A region became wall (a ``block`` event): the law moves to the new grid and the potential is solved
+        again round the new walls, to the exits open (and with the balanced potential, each exit's distance)."""
+        super().walls_changed(change)
+        if self.eikonal is None:
+            return
+        segs = self._all_exits
+        open_exits = np.ones(len(segs), dtype=bool) if self._open is None else self._open
+        self.eikonal = ExitEikonal(change.grid, segs[open_exits], change.sight)
+        if self.assignment is not None:
+            self.assignment.walls_changed(_distance_to_each_exit(change.grid, segs, change.sight), change.grid.volume)
+            self._next_balance = -math.inf
         self.grad_phi = self._face_gradient(self.eikonal.distance)
 
     # ------------------------------------------------------------------ the exits' balance

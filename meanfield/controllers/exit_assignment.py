@@ -128,6 +128,14 @@ class ExitAssignment:
         self.offsets = np.zeros(len(self.capacity))
         self.makespan = math.nan  # the last solution's (eq. B1), s
 
+    def walls_changed(self, distances: np.ndarray, volume: np.ndarray) -> None:
+        """New walls (a ``block`` event): each exit's walking distance and the cells' areas on the new grid; the
+        exits open and the last offsets are kept (the next solution starts from them)."""
+        self.distances = np.asarray(distances, float)
+        self.active = np.isfinite(self.distances).all(axis=0) & (np.asarray(volume) > 0)
+        self.arrival = self.distances[:, self.active] / self.v_free
+        self.volume = np.asarray(volume, float)[self.active]
+
     def assign(self, offsets: np.ndarray) -> np.ndarray:
         """Each active cell's exit, ``argmin_k (a_k(c) + τ_k)`` over the open exits: ``(M,)``."""
         cost = self.arrival + np.where(self.open, offsets, np.inf)[:, None]

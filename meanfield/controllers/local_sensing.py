@@ -136,6 +136,14 @@ class LocalSensing:
 
         tell_exits_closed(self.controllers, open_exits)
 
+    def walls_changed(self, change: Any) -> None:
+        """A region became wall (a ``block`` event): every group's controller is told, and the groups' fields are
+        hidden by the new walls."""
+        from meanfield.geometry.blocking import tell_walls_changed
+
+        tell_walls_changed(self.controllers, change)
+        self.grid, self.sight = change.grid, change.sight
+
     def reset(self) -> None:
         """Reset every robot's controller and the counts."""
         for c in self.controllers:

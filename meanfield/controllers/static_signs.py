@@ -38,6 +38,9 @@ class StaticSigns:
     """
 
     OPTIONS = ("k_position", "k_heading")
+    changes_walls = True
+    """A region can become wall during a run (``[[events]] block``): the signs keep their stations and bearings
+    (a station in the block is held at its edge by the robots' region)."""
 
     def __init__(self, stations: np.ndarray, bearings: np.ndarray, k_position: float = 1.0, k_heading: float = 2.0):
         for name, k in (("k_position", k_position), ("k_heading", k_heading)):

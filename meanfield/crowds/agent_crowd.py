@@ -269,6 +269,12 @@ class Individuals:
             w = self.walkers
             velocity[w] = self.walk.walk_velocity(positions[w], dt)
 
+    def walls_changed(self, change: Any) -> None:
+        """The non-followers' walk turns at the new walls (a ``block`` event)."""
+        self.domain = change.region
+        if self.walk is not None:
+            self.walk.walls_changed(change)
+
     def advance(self, dt: float) -> None:
         """After the step: the non-followers' headings diffuse."""
         if self.walk is not None:
@@ -556,6 +562,27 @@ class AgentCrowd:
 
         tell_exits_closed((self.engine, self.guidance, self.memory), open_exits)
 
+    def walls_changed(self, change: Any) -> None:
+        """A region became wall (a ``block`` event, :class:`~meanfield.geometry.blocking.WallsChange`).
+
+        The engine's walls are the new ones (those standing in the block step out of it), the KDE estimates
+        on the new grid, the signs are hidden by the new walls (a sampled field, which cannot tell which
+        side of a wall, gives way to the exact one), the local density's disks are cut by them, and the
+        guidance, the remembered routes and the non-followers' walk are planned round them.
+        """
+        from meanfield.geometry.blocking import tell_walls_changed
+
+        k = self.kde
+        self.kde = KernelDensityEstimator(
+            change.grid, k.bandwidth, k.boundary, k.method, k.normalize, k.oversample, k.convolution
+        )
+        self.sight = None if change.sight.trivial else change.sight
+        if self.sight is not None and self.sampled_field is not None:
+            self.sampled_field, self.field_evaluation = None, "exact"
+        if self._density is not None:
+            self._density = LocalDensity(len(self.engine.positions), self.density_radius, change.region)
+        tell_walls_changed((self.engine, self.view, self.guidance, self.memory, self.individuals), change)
+
     def fraction_in_disk(self, center: tuple[float, float], radius: float) -> float:
         return fraction_in_disk(self.positions, center, radius)
 
@@ -645,6 +672,9 @@ point_mass_crowd.models_individuals = True  # type: ignore[attr-defined]
 point_mass_crowd.places_groups = True  # type: ignore[attr-defined]
 """People may be placed in groups, each in its region with its own exit (``crowd.initial = "groups"``,
 :mod:`meanfield.crowds.groups`)."""
+point_mass_crowd.changes_walls = True  # type: ignore[attr-defined]
+"""A region can become wall during a run (``[[events]] block``, :meth:`AgentCrowd.walls_changed`): the people in it
+step out, and the signs, routes and walks go round it."""
 point_mass_crowd.closes_exits = True  # type: ignore[attr-defined]
 """An exit can close during a run (``[[events]]``, :meth:`AgentCrowd.exits_closed`): the engine stops
 taking people through it and the informed crowd's routes lead to the exits still open."""

@@ -134,6 +134,11 @@ class GeodesicGuidance:
         """
         self.plan.exits_closed(open_exits, self.exit_of)
 
+    def walls_changed(self, change: Any) -> None:
+        """Plan again round the new walls (a ``block`` event;
+        :meth:`~meanfield.geometry.geodesic.AssignedRoutes.walls_changed`)."""
+        self.plan.walls_changed(change)
+
     def advance(self, dt: float) -> None:
         """No memory."""
 
@@ -152,6 +157,10 @@ class RandomWalkGuidance:
 
     def velocity(self, positions: np.ndarray, t: float, dt: float) -> np.ndarray:
         return self.view.walk_velocity(positions, dt)
+
+    def walls_changed(self, change: Any) -> None:
+        """The walk turns at the new walls (a ``block`` event)."""
+        self.view.walls_changed(change)
 
     def advance(self, dt: float) -> None:
         self.view.advance(dt)

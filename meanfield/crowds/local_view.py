@@ -19,6 +19,7 @@ whose next step would leave Ω turns as if reflected by the wall.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -135,6 +136,10 @@ class LocalView:
         self._n = int(n)
         self._headings: np.ndarray | None = None  # drawn at the first step (see headings)
         self.seen = np.ones(n, dtype=bool)
+
+    def walls_changed(self, change: Any) -> None:
+        """The walkers turn at the walls of ``change.region`` from now on (a ``block`` event)."""
+        self.domain = change.region
 
     @classmethod
     def blind(

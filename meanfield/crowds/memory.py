@@ -96,6 +96,10 @@ class RouteMemory:
         """Those walking to a closed exit take the route to the nearest open one (none left: unchanged)."""
         self.plan.exits_closed(open_exits, self.exit)
 
+    def walls_changed(self, change: Any) -> None:
+        """The routes are planned again round the new walls (a ``block`` event); who knows the way still does."""
+        self.plan.walls_changed(change)
+
     def summary(self) -> dict[str, Any]:
         """``knew_the_way_fraction``: the share of the crowd a sign had reached by the end."""
         return {"knew_the_way_fraction": float(self.knows.mean()) if len(self.knows) else 0.0}

@@ -84,6 +84,19 @@ class PointMassEngine:
             raise ParameterError("open_exits", open_exits.shape, f"one flag per exit, shape ({len(self.exits)},)")
         self._open = None if open_exits.all() else np.flatnonzero(open_exits)
 
+    def walls_changed(self, change: Any) -> None:
+        """Ω is ``change.region`` from now on (a ``block`` event): its walls reflect, and the humans standing
+        in the blocked region step out of it to the nearest point a hair (10⁻⁴ of Ω's diameter) inside Ω."""
+        region = change.region
+        self.domain = region
+        self._path_reflection = bool(getattr(region, "reflects_along_paths", False))
+        self._box = NO_BOX if self._path_reflection else getattr(region, "box_walls", NO_BOX)
+        here = np.flatnonzero(self.active)
+        x = self.positions[here]
+        if not region.contains(x[:, 0], x[:, 1]).all():
+            region.robot_region(1e-4 * region.diameter).project(x)
+            self.positions[here] = x
+
     @property
     def n(self) -> int:
         """Number of humans N."""

@@ -6,8 +6,9 @@ DXF (:mod:`~meanfield.geometry.dxf`)), the finite-volume grid with its cut cells
 (:mod:`~meanfield.geometry.grid`, :mod:`~meanfield.geometry.cut_cells`), walls
 (:mod:`~meanfield.geometry.walls`), exits (:mod:`~meanfield.geometry.exits`), geodesic routes
 (:mod:`~meanfield.geometry.geodesic`), line of sight (:mod:`~meanfield.geometry.sight`), the target
-density (:mod:`~meanfield.geometry.target`) and the share of a disk inside Ω
-(:mod:`~meanfield.geometry.disk_share`). The private ``_*_loops`` modules are their compiled loops.
+density (:mod:`~meanfield.geometry.target`), the share of a disk inside Ω
+(:mod:`~meanfield.geometry.disk_share`) and a region that becomes wall during a run
+(:mod:`~meanfield.geometry.blocking`). The private ``_*_loops`` modules are their compiled loops.
 
 Names are imported on first use (:mod:`meanfield._namespace`).
 """
@@ -31,7 +32,9 @@ _LAZY = {
     "Segment": "meanfield.geometry.dxf",
     "SightLines": "meanfield.geometry.sight",
     "UNITS": "meanfield.geometry.dxf",
+    "WallsChange": "meanfield.geometry.blocking",
     "WallIndex": "meanfield.geometry.walls",
+    "blocked_region": "meanfield.geometry.blocking",
     "blocking_walls": "meanfield.geometry.sight",
     "convex_polygon": "meanfield.geometry.region",
     "convex_polygon_cut_cells": "meanfield.geometry.cut_cells",

@@ -522,6 +522,13 @@ class AssignedRoutes:
             self.nearest = ExitRoutes(self.grid, self.segs[open_exits], self.sight)
             exit_of[(exit_of >= 0) & ~open_exits[np.maximum(exit_of, 0)]] = -1
 
+    def walls_changed(self, change: Any) -> None:
+        """A region became wall (a ``block`` event, :class:`~meanfield.geometry.blocking.WallsChange`): the routes
+        to the open exits are planned again on the new grid, those to each exit alone when next needed."""
+        self.grid, self.sight = change.grid, change.sight
+        self.nearest = ExitRoutes(self.grid, self.segs[self.open], self.sight)
+        self.planned = {}
+
 
 def routes_for(region: Any, grid: Grid, sight: SightLines | None = None) -> ExitRoutes:
     """:class:`ExitRoutes` to the exits of ``region`` on ``grid`` (refused, naming ``domain.exits``, without)."""

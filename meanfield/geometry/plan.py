@@ -45,12 +45,17 @@ class Plan:
         The walkable area: valid, non-empty, one piece (holes allowed).
     exits : sequence of segments, optional
         Parts of the walls that are exits, ``((x0, y0), (x1, y1))`` each.
+    frame : (x0, x1, y0, y1), optional
+        The rectangle the plan is drawn in, holding it: its :attr:`bounds`, hence the grid's lattice.
+        By default the polygon's bounding box; a plan a region was blocked from during a run keeps
+        the frame of the plan before, so the grid's cells stay where they were
+        (:mod:`meanfield.geometry.blocking`).
     """
 
     kind = "plan"
     reflects_along_paths = True  # reflect needs the step's start (see Plan.reflect)
 
-    def __init__(self, polygon: Any, exits: Any = ()):
+    def __init__(self, polygon: Any, exits: Any = (), frame: tuple[float, float, float, float] | None = None):
         import shapely
 
         if not isinstance(polygon, shapely.Polygon):
@@ -66,7 +71,16 @@ class Plan:
         self._walls: Any = None  # the WallIndex, built at the first step
         self._edges = self._segments()
         self._inset: dict[float, Any] = {}
+        self._frame = None if frame is None else self._check_frame(frame)
         self.exits = self._check_exits(exits or ())
+
+    def _check_frame(self, frame: Any) -> tuple[float, float, float, float]:
+        """``frame`` as four floats, refused (named ``frame``) unless it holds the polygon."""
+        x0, x1, y0, y1 = (float(v) for v in frame)
+        px0, py0, px1, py1 = self.polygon.bounds
+        if not (x0 <= px0 and px1 <= x1 and y0 <= py0 and py1 <= y1):
+            raise ParameterError("frame", frame, f"a rectangle (x0, x1, y0, y1) holding the plan {self.polygon.bounds}")
+        return (x0, x1, y0, y1)
 
     def _check_exits(self, exits: Any) -> tuple:
         """Exit segments ``((x0, y0), (x1, y1))``, each on the plan's boundary (outline or hole)."""
@@ -134,6 +148,8 @@ class Plan:
     # ------------------------------------------------------------------ the Region interface
     @property
     def bounds(self) -> tuple[float, float, float, float]:
+        if self._frame is not None:
+            return self._frame
         x0, y0, x1, y1 = self.polygon.bounds
         return (x0, x1, y0, y1)
 

@@ -99,12 +99,23 @@ def _field_arrows(result: SimulationResult, k: int, m: int = 15):
     ys = np.linspace(y0, y1, m + 2)[1:-1]
     X, Y = np.meshgrid(xs, ys, indexing="ij")
     pts = np.column_stack([X.ravel(), Y.ravel()])
-    domain = result.scenario.domain
+    domain = _region_at(result, float(ds["time"].values[k]))
     pts = pts[domain.contains(pts[:, 0], pts[:, 1])]
     R = np.column_stack([ds["robot_x"].values[k], ds["robot_y"].values[k]])
     visible = SightLines(domain).mask(R, pts)  # exact segments (None in a convex room)
     v = navigation_velocity(loop_kernel, R, ds["robot_heading"].values[k], pts, visible)
     return pts, v
+
+
+def _region_at(result: SimulationResult, t: float):
+    """Ω at time ``t``: the scenario's region, less the regions its ``block`` events had made wall by then."""
+    from meanfield.geometry.blocking import blocked_region
+
+    region = result.scenario.domain
+    for event in result.scenario.events:
+        if event.block is not None and event.time <= t + 1e-9:
+            region = blocked_region(region, event.block)
+    return region
 
 
 def result_kernel(result: SimulationResult):
@@ -129,7 +140,7 @@ def _draw_crowd(ax, result: SimulationResult, k: int):
     rx, ry, th = ds["robot_x"].values[k], ds["robot_y"].values[k], ds["robot_heading"].values[k]
     ax.plot(rx, ry, "o", mfc="none", mec="tab:blue", ms=7, mew=1.5)
     ax.quiver(rx, ry, np.cos(th), np.sin(th), color="tab:blue", scale=18, width=0.006)
-    _outline(ax, result)
+    _outline(ax, result, float(ds["time"].values[k]))
     ax.set_aspect("equal")
     _axes_labels(ax, _units(result))
     if "fraction_evacuated" in ds:
@@ -157,12 +168,20 @@ def _crowd_legend(fig, ds) -> None:
     fig.legend(handles=handles, loc="outside upper center", ncols=4, fontsize=8, frameon=False)
 
 
-def _outline(ax, result: SimulationResult):
-    """Ω's boundary: walls in black, exits in green (metres for plans)."""
+def _outline(ax, result: SimulationResult, t: float | None = None):
+    """Ω's boundary: walls in black, exits in green (metres for plans); the regions blocked by time ``t``
+    (a scenario's ``block`` events) hatched in red."""
     dom = result.scenario.domain
     for part in dom.boundary_parts():
         style = {"color": "k", "lw": 1} if part.kind == "wall" else {"color": "tab:green", "lw": 3}
         ax.plot(part.points[:, 0], part.points[:, 1], **style)
+    if t is not None:
+        import shapely
+
+        for event in result.scenario.events:
+            if event.block is not None and event.time <= t + 1e-9:
+                xy = np.asarray(shapely.from_wkt(event.block).exterior.coords)
+                ax.fill(xy[:, 0], xy[:, 1], facecolor="none", edgecolor="tab:red", hatch="///", lw=1)
     x0, x1, y0, y1 = dom.bounds
     pad = 0.02 * max(x1 - x0, y1 - y0)
     ax.set_xlim(x0 - pad, x1 + pad)
@@ -182,7 +201,7 @@ def plot_snapshots(result: SimulationResult, count: int = 4):
         im = axes[1, col].imshow(shown[k].T, origin="lower", extent=_extent(ds), vmin=0, vmax=vmax, cmap="viridis")
         title = "density estimate ρ̂" if "human_x" in ds else "density ρ (Fokker–Planck)"
         axes[1, col].set_title(title, fontsize=9)
-        _outline(axes[1, col], result)
+        _outline(axes[1, col], result, float(ds["time"].values[k]))
         _axes_labels(axes[1, col], _units(result))
     fig.colorbar(im, ax=axes[1, :].tolist(), shrink=0.8, label=f"density ({_units(result)['density']})")
     _crowd_legend(fig, ds)
@@ -202,8 +221,9 @@ def plot_evacuation(result: SimulationResult):
     ):
         if s.get(key) is not None:
             ax.axvline(s[key], color="0.3", ls=style, lw=1, label=f"{label}: {s[key]:.1f} {u['time']}")
-    for event in s.get("events") or ():  # the scenario's [[events]]: when each exit closed
-        label = f"exit {event['close_exit']} closes: {event['at']:.1f} {u['time']}"
+    for event in s.get("events") or ():  # the scenario's [[events]]: when each exit closed, each region was blocked
+        what = f"exit {event['close_exit']} closes" if "close_exit" in event else "a region is blocked"
+        label = f"{what}: {event['at']:.1f} {u['time']}"
         ax.axvline(event["at"], color="tab:red", ls="-", lw=1, alpha=0.7, label=label)
     ax.set(xlabel=f"time ({u['time']})", ylabel="fraction of the crowd out", ylim=(0, 1.02))
     peak = s.get("peak_density")

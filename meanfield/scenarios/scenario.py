@@ -341,20 +341,25 @@ class Scenario:
                 raise ParameterError(f"crowd.groups[{i}].exit", g["exit"], allowed)
 
     def _checked_events(self, events: Any) -> tuple[EventSpec, ...]:
-        """``events`` as :class:`EventSpec` in time order, each checked against the plan and the crowd.
+        """``events`` as :class:`EventSpec` in time order, each checked against the plan and the parts.
 
-        Refused, naming ``events[i]...``: an exit index that ``domain.exits`` does not have; any event
-        with a crowd kind that does not declare ``closes_exits`` (naming ``events``).  A warning: an
-        event before 0 or after ``t_final`` (it happens at the first step, or never).
+        Refused, naming ``events[i]...``: an exit index that ``domain.exits`` does not have; a ``block``
+        that :func:`~meanfield.geometry.blocking.blocked_region` refuses (outside the plan, meeting an exit,
+        cutting people off from every exit, ...), checked in time order on the plan the earlier blocks
+        left; any event with a crowd kind that does not declare ``closes_exits``, a block with a crowd or
+        controller kind that does not declare ``changes_walls``, or with the pairwise interaction (which
+        lives on the grid the block cuts).  A warning: an event before 0 or after ``t_final`` (it happens
+        at the first step, or never).
         """
         import warnings
 
+        from meanfield.geometry.blocking import blocked_region
         from meanfield.geometry.exits import exit_segments
 
         if events is None or (isinstance(events, (list, tuple)) and not events):
             return ()
         if not isinstance(events, (list, tuple)):
-            raise ParameterError("events", events, "an array of tables [[events]] with time and close_exit")
+            raise ParameterError("events", events, "an array of tables [[events]] with time and close_exit or block")
         out = []
         n_exits = len(exit_segments(self.domain))
         for i, e in enumerate(events):
@@ -362,14 +367,14 @@ class Scenario:
             if isinstance(e, EventSpec):
                 e = e.to_dict()
             if not isinstance(e, dict):
-                raise ParameterError(name, e, "a table with time and close_exit")
+                raise ParameterError(name, e, "a table with time and close_exit or block")
             unknown = sorted(set(e) - {"time", *EVENT_ACTIONS})
             if unknown:
-                raise ParameterError(f"{name}.{unknown[0]}", e[unknown[0]], "time, close_exit (or block)")
+                raise ParameterError(f"{name}.{unknown[0]}", e[unknown[0]], "time, and close_exit or block")
             if "time" not in e:
                 raise ParameterError(f"{name}.time", None, "the time the event happens")
             ev = EventSpec(**e, name=name)
-            if ev.close_exit >= n_exits:
+            if ev.close_exit is not None and ev.close_exit >= n_exits:
                 allowed = f"an index into domain.exits, 0 to {n_exits - 1}" if n_exits else "none (no exits)"
                 raise ParameterError(f"{name}.close_exit", ev.close_exit, allowed)
             if not 0.0 <= ev.time <= self.t_final:
@@ -379,6 +384,7 @@ class Scenario:
                     stacklevel=4,
                 )
             out.append(ev)
+        out.sort(key=lambda ev: ev.time)
         if not registry.declared("crowd", self.crowd.kind, "closes_exits", False):
             raise ParameterError(
                 "events",
@@ -386,7 +392,20 @@ class Scenario:
                 f"no events with the {self.crowd.kind!r} crowd, which cannot close an exit during a run "
                 "(it declares no closes_exits): use point masses, JuPedSim's bodies or the density",
             )
-        return tuple(sorted(out, key=lambda ev: ev.time))
+        blocks = [ev for ev in out if ev.block is not None]
+        if blocks:
+            first = blocks[0].name + ".block"
+            for kind, part in (("crowd", self.crowd.kind), ("controller", self.controller.kind)):
+                if not registry.declared(kind, part, "changes_walls", False):
+                    fits = [k for k in registry.available(kind) if registry.declared(kind, k, "changes_walls", False)]
+                    raise ParameterError(first, f"a block with the {part!r} {kind}", f"{kind}.kind among {fits}")
+            if self.interaction.kind != "none":
+                why = 'interaction.kind = "none" (the interaction lives on the grid the block cuts)'
+                raise ParameterError(first, f"a block with interaction.kind = {self.interaction.kind!r}", why)
+            region = self.domain
+            for ev in blocks:
+                region = blocked_region(region, ev.block, f"{ev.name}.block")
+        return tuple(out)
 
     @property
     def congestion_model(self) -> str:

@@ -22,6 +22,7 @@ from meanfield.crowds.groups import crowd_groups
 from meanfield.crowds.local_density import DENSITY_RADIUS
 from meanfield.crowds.memory import MEMORIES
 from meanfield.errors import ParameterError, all_numbers, choice, integer, num, optional_limit, point
+from meanfield.geometry.blocking import block_polygon
 from meanfield.geometry.region import region_keywords
 
 __all__ = [
@@ -378,7 +379,7 @@ class SensingSpec:
 
 
 EVENT_ACTIONS = ("close_exit", "block")
-"""What an event does (one of them per event): close an exit, or make a region a wall (``block``, not built)."""
+"""What an event does (one of them per event): close an exit, or make a region a wall."""
 
 
 @dataclass
@@ -386,9 +387,9 @@ class EventSpec:
     """Something that happens during a run: one ``[[events]]`` table (docs page *Buildings*, "Events").
 
     ``time`` (in the scenario's time unit) and one action: ``close_exit = k``, the index into
-    ``domain.exits`` of an exit nobody leaves through from then on.  ``block = "POLYGON (...)"``
-    (a region that becomes a wall) is part of the format but not built: it is refused, naming it.
-    ``name`` is how errors name the event (``events[i]``, set by the scenario).
+    ``domain.exits`` of an exit nobody leaves through from then on, or ``block = "POLYGON (...)"``, a
+    region (WKT) that becomes a wall (:mod:`meanfield.geometry.blocking`; checked against the plan by the
+    scenario).  ``name`` is how errors name the event (``events[i]``, set by the scenario).
     """
 
     time: float = 0.0
@@ -398,19 +399,24 @@ class EventSpec:
 
     def __post_init__(self) -> None:
         self.time = num(f"{self.name}.time", self.time)
-        if self.block is not None:
+        if (self.close_exit is None) == (self.block is None):
+            got = "no action" if self.close_exit is None else "both close_exit and block"
             raise ParameterError(
-                f"{self.name}.block",
-                self.block,
-                "close_exit: a blocking region (a zone that becomes a wall during the run) is not built yet",
+                self.name, got, 'one action: close_exit = k (an index into domain.exits) or block = "POLYGON ((...))"'
             )
-        if self.close_exit is None:
-            raise ParameterError(self.name, "no action", "an event with close_exit = k (an index into domain.exits)")
-        self.close_exit = integer(f"{self.name}.close_exit", self.close_exit, 0)
+        if self.close_exit is not None:
+            self.close_exit = integer(f"{self.name}.close_exit", self.close_exit, 0)
+        else:
+            block_polygon(self.block, f"{self.name}.block")
+
+    @property
+    def action(self) -> str:
+        """``"close_exit"`` or ``"block"``."""
+        return "close_exit" if self.close_exit is not None else "block"
 
     def to_dict(self) -> dict[str, Any]:
         """The ``[[events]]`` table (TOML-ready)."""
-        return {"time": self.time, "close_exit": self.close_exit}
+        return {"time": self.time, self.action: getattr(self, self.action)}
 
 
 SECTIONS: dict[str, type] = {

@@ -3,7 +3,8 @@
 One step of :class:`ClosedLoop` (``dt``; docs page *Architecture*):
 
 0. the scenario's events due now happen (``[[events]]``: an exit closes, and every part that
-   declares ``exits_closed`` is told; docs page *Buildings*, "Events");
+   declares ``exits_closed`` is told; or a region becomes wall, and every part that declares
+   ``walls_changed`` is told; docs page *Buildings*, "Events");
 1. observe: the crowd's density on the grid (a KDE of agents, or the PDE's density) and
    the robots' kernels at their states (:class:`~meanfield.interfaces.Observation`);
 2. act: the controller's robot inputs ``(u_i, ω_i)`` (eq. (8) for the paper's law);
@@ -182,7 +183,8 @@ class ClosedLoop:
         self.start()
         k, dt = self.step_index, self.dt
         while self._events and self._events[0].time <= self.t + 1e-9 * dt:
-            self._close_exit(self._events.pop(0))
+            event = self._events.pop(0)
+            getattr(self, f"_{event.action}")(event)  # _close_exit or _block
         observation = self.observe()
         command = self.controller.act(observation) if self._plant_beside_first_act is None else self._act(observation)
         u, w, report = limited_inputs(command.u, command.omega, self.robots.u_max, self.robots.omega_max)
@@ -213,6 +215,33 @@ class ClosedLoop:
         self.events_done.append(
             {"time": event.time, "at": self.t, "close_exit": event.close_exit, "exits_open": int(self.open_exits.sum())}
         )
+
+    def _block(self, event: Any) -> None:
+        """An event: the region ``event.block`` becomes wall now (:mod:`meanfield.geometry.blocking`).
+
+        Ω, its grid (the same cells, cut again), sight lines, robot region and ``ρ_*`` are built for
+        ``Ω ∖ B``; every part that has ``walls_changed`` is told (the crowd's people in ``B`` step out of it
+        and its routes are planned again; the controller plans again); the density is estimated again on
+        the new grid, so the robots' next observation is of the new Ω.
+        """
+        from meanfield.geometry.blocking import WallsChange, block_polygon, blocked_region, tell_walls_changed
+        from meanfield.geometry.grid import Grid
+        from meanfield.geometry.sight import SightLines
+        from meanfield.geometry.target import gaussian_target, target_region_radius
+
+        p, sc = self.parts, self.scenario
+        region = blocked_region(p.region, event.block, f"{event.name}.block")
+        grid = Grid(region, p.grid.cells, p.grid.cut_cells)
+        target = gaussian_target(grid, sc.target.center, sc.target.std)
+        change = WallsChange(region, grid, SightLines(region), region.robot_region(sc.robots.margin), target,
+                             block_polygon(event.block))  # fmt: skip
+        p.region, p.grid, p.sight, p.robot_region, p.target = region, grid, change.sight, change.robot_region, target
+        p.target_radius = target_region_radius(region, sc.target.center, sc.target.std)
+        self.grid = grid
+        tell_walls_changed((self.crowd, self.controller), change)
+        change.robot_region.project(self.robots.positions)  # (in place) a robot in B steps out of it
+        self.density = self.crowd.density()
+        self.events_done.append({"time": event.time, "at": self.t, "block": event.block})
 
     @property
     def no_exit_left(self) -> bool:

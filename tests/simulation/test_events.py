@@ -105,7 +105,7 @@ def test_events_survive_toml_and_are_drawn(tmp_path):
     [
         ({"time": 1.0, "close_exit": 4}, "events[0].close_exit"),  # the hall has exits 0-3
         ({"time": 1.0, "close_exit": -1}, "events[0].close_exit"),
-        ({"time": 1.0, "block": "POLYGON ((1 1, 2 1, 2 2, 1 1))"}, "events[0].block"),
+        ({"time": 1.0, "block": "POLYGON ((40 40, 41 40, 41 41, 40 40))"}, "events[0].block"),  # outside the hall
         ({"time": 1.0}, "events[0]"),
         ({"close_exit": 0}, "events[0].time"),
         ({"time": 1.0, "close_exit": 0, "open_exit": 1}, "events[0].open_exit"),

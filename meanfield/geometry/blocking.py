@@ -1,0 +1,135 @@
+"""A region that becomes a wall during a run: a scenario's ``block`` event (docs page *Buildings*, "Events").
+
+``[[events]] time = t, block = "POLYGON ((...))"``: from time ``t`` on, the polygon is wall (smoke, a
+fire, a collapsed ceiling).  Ω becomes ``Ω ∖ B`` (:func:`blocked_region`), a
+:class:`~meanfield.geometry.plan.Plan` drawn in the frame of the region before, so the grid keeps its
+lattice and only the cells ``B`` cuts change; :class:`WallsChange` carries the new Ω, its grid (the same
+cells, cut again), its sight lines and its robot region to every part that declares ``walls_changed``
+(:func:`tell_walls_changed`).  The people standing in ``B`` step out to its nearest edge.
+
+Refused when the scenario is read (naming ``events[i].block``; :func:`blocked_region`): a block that is not a
+valid polygon, lies outside Ω, meets an exit (close the exit with ``close_exit`` instead: an exit in a wall
+would no longer be on Ω's boundary), covers Ω, or leaves Ω in pieces.  A piece without an exit would cut the
+people in it off from every exit; pieces that all have an exit are not built (one region is one piece).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from meanfield.errors import ParameterError
+
+__all__ = ["WallsChange", "blocked_region", "block_polygon", "tell_walls_changed"]
+
+PIECE_AREA = 1e-6
+"""Pieces of ``Ω ∖ B`` smaller than this share of Ω's area are clipping round-off, dropped."""
+
+
+def block_polygon(text: Any, name: str = "block") -> Any:
+    """The blocking polygon of ``text`` (WKT), refused, naming ``name``, unless it is one valid polygon."""
+    import shapely
+
+    if not isinstance(text, str):
+        raise ParameterError(name, text, 'a polygon in WKT, "POLYGON ((x0 y0, x1 y1, ...))"')
+    try:
+        polygon = shapely.from_wkt(text)
+    except Exception:  # noqa: BLE001 - shapely's GEOS errors have no common public type
+        raise ParameterError(name, text, 'a polygon in WKT, "POLYGON ((x0 y0, x1 y1, ...))"') from None
+    if polygon is None or polygon.geom_type != "Polygon" or polygon.is_empty:
+        raise ParameterError(name, text, 'one polygon in WKT, "POLYGON ((x0 y0, x1 y1, ...))"')
+    if not polygon.is_valid or polygon.area <= 0:
+        reason = shapely.is_valid_reason(polygon) if not polygon.is_valid else "no area"
+        raise ParameterError(name, reason, "a valid polygon with an area > 0")
+    return polygon
+
+
+def blocked_region(region: Any, block: Any, name: str = "block") -> Any:
+    """``Ω ∖ B``: ``region`` with the polygon ``block`` (WKT or shapely) made wall.
+
+    Returns a :class:`~meanfield.geometry.plan.Plan` with the same exits, in the same order, drawn in
+    ``region``'s frame (its :attr:`bounds`), so a grid on it has the same cells.
+
+    Raises
+    ------
+    ParameterError
+        Naming ``name``: a block that is not one valid polygon, a region that cannot be blocked (a disk,
+        a stand-in), a block outside Ω, one that meets an exit, one that covers Ω, one that leaves Ω in
+        pieces (a piece without an exit cuts the people in it off from every exit).
+    """
+    import shapely
+
+    from meanfield.geometry.exits import exit_segments
+    from meanfield.geometry.plan import Plan
+
+    polygon = block if isinstance(block, shapely.Polygon) else block_polygon(block, name)
+    kind = getattr(region, "kind", None)
+    if kind not in ("box", "polygon", "plan"):
+        raise ParameterError(name, f"a block in a {kind!r} region", "a region of kind 'box', 'polygon' or 'plan'")
+    omega = region.to_shapely()
+    tol = PIECE_AREA * omega.area
+    if omega.intersection(polygon).area <= tol:
+        raise ParameterError(name, polygon.wkt, f"a polygon that overlaps the plan (bounds {omega.bounds})")
+    rest = omega.difference(polygon)
+    pieces = [p for p in getattr(rest, "geoms", [rest]) if p.geom_type == "Polygon" and p.area > tol]
+    if not pieces:
+        raise ParameterError(name, "a block that covers the plan", "a region that leaves room to walk")
+    segs = exit_segments(region)
+    for k, seg in enumerate(segs):
+        if polygon.intersects(shapely.LineString(seg)):
+            raise ParameterError(
+                name, f"a block that meets exit {k}", f"a region clear of the exits (close exit {k} with close_exit)"
+            )
+    if len(pieces) > 1:
+        doors = [shapely.LineString(seg) for seg in segs]
+        shut = [i for i, p in enumerate(pieces) if not any(p.distance(d) < 1e-9 * region.diameter for d in doors)]
+        if shut:
+            raise ParameterError(
+                name, "a block that cuts people off from every exit", "a region whose every side still has an exit"
+            )
+        raise ParameterError(
+            name,
+            f"a block that splits the plan into {len(pieces)} pieces, each with an exit",
+            "a region that leaves the plan in one piece (a plan in pieces is not built)",
+        )
+    piece = shapely.Polygon(pieces[0].exterior, [h for h in pieces[0].interiors])
+    exits = [tuple(map(tuple, seg)) for seg in segs]
+    return Plan(piece, exits, frame=region.bounds)
+
+
+@dataclass(frozen=True)
+class WallsChange:
+    """What a ``block`` event changes, told to every part that declares ``walls_changed``.
+
+    Attributes
+    ----------
+    region : Plan
+        Ω from now on (:func:`blocked_region`).
+    grid : Grid
+        The grid on it: the same cells, cut by the new walls.
+    sight : SightLines
+        Its sight lines (the block hides what is behind it).
+    robot_region : Region
+        Where the robots may stand from now on.
+    target : ndarray
+        ``ρ_*`` on the new grid.
+    blocked : shapely.Polygon
+        The region that became wall.
+    """
+
+    region: Any
+    grid: Any
+    sight: Any
+    robot_region: Any
+    target: np.ndarray
+    blocked: Any
+
+
+def tell_walls_changed(parts: Any, change: WallsChange) -> None:
+    """Tell each of ``parts`` that declares ``walls_changed`` what the walls are now (a ``block`` event)."""
+    for part in parts:
+        changed = getattr(part, "walls_changed", None)
+        if changed is not None:
+            changed(change)

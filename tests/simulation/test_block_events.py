@@ -1,0 +1,187 @@
+"""A region becomes wall during a run (``[[events]] block = "POLYGON (...)"``, issue 31 item 3).
+
+* the routes go round a block: the geodesic distance behind a thin wall equals the shortest path round
+  its corner (exact, to the grid's error, which shrinks with the cells);
+* in the hall, from the event on nobody and no robot stands in the block; those standing in it at the
+  event step out (nobody is lost: in Ω plus out is everyone); the block's cells hold no density;
+* the informed crowd, the evacuation controller and coverage plan round it; every declared part runs;
+* static signs keep their stations and bearings;
+* summary.json lists the block, the figures draw it, a scenario with blocks survives TOML;
+* bad blocks are refused naming ``events[i].block`` (outside the plan, meeting an exit, covering the
+  plan, cutting people off from every exit, splitting the plan, a part that does not declare
+  ``changes_walls``), and the command line exits with 2.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import shapely
+
+from meanfield.cli.app import main
+from meanfield.errors import ParameterError
+from meanfield.geometry.blocking import blocked_region
+from meanfield.geometry.domain import Domain
+from meanfield.geometry.exits import exit_segments
+from meanfield.geometry.geodesic import ExitRoutes
+from meanfield.geometry.grid import Grid
+from meanfield.scenarios.scenario import Scenario, builtin_scenarios
+from meanfield.simulation.loop import ClosedLoop
+
+BLOCK_AT = 5.0
+CENTRE = "POLYGON ((10 3, 20 3, 20 17, 10 17, 10 3))"
+"""The middle of the hall (30 m × 20 m, pillars at x = 7-8, 14.5-15.5 and 22-23): a third of it."""
+
+
+def hall(block: str = CENTRE, **values):
+    """The shipped hall (four 2 m doors, 200 people), its middle blocked at 5 s."""
+    return builtin_scenarios()["hall"](seed=0).with_values({"events": [{"time": BLOCK_AT, "block": block}], **values})
+
+
+def run_to(loop: ClosedLoop, t: float) -> None:
+    while loop.t < t - 0.5 * loop.dt:
+        loop.step()
+
+
+@pytest.mark.parametrize("cells", [(80, 40), (160, 80)])
+def test_routes_go_round_a_block_the_shortest_way(cells):
+    """Behind a thin wall (x = 10-10.5, y < 8) of a 20 m × 10 m room with its door at x = 20, y = 4-6, the
+    walk from (5, 2) goes to the wall's corner (10, 8), along its top, then straight to the door's end
+    (20, 6): √61 + 0.5 + √94.25 = 18.018 m.  Without the wall it is the straight line, √229 = 15.133 m."""
+    room = Domain.box(20.0, 10.0, exits=[[[20.0, 4.0], [20.0, 6.0]]])
+    walled = blocked_region(room, "POLYGON ((10 -1, 10.5 -1, 10.5 8, 10 8, 10 -1))")
+    p = np.array([[5.0, 2.0]])
+    around = ExitRoutes(Grid(walled, cells), exit_segments(walled)).distance(p)[0]
+    straight = ExitRoutes(Grid(room, cells), exit_segments(room)).distance(p)[0]
+    exact, line = np.sqrt(61.0) + 0.5 + np.sqrt(94.25), np.sqrt(229.0)
+    h = 20.0 / cells[0]  # the cell's width
+    assert abs(around - exact) < 0.6 * h and abs(straight - line) < 0.2 * h
+    assert walled.bounds == room.bounds  # the grid's lattice is the room's
+
+
+def test_nobody_stands_in_the_block_after_it_and_nobody_is_lost():
+    loop = ClosedLoop(hall(**{"crowd.guidance": "geodesic"}))
+    block = shapely.from_wkt(CENTRE)
+    run_to(loop, BLOCK_AT)
+    x = loop.crowd.positions
+    here = np.isfinite(x[:, 0])
+    caught = int(shapely.contains_xy(block, x[here, 0], x[here, 1]).sum())
+    assert caught > 10  # people stood in the middle of the hall when it was blocked
+    inside = []
+    while loop.t < BLOCK_AT + 5.0:
+        loop.step()
+        x = loop.crowd.positions
+        here = np.isfinite(x[:, 0])
+        inside.append(int(shapely.contains_xy(block, x[here, 0], x[here, 1]).sum()))
+        inside.append(int(shapely.contains_xy(block, *loop.robots.positions.T).sum()))
+    assert max(inside) == 0
+    engine = loop.crowd.engine
+    assert engine.remaining() + int((engine.exit_index >= 0).sum()) == loop.crowd.n
+    cells = loop.grid.volume_fraction == 0
+    assert cells.sum() > 0 and np.all(loop.density[cells] == 0)  # the block's cells hold nothing
+    assert loop.parts.region.area == pytest.approx(600 - 6 - 10 * 14 + 2, rel=1e-9)  # two pillars are in it
+
+
+def test_the_informed_crowd_the_evacuation_controller_and_coverage_plan_round_it():
+    behind = np.array([[9.5, 10.0]])  # west of the block: the east door (30, 9-11) is now round it
+    loop = ClosedLoop(hall(**{"crowd.guidance": "geodesic", "controller.kind": "evacuation"}))
+    law = loop.controller
+    before = loop.crowd.guidance.routes.distance(behind)[0]
+    run_to(loop, BLOCK_AT + loop.dt)
+    after = loop.crowd.guidance.routes.distance(behind)[0]
+    assert before == pytest.approx(9.5, abs=0.5) and after == pytest.approx(9.5, abs=0.5)  # the west door
+    cells = loop.grid.volume_fraction == 0
+    assert np.isinf(law.eikonal.distance[cells]).all() and law.grid is loop.grid
+    coverage = ClosedLoop(hall(**{"controller.options.metric": "routed", "controller.options.weight": "unswept"}))
+    run_to(coverage, BLOCK_AT + coverage.dt)
+    c = coverage.controller
+    assert c.grid is coverage.grid and c.law.grid is coverage.grid
+    assert len(c._cells) == int(coverage.grid.active.sum())  # the block's cells are not covered
+
+
+@pytest.mark.parametrize(
+    "values",
+    [
+        {"crowd.guidance": "random-walk"},
+        {"view.memory": "sign", "controller.options.metric": "walking", "controller.options.potential": "balanced"},
+        {"controller.kind": "evacuation", "sensing.radius": 8.0, "sensing.comm_radius": 8.0},
+        {"crowd.compliance": 0.8, "crowd.premovement": {"law": "uniform", "low": 0.0, "high": 4.0}},
+        {"controller.kind": "backstepping", "crowd.congestion": "none"},
+    ],
+)
+def test_every_part_that_declares_changes_walls_runs_through_a_block(values):
+    loop = ClosedLoop(hall(**values, t_final=8.0))
+    result = loop.run(progress=False)
+    assert result.summary["status"] == "completed" and result.summary["events"][0]["at"] == BLOCK_AT
+    x = loop.crowd.positions
+    here = np.isfinite(x[:, 0])
+    assert not shapely.contains_xy(shapely.from_wkt(CENTRE), x[here, 0], x[here, 1]).any()
+
+
+def test_static_signs_keep_their_stations_and_bearings():
+    loop = ClosedLoop(hall(**{"controller.kind": "static-signs"}))
+    c = loop.controller
+    stations, bearings = c.stations.copy(), c.bearings.copy()
+    run_to(loop, BLOCK_AT + 2.0)
+    assert loop.events_done
+    np.testing.assert_array_equal(c.stations, stations)
+    np.testing.assert_array_equal(c.bearings, bearings)
+
+
+def test_a_block_is_reported_drawn_and_survives_toml(tmp_path):
+    sc = hall()
+    again = Scenario.from_toml(sc.to_toml())
+    assert again.events == sc.events and again == sc
+    out = tmp_path / "run"
+    assert main(["run", "hall", "--out", str(out), "--quiet", "--set", "t_final=8.0",
+                 "--set", f'events=[{{time = 5.0, block = "{CENTRE}"}}]']) == 0  # fmt: skip
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["events"] == [{"time": 5.0, "at": 5.0, "block": CENTRE}]
+    assert (out / "evacuation.png").stat().st_size > 0 and (out / "snapshots.png").stat().st_size > 0
+
+
+@pytest.mark.parametrize(
+    "block, why",
+    [
+        ("POLYGON ((40 40, 41 40, 41 41, 40 40))", "overlaps the plan"),  # outside the hall
+        ("POLYGON ((13 -1, 17 -1, 17 2, 13 2, 13 -1))", "clear of the exits"),  # over the south door
+        ("POLYGON ((-1 -1, 31 -1, 31 21, -1 21, -1 -1))", "room to walk"),  # all of it
+        ("POLYGON ((-1 15, 6 15, 6 21, 5 21, 5 16, -1 16, -1 15))", "every side still has an exit"),  # the NW corner
+        ("POLYGON ((10 -1, 11 -1, 11 21, 10 21, 10 -1))", "one piece"),  # two halves, each with doors
+        ("POLYGON ((1 1, 2 1, 1 2, 2 2, 1 1))", "valid polygon"),  # a bow tie
+        ("LINESTRING (1 1, 2 2)", "polygon in WKT"),
+        ("POLYGON ((1 1, 2", "polygon in WKT"),
+    ],
+)
+def test_bad_blocks_are_refused_naming_them(block, why, tmp_path):
+    with pytest.raises(ParameterError, match=why) as exc:
+        hall(block)
+    assert exc.value.name == "events[0].block"
+    out = tmp_path / "o"
+    event = f'events=[{{time = 1.0, block = "{block}"}}]'
+    assert main(["run", "hall", "--out", str(out), "--quiet", "--set", event]) == 2
+
+
+@pytest.mark.parametrize(
+    "values, why",
+    [
+        ({"crowd.kind": "fokker-planck"}, "crowd.kind among"),
+        ({"crowd.kind": "jupedsim"}, "crowd.kind among"),
+        ({"controller.kind": "nmpc"}, "controller.kind among"),
+        ({"interaction.kind": "gaussian", "interaction.strength": 1.0}, "interaction"),
+    ],
+)
+def test_a_block_with_a_part_that_cannot_change_its_walls_is_refused(values, why):
+    with pytest.raises(ParameterError, match=why) as exc:
+        hall(**values)
+    assert exc.value.name == "events[0].block"
+
+
+def test_one_event_is_one_action():
+    with pytest.raises(ParameterError, match="one action") as exc:
+        builtin_scenarios()["hall"](seed=0).with_values(
+            {"events": [{"time": 1.0, "close_exit": 0, "block": CENTRE}]}
+        )
+    assert exc.value.name == "events[0]"
