@@ -13,11 +13,13 @@ the robot out).  ``view.memory = "route"`` or ``"sign"`` models that:
 * with ``"route"`` the way is the informed crowd's route to the nearest open exit
   (:class:`meanfield.geometry.geodesic.ExitRoutes`): a sign tells a person to leave and which way
   is out, as a crowd that knows the building;
-* with ``"sign"`` it is the way the sign showed: of the routes to each exit, the shortest among those whose
-  first leg at the person lies within 45° of the field ``v_r`` it felt (:data:`SHOWN_COS`), or, if
-  none does, the one whose first leg is most nearly along it; so a sign pointing roughly towards
-  the nearest exit sends people there, and signs that send part of a crowd to a farther exit
-  (``controller.options.potential = "balanced"``) are remembered as such;
+* with ``"sign"`` it is the way the latest sign that reached the person showed: of the routes to each
+  exit, the shortest among those whose first leg at the person lies within 45° of the field ``v_r`` it
+  feels (:data:`SHOWN_COS`), or, if none does, the one whose first leg is most nearly along it; so a
+  sign pointing roughly towards the nearest exit sends people there, signs that send part of a crowd
+  to a farther exit (``controller.options.potential = "balanced"``) are followed as such, and a
+  person a later sign reaches takes the exit that one shows (people follow the sign before them: the
+  robots can correct a split they see going wrong);
 * who knows the way walks that route at the free speed, slowed by congestion like everyone, and no
   longer follows the signs; nobody forgets.  When an exit closes, those who were walking to it take
   the route to the nearest exit still open (``[[events]]``).
@@ -41,7 +43,7 @@ SHOWN_COS = math.cos(math.radians(45.0))
 """A sign shows the way to the exits whose route's first leg is within 45° of its field at the person."""
 MEMORIES = ("none", "route", "sign")
 """``view.memory``: the paper's humans, who follow a sign only while they feel it; people whom a sign has reached and
-who then know the way to the nearest exit (``route``); or who walk to the exit the sign showed them (``sign``)."""
+who then know the way to the nearest exit (``route``); or who walk to the exit the latest sign showed them (``sign``)."""
 
 
 class RouteMemory:
@@ -75,9 +77,10 @@ class RouteMemory:
         self.exit = np.full(int(n), -1, dtype=np.intp)  # the exit each walks to; -1: the nearest open one
 
     def walk(self, velocity: np.ndarray, positions: np.ndarray, reached: np.ndarray) -> None:
-        """In place: who was ``reached`` now knows the way (with ``shown``, the one the sign showed: ``velocity``
-        holds the field it felt); everyone who knows it walks the route to its exit at the free speed."""
-        new = np.flatnonzero(reached & ~self.knows)
+        """In place: who was ``reached`` now knows the way (with ``shown``, the one the sign showed, the latest sign
+        deciding: ``velocity`` holds the field felt); everyone who knows it walks the route to its exit at the free
+        speed."""
+        new = np.flatnonzero(reached if self.shown else reached & ~self.knows)
         self.knows[new] = True  # (without shown: all walk to the nearest open exit, self.exit = -1)
         if len(new) and self.shown:
             open_k = np.flatnonzero(self.plan.open)

@@ -1,7 +1,7 @@
 """People who remember the way (``view.memory = "route"``, :mod:`meanfield.crowds.memory`).
 
 * who a sign reached walks the route to the exit the sign showed at the free speed from then on, others
-  are untouched;
+  are untouched; a later sign that reaches the person decides again;
 * nobody forgets: once the robots are out of sight they still walk the route;
 * the default is the paper's humans, number for number; the routes are planned again when an exit closes;
 * bad values and crowds that do not model individuals are refused, naming ``view.memory``.
@@ -44,8 +44,13 @@ def test_who_a_sign_reached_walks_the_route_the_sign_showed_and_the_others_keep_
     assert memory.knows.tolist() == [True, False, True, True] and memory.exit[3] == 0
     np.testing.assert_array_equal(velocity[1], felt[1])
     assert memory.summary() == {"knew_the_way_fraction": 0.75}
-    memory.exits_closed(np.array([True, False, True, True]))  # the north door closes: person 2 takes the nearest
-    assert memory.exit[[0, 2, 3]].tolist() == [0, -1, 0]
+    velocity = felt.copy()
+    velocity[0] = [0.1, 0.5]  # a later sign at (5, 5) points north-north-east: the north door is 22° off it, the
+    memory.walk(velocity, positions, np.array([True, False, False, False]))  # west 56°; the latest sign decides
+    assert memory.exit[0] == 1
+    np.testing.assert_allclose(velocity[0], 1.34 * ExitRoutes(grid, segs[1:2]).heading(positions[:1])[0], atol=1e-15)
+    memory.exits_closed(np.array([True, False, True, True]))  # the north door closes: 0 and 2 take the nearest
+    assert memory.exit[[0, 2, 3]].tolist() == [-1, -1, 0]
     velocity = felt.copy()
     memory.walk(velocity, positions, np.zeros(4, dtype=bool))
     nearest_open = ExitRoutes(grid, segs[[0, 2, 3]])
