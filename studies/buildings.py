@@ -2,7 +2,9 @@
 
 Run from the repository's root::
 
-    python studies/buildings.py [--seeds 5] [--backends point-mass jupedsim] [--workers 2] [--settings ...]
+    python studies/buildings.py [--seeds 5] [--backends point-mass jupedsim] [--workers N] [--settings ...]
+
+(``--workers``: Dask worker processes, default every core; each row is written as its run finishes.)
 
 For each built-in plan (``l-room``, ``office``, ``hall``, ``hall-crowded-west``), seed and backend it runs
 
@@ -28,8 +30,9 @@ For each built-in plan (``l-room``, ``office``, ``hall``, ``hall-crowded-west``)
   informed crowd of the same variant;
 * the blocked variant of the informed crowd, static 8, evacuation 8 and coverage 8, static 8 and
   routed sweeping coverage 8 with people who remember (the label's ending ``, a region blocked at
-  10 s``: ``[[events]] block``, the region :data:`BLOCKS` of the plan becomes wall at t = 10 s, on
-  ``l-room`` and ``hall``); its ratios are to the informed crowd of the same variant;
+  5 s``: ``[[events]] block``, the region :data:`BLOCKS` of the plan becomes wall at t = 5 s, on
+  ``l-room`` and ``hall``, for the crowds that declare ``changes_walls``: the point masses); its ratios are
+  to the informed crowd of the same variant;
 
 and keeps each run's evacuation figures in ``studies/results/buildings.jsonl`` (one line per
 run, appended as each finishes, so that an interrupted study resumes where it stopped).  The
@@ -48,7 +51,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
@@ -95,9 +97,12 @@ SETTINGS.update(
 SETTINGS.update(
     {
         "routed coverage 8": {"robots.n": 8, "controller.kind": "coverage", "controller.options.metric": "routed"},
-        "routed sweeping coverage 8, people remember": {
-            "robots.n": 8, "controller.kind": "coverage", "controller.options.metric": "routed",
-            "controller.options.weight": "unswept", "view.memory": "route",
+        **{
+            f"routed sweeping coverage 8, people remember{what}": {
+                "robots.n": 8, "controller.kind": "coverage", "controller.options.metric": "routed",
+                "controller.options.weight": "unswept", "view.memory": memory,
+            }
+            for what, memory in (("", "route"), (" the sign's exit", "sign"))
         },
     }
 )
@@ -112,8 +117,8 @@ SETTINGS.update(
         )
     }
 )
-BLOCK = ", a region blocked at 10 s"
-"""The blocked variant of a setting: at t = 10 s the plan's region :data:`BLOCKS` becomes wall (``[[events]]``)."""
+BLOCK = ", a region blocked at 5 s"
+"""The blocked variant of a setting: at t = 5 s the plan's region :data:`BLOCKS` becomes wall (``[[events]]``)."""
 BLOCKS = {
     "l-room": "POLYGON ((14 -1, 17 -1, 17 5.5, 14 5.5, 14 -1))",  # the corridor before the door, 2.5 m left open
     "hall": "POLYGON ((24 2, 27 2, 27 18, 24 18, 24 2))",  # before the east door, 2 m left open at either end
@@ -153,7 +158,7 @@ def one_run(plan: str, setting: str, seed: int, backend: str, congestion: str = 
 
     values = dict(SETTINGS[setting])
     if setting.endswith(BLOCK):
-        values["events"] = [{"time": 10.0, "block": BLOCKS[plan]}]
+        values["events"] = [{"time": 5.0, "block": BLOCKS[plan]}]
     sc = builtin_scenarios()[plan](seed=seed).with_values({**values, "crowd.kind": backend})
     sc = sc.with_values({"crowd.congestion": congestion}) if congestion != "auto" else sc
     result = run(sc, progress=False)
@@ -200,9 +205,19 @@ def _done(congestion: str) -> set[tuple]:
     return {(r["plan"], r["setting"], r["seed"], r["backend"]) for r in _rows(congestion)}
 
 
+def one_job(job: tuple) -> dict:
+    """:func:`one_run` of a job ``(plan, setting, seed, backend, congestion)`` (a Dask worker's call)."""
+    return one_run(*job)
+
+
 def run_all(
-    seeds: int, backends: list[str], workers: int, congestion: str = "auto", settings: list[str] | None = None
+    seeds: int, backends: list[str], workers: int | None, congestion: str = "auto", settings: list[str] | None = None
 ) -> None:
+    """Run every case not in :data:`RESULTS` yet on the Dask cluster of the sweeps (``workers`` processes, default
+    every core; :func:`meanfield.workflows.dask_cluster.map_jobs`), appending each row as it finishes."""
+    from meanfield import plugins
+    from meanfield.workflows.dask_cluster import map_jobs
+
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     done = _done(congestion)
     todo = [
@@ -212,20 +227,22 @@ def run_all(
         for s in (settings or SETTINGS)
         for k in range(seeds)
         if (p, s, k, b) not in done and (not s.endswith(SHUT) or _exits(p) > 1)
-        and (not s.endswith(BLOCK) or p in BLOCKS)
+        and (not s.endswith(BLOCK) or (p in BLOCKS and plugins.declared("crowd", b, "changes_walls", False)))
     ]
     print(f"{len(todo)} runs to do")
-    with ProcessPoolExecutor(workers) as pool, RESULTS.open("a") as out:
-        futures = {pool.submit(one_run, *job): job for job in todo}
-        for i, f in enumerate(as_completed(futures), 1):
-            row = f.result()
+    finished = 0
+    with RESULTS.open("a") as out:
+
+        def keep(k: int, row: dict) -> None:  # each row on disk as it finishes: an interrupted study resumes
+            nonlocal finished
+            finished += 1
             out.write(json.dumps(row) + "\n")
             out.flush()
             os.fsync(out.fileno())
-            print(
-                f"[{i}/{len(todo)}] {futures[f]}: out {row['fraction_evacuated']:.3f},"
-                f" t100 {row['evacuation_time_100']}"
-            )
+            out_share, t100 = row["fraction_evacuated"], row["evacuation_time_100"]
+            print(f"[{finished}/{len(todo)}] {todo[k]}: out {out_share:.3f}, t100 {t100}")
+
+        map_jobs(one_job, todo, workers, "buildings", False, on_result=keep)
 
 
 def table(backends: list[str], congestion: str = "auto") -> str:
@@ -319,7 +336,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=5)
     ap.add_argument("--backends", nargs="+", default=["point-mass", "jupedsim"])
-    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--workers", type=int, default=None, help="Dask worker processes (default: every core)")
     ap.add_argument("--congestion", default="auto", help="crowd.congestion of every run (auto: the plans' defaults)")
     ap.add_argument("--settings", nargs="+", choices=list(SETTINGS), default=None, help="only these settings (all)")
     ap.add_argument("--table", action="store_true", help="only print the table and draw the figure from the results")

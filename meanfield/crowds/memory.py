@@ -43,7 +43,7 @@ SHOWN_COS = math.cos(math.radians(45.0))
 """A sign shows the way to the exits whose route's first leg is within 45° of its field at the person."""
 MEMORIES = ("none", "route", "sign")
 """``view.memory``: the paper's humans, who follow a sign only while they feel it; people whom a sign has reached and
-who then know the way to the nearest exit (``route``); or who walk to the exit the latest sign showed them (``sign``)."""
+who then know the way to the nearest exit (``route``); or who walk to the exit the latest sign showed (``sign``)."""
 
 
 class RouteMemory:

@@ -114,12 +114,22 @@ def jobs_on(
         jobs.close()
 
 
-def map_jobs(fn: Callable[[Any], T], jobs: Sequence[Any], workers: int | None, desc: str, progress: bool) -> list[T]:
+def map_jobs(
+    fn: Callable[[Any], T],
+    jobs: Sequence[Any],
+    workers: int | None,
+    desc: str,
+    progress: bool,
+    on_result: Callable[[int, T], None] | None = None,
+) -> list[T]:
     """``[fn(job) for job in jobs]`` on Dask, with a progress bar; results in the jobs' order.
 
     One job, or ``workers == 1`` without a scheduler, runs here, in this process.  Otherwise
     the jobs go to the cluster of the enclosing :func:`jobs_on`, or to a local cluster of
     ``workers`` processes started for this call.  ``fn`` must be a module-level function.
+    ``on_result(k, result)``, if given, is called here as each job ``k`` finishes (in the order they
+    finish), before the next result is awaited: a study that writes each result at once resumes
+    where it was interrupted.
 
     The permission to import a scenario's ``plugins`` in force here
     (:func:`meanfield.plugins.current_permission`: ``--allow-plugins``, ``--plugin``) travels with
@@ -133,14 +143,16 @@ def map_jobs(fn: Callable[[Any], T], jobs: Sequence[Any], workers: int | None, d
     with tqdm(total=len(jobs), disable=not progress, desc=desc, unit="run") as bar:
         if len(jobs) <= 1 or (local and n == 1):
             out = []
-            for job in jobs:
+            for k, job in enumerate(jobs):
                 out.append(fn(job))
+                if on_result is not None:
+                    on_result(k, out[-1])
                 bar.update()
             return out
         if current is None:
             with jobs_on(None, min(n, len(jobs))):
-                return _on_cluster(fn, jobs, _CURRENT.get().get(), bar)
-        return _on_cluster(fn, jobs, current.get(), bar)
+                return _on_cluster(fn, jobs, _CURRENT.get().get(), bar, on_result)
+        return _on_cluster(fn, jobs, current.get(), bar, on_result)
 
 
 def _permitted_call(job: Any, fn: Callable[[Any], T], permission: Any) -> T:
@@ -151,7 +163,8 @@ def _permitted_call(job: Any, fn: Callable[[Any], T], permission: Any) -> T:
         return fn(job)
 
 
-def _on_cluster(fn: Callable[[Any], T], jobs: Sequence[Any], client: Any, bar: Any) -> list[T]:
+def _on_cluster(fn: Callable[[Any], T], jobs: Sequence[Any], client: Any, bar: Any,
+                on_result: Callable[[int, T], None] | None = None) -> list[T]:  # fmt: skip
     from distributed import as_completed
 
     from meanfield.plugins import PluginPermission, current_permission
@@ -166,7 +179,10 @@ def _on_cluster(fn: Callable[[Any], T], jobs: Sequence[Any], client: Any, bar: A
         out: list[Any] = [None] * len(futures)
         try:
             for fut in as_completed(futures):
-                out[index[fut.key]] = fut.result()  # a job's exception is raised here, as a pool's would be
+                k = index[fut.key]
+                out[k] = fut.result()  # a job's exception is raised here, as a pool's would be
+                if on_result is not None:
+                    on_result(k, out[k])
                 bar.update()
         except BaseException:
             client.cancel(futures)

@@ -45,3 +45,12 @@ def test_verify_and_analyze_take_a_scheduler(capsys):
         with pytest.raises(SystemExit):
             main([command, "--help"])
         assert "--scheduler" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_each_result_is_handed_over_as_its_job_finishes(workers):
+    """``on_result(k, result)``: once per job, with the job's index, before map_jobs returns (a study writes each row
+    at once, so that an interrupted study resumes): here in this process, and from a cluster."""
+    seen = []
+    out = map_jobs(_square, [5, 6, 7], workers, "t", False, on_result=lambda k, r: seen.append((k, r)))
+    assert out == [25, 36, 49] and sorted(seen) == [(0, 25), (1, 36), (2, 49)]
