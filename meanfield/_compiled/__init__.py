@@ -2,7 +2,9 @@
 
 :mod:`~meanfield._compiled.core` (the :func:`compiled` decorator, :class:`CompiledLoop`, the switch),
 :mod:`~meanfield._compiled.blas` (dgemm from compiled loops), :mod:`~meanfield._compiled.vector_exp`
-(a vectorised exp) and :mod:`~meanfield._compiled.warmup` (the first compile on several cores).
+(a vectorised exp), :mod:`~meanfield._compiled.warmup` (the first compile on several cores) and
+:mod:`~meanfield._compiled.philox` (counter-based random numbers: Philox4x64-10 and Gaussian draws keyed by
+seed, step and human, the same on any number of threads; not yet used by the crowd's step).
 
 Names are imported on first use (:mod:`meanfield._namespace`).
 """
@@ -26,13 +28,19 @@ _LAZY = {
     "compiled_loops": "meanfield._compiled.core",
     "enabled": "meanfield._compiled.core",
     "exp_inplace": "meanfield._compiled.vector_exp",
+    "fill_normal_pairs": "meanfield._compiled.philox",
     "gemm": "meanfield._compiled.blas",
     "inner": "meanfield._compiled.core",
     "limited_blas": "meanfield._compiled.threads",
     "matmul_into": "meanfield._compiled.blas",
+    "noise_key": "meanfield._compiled.philox",
+    "normal_pair": "meanfield._compiled.philox",
     "numba_available": "meanfield._compiled.core",
     "numpy_path": "meanfield._compiled.core",
     "parallel_compile_possible": "meanfield._compiled.warmup",
+    "philox4x64_10": "meanfield._compiled.philox",
+    "philox_block": "meanfield._compiled.philox",
+    "standard_normals": "meanfield._compiled.philox",
     "status": "meanfield._compiled.core",
     "use_compiled": "meanfield._compiled.core",
 }
