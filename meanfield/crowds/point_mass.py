@@ -94,7 +94,11 @@ class PointMassEngine:
         here = np.flatnonzero(self.active)
         x = self.positions[here]
         if not region.contains(x[:, 0], x[:, 1]).all():
-            region.robot_region(1e-4 * region.diameter).project(x)
+            try:
+                inside = region.robot_region(1e-4 * region.diameter)
+            except ParameterError:  # a passage narrower than the hair: onto the wall itself
+                inside = region
+            inside.project(x)
             self.positions[here] = x
 
     @property
