@@ -405,6 +405,13 @@ class Scenario:
             region = self.domain
             for ev in blocks:
                 region = blocked_region(region, ev.block, f"{ev.name}.block")
+                try:  # where the robots may stand must stay one piece, as it is before the block
+                    region.robot_region(self.robots.margin)
+                except ParameterError:
+                    raise ParameterError(
+                        f"{ev.name}.block", "a block that leaves the robots' region in pieces",
+                        f"a region that leaves one piece at robots.margin = {self.robots.margin} from the walls",
+                    ) from None  # fmt: skip
         return tuple(out)
 
     @property

@@ -179,6 +179,15 @@ def test_a_block_with_a_part_that_cannot_change_its_walls_is_refused(values, why
     assert exc.value.name == "events[0].block"
 
 
+def test_a_block_that_leaves_the_robots_region_in_pieces_is_refused():
+    """A wall across the hall with a 0.8 m gap: people pass, but robots kept 0.5 m from the walls could not."""
+    gap = "POLYGON ((10 0.8, 11 0.8, 11 21, 10 21, 10 0.8))"
+    hall(gap)  # the plan stays one piece
+    with pytest.raises(ParameterError, match="robots' region") as exc:
+        hall(gap, **{"robots.margin": 0.5})
+    assert exc.value.name == "events[0].block"
+
+
 def test_one_event_is_one_action():
     with pytest.raises(ParameterError, match="one action") as exc:
         builtin_scenarios()["hall"](seed=0).with_values(
