@@ -31,8 +31,9 @@ For each built-in plan (``l-room``, ``office``, ``hall``, ``hall-crowded-west``)
 * the blocked variant of the informed crowd, static 8, evacuation 8 and coverage 8, static 8 and
   routed sweeping coverage 8 with people who remember (the label's ending ``, a region blocked at
   5 s``: ``[[events]] block``, the region :data:`BLOCKS` of the plan becomes wall at t = 5 s, on
-  ``l-room`` and ``hall``, for the crowds that declare ``changes_walls``: the point masses); its ratios are
-  to the informed crowd of the same variant;
+  ``l-room``, ``office`` (the corridor blocked across: two halves, each with its exit) and ``hall``, for
+  the crowds that declare ``changes_walls``: the point masses); its ratios are to the informed crowd of
+  the same variant;
 
 and keeps each run's evacuation figures in ``studies/results/buildings.jsonl`` (one line per
 run, appended as each finishes, so that an interrupted study resumes where it stopped).  The
@@ -122,6 +123,7 @@ BLOCK = ", a region blocked at 5 s"
 BLOCKS = {
     "l-room": "POLYGON ((14 -1, 17 -1, 17 5.5, 14 5.5, 14 -1))",  # the corridor before the door, 2.5 m left open
     "hall": "POLYGON ((24 2, 27 2, 27 18, 24 18, 24 2))",  # before the east door, 2 m left open at either end
+    "office": "POLYGON ((14.5 5.9, 15.5 5.9, 15.5 8.1, 14.5 8.1, 14.5 5.9))",  # the corridor across: two halves
 }
 """Where the blocked variant's region is, on the plans that have one (m)."""
 SETTINGS.update(

@@ -248,7 +248,9 @@ class CoverageController:
         owner = field.owners()
         cells = np.arange(len(owner))
         w = np.maximum(weight.ravel()[self._cells], 0.0) * self._volume
-        wd = w * field.distance[owner, cells]
+        d = field.distance[owner, cells]
+        w = np.where(np.isfinite(d), w, 0.0)  # a piece of the plan no robot can walk to (a block cut it off)
+        wd = w * np.where(np.isfinite(d), d, 0.0)
         mass = np.bincount(owner, weights=w, minlength=n)
         px = np.bincount(owner, weights=wd * field.leg[owner, cells, 0], minlength=n)
         py = np.bincount(owner, weights=wd * field.leg[owner, cells, 1], minlength=n)
@@ -271,7 +273,10 @@ class CoverageController:
             owner = self.owners(robots)
             xy = self.walking.xy
             for i in np.flatnonzero(hidden):
-                mine = np.flatnonzero(owner == i)
+                mine = np.flatnonzero((owner == i) & np.isfinite(field.distance[i]))  # (not another piece's cells)
+                if not len(mine):  # its people are where it cannot walk (a block cut the plan): it holds
+                    pull[i] = 0.0
+                    continue
                 target = mine[np.argmin(np.hypot(xy[mine, 0] - c[i, 0], xy[mine, 1] - c[i, 1]))]
                 pull[i] = field.distance[i, target] * field.leg[i, target]
         return pull, idle

@@ -119,7 +119,7 @@ class ExitAssignment:
             raise ParameterError("controller.options.specific_flow", specific_flow, "a flow > 0, persons/(m·s)")
         self.distances = np.asarray(distances, float)
         self.capacity = np.asarray(widths, float) * float(specific_flow)
-        self.active = np.isfinite(self.distances).all(axis=0) & (np.asarray(volume) > 0)
+        self.active = np.isfinite(self.distances).any(axis=0) & (np.asarray(volume) > 0)  # (some exit: a piece's)
         self.arrival = self.distances[:, self.active] / float(v_free)  # (K, M)
         self.volume = np.asarray(volume, float)[self.active]
         self.people = int(people)
@@ -132,7 +132,7 @@ class ExitAssignment:
         """New walls (a ``block`` event): each exit's walking distance and the cells' areas on the new grid; the
         exits open and the last offsets are kept (the next solution starts from them)."""
         self.distances = np.asarray(distances, float)
-        self.active = np.isfinite(self.distances).all(axis=0) & (np.asarray(volume) > 0)
+        self.active = np.isfinite(self.distances).any(axis=0) & (np.asarray(volume) > 0)
         self.arrival = self.distances[:, self.active] / self.v_free
         self.volume = np.asarray(volume, float)[self.active]
 

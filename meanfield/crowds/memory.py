@@ -88,6 +88,7 @@ class RouteMemory:
             along = v / np.hypot(v[:, 0], v[:, 1])[:, None]  # (reached: |v| > 0)
             cos = np.stack([(self.plan.to(k).heading(p) * along).sum(axis=1) for k in open_k])  # (K, m)
             far = np.stack([self.plan.to(k).distance(p) for k in open_k])
+            cos = np.where(np.isfinite(far), cos, -np.inf)  # (a plan in pieces: an exit of another piece is no way)
             shown = np.where(cos >= SHOWN_COS, far, np.inf)  # the nearest of the exits the sign points towards
             pick = np.where(np.isfinite(shown).any(axis=0), np.argmin(shown, axis=0), np.argmax(cos, axis=0))
             self.exit[new] = open_k[pick]

@@ -7,10 +7,15 @@ lattice and only the cells ``B`` cuts change; :class:`WallsChange` carries the n
 cells, cut again), its sight lines and its robot region to every part that declares ``walls_changed``
 (:func:`tell_walls_changed`).  The people standing in ``B`` step out to its nearest edge.
 
+A block may cut Ω in pieces, each with an exit of its own (a corridor blocked across): Ω is then a plan in pieces
+(a ``MULTIPOLYGON``), its people walk to the exits of their piece, and an exit's routes leave the cells of the
+other pieces without one (``φ = inf``, heading 0; :class:`~meanfield.geometry.geodesic.ExitEikonal`).
+
 Refused when the scenario is read (naming ``events[i].block``; :func:`blocked_region`): a block that is not a
 valid polygon, lies outside Ω, meets an exit (close the exit with ``close_exit`` instead: an exit in a wall
-would no longer be on Ω's boundary), covers Ω, or leaves Ω in pieces.  A piece without an exit would cut the
-people in it off from every exit; pieces that all have an exit are not built (one region is one piece).
+would no longer be on Ω's boundary), covers Ω, or leaves a piece without an exit (it would cut the people in it
+off from every exit); and, by the scenario, a ``close_exit`` that leaves a piece without an open exit while
+another piece still has one.
 """
 
 from __future__ import annotations
@@ -22,7 +27,7 @@ import numpy as np
 
 from meanfield.errors import ParameterError
 
-__all__ = ["WallsChange", "blocked_region", "block_polygon", "tell_walls_changed"]
+__all__ = ["WallsChange", "blocked_region", "block_polygon", "exit_pieces", "tell_walls_changed"]
 
 PIECE_AREA = 1e-6
 """Pieces of ``Ω ∖ B`` smaller than this share of Ω's area are clipping round-off, dropped."""
@@ -50,14 +55,15 @@ def blocked_region(region: Any, block: Any, name: str = "block") -> Any:
     """``Ω ∖ B``: ``region`` with the polygon ``block`` (WKT or shapely) made wall.
 
     Returns a :class:`~meanfield.geometry.plan.Plan` with the same exits, in the same order, drawn in
-    ``region``'s frame (its :attr:`bounds`), so a grid on it has the same cells.
+    ``region``'s frame (its :attr:`bounds`), so a grid on it has the same cells; in pieces when the block
+    cuts Ω, each piece with an exit.
 
     Raises
     ------
     ParameterError
         Naming ``name``: a block that is not one valid polygon, a region that cannot be blocked (a disk,
-        a stand-in), a block outside Ω, one that meets an exit, one that covers Ω, one that leaves Ω in
-        pieces (a piece without an exit cuts the people in it off from every exit).
+        a stand-in), a block outside Ω, one that meets an exit, one that covers Ω, one that leaves a piece
+        without an exit (it cuts the people in it off from every exit).
     """
     import shapely
 
@@ -82,21 +88,30 @@ def blocked_region(region: Any, block: Any, name: str = "block") -> Any:
             raise ParameterError(
                 name, f"a block that meets exit {k}", f"a region clear of the exits (close exit {k} with close_exit)"
             )
-    if len(pieces) > 1:
-        doors = [shapely.LineString(seg) for seg in segs]
-        shut = [i for i, p in enumerate(pieces) if not any(p.distance(d) < 1e-9 * region.diameter for d in doors)]
-        if shut:
-            raise ParameterError(
-                name, "a block that cuts people off from every exit", "a region whose every side still has an exit"
-            )
+    if any(not _exits_of(p, segs, region.diameter) for p in pieces):
         raise ParameterError(
-            name,
-            f"a block that splits the plan into {len(pieces)} pieces, each with an exit",
-            "a region that leaves the plan in one piece (a plan in pieces is not built)",
+            name, "a block that cuts people off from every exit", "a region whose every side still has an exit"
         )
-    piece = shapely.Polygon(pieces[0].exterior, [h for h in pieces[0].interiors])
     exits = [tuple(map(tuple, seg)) for seg in segs]
-    return Plan(piece, exits, frame=region.bounds)
+    if len(pieces) == 1:
+        return Plan(shapely.Polygon(pieces[0].exterior, list(pieces[0].interiors)), exits, frame=region.bounds)
+    return Plan(shapely.MultiPolygon(pieces), exits, frame=region.bounds, pieces=True)
+
+
+def _exits_of(piece: Any, segs: np.ndarray, diameter: float) -> list[int]:
+    """The exits (indices into ``segs``) on the boundary of ``piece``."""
+    import shapely
+
+    return [k for k, seg in enumerate(segs) if piece.distance(shapely.LineString(seg)) < 1e-9 * diameter]
+
+
+def exit_pieces(region: Any) -> list[list[int]]:
+    """For each piece of ``region`` (one for a region in one piece), the exits on its boundary."""
+    from meanfield.geometry.exits import exit_segments
+
+    omega = region.to_shapely()
+    segs = exit_segments(region)
+    return [_exits_of(p, segs, region.diameter) for p in getattr(omega, "geoms", [omega])]
 
 
 @dataclass(frozen=True)

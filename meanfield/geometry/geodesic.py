@@ -115,7 +115,10 @@ class ExitEikonal:
     ------
     ParameterError
         Named ``domain.exits`` without exits, or ``grid.cells`` when some cell of Ω reaches
-        no exit on this grid (a passage narrower than a cell: refine the grid).
+        no exit on this grid although cells of its piece do (a passage narrower than a cell: refine
+        the grid).  In a plan in pieces (a region blocked during a run,
+        :mod:`meanfield.geometry.blocking`) the cells of a piece none of these exits is in keep
+        ``φ = inf``.
     """
 
     def __init__(self, grid: Grid, segs: np.ndarray, sight: SightLines | None = None):
@@ -167,7 +170,9 @@ class ExitEikonal:
         self.distance = self._march(np.ones(opened.shape))
         reached = np.isfinite(self.distance[grid.active])
         if not reached.all():
-            raise _no_exit(grid, int((~reached).sum()))
+            cut = cut_off(grid, reached, segs)
+            if cut:
+                raise _no_exit(grid, cut)
 
     def lattice_speed(self, speed: np.ndarray) -> np.ndarray:
         """A cell field on the half-cell lattice: the cell's value at its centre, the mean of the cells that
@@ -279,6 +284,26 @@ def exit_distance(grid: Grid, segs: np.ndarray) -> np.ndarray:
         no exit on this grid (a passage narrower than a cell: refine the grid).
     """
     return ExitEikonal(grid, segs).distance.copy()
+
+
+def cut_off(grid: Grid, reached: np.ndarray, segs: np.ndarray) -> int:
+    """How many of the active cells ``~reached`` lie in a piece of Ω that one of the exits ``segs`` is on: cells a
+    route should reach and does not (a passage narrower than a cell).  In a plan in pieces (a region blocked during
+    a run cut it) the cells of a piece none of these exits is on count none; a cell belongs to the piece nearest its
+    centre."""
+    import shapely
+
+    omega = grid.domain.to_shapely() if hasattr(grid.domain, "to_shapely") else None
+    pieces = list(getattr(omega, "geoms", [omega]))
+    if omega is None or len(pieces) == 1:
+        return int((~reached).sum())
+    X, Y = grid.centers
+    centres = shapely.points(X[grid.active], Y[grid.active])
+    piece = np.argmin(np.stack([shapely.distance(p, centres) for p in pieces]), axis=0)
+    tol = 1e-9 * grid.domain.diameter
+    doors = [shapely.LineString(seg) for seg in segs]
+    served = np.array([any(p.distance(d) < tol for d in doors) for p in pieces])
+    return int((~reached & served[piece]).sum())
 
 
 OPEN_APERTURE = 1e-9
@@ -409,6 +434,7 @@ class ExitRoutes:
         exit_cells = np.flatnonzero(crossed)
         d = distance_to_segments(centre, segs)
         exit_length = d.min(axis=1)[exit_cells]
+        far = ~np.isfinite(dist)  # cells of a piece none of these exits is in (a plan in pieces): no route
         pred = _descent_tree(dist, la, lb, lw, exit_cells, exit_length)
         self.tree = "descent"
         stuck = pred < 0
@@ -443,9 +469,9 @@ class ExitRoutes:
         target = points[rows, pick]
         via = np.where(reached[rows, pick], n, chain[rows, pick + 1])  # the cell the waypoint is, or the exits
         waypoint = np.full((*grid.shape, 2), np.nan)
-        waypoint[active] = target
+        waypoint[active] = np.where(far[:, None], np.nan, target)  # no route: nowhere to head (heading 0)
         rest = np.full(grid.shape, np.nan)
-        rest[active] = np.where(via == n, 0.0, np.r_[dist, 0.0][via])  # φ at the waypoint (0 on the exit)
+        rest[active] = np.where(far, np.inf, np.where(via == n, 0.0, np.r_[dist, 0.0][via]))  # φ at the waypoint
         # a point in a cell without volume (a sliver) takes the nearest cell's route
         _, (ii, jj) = ndimage.distance_transform_edt(~active, return_indices=True)
         self.waypoint = waypoint[ii, jj]
@@ -459,16 +485,19 @@ class ExitRoutes:
         return i, j
 
     def heading(self, points: np.ndarray) -> np.ndarray:
-        """Unit vectors ``(N, 2)`` from each point towards its cell's waypoint (0 on the waypoint)."""
+        """Unit vectors ``(N, 2)`` from each point towards its cell's waypoint (0 on the waypoint, and where no
+        route reaches these exits)."""
         i, j = self._cells(points)
         d = self.waypoint[i, j] - points
         norm = np.hypot(d[:, 0], d[:, 1])
         return np.divide(d, norm[:, None], out=np.zeros_like(d), where=norm[:, None] > 0)
 
     def distance(self, points: np.ndarray) -> np.ndarray:
-        """Each point's distance to the exit: straight to its cell's waypoint (in sight), then ``φ`` from there."""
+        """Each point's distance to the exit: straight to its cell's waypoint (in sight), then ``φ`` from there
+        (``inf`` where no route reaches these exits)."""
         i, j = self._cells(points)
-        return np.hypot(*(self.waypoint[i, j] - points).T) + self.remaining[i, j]
+        rest = self.remaining[i, j]
+        return np.where(np.isfinite(rest), np.hypot(*(self.waypoint[i, j] - points).T) + np.nan_to_num(rest), np.inf)
 
 
 class AssignedRoutes:
@@ -506,11 +535,14 @@ class AssignedRoutes:
         return self.planned[k]
 
     def heading(self, points: np.ndarray, exit_of: np.ndarray) -> np.ndarray:
-        """Unit vectors ``(N, 2)`` along each point's route to its exit ``exit_of[j]`` (-1: the nearest open)."""
+        """Unit vectors ``(N, 2)`` along each point's route to its exit ``exit_of[j]`` (-1: the nearest open; also
+        where no route reaches that exit, from a piece of a plan a block cut without it)."""
         out = self.nearest.heading(points)
         for k in np.unique(exit_of[exit_of >= 0]):
             rows = np.flatnonzero(exit_of == k)
-            out[rows] = self.to(k).heading(points[rows])
+            routes = self.to(k)
+            rows = rows[np.isfinite(routes.distance(points[rows]))]
+            out[rows] = routes.heading(points[rows])
         return out
 
     def exits_closed(self, open_exits: np.ndarray, exit_of: np.ndarray) -> None:

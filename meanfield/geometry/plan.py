@@ -33,7 +33,12 @@ from meanfield.geometry.region import (
     square_lattice,
 )
 
-__all__ = ["Plan", "plan_from_table"]
+__all__ = ["Plan", "plan_from_table", "polygon_rings"]
+
+
+def polygon_rings(polygon: Any) -> list[Any]:
+    """Every ring of a shapely polygon, or of each piece of a multipolygon: outlines and holes."""
+    return [r for piece in getattr(polygon, "geoms", [polygon]) for r in (piece.exterior, *piece.interiors)]
 
 
 class Plan:
@@ -50,15 +55,21 @@ class Plan:
         By default the polygon's bounding box; a plan a region was blocked from during a run keeps
         the frame of the plan before, so the grid's cells stay where they were
         (:mod:`meanfield.geometry.blocking`).
+    pieces : bool, default False
+        Allow a plan in several pieces (a ``MULTIPOLYGON``): what is left of a plan when a region blocked
+        during a run cuts it in two, each piece with its exits (:mod:`meanfield.geometry.blocking`).  A plan
+        that is read is one piece.
     """
 
     kind = "plan"
     reflects_along_paths = True  # reflect needs the step's start (see Plan.reflect)
 
-    def __init__(self, polygon: Any, exits: Any = (), frame: tuple[float, float, float, float] | None = None):
+    def __init__(self, polygon: Any, exits: Any = (), frame: tuple[float, float, float, float] | None = None,
+                 pieces: bool = False):  # fmt: skip
         import shapely
 
-        if not isinstance(polygon, shapely.Polygon):
+        shapes = (shapely.Polygon, shapely.MultiPolygon) if pieces else shapely.Polygon
+        if not isinstance(polygon, shapes):
             raise ParameterError("wkt", getattr(polygon, "geom_type", type(polygon).__name__), "a POLYGON")
         if not polygon.is_valid:
             reason = shapely.is_valid_reason(polygon)
@@ -165,7 +176,7 @@ class Plan:
     @property
     def diameter(self) -> float:
         if self._diameter is None:
-            v = np.asarray(self.polygon.exterior.coords)
+            v = np.asarray(self.polygon.convex_hull.exterior.coords)  # (the hull's: the same, and one ring for pieces)
             d = v[:, None, :] - v[None, :, :]
             self._diameter = float(np.sqrt((d**2).sum(-1)).max())
         return self._diameter
@@ -191,9 +202,8 @@ class Plan:
 
     def _segments(self) -> tuple[np.ndarray, np.ndarray]:
         """Start points and vectors of every wall segment (outline and holes)."""
-        rings = [self.polygon.exterior, *self.polygon.interiors]
         starts, vecs = [], []
-        for ring in rings:
+        for ring in polygon_rings(self.polygon):
             c = np.asarray(ring.coords)
             starts.append(c[:-1])
             vecs.append(np.diff(c, axis=0))
@@ -307,9 +317,10 @@ class Plan:
         if margin <= 0:
             return self
         inner = self.polygon.buffer(-margin, join_style="mitre")
-        if inner.is_empty or inner.geom_type != "Polygon":
-            raise ParameterError("robots.margin", margin, "a margin that leaves one piece of the plan")
-        return Plan(inner)
+        pieces = len(getattr(self.polygon, "geoms", [self.polygon]))
+        if inner.is_empty or len(getattr(inner, "geoms", [inner])) != pieces:
+            raise ParameterError("robots.margin", margin, "a margin that leaves each piece of the plan in one piece")
+        return Plan(inner, pieces=pieces > 1)
 
     def lattice(self, n: int) -> np.ndarray:
         """``n`` evenly spread points of the plan (:func:`~meanfield.geometry.region.square_lattice`)."""
@@ -319,7 +330,7 @@ class Plan:
         """The exits, and the walls: the outline and every hole's boundary without the exits."""
         import shapely
 
-        rings = [self.polygon.exterior, *self.polygon.interiors]
+        rings = polygon_rings(self.polygon)
         if not self.exits:
             return tuple(BoundaryPart("wall", np.asarray(r.coords)) for r in rings)
         doors = shapely.MultiLineString([list(e) for e in self.exits]).buffer(1e-9 * self.diameter)

@@ -41,14 +41,16 @@ def blocking_walls(region: Any) -> np.ndarray:
     to_shapely = getattr(region, "to_shapely", None)
     if to_shapely is None or getattr(region, "kind", None) != "plan":  # the toolkit's other regions are convex
         return np.zeros((0, 2, 2))
+    from meanfield.geometry.plan import polygon_rings
+
     polygon = to_shapely()
     hull = polygon.convex_hull.boundary
     tol = 1e-9 * max(polygon.length, 1.0)
     segs = []
-    for k, ring in enumerate([polygon.exterior, *polygon.interiors]):
+    for ring in polygon_rings(polygon):  # (a hole's edges are never on the hull: tested as any)
         c = np.asarray(ring.coords)
         for a, b in zip(c[:-1], c[1:], strict=True):
-            if k == 0 and hull.distance(shapely.Point(a)) < tol and hull.distance(shapely.Point(b)) < tol:
+            if hull.distance(shapely.Point(a)) < tol and hull.distance(shapely.Point(b)) < tol:
                 mid = shapely.Point(0.5 * (a + b))
                 if hull.distance(mid) < tol:
                     continue  # on the hull: hides nothing

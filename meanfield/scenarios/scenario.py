@@ -353,7 +353,6 @@ class Scenario:
         """
         import warnings
 
-        from meanfield.geometry.blocking import blocked_region
         from meanfield.geometry.exits import exit_segments
 
         if events is None or (isinstance(events, (list, tuple)) and not events):
@@ -402,17 +401,42 @@ class Scenario:
             if self.interaction.kind != "none":
                 why = 'interaction.kind = "none" (the interaction lives on the grid the block cuts)'
                 raise ParameterError(first, f"a block with interaction.kind = {self.interaction.kind!r}", why)
-            region = self.domain
-            for ev in blocks:
-                region = blocked_region(region, ev.block, f"{ev.name}.block")
-                try:  # where the robots may stand must stay one piece, as it is before the block
+        self._check_event_geometry(out)
+        return tuple(out)
+
+    def _check_event_geometry(self, events: list[EventSpec]) -> None:
+        """Play the events in time order on the plan: each ``block`` is refused by
+        :func:`~meanfield.geometry.blocking.blocked_region` or when it leaves the robots' region in pieces; once a block
+        has cut the plan, an event that leaves a piece without an open exit while another piece has one is refused
+        (its people would be shut in; closing the last exit of all is allowed: "no exit left")."""
+        from meanfield.geometry.blocking import blocked_region, exit_pieces
+        from meanfield.geometry.exits import exit_segments
+
+        if not any(ev.block is not None for ev in events):
+            return
+        region, open_exits = self.domain, np.ones(len(exit_segments(self.domain)), dtype=bool)
+        for k, ev in enumerate(events):
+            if ev.block is None:
+                open_exits[ev.close_exit] = False
+                field = f"{ev.name}.close_exit"
+            else:
+                field = f"{ev.name}.block"
+                region = blocked_region(region, ev.block, field)
+                try:  # where the robots may stand must keep the plan's pieces, as before the block
                     region.robot_region(self.robots.margin)
                 except ParameterError:
                     raise ParameterError(
-                        f"{ev.name}.block", "a block that leaves the robots' region in pieces",
+                        field, "a block that leaves the robots' region in pieces",
                         f"a region that leaves one piece at robots.margin = {self.robots.margin} from the walls",
                     ) from None  # fmt: skip
-        return tuple(out)
+            simultaneous = k + 1 < len(events) and events[k + 1].time == ev.time  # (judged once all have happened)
+            if region is not self.domain and open_exits.any() and not simultaneous:
+                shut = [exits for exits in exit_pieces(region) if not open_exits[exits].any()]
+                if shut:
+                    raise ParameterError(
+                        field, f"an event that leaves the people by exits {shut[0]} (all closed) shut in",
+                        "events that leave every piece of the plan an open exit (or close the last one of all)",
+                    )  # fmt: skip
 
     @property
     def congestion_model(self) -> str:

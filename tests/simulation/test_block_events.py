@@ -7,9 +7,11 @@
 * the informed crowd, the evacuation controller and coverage plan round it; every declared part runs;
 * static signs keep their stations and bearings;
 * summary.json lists the block, the figures draw it, a scenario with blocks survives TOML;
+* a block may cut the plan in pieces, each with its exits: each piece's people leave by its own
+  exits, an exit's routes leave the other pieces alone, every part runs through it;
 * bad blocks are refused naming ``events[i].block`` (outside the plan, meeting an exit, covering the
-  plan, cutting people off from every exit, splitting the plan, a part that does not declare
-  ``changes_walls``), and the command line exits with 2.
+  plan, cutting people off from every exit, a part that does not declare ``changes_walls``), an
+  event that shuts people in a piece is refused, and the command line exits with 2.
 """
 
 from __future__ import annotations
@@ -149,7 +151,6 @@ def test_a_block_is_reported_drawn_and_survives_toml(tmp_path):
         ("POLYGON ((13 -1, 17 -1, 17 2, 13 2, 13 -1))", "clear of the exits"),  # over the south door
         ("POLYGON ((-1 -1, 31 -1, 31 21, -1 21, -1 -1))", "room to walk"),  # all of it
         ("POLYGON ((-1 15, 6 15, 6 21, 5 21, 5 16, -1 16, -1 15))", "every side still has an exit"),  # the NW corner
-        ("POLYGON ((10 -1, 11 -1, 11 21, 10 21, 10 -1))", "one piece"),  # two halves, each with doors
         ("POLYGON ((1 1, 2 1, 1 2, 2 2, 1 1))", "valid polygon"),  # a bow tie
         ("LINESTRING (1 1, 2 2)", "polygon in WKT"),
         ("POLYGON ((1 1, 2", "polygon in WKT"),
@@ -177,6 +178,79 @@ def test_a_block_with_a_part_that_cannot_change_its_walls_is_refused(values, why
     with pytest.raises(ParameterError, match=why) as exc:
         hall(**values)
     assert exc.value.name == "events[0].block"
+
+
+SPLIT = "POLYGON ((10 -1, 11 -1, 11 21, 10 21, 10 -1))"
+"""A wall across the hall at x = 10-11: the west piece keeps the west door (exit 2), the east one the others."""
+
+
+def test_a_block_may_cut_the_plan_in_pieces_each_with_its_exits():
+    loop = ClosedLoop(hall(SPLIT, **{"crowd.guidance": "geodesic"}))
+    run_to(loop, BLOCK_AT)
+    x = loop.crowd.positions.copy()
+    west = np.isfinite(x[:, 0]) & (x[:, 0] < 10.0)
+    assert west.sum() > 10
+    result = loop.run(progress=False)
+    engine = loop.crowd.engine
+    assert result.summary["status"] == "completed" and engine.remaining() == 0
+    assert (engine.exit_index[west] == 2).all()  # the west piece's people leave by its door, and only they do
+    assert (engine.exit_index[~west & (engine.exit_time > BLOCK_AT + 1.0)] != 2).all()
+    assert loop.parts.region.to_shapely().geom_type == "MultiPolygon"
+
+
+def test_an_exit_s_routes_leave_the_other_pieces_alone():
+    """In a plan in pieces the routes to one exit are infinite, and head nowhere, in a piece without it; the eikonal
+    still refuses cells its exits should reach and do not (:func:`meanfield.geometry.geodesic.cut_off`)."""
+    from meanfield.geometry.geodesic import ExitEikonal, cut_off
+
+    region = blocked_region(builtin_scenarios()["hall"]().domain, SPLIT)
+    grid = Grid(region, (60, 40))
+    segs = exit_segments(region)
+    west, east = np.array([[5.0, 10.0]]), np.array([[25.0, 10.0]])
+    door = ExitRoutes(grid, segs[2:3])  # the west door
+    assert np.isfinite(door.distance(west)).all() and np.isinf(door.distance(east)).all()
+    np.testing.assert_array_equal(door.heading(east), 0.0)
+    reached = np.isfinite(ExitEikonal(grid, segs[2:3]).distance[grid.active])
+    assert cut_off(grid, reached, segs[2:3]) == 0 and 0 < reached.sum() < reached.size
+    X, _ = grid.centers
+    partly = reached & (X[grid.active] < 5.0)  # half of the west piece: a passage the march did not pass
+    assert cut_off(grid, partly, segs[2:3]) == int((reached & ~partly).sum())
+    assert cut_off(grid, reached, segs) == int((~reached).sum())  # every exit: the east piece should be reached
+
+
+def test_people_assigned_to_an_exit_of_another_piece_walk_to_their_own():
+    from meanfield.geometry.geodesic import AssignedRoutes
+
+    region = blocked_region(builtin_scenarios()["hall"]().domain, SPLIT)
+    grid = Grid(region, (60, 40))
+    plan = AssignedRoutes(grid, exit_segments(region))
+    people = np.array([[5.0, 10.0], [25.0, 5.0]])  # west of the wall, assigned to the east door; east, to the north
+    heading = plan.heading(people, np.array([3, 1]))
+    np.testing.assert_array_equal(heading[0], plan.nearest.heading(people[:1])[0])  # the west door, its own
+    np.testing.assert_array_equal(heading[1], plan.to(1).heading(people[1:])[0])
+    assert heading[0, 0] < -0.9  # westwards
+
+
+def test_every_declared_part_runs_through_a_split_plan():
+    office = builtin_scenarios()["office"](seed=0).with_values(
+        {"t_final": 20.0, "view.memory": "sign", "controller.options.metric": "routed",
+         "controller.options.weight": "unswept", "controller.options.potential": "balanced",
+         "events": [{"time": 3.0, "block": "POLYGON ((14.5 5.9, 15.5 5.9, 15.5 8.1, 14.5 8.1, 14.5 5.9))"}]}
+    )  # fmt: skip  (the corridor blocked across between its two exits)
+    loop = ClosedLoop(office)
+    result = loop.run(progress=False)
+    assert result.summary["status"] == "completed" and loop.parts.region.to_shapely().geom_type == "MultiPolygon"
+
+
+def test_an_event_that_shuts_people_in_a_piece_is_refused():
+    with pytest.raises(ParameterError, match="shut in") as exc:
+        hall(events=[{"time": 5.0, "block": SPLIT}, {"time": 8.0, "close_exit": 2}])
+    assert exc.value.name == "events[1].close_exit"
+    with pytest.raises(ParameterError, match="shut in") as exc:  # the west door closed first, then the wall
+        hall(events=[{"time": 1.0, "close_exit": 2}, {"time": 5.0, "block": SPLIT}])
+    assert exc.value.name == "events[1].block"
+    last = [{"time": 5.0, "block": SPLIT}] + [{"time": 8.0, "close_exit": k} for k in range(4)]
+    assert len(hall(events=last).events) == 5  # closing every exit is allowed: "no exit left"
 
 
 def test_a_block_that_leaves_the_robots_region_in_pieces_is_refused():
