@@ -268,3 +268,45 @@ def test_one_event_is_one_action():
             {"events": [{"time": 1.0, "close_exit": 0, "block": CENTRE}]}
         )
     assert exc.value.name == "events[0]"
+
+
+def test_step_two_s_identity_holds_on_the_plan_a_block_leaves():
+    """The guarantee is kept after a block: on the new grid, with φ solved round the block, dV₂/dt = S − Σ k_u|b_i|²
+    − Σ k_ω g_i² by complex-step differentiation (as on the plans before, tests/controllers)."""
+    from meanfield.controllers.backstepping import MinimumNormBetaGamma, SaturatingAlpha
+    from meanfield.controllers.evacuation import EvacuationController
+    from meanfield.geometry.blocking import WallsChange, block_polygon
+    from meanfield.geometry.geodesic import ExitEikonal
+    from meanfield.geometry.sight import SightLines
+    from meanfield.geometry.target import gaussian_target
+    from meanfield.signs.kernels import GaussianKernel
+    from meanfield.signs.robots import NavigationField
+    from tests.conftest import lyapunov_v2, smooth_density
+
+    eps = 1e-30
+    room = Domain.box(1.0, 1.0, exits=[((0.0, 0.4), (0.0, 0.6)), ((1.0, 0.4), (1.0, 0.6))])
+    grid = Grid(room, (20, 20))
+    eikonal = ExitEikonal(grid, exit_segments(room))
+    ctrl = EvacuationController(
+        grid, gaussian_target(grid, (0.2, 0.5), 0.15), 0.003, SaturatingAlpha(0.1, 0.2), 1.0, 2.0,
+        MinimumNormBetaGamma(), None, "model", phi=eikonal.distance, v_free=0.3, rho_max=4.0, eikonal=eikonal,
+    )  # fmt: skip
+    wall = "POLYGON ((0.42 0.2, 0.58 0.2, 0.58 0.8, 0.42 0.8, 0.42 0.2))"
+    region = blocked_region(room, wall)
+    new = Grid(region, (20, 20))
+    target = gaussian_target(new, (0.2, 0.5), 0.15)
+    ctrl.walls_changed(WallsChange(region, new, SightLines(region), region, target, block_polygon(wall)))
+    assert ctrl.grid is new and np.isinf(ctrl.eikonal.distance[~new.active]).all()
+    X, _ = new.centers
+    rho = np.where(new.active, smooth_density(new) * np.exp(-((X - 0.25) ** 2) / 0.02) + 0.05, 0.0)
+    rho /= new.integrate(rho)
+    rng = np.random.default_rng(2)
+    R, th = rng.uniform(0.1, 0.9, (5, 2)), rng.uniform(0, 2 * np.pi, 5)
+    kernel = GaussianKernel(0.5, 0.03)
+    field = NavigationField(kernel, new, R, th)
+    st = ctrl.robot_inputs(rho, field)
+    rho_dot = ctrl.density_rate(rho, field.velocity())
+    dV = lyapunov_v2(ctrl, kernel, rho + 1j * eps * rho_dot, R + 1j * eps * st.u, th + 1j * eps * st.omega).imag / eps
+    action = (st.b**2).sum() + 2.0 * (st.g**2).sum()
+    scale = abs(st.dissipation) + abs(st.A) + action
+    assert abs(dV - (-st.dissipation - action)) <= 1e-9 * scale, (dV, -st.dissipation - action)
