@@ -94,6 +94,14 @@ def _shipped_warnings(name: str, grid: Any, scenario: Any) -> set[str]:
     return set(stability_warnings(scenario, grid, {}))
 
 
+def available_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the system tells it, else the machine's)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # (not on every system)
+        return os.cpu_count() or 1
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from meanfield._compiled import core as compiled
     from meanfield.io.atomic import folder_lock
@@ -101,8 +109,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from meanfield.simulation.preflight import check_fits
 
     if args.threads is not None:
-        if args.threads < 1:
-            raise ParameterError("--threads", args.threads, "an integer >= 1 (BLAS threads)")
+        cores = available_cores()
+        if not 1 <= args.threads <= cores:
+            allowed = f"an integer from 1 to {cores}, the cores available (BLAS threads)"
+            raise ParameterError("--threads", args.threads, allowed)
         os.environ["MEANFIELD_BLAS_THREADS"] = str(args.threads)
     sc = scenario_from_args(args)
     own = Path(args.scenario)

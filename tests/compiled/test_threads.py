@@ -48,10 +48,18 @@ def test_the_command_line_sets_the_count_and_refuses_a_bad_one(tmp_path, capsys,
     from meanfield.cli.app import main
 
     monkeypatch.delenv(ENV, raising=False)
+    from meanfield.cli.run import available_cores
+
     argv = ["run", "paper", "--set", "t_final=0.02", "--quiet", "--no-figures"]
-    assert main([*argv, "--threads", "0", "--out", str(tmp_path / "a")]) == 2
-    assert "--threads" in capsys.readouterr().err
-    assert main([*argv, "--threads", "2", "--out", str(tmp_path / "b")]) == 0
+    cores = available_cores()
+    for bad in ("0", str(cores + 1)):  # none, more than the cores available
+        assert main([*argv, "--threads", bad, "--out", str(tmp_path / bad)]) == 2
+        assert "--threads" in capsys.readouterr().err
+    for bad in ("two", "1.5"):  # not an integer: refused by the parser, exit status 2
+        with pytest.raises(SystemExit) as exc:
+            main([*argv, "--threads", bad, "--out", str(tmp_path / bad)])
+        assert exc.value.code == 2 and "--threads" in capsys.readouterr().err
+    assert main([*argv, "--threads", str(cores), "--out", str(tmp_path / "b")]) == 0
     import os
 
-    assert os.environ[ENV] == "2"
+    assert os.environ[ENV] == str(cores)
