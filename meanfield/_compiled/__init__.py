@@ -3,8 +3,8 @@
 :mod:`~meanfield._compiled.core` (the :func:`compiled` decorator, :class:`CompiledLoop`, the switch),
 :mod:`~meanfield._compiled.blas` (dgemm from compiled loops), :mod:`~meanfield._compiled.vector_exp`
 (a vectorised exp), :mod:`~meanfield._compiled.warmup` (the first compile on several cores) and
-:mod:`~meanfield._compiled.philox` (counter-based random numbers: Philox4x64-10 and Gaussian draws keyed by
-seed, step and human, the same on any number of threads; not yet used by the crowd's step).
+:mod:`~meanfield._compiled.philox` (counter-based random numbers: Philox4x32-10 and a ziggurat's Gaussian draws
+keyed by seed, step and human, the same on any number of threads; not yet used by the crowd's step).
 
 Names are imported on first use (:mod:`meanfield._namespace`).
 """
@@ -19,6 +19,9 @@ _LAZY = {
     "ENV": "meanfield._compiled.warmup",
     "NO_BOX": "meanfield._compiled.core",
     "UNAVAILABLE": "meanfield._compiled.core",
+    "ZIG_FI": "meanfield._compiled.philox",
+    "ZIG_KI": "meanfield._compiled.philox",
+    "ZIG_WI": "meanfield._compiled.philox",
     "before_cold_compile": "meanfield._compiled.core",
     "bits_as_float": "meanfield._compiled.core",
     "blas_threads": "meanfield._compiled.threads",
@@ -38,8 +41,8 @@ _LAZY = {
     "numba_available": "meanfield._compiled.core",
     "numpy_path": "meanfield._compiled.core",
     "parallel_compile_possible": "meanfield._compiled.warmup",
-    "philox4x64_10": "meanfield._compiled.philox",
-    "philox_block": "meanfield._compiled.philox",
+    "philox4x32_10": "meanfield._compiled.philox",
+    "philox4x32_block": "meanfield._compiled.philox",
     "standard_normals": "meanfield._compiled.philox",
     "status": "meanfield._compiled.core",
     "use_compiled": "meanfield._compiled.core",
