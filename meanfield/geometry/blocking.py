@@ -67,8 +67,8 @@ def blocked_region(region: Any, block: Any, name: str = "block") -> Any:
     """
     import shapely
 
-    from meanfield.geometry.exits import exit_segments
-    from meanfield.geometry.plan import Plan
+    from meanfield.geometry.exits import exit_segments, exits_on
+    from meanfield.geometry.plan import Plan, polygon_pieces
 
     polygon = block if isinstance(block, shapely.Polygon) else block_polygon(block, name)
     kind = getattr(region, "kind", None)
@@ -79,7 +79,7 @@ def blocked_region(region: Any, block: Any, name: str = "block") -> Any:
     if omega.intersection(polygon).area <= tol:
         raise ParameterError(name, polygon.wkt, f"a polygon that overlaps the plan (bounds {omega.bounds})")
     rest = omega.difference(polygon)
-    pieces = [p for p in getattr(rest, "geoms", [rest]) if p.geom_type == "Polygon" and p.area > tol]
+    pieces = [p for p in polygon_pieces(rest) if p.geom_type == "Polygon" and p.area > tol]
     if not pieces:
         raise ParameterError(name, "a block that covers the plan", "a region that leaves room to walk")
     segs = exit_segments(region)
@@ -88,7 +88,7 @@ def blocked_region(region: Any, block: Any, name: str = "block") -> Any:
             raise ParameterError(
                 name, f"a block that meets exit {k}", f"a region clear of the exits (close exit {k} with close_exit)"
             )
-    if any(not _exits_of(p, segs, region.diameter) for p in pieces):
+    if any(not exits_on(p, segs, 1e-9 * region.diameter) for p in pieces):
         raise ParameterError(
             name, "a block that cuts people off from every exit", "a region whose every side still has an exit"
         )
@@ -98,20 +98,13 @@ def blocked_region(region: Any, block: Any, name: str = "block") -> Any:
     return Plan(shapely.MultiPolygon(pieces), exits, frame=region.bounds, pieces=True)
 
 
-def _exits_of(piece: Any, segs: np.ndarray, diameter: float) -> list[int]:
-    """The exits (indices into ``segs``) on the boundary of ``piece``."""
-    import shapely
-
-    return [k for k, seg in enumerate(segs) if piece.distance(shapely.LineString(seg)) < 1e-9 * diameter]
-
-
 def exit_pieces(region: Any) -> list[list[int]]:
     """For each piece of ``region`` (one for a region in one piece), the exits on its boundary."""
-    from meanfield.geometry.exits import exit_segments
+    from meanfield.geometry.exits import exit_segments, exits_on
+    from meanfield.geometry.plan import polygon_pieces
 
-    omega = region.to_shapely()
     segs = exit_segments(region)
-    return [_exits_of(p, segs, region.diameter) for p in getattr(omega, "geoms", [omega])]
+    return [exits_on(p, segs, 1e-9 * region.diameter) for p in polygon_pieces(region.to_shapely())]
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ from meanfield.errors import ParameterError
 from meanfield.geometry._exit_loops import bridge_exits, first_exit_crossed
 from meanfield.geometry._exit_loops import segment_distances as distance_to_segments
 
-__all__ = ["exit_segments", "distance_to_segments", "leaving", "tell_exits_closed", "ExitSink"]
+__all__ = ["exit_segments", "exits_on", "distance_to_segments", "leaving", "tell_exits_closed", "ExitSink"]
 
 
 def exit_segments(region: Any) -> np.ndarray:
@@ -35,6 +35,13 @@ def exit_segments(region: Any) -> np.ndarray:
     parts = [p.points for p in (boundary() if boundary else ()) if p.kind == "exit"]
     segs = [np.stack([pts[k], pts[k + 1]]) for pts in parts for k in range(len(pts) - 1)]
     return np.array(segs, float).reshape(-1, 2, 2)
+
+
+def exits_on(shape: Any, segs: np.ndarray, tol: float) -> list[int]:
+    """The exits (indices into ``segs``) within ``tol`` of the shapely ``shape`` (those on a piece of a plan)."""
+    import shapely
+
+    return [k for k, seg in enumerate(segs) if shape.distance(shapely.LineString(seg)) < tol]
 
 
 def tell_exits_closed(parts: Any, open_exits: np.ndarray) -> None:

@@ -293,16 +293,17 @@ def cut_off(grid: Grid, reached: np.ndarray, segs: np.ndarray) -> int:
     centre."""
     import shapely
 
+    from meanfield.geometry.exits import exits_on
+    from meanfield.geometry.plan import polygon_pieces
+
     omega = grid.domain.to_shapely() if hasattr(grid.domain, "to_shapely") else None
-    pieces = list(getattr(omega, "geoms", [omega]))
-    if omega is None or len(pieces) == 1:
+    pieces = [omega] if omega is None else polygon_pieces(omega)
+    if len(pieces) == 1:
         return int((~reached).sum())
     X, Y = grid.centers
     centres = shapely.points(X[grid.active], Y[grid.active])
     piece = np.argmin(np.stack([shapely.distance(p, centres) for p in pieces]), axis=0)
-    tol = 1e-9 * grid.domain.diameter
-    doors = [shapely.LineString(seg) for seg in segs]
-    served = np.array([any(p.distance(d) < tol for d in doors) for p in pieces])
+    served = np.array([bool(exits_on(p, segs, 1e-9 * grid.domain.diameter)) for p in pieces])
     return int((~reached & served[piece]).sum())
 
 
@@ -406,6 +407,8 @@ class ExitRoutes:
         ``φ`` at each cell's waypoint: its geodesic distance to the exit (0 for a point of the exit).
     tree : str
         ``"descent"`` (the routes go down ``φ``) or ``"dijkstra"`` (the fallback, module docstring).
+    everywhere : bool
+        Whether a route reaches these exits from every cell (false only in a plan a block cut in pieces).
     segs, sight
         The exits and the walls the routes were planned with.
     """
@@ -435,6 +438,7 @@ class ExitRoutes:
         d = distance_to_segments(centre, segs)
         exit_length = d.min(axis=1)[exit_cells]
         far = ~np.isfinite(dist)  # cells of a piece none of these exits is in (a plan in pieces): no route
+        self.everywhere = not far.any()
         pred = _descent_tree(dist, la, lb, lw, exit_cells, exit_length)
         self.tree = "descent"
         stuck = pred < 0
@@ -496,8 +500,8 @@ class ExitRoutes:
         """Each point's distance to the exit: straight to its cell's waypoint (in sight), then ``φ`` from there
         (``inf`` where no route reaches these exits)."""
         i, j = self._cells(points)
-        rest = self.remaining[i, j]
-        return np.where(np.isfinite(rest), np.hypot(*(self.waypoint[i, j] - points).T) + np.nan_to_num(rest), np.inf)
+        d = np.hypot(*(self.waypoint[i, j] - points).T) + self.remaining[i, j]
+        return d if self.everywhere else np.where(np.isfinite(self.remaining[i, j]), d, np.inf)
 
 
 class AssignedRoutes:
@@ -541,7 +545,8 @@ class AssignedRoutes:
         for k in np.unique(exit_of[exit_of >= 0]):
             rows = np.flatnonzero(exit_of == k)
             routes = self.to(k)
-            rows = rows[np.isfinite(routes.distance(points[rows]))]
+            if not routes.everywhere:  # (a plan in pieces) those whose exit is in another piece: the nearest
+                rows = rows[np.isfinite(routes.distance(points[rows]))]
             out[rows] = routes.heading(points[rows])
         return out
 

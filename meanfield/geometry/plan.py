@@ -33,12 +33,17 @@ from meanfield.geometry.region import (
     square_lattice,
 )
 
-__all__ = ["Plan", "plan_from_table", "polygon_rings"]
+__all__ = ["Plan", "plan_from_table", "polygon_pieces", "polygon_rings"]
+
+
+def polygon_pieces(polygon: Any) -> list[Any]:
+    """The pieces of a shapely polygon (itself) or multipolygon (its polygons)."""
+    return list(getattr(polygon, "geoms", [polygon]))
 
 
 def polygon_rings(polygon: Any) -> list[Any]:
     """Every ring of a shapely polygon, or of each piece of a multipolygon: outlines and holes."""
-    return [r for piece in getattr(polygon, "geoms", [polygon]) for r in (piece.exterior, *piece.interiors)]
+    return [r for piece in polygon_pieces(polygon) for r in (piece.exterior, *piece.interiors)]
 
 
 class Plan:
@@ -317,8 +322,8 @@ class Plan:
         if margin <= 0:
             return self
         inner = self.polygon.buffer(-margin, join_style="mitre")
-        pieces = len(getattr(self.polygon, "geoms", [self.polygon]))
-        if inner.is_empty or len(getattr(inner, "geoms", [inner])) != pieces:
+        pieces = len(polygon_pieces(self.polygon))
+        if inner.is_empty or len(polygon_pieces(inner)) != pieces:
             raise ParameterError("robots.margin", margin, "a margin that leaves each piece of the plan in one piece")
         return Plan(inner, pieces=pieces > 1)
 

@@ -230,11 +230,11 @@ class ClosedLoop:
         from meanfield.geometry.target import gaussian_target, target_region_radius
 
         p, sc = self.parts, self.scenario
-        region = blocked_region(p.region, event.block, f"{event.name}.block")
+        polygon = block_polygon(event.block, f"{event.name}.block")
+        region = blocked_region(p.region, polygon, f"{event.name}.block")
         grid = Grid(region, p.grid.cells, p.grid.cut_cells)
         target = gaussian_target(grid, sc.target.center, sc.target.std)
-        change = WallsChange(region, grid, SightLines(region), region.robot_region(sc.robots.margin), target,
-                             block_polygon(event.block))  # fmt: skip
+        change = WallsChange(region, grid, SightLines(region), region.robot_region(sc.robots.margin), target, polygon)
         p.region, p.grid, p.sight, p.robot_region, p.target = region, grid, change.sight, change.robot_region, target
         p.target_radius = target_region_radius(region, sc.target.center, sc.target.std)
         self.grid = grid
