@@ -481,17 +481,10 @@ class ExitRoutes:
         self.waypoint = waypoint[ii, jj]
         self.remaining = rest[ii, jj]
 
-    def _cells(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        g = self.grid
-        x0, _, y0, _ = g.domain.bounds
-        i = np.clip(((points[:, 0] - x0) / g.dx).astype(np.intp), 0, g.cells[0] - 1)
-        j = np.clip(((points[:, 1] - y0) / g.dy).astype(np.intp), 0, g.cells[1] - 1)
-        return i, j
-
     def heading(self, points: np.ndarray) -> np.ndarray:
         """Unit vectors ``(N, 2)`` from each point towards its cell's waypoint (0 on the waypoint, and where no
         route reaches these exits)."""
-        i, j = self._cells(points)
+        i, j = self.grid.cell_of(points)
         d = self.waypoint[i, j] - points
         norm = np.hypot(d[:, 0], d[:, 1])
         return np.divide(d, norm[:, None], out=np.zeros_like(d), where=norm[:, None] > 0)
@@ -499,7 +492,7 @@ class ExitRoutes:
     def distance(self, points: np.ndarray) -> np.ndarray:
         """Each point's distance to the exit: straight to its cell's waypoint (in sight), then ``φ`` from there
         (``inf`` where no route reaches these exits)."""
-        i, j = self._cells(points)
+        i, j = self.grid.cell_of(points)
         d = np.hypot(*(self.waypoint[i, j] - points).T) + self.remaining[i, j]
         return d if self.everywhere else np.where(np.isfinite(self.remaining[i, j]), d, np.inf)
 

@@ -260,6 +260,13 @@ class Grid:
         v[:, 1:-1] = F[1]
         return 0.5 * (u[1:] + u[:-1]), 0.5 * (v[:, 1:] + v[:, :-1])
 
+    def cell_of(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The cell ``(i, j)`` each of ``points`` (N, 2) lies in, clamped to the grid's edge cells outside it."""
+        x0, _, y0, _ = self.domain.bounds
+        i = np.clip(((points[:, 0] - x0) / self.dx).astype(np.intp), 0, self.cells[0] - 1)
+        j = np.clip(((points[:, 1] - y0) / self.dy).astype(np.intp), 0, self.cells[1] - 1)
+        return i, j
+
     def interpolate(self, f: np.ndarray, points: np.ndarray) -> np.ndarray:
         """Bilinear interpolation of a cell field at ``points`` (N, 2), clamped at the edges."""
         x0, _, y0, _ = self.domain.bounds

@@ -126,12 +126,7 @@ class WalkingDistances:
 
     def cell_of(self, points: np.ndarray) -> np.ndarray:
         """The active cell (index into :attr:`cells`) each point starts from: ``(n,)``."""
-        g = self.grid
-        x0, _, y0, _ = g.domain.bounds
-        p = np.asarray(points, float).reshape(-1, 2)
-        i = np.clip(((p[:, 0] - x0) / g.dx).astype(np.intp), 0, g.cells[0] - 1)
-        j = np.clip(((p[:, 1] - y0) / g.dy).astype(np.intp), 0, g.cells[1] - 1)
-        return self._nearest[i, j]
+        return self._nearest[self.grid.cell_of(np.asarray(points, float).reshape(-1, 2))]
 
     def from_points(self, points: np.ndarray) -> WalkingField:
         """The walking distances, first legs and anchors from each of ``points`` (``(n, 2)``) to every active cell.

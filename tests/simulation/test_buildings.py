@@ -73,7 +73,7 @@ def test_the_route_out_of_an_l_is_its_geodesic_within_a_cell():
     exact = np.array([math.hypot(0.5, 0.8) + math.hypot(1.0, 0.2), 1.7, 0.5])
     np.testing.assert_allclose(routes.distance(p), exact, atol=2 * h)
     phi = exit_distance(grid, exit_segments(plan))
-    i, j = routes._cells(p)
+    i, j = routes.grid.cell_of(p)
     assert np.all(phi[i, j] <= 1.083 * (exact + 2 * h))  # the 8-neighbour metric: at most 8.3 % longer
     e = routes.heading(p)
     np.testing.assert_allclose(np.hypot(e[:, 0], e[:, 1]), 1.0)
