@@ -71,18 +71,11 @@ def crowd_groups(value: Any, initial: str, n: int) -> list[dict[str, Any]]:
 
 
 def group_region(wkt: Any, name: str = "crowd.groups[i].region") -> Any:
-    """A group's region as a shapely polygon (refused, naming ``name``, unless a valid polygon of positive area)."""
-    import shapely
+    """A group's region as a shapely polygon or multipolygon (refused, naming ``name``, unless valid, of positive area;
+    :func:`~meanfield.geometry.region.wkt_polygon`)."""
+    from meanfield.geometry.region import wkt_polygon
 
-    if not isinstance(wkt, str):
-        raise ParameterError(name, wkt, 'a WKT polygon, e.g. "POLYGON ((0 0, 3 0, 3 5, 0 5, 0 0))"')
-    try:
-        poly = shapely.from_wkt(wkt)
-    except Exception:  # shapely raises its own GEOSException for malformed text
-        raise ParameterError(name, wkt, "a WKT polygon") from None
-    if poly.geom_type not in ("Polygon", "MultiPolygon") or not poly.is_valid or poly.area <= 0:
-        raise ParameterError(name, wkt, "a valid polygon of positive area")
-    return poly
+    return wkt_polygon(wkt, name, pieces=True)
 
 
 def group_positions(groups: list[dict[str, Any]], domain: Any, rng: np.random.Generator) -> np.ndarray:

@@ -27,28 +27,10 @@ import numpy as np
 
 from meanfield.errors import ParameterError
 
-__all__ = ["WallsChange", "blocked_region", "block_polygon", "exit_pieces", "tell_walls_changed"]
+__all__ = ["WallsChange", "blocked_region", "exit_pieces", "tell_walls_changed"]
 
 PIECE_AREA = 1e-6
 """Pieces of ``Ω ∖ B`` smaller than this share of Ω's area are clipping round-off, dropped."""
-
-
-def block_polygon(text: Any, name: str = "block") -> Any:
-    """The blocking polygon of ``text`` (WKT), refused, naming ``name``, unless it is one valid polygon."""
-    import shapely
-
-    if not isinstance(text, str):
-        raise ParameterError(name, text, 'a polygon in WKT, "POLYGON ((x0 y0, x1 y1, ...))"')
-    try:
-        polygon = shapely.from_wkt(text)
-    except Exception:  # noqa: BLE001 - shapely's GEOS errors have no common public type
-        raise ParameterError(name, text, 'a polygon in WKT, "POLYGON ((x0 y0, x1 y1, ...))"') from None
-    if polygon is None or polygon.geom_type != "Polygon" or polygon.is_empty:
-        raise ParameterError(name, text, 'one polygon in WKT, "POLYGON ((x0 y0, x1 y1, ...))"')
-    if not polygon.is_valid or polygon.area <= 0:
-        reason = shapely.is_valid_reason(polygon) if not polygon.is_valid else "no area"
-        raise ParameterError(name, reason, "a valid polygon with an area > 0")
-    return polygon
 
 
 def blocked_region(region: Any, block: Any, name: str = "block") -> Any:
@@ -69,8 +51,9 @@ def blocked_region(region: Any, block: Any, name: str = "block") -> Any:
 
     from meanfield.geometry.exits import exit_segments, exits_on
     from meanfield.geometry.plan import Plan, polygon_pieces
+    from meanfield.geometry.region import wkt_polygon
 
-    polygon = block if isinstance(block, shapely.Polygon) else block_polygon(block, name)
+    polygon = block if isinstance(block, shapely.Polygon) else wkt_polygon(block, name)
     kind = getattr(region, "kind", None)
     if kind not in ("box", "polygon", "plan"):
         raise ParameterError(name, f"a block in a {kind!r} region", "a region of kind 'box', 'polygon' or 'plan'")

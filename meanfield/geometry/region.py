@@ -33,6 +33,7 @@ __all__ = [
     "exit_list",
     "refuse_overlapping_exits",
     "regular_file",
+    "wkt_polygon",
 ]
 
 
@@ -171,6 +172,27 @@ def regular_file(path: Any, what: str, name: str = "file") -> Any:
     if not ok:
         raise ParameterError(name, shown, what)
     return p
+
+
+def wkt_polygon(text: Any, name: str, pieces: bool = False) -> Any:
+    """The shapely polygon of ``text`` (WKT), refused, naming ``name``, unless it is one valid polygon of positive area
+    (or, with ``pieces``, a valid multipolygon too): a group's region, a region blocked during a run."""
+    import shapely
+
+    kinds = ("Polygon", "MultiPolygon") if pieces else ("Polygon",)
+    what = 'a polygon in WKT, "POLYGON ((x0 y0, x1 y1, ...))"'
+    if not isinstance(text, str):
+        raise ParameterError(name, text, what)
+    try:
+        polygon = shapely.from_wkt(text)
+    except Exception:  # noqa: BLE001 - shapely's GEOS errors have no common public type
+        raise ParameterError(name, text, what) from None
+    if polygon is None or polygon.geom_type not in kinds or polygon.is_empty:
+        raise ParameterError(name, text, "one " + what)
+    if not polygon.is_valid or polygon.area <= 0:
+        reason = shapely.is_valid_reason(polygon) if not polygon.is_valid else "no area"
+        raise ParameterError(name, reason, "a valid polygon with an area > 0")
+    return polygon
 
 
 def exit_list(exits: Any, name: str = "domain.exits") -> list[Any]:

@@ -22,8 +22,7 @@ from meanfield.crowds.groups import crowd_groups
 from meanfield.crowds.local_density import DENSITY_RADIUS
 from meanfield.crowds.memory import MEMORIES
 from meanfield.errors import ParameterError, all_numbers, choice, integer, num, optional_limit, point
-from meanfield.geometry.blocking import block_polygon
-from meanfield.geometry.region import region_keywords
+from meanfield.geometry.region import region_keywords, wkt_polygon
 
 __all__ = [
     "field_hint",
@@ -407,7 +406,7 @@ class EventSpec:
         if self.close_exit is not None:
             self.close_exit = integer(f"{self.name}.close_exit", self.close_exit, 0)
         else:
-            block_polygon(self.block, f"{self.name}.block")
+            wkt_polygon(self.block, f"{self.name}.block")
 
     @property
     def action(self) -> str:

@@ -224,13 +224,14 @@ class ClosedLoop:
         and its routes are planned again; the controller plans again); the density is estimated again on
         the new grid, so the robots' next observation is of the new Ω.
         """
-        from meanfield.geometry.blocking import WallsChange, block_polygon, blocked_region, tell_walls_changed
+        from meanfield.geometry.blocking import WallsChange, blocked_region, tell_walls_changed
         from meanfield.geometry.grid import Grid
+        from meanfield.geometry.region import wkt_polygon
         from meanfield.geometry.sight import SightLines
         from meanfield.geometry.target import gaussian_target, target_region_radius
 
         p, sc = self.parts, self.scenario
-        polygon = block_polygon(event.block, f"{event.name}.block")
+        polygon = wkt_polygon(event.block, f"{event.name}.block")
         region = blocked_region(p.region, polygon, f"{event.name}.block")
         grid = Grid(region, p.grid.cells, p.grid.cut_cells)
         target = gaussian_target(grid, sc.target.center, sc.target.std)

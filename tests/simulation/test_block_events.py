@@ -275,8 +275,9 @@ def test_step_two_s_identity_holds_on_the_plan_a_block_leaves():
     − Σ k_ω g_i² by complex-step differentiation (as on the plans before, tests/controllers)."""
     from meanfield.controllers.backstepping import MinimumNormBetaGamma, SaturatingAlpha
     from meanfield.controllers.evacuation import EvacuationController
-    from meanfield.geometry.blocking import WallsChange, block_polygon
+    from meanfield.geometry.blocking import WallsChange
     from meanfield.geometry.geodesic import ExitEikonal
+    from meanfield.geometry.region import wkt_polygon
     from meanfield.geometry.sight import SightLines
     from meanfield.geometry.target import gaussian_target
     from meanfield.signs.kernels import GaussianKernel
@@ -295,7 +296,7 @@ def test_step_two_s_identity_holds_on_the_plan_a_block_leaves():
     region = blocked_region(room, wall)
     new = Grid(region, (20, 20))
     target = gaussian_target(new, (0.2, 0.5), 0.15)
-    ctrl.walls_changed(WallsChange(region, new, SightLines(region), region, target, block_polygon(wall)))
+    ctrl.walls_changed(WallsChange(region, new, SightLines(region), region, target, wkt_polygon(wall, "block")))
     assert ctrl.grid is new and np.isinf(ctrl.eikonal.distance[~new.active]).all()
     X, _ = new.centers
     rho = np.where(new.active, smooth_density(new) * np.exp(-((X - 0.25) ** 2) / 0.02) + 0.05, 0.0)
