@@ -117,23 +117,20 @@ class ExitAssignment:
                  v_free: float, specific_flow: float = SPECIFIC_FLOW):  # fmt: skip
         if not (isinstance(specific_flow, (int, float)) and math.isfinite(specific_flow) and specific_flow > 0):
             raise ParameterError("controller.options.specific_flow", specific_flow, "a flow > 0, persons/(m·s)")
-        self.distances = np.asarray(distances, float)
         self.capacity = np.asarray(widths, float) * float(specific_flow)
-        self.active = np.isfinite(self.distances).any(axis=0) & (np.asarray(volume) > 0)  # (some exit: a piece's)
-        self.arrival = self.distances[:, self.active] / float(v_free)  # (K, M)
-        self.volume = np.asarray(volume, float)[self.active]
         self.people = int(people)
         self.v_free = float(v_free)
+        self.walls_changed(distances, volume)  # distances, arrivals and the active cells' areas
         self.open = np.ones(len(self.capacity), dtype=bool)
         self.offsets = np.zeros(len(self.capacity))
         self.makespan = math.nan  # the last solution's (eq. B1), s
 
     def walls_changed(self, distances: np.ndarray, volume: np.ndarray) -> None:
-        """New walls (a ``block`` event): each exit's walking distance and the cells' areas on the new grid; the
-        exits open and the last offsets are kept (the next solution starts from them)."""
+        """Each exit's walking distance and the cells' areas (at construction, and on the new grid after a ``block``
+        event; the exits open and the last offsets are kept: the next solution starts from them)."""
         self.distances = np.asarray(distances, float)
-        self.active = np.isfinite(self.distances).any(axis=0) & (np.asarray(volume) > 0)
-        self.arrival = self.distances[:, self.active] / self.v_free
+        self.active = np.isfinite(self.distances).any(axis=0) & (np.asarray(volume) > 0)  # (some exit: a piece's)
+        self.arrival = self.distances[:, self.active] / self.v_free  # (K, M)
         self.volume = np.asarray(volume, float)[self.active]
 
     def assign(self, offsets: np.ndarray) -> np.ndarray:
@@ -148,8 +145,10 @@ class ExitAssignment:
     def queues(self, persons: np.ndarray, offsets: np.ndarray) -> np.ndarray:
         """Persons each exit's queue holds at its worst under ``offsets``: ``C_k`` times what it adds to the walk,
         ``C_k (T_k − a_last,k)`` with ``a_last,k`` the last arrival that (B1) counts."""
-        T, walk = self._times(persons, offsets)
-        return np.maximum(T - walk, 0.0) * self.capacity
+        return self._queue_sizes(*self._times(persons, offsets))
+
+    def _queue_sizes(self, clear: np.ndarray, walk: np.ndarray) -> np.ndarray:
+        return np.maximum(clear - walk, 0.0) * self.capacity
 
     def _times(self, persons: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         exit_of = self.assign(offsets)
@@ -168,8 +167,9 @@ class ExitAssignment:
         """The offsets ``τ`` for the unit-mass density ``rho`` on the cells (price iteration, module docstring)."""
         persons = self.people * np.maximum(np.real(rho)[self.active], 0.0) * self.volume
         zero = np.zeros(len(self.capacity))
-        nearest = float(self.clearing_times(persons, zero)[self.open].max())
-        if self.queues(persons, zero).max() < MIN_QUEUE:  # no queue at the nearest exits: nothing to balance
+        T, walk = self._times(persons, zero)  # the nearest exits (once: their clearing times and their queues)
+        nearest = float(T[self.open].max())
+        if self._queue_sizes(T, walk).max() < MIN_QUEUE:  # no queue at the nearest exits: nothing to balance
             self.offsets, self.makespan = zero, nearest
             return zero
         tau = np.where(self.open, self.offsets, 0.0)
