@@ -34,8 +34,9 @@ from __future__ import annotations
 
 import os
 
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")  # one core
+from benchmarks.environment import one_thread_variables
+
+one_thread_variables()  # one core
 
 import argparse  # noqa: E402
 import json  # noqa: E402

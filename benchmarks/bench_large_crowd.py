@@ -1,18 +1,20 @@
-"""A million-person crowd in closed loop on one core, against the frozen plain step in the same run.
+"""A million-person crowd in closed loop on one and two threads, against the frozen plain step in the same run.
 
 Run:  python benchmarks/bench_large_crowd.py [--quick] [--steps 100] [--json FILE]
 
 The built-in ``stadium`` scenario: the paper's closed loop with N = 10⁶ humans, n = 64
 robots, a 128² grid (``meanfield run stadium``).
 
-* **Ours**: ``ClosedLoop(stadium).run()`` for ``--steps`` steps, *all included*: KDE
+* **Ours**: ``ClosedLoop(stadium).run()`` for ``--steps`` steps, on two of numba's threads
+  (``NUMBA_NUM_THREADS=2``; BLAS on one) and again on one, *all included*: KDE
   (binning + convolution), the controller on the grid, ``v_r`` sampled on a lattice and
   interpolated to every human, the Euler–Maruyama step, the robots, recording a frame every
   10 steps (10 000 humans' positions, the density), then building the dataset and the
   summary (W₂ included).  Figures: steps per second and µs per human per step over the
   whole call, the loop's own rate (``summary["steps_per_second"]``: every step and the
   recording, without the one-off dataset and summary), and the peak resident memory of
-  the process, which does nothing else (``VmHWM``).
+  the process, which does nothing else (``VmHWM``).  The two runs' final positions must be the
+  same bit for bit (issue 32: a seed gives the same results on any number of threads).
 * **Anchor** (issue 32): the frozen plain-numpy step of :mod:`benchmarks.plain_stadium`,
   written straight from the paper's equations (binned KDE, Steps I and II, ``v_r`` summed
   exactly at each human, O(N n), Euler–Maruyama, walls), one warm step then a few timed
@@ -25,8 +27,9 @@ robots, a 128² grid (``meanfield run stadium``).
 * **Ten million**: ``stadium`` with N = 10⁷, a few steps of ``ClosedLoop.run()`` all
   included, for its peak memory.
 
-Goals: issue 32, ≥ 15× the frozen plain step per human-step, everything included except
-the one-off summary (the loop's own rate); issue 19, ≤ 2 GB peak at N = 10⁷; issue 7,
+Goals: issue 32, on two threads ≥ 1.8× the loop's own rate on one thread and ≥ 15× the frozen
+plain step per human-step, everything included except the one-off summary (the loop's own rate),
+the same positions on both; issue 19, ≤ 2 GB peak at N = 10⁷; issue 7,
 ≥ 4 steps per second all included and ≤ 1.5 GB peak at N = 10⁶.  Each measurement runs
 in a fresh child process so that its peak memory is its own.
 """
@@ -36,7 +39,7 @@ from __future__ import annotations
 import os
 
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")  # one core
+    os.environ.setdefault(_var, "1")  # BLAS on one core
 
 import argparse  # noqa: E402
 import json  # noqa: E402
@@ -51,6 +54,8 @@ GOAL_STEPS_PER_SECOND = 4.0
 GOAL_PEAK_MB = 1536.0
 GOAL_RATIO = 15.0  # frozen plain step's µs per human-step / ours without the one-off summary (issue 32)
 GOAL_PEAK_MB_1E7 = 2048.0  # peak at N = 10⁷ (issue 19)
+GOAL_SCALING = 1.8  # the loop's own rate on two threads / on one (issue 32)
+THREADS = 2  # the threads of "ours" (numba's; the one-thread run beside it)
 TEN_MILLION = 10_000_000
 
 
@@ -89,7 +94,15 @@ def child(mode: str, steps: int) -> dict:
         wall = time.perf_counter() - t1
         s = result.summary
         assert s["status"] == "completed" and s["steps"] == steps, s["status"]
+        import hashlib
+
+        import numba
+        import numpy as np
+
+        final = np.ascontiguousarray(loop.crowd.positions)
         return {
+            "threads": numba.get_num_threads(),
+            "positions_sha1": hashlib.sha1(final).hexdigest(),  # (the buffer itself: no copy)
             "steps": steps,
             "build_seconds": t1 - t0,
             "run_seconds": wall,
@@ -118,9 +131,12 @@ def child(mode: str, steps: int) -> dict:
     }
 
 
-def measure(mode: str, steps: int) -> dict:
-    """One child process; the old anchor's runs with ``MEANFIELD_COMPILED=0`` (the numpy path)."""
-    env = dict(os.environ, MEANFIELD_COMPILED="0") if mode == "old_anchor" else None
+def measure(mode: str, steps: int, threads: int = 1) -> dict:
+    """One child process on ``threads`` of numba's threads; the old anchor's runs with
+    ``MEANFIELD_COMPILED=0`` (the numpy path)."""
+    env = dict(os.environ, NUMBA_NUM_THREADS=str(threads))
+    if mode == "old_anchor":
+        env["MEANFIELD_COMPILED"] = "0"
     out = subprocess.run(
         [sys.executable, __file__, "--child", mode, "--steps", str(steps)],
         check=True,
@@ -136,18 +152,31 @@ def run(quick: bool = False, steps: int = 100) -> dict:
     ours_steps = 20 if quick else steps
     anchor_steps = 3 if quick else 5
     old_anchor_steps = 2 if quick else 5
-    ours = measure("ours", ours_steps)
+    threads = min(THREADS, len(os.sched_getaffinity(0)))
+    ours = measure("ours", ours_steps, threads)
+    one = measure("ours", ours_steps, 1)
     anchor = measure("anchor", anchor_steps)
     old = measure("old_anchor", old_anchor_steps)
-    ten = measure("ten_million", 3 if quick else 5)
+    ten = measure("ten_million", 3 if quick else 5, threads)
     # ours without the one-off dataset and summary: every step and the recording (issue 32's figure)
     ours_loop_us = 1e6 / (ours["loop_steps_per_second"] * ours["humans"])
     ratio = anchor["us_per_human_step"] / ours_loop_us
     ratio_all = anchor["us_per_human_step"] / ours["us_per_human_step"]
-    ok = ours["steps_per_second"] >= GOAL_STEPS_PER_SECOND and ours["peak_mb"] <= GOAL_PEAK_MB and ratio >= GOAL_RATIO
+    scaling = ours["loop_steps_per_second"] / one["loop_steps_per_second"]
+    same = ours["positions_sha1"] == one["positions_sha1"]
+    ok = (
+        ours["steps_per_second"] >= GOAL_STEPS_PER_SECOND
+        and ours["peak_mb"] <= GOAL_PEAK_MB
+        and ratio >= GOAL_RATIO
+        and scaling >= GOAL_SCALING
+        and same
+        and threads == THREADS
+    )
     ok_ten = ten["peak_mb"] <= GOAL_PEAK_MB_1E7
     return {
-        "benchmark": "closed loop, stadium scenario (N=1e6 humans, n=64 robots, 128x128 grid), one core",
+        "benchmark": (
+            f"closed loop, stadium scenario (N=1e6 humans, n=64 robots, 128x128 grid), {threads} threads and 1"
+        ),
         "machine": machine_line(),
         "command": "python benchmarks/bench_large_crowd.py" + (" --quick" if quick else f" --steps {steps}"),
         "results": [
@@ -164,12 +193,17 @@ def run(quick: bool = False, steps: int = 100) -> dict:
                 # issue 32's ratio: ours without the one-off dataset and summary (the loop's own rate)
                 "ratio_anchor_over_ours": ratio,
                 "ratio_anchor_over_ours_all_included": ratio_all,
+                "threads": threads,
+                "scaling_over_one_thread": scaling,
+                "same_positions_on_one_thread": same,
                 "goal": (
+                    f"on {THREADS} threads: >= {GOAL_SCALING:g}x one thread and the same positions, "
                     f">= {GOAL_RATIO:g}x the frozen plain step (all included but the one-off summary), "
                     f">= {GOAL_STEPS_PER_SECOND:g} steps/s all included, peak <= {GOAL_PEAK_MB:g} MB"
                 ),
                 "pass": ok,
                 "ours_detail": ours,
+                "one_thread_detail": one,
                 "anchor_detail": anchor,
                 # the anchor until issue 32: the toolkit's numpy path with exact v_r (it moved with the toolkit)
                 "old_anchor": "the same loop with v_r summed exactly at each human, numpy path (ClosedLoop.step)",
@@ -236,8 +270,10 @@ def suite_records(quick: bool) -> list[dict[str, Any]]:
         measured(
             "large_crowd",
             "large_crowd N=1e6 vs frozen plain step",
-            "closed loop, stadium scenario (N=1e6 humans, n=64 robots, 128x128 grid), each side in its own process",
-            f"{r['ours']}: ClosedLoop.run(), every step and the recording (the one-off dataset and summary apart)",
+            "closed loop, stadium scenario (N=1e6 humans, n=64 robots, 128x128 grid), two threads and one, "
+            "each side in its own process",
+            f"{r['ours']}: ClosedLoop.run() on {r['threads']} threads, every step and the recording "
+            "(the one-off dataset and summary apart)",
             r["anchor"],
             r["ours_loop_us_per_human_step"],
             r["anchor_us_per_human_step"],
@@ -246,6 +282,8 @@ def suite_records(quick: bool) -> list[dict[str, Any]]:
             goal=r["goal"],
             passed=r["pass"],
             note=(
+                f"{r['scaling_over_one_thread']:.2f}x one thread "
+                f"({'the same' if r['same_positions_on_one_thread'] else 'DIFFERENT'} positions); "
                 f"{r['ours_steps_per_second']:.2f} steps/s all included over {od['steps']} steps "
                 f"({r['ratio_anchor_over_ours_all_included']:.1f}x the plain step; loop alone "
                 f"{od['loop_steps_per_second']:.2f} steps/s), peak {od['peak_mb']:.0f} MB; old anchor "

@@ -22,10 +22,9 @@ Quick mode stops the crowd at 10⁶ and the grid at 256².
 
 from __future__ import annotations
 
-import os
+from benchmarks.environment import one_thread_variables
 
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")  # one core
+one_thread_variables()  # one core
 
 import argparse  # noqa: E402
 import json  # noqa: E402

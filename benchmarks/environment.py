@@ -11,15 +11,29 @@ import contextlib
 import os
 import platform
 import signal
+import sys
 import threading
 from collections.abc import Iterator
 from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-__all__ = ["THREAD_VARIABLES", "one_thread", "watch_interrupts", "machine"]
+__all__ = ["THREAD_VARIABLES", "one_thread", "one_thread_variables", "watch_interrupts", "machine"]
 
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
+
+
+def one_thread_variables() -> None:
+    """Set :data:`THREAD_VARIABLES` to 1 where they are not exported, before the libraries load.
+
+    ``NUMBA_NUM_THREADS`` is left alone once numba is imported: its thread pool may be running,
+    and numba then refuses any change of the variable at its next compile (a ``RuntimeError``);
+    :func:`one_thread` holds numba to one thread with ``numba.set_num_threads`` instead.
+    """
+    for var in THREAD_VARIABLES:
+        if var == "NUMBA_NUM_THREADS" and "numba" in sys.modules:
+            continue
+        os.environ.setdefault(var, "1")
 
 
 @contextlib.contextmanager
@@ -29,8 +43,11 @@ def one_thread() -> Iterator[dict[str, Any]]:
     from threadpoolctl import threadpool_info, threadpool_limits
 
     saved = {v: os.environ.get(v) for v in THREAD_VARIABLES}
-    for v in THREAD_VARIABLES:
-        os.environ.setdefault(v, "1")
+    one_thread_variables()
+    numba = sys.modules.get("numba")
+    numba_before = numba.get_num_threads() if numba is not None else None
+    if numba is not None:
+        numba.set_num_threads(1)
     try:
         want = max(1, int(os.environ["OPENBLAS_NUM_THREADS"]))
     except ValueError:
@@ -39,7 +56,8 @@ def one_thread() -> Iterator[dict[str, Any]]:
     try:
         with threadpool_limits(limits=want):
             info = {
-                "environment": {v: os.environ[v] for v in THREAD_VARIABLES},
+                "environment": {v: os.environ.get(v) for v in THREAD_VARIABLES},
+                "numba_threads": None if numba is None else numba.get_num_threads(),
                 "thread_pools": [
                     {
                         "library": Path(p["filepath"]).name,
@@ -52,6 +70,8 @@ def one_thread() -> Iterator[dict[str, Any]]:
             }
             yield info
     finally:
+        if numba is not None:
+            numba.set_num_threads(numba_before)
         for v, value in saved.items():
             if value is None:
                 os.environ.pop(v, None)

@@ -55,6 +55,8 @@ __all__ = [
     "compile_inner",
     "before_cold_compile",
     "NO_BOX",
+    "prange",
+    "PARALLEL_CHUNK",
 ]
 
 ENV = "MEANFIELD_COMPILED"
@@ -228,6 +230,25 @@ def _bitcast_intrinsic() -> Any:
     return bits_as_float
 
 
+def prange(*args: int) -> range:
+    """``range`` everywhere but inside a loop compiled with ``parallel=True``, where it is ``numba.prange``.
+
+    A loop module imports this name (so that importing the toolkit never imports numba); when a
+    loop of the module compiles, it is replaced in the module by ``numba.prange``, as :func:`inner`
+    helpers are by their compiled versions.  The iterations of a ``prange`` loop run on numba's
+    threads in any order: each must write only its own outputs, and a loop that must give the same
+    numbers on any number of threads sums nothing across iterations (it writes per-iteration
+    partial results, then adds them in a fixed order: :data:`PARALLEL_CHUNK`).
+    """
+    return range(*args)
+
+
+PARALLEL_CHUNK = 4096
+"""Humans per iteration of the crowd's parallel loops: a chunk's work (tens of µs) dwarfs a thread's
+start; below one chunk a loop runs on the calling thread.  The chunks, and so the order of every
+partial sum, depend on the number of humans only, never on the number of threads."""
+
+
 def _is_pending_helper(value: Any) -> bool:
     return getattr(value, "_compiled_inner", False) and not hasattr(value, "py_func")
 
@@ -242,6 +263,8 @@ def _resolve_helpers(space: dict[str, Any], nb: Any) -> None:
     for name, value in list(space.items()):
         if value is bits_as_float:
             space[name] = _bitcast_intrinsic()
+        elif value is prange:
+            space[name] = nb.prange
         elif _is_pending_helper(value):
             if value not in _helper_dispatchers:
                 _helper_dispatchers[value] = nb.njit(cache=True, error_model="numpy")(value)

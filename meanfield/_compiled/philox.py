@@ -84,13 +84,14 @@ import math
 
 import numpy as np
 
-from meanfield._compiled.core import compiled, inner
+from meanfield._compiled.core import PARALLEL_CHUNK, compiled, inner, prange
 
 __all__ = [
     "philox4x32_block",
     "philox4x32_10",
     "normal_pair",
     "fill_normal_pairs",
+    "fill_pairs_rows",
     "standard_normals",
     "noise_key",
     "PHILOX_M0",
@@ -509,54 +510,28 @@ def _fill_normal_pairs_numpy(key0, key1, step, first, out, ki, wi, fi):
     return out
 
 
-# ----------------------------------------------------------------------------- the compiled loop
-@compiled(fallback=_fill_normal_pairs_numpy)
-def fill_normal_pairs(
-    key0: np.uint64,
-    key1: np.uint64,
-    step: np.uint64,
-    first: int,
-    out: np.ndarray,
-    ki: np.ndarray,
-    wi: np.ndarray,
-    fi: np.ndarray,
-) -> np.ndarray:
-    """``out[i] = normal_pair(key0, key1, step, first + i, ki, wi, fi)``: humans ``first .. first + n - 1``.
+# ----------------------------------------------------------------------------- the compiled loops
+@inner
+def fill_pairs_rows(key0, key1, step, first, out, lo, hi, ki, wi, fi):
+    """``out[r] = normal_pair(key0, key1, step, first + r, ki, wi, fi)`` for the rows ``lo <= r < hi``.
 
-    Chunks of :data:`CHUNK` humans: first their Philox4x32-10 blocks of attempt 0, in a branch-free
-    loop that LLVM vectorises across the humans (the rounds of :func:`philox4x32_block`, written
-    out), then each human's ziggurat: the first attempts written out too, a human with a rejected
-    draw (3 %) redone by the helpers of :func:`normal_pair` (numba calls them without inlining).
-    Each row depends only on ``(key, step, first + i)``: any split of the humans into calls or chunks
-    gives the same numbers.
-    The numpy twin draws all the rows at once (vectorised over the humans, rejections included).
-
-    Parameters
-    ----------
-    key0, key1 : np.uint64
-        The key (:func:`noise_key`).
-    step : np.uint64
-        The time step, in [0, 2⁶⁴).
-    first : int
-        The index of the human in row 0; ``first + n <= 2³²``.
-    out : ndarray of float64, shape (n, 2)
-        Filled with the pairs.
-    ki, wi, fi : ndarray
-        The ziggurat's tables :data:`ZIG_KI`, :data:`ZIG_WI`, :data:`ZIG_FI`.
-
-    Returns
-    -------
-    ndarray
-        ``out``.
+    The loop of :func:`fill_normal_pairs` over one range of rows, for compiled loops that draw the
+    noise of a range of humans and use it at once (the crowd's step,
+    :func:`meanfield.crowds._point_mass_loops.euler_maruyama_drawn`): chunks of :data:`CHUNK`
+    humans, their Philox4x32-10 blocks of attempt 0 first, in a branch-free loop that LLVM
+    vectorises across the humans (the rounds of :func:`philox4x32_block`, written out), then
+    each human's ziggurat: the first attempts written out too, a human with a rejected draw
+    (3 %) redone by the helpers of :func:`normal_pair` (numba calls them without inlining).
+    Allocates its two work rows of :data:`CHUNK` words; shares nothing, so that ranges can be
+    drawn on different threads.
     """
-    n = out.shape[0]
     k0, k1 = np.uint64(key0), np.uint64(key1)
     st = np.uint64(step)
     s_lo, s_hi = st & _MASK32, st >> _S32
     words_a = np.empty(CHUNK, np.uint64)
     words_b = np.empty(CHUNK, np.uint64)
-    for r0 in range(0, n, CHUNK):
-        m = min(CHUNK, n - r0)
+    for r0 in range(lo, hi, CHUNK):
+        m = min(CHUNK, hi - r0)
         for j in range(m):  # branch-free: vectorised across the humans
             x0, x1, x2, x3 = np.uint64(first + r0 + j), s_lo, _ZERO, s_hi
             ka, kb = k0, k1
@@ -578,6 +553,52 @@ def fill_normal_pairs(
                 z0, z1 = _pair_from_words(wa, wb, k0, k1, st, first + r0 + j, ki, wi, fi)
             out[r0 + j, 0] = z0
             out[r0 + j, 1] = z1
+
+
+@compiled(fallback=_fill_normal_pairs_numpy, parallel=True)
+def fill_normal_pairs(
+    key0: np.uint64,
+    key1: np.uint64,
+    step: np.uint64,
+    first: int,
+    out: np.ndarray,
+    ki: np.ndarray,
+    wi: np.ndarray,
+    fi: np.ndarray,
+) -> np.ndarray:
+    """``out[i] = normal_pair(key0, key1, step, first + i, ki, wi, fi)``: humans ``first .. first + n - 1``.
+
+    :func:`fill_pairs_rows` on ranges of :data:`~meanfield._compiled.core.PARALLEL_CHUNK` rows, on
+    numba's threads (:func:`~meanfield._compiled.core.prange`).  Each row depends only on
+    ``(key, step, first + i)``: any split of the humans into calls, chunks or threads gives the same
+    numbers.  The numpy twin draws all the rows at once (vectorised over the humans, rejections included).
+
+    Parameters
+    ----------
+    key0, key1 : np.uint64
+        The key (:func:`noise_key`).
+    step : np.uint64
+        The time step, in [0, 2⁶⁴).
+    first : int
+        The index of the human in row 0; ``first + n <= 2³²``.
+    out : ndarray of float64, shape (n, 2)
+        Filled with the pairs.
+    ki, wi, fi : ndarray
+        The ziggurat's tables :data:`ZIG_KI`, :data:`ZIG_WI`, :data:`ZIG_FI`.
+
+    Returns
+    -------
+    ndarray
+        ``out``.
+    """
+    n = out.shape[0]
+    chunks = (n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
+    if chunks <= 1:  # (a thread's start would cost more than the draws)
+        fill_pairs_rows(key0, key1, step, first, out, 0, n, ki, wi, fi)
+        return out
+    for c in prange(chunks):
+        lo = c * PARALLEL_CHUNK
+        fill_pairs_rows(key0, key1, step, first, out, lo, min(lo + PARALLEL_CHUNK, n), ki, wi, fi)
     return out
 
 

@@ -1,4 +1,4 @@
-"""How many threads the numerical libraries under the toolkit use: BLAS on one thread by default.
+"""How many threads the numerical libraries under the toolkit use: BLAS on one thread, the crowd's loops on every core.
 
 The closed loop's dense algebra is small (the law's and the KDE's products at the paper's size,
 NMPC's quadratic programs), and OpenBLAS spreading a small product over two cores makes the
@@ -6,6 +6,11 @@ threads fight: an NMPC run of 4 time units took 22.8 s unpinned against 1.9 s on
 (issue "Speed where users wait").  :func:`limited_blas` holds BLAS to :func:`blas_threads` threads
 (``threadpoolctl``) while a run steps; ``MEANFIELD_BLAS_THREADS`` (or ``meanfield run --threads``)
 chooses another count.  One thread also keeps a run's numbers independent of the machine's cores.
+
+The crowd's per-human loops (the field at each human, the noise and Euler–Maruyama, the binning)
+run on numba's threads, every core by default (numba's ``NUMBA_NUM_THREADS``); :func:`set_loop_threads`
+(``meanfield run --crowd-threads``) uses fewer.  Their results do not depend on the count
+(:data:`meanfield._compiled.core.PARALLEL_CHUNK`).
 """
 
 from __future__ import annotations
@@ -16,7 +21,7 @@ from contextlib import contextmanager
 
 from meanfield.errors import ParameterError
 
-__all__ = ["ENV", "blas_threads", "limited_blas"]
+__all__ = ["ENV", "blas_threads", "limited_blas", "loop_threads", "set_loop_threads"]
 
 ENV = "MEANFIELD_BLAS_THREADS"
 """The environment variable that sets the BLAS threads of a run (default 1)."""
@@ -47,3 +52,34 @@ def limited_blas(threads: int | None = None) -> Iterator[int]:
     n = blas_threads() if threads is None else int(threads)
     with threadpool_limits(limits=n, user_api="blas"):
         yield n
+
+
+def loop_threads() -> int | None:
+    """The threads of the compiled loops' ``prange`` (numba's ``get_num_threads``); None on the numpy path."""
+    from meanfield._compiled.core import enabled
+
+    if not enabled():
+        return None
+    import numba
+
+    return int(numba.get_num_threads())
+
+
+def set_loop_threads(threads: int) -> None:
+    """Run the compiled loops' ``prange`` on ``threads`` threads from now on (nothing on the numpy path).
+
+    Raises
+    ------
+    ParameterError
+        Named ``threads`` when it is not an integer from 1 to numba's ``NUMBA_NUM_THREADS`` (the cores by default).
+    """
+    from meanfield._compiled.core import enabled
+
+    if not enabled():
+        return
+    import numba
+
+    most = int(numba.config.NUMBA_NUM_THREADS)
+    if isinstance(threads, bool) or not isinstance(threads, int) or not 1 <= threads <= most:
+        raise ParameterError("threads", threads, f"an integer from 1 to {most} (numba's NUMBA_NUM_THREADS)")
+    numba.set_num_threads(threads)

@@ -35,6 +35,13 @@ def register(subparsers: Any) -> Callable[[argparse.Namespace], int]:
         metavar="N",
         help="BLAS threads of the run (default 1, or MEANFIELD_BLAS_THREADS): small products run fastest on one",
     )
+    r.add_argument(
+        "--crowd-threads",
+        type=int,
+        default=None,
+        metavar="N",
+        help="threads of the crowd's per-human loops (default every core); the results do not depend on it",
+    )
     r.add_argument("--quiet", action="store_true", help="no progress bar, no summary printout")
     r.add_argument("--animate", action="store_true", help="also write animation.gif")
     r.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
@@ -114,6 +121,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
             allowed = f"an integer from 1 to {cores}, the cores available (BLAS threads)"
             raise ParameterError("--threads", args.threads, allowed)
         os.environ["MEANFIELD_BLAS_THREADS"] = str(args.threads)
+    if args.crowd_threads is not None:
+        from meanfield._compiled.threads import set_loop_threads
+
+        cores = available_cores()
+        if not 1 <= args.crowd_threads <= cores:
+            allowed = f"an integer from 1 to {cores}, the cores available (the crowd's loops)"
+            raise ParameterError("--crowd-threads", args.crowd_threads, allowed)
+        set_loop_threads(args.crowd_threads)
     sc = scenario_from_args(args)
     own = Path(args.scenario)
     if own.suffix == ".toml" and own.is_file() and own.resolve() == (Path(args.out) / "scenario.toml").resolve():

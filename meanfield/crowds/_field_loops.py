@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from meanfield._compiled.core import compiled
+from meanfield._compiled.core import PARALLEL_CHUNK, compiled, inner, prange
 from meanfield._compiled.vector_exp import exp_inplace
 
 __all__ = ["gaussian_field_at", "bilinear_at"]
@@ -43,44 +43,18 @@ def _gaussian_field_numpy(points, robots, headings, c, inv_eta, visible, reach, 
     np.greater_equal(out[:, 0] * out[:, 0] + out[:, 1] * out[:, 1], reach * reach, out=reached)
 
 
-@compiled(fallback=_gaussian_field_numpy)
-def gaussian_field_at(points, robots, headings, c, inv_eta, visible, reach, out, reached):
-    """``v_r`` of eq. (3) at every human for the Gaussian kernel, into ``out`` (N, 2).
-
-    Parameters
-    ----------
-    points : ndarray, shape (N, 2)
-        The humans.
-    robots : ndarray, shape (n, 2)
-        The robots' positions ``R_i``.
-    headings : ndarray, shape (n,)
-        Their headings ``θ_i``.
-    c : float
-        The kernel's strength.
-    inv_eta : float
-        ``1 / η``.
-    visible : ndarray of bool, shape (n, N) or (n, 0)
-        Which robot each human sees; an empty second axis means every robot is seen.
-    reach : float
-        ``reached[j] = |v_r(X_j)| >= reach``.
-    out : ndarray, shape (N, 2)
-    reached : ndarray of bool, shape (N,)
-    """
-    n = robots.shape[0]
-    rx, ry, ex, ey = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    for i in range(n):
-        rx[i] = robots[i, 0]
-        ry[i] = robots[i, 1]
-        ex[i] = c * math.cos(headings[i])
-        ey[i] = c * math.sin(headings[i])
+@inner
+def _gaussian_rows(points, rx, ry, ex, ey, inv_eta, visible, reach, out, reached, lo, hi):
+    """The rows ``lo <= j < hi`` of :func:`gaussian_field_at` (``ex, ey`` the headings times ``c``)."""
+    n = rx.shape[0]
     masked = visible.shape[1] > 0
     r2 = reach * reach
     block = _FIELD_BLOCK
     xs, ys = np.empty(block), np.empty(block)
     sx, sy = np.empty(block), np.empty(block)
     k = np.empty(block)
-    for first in range(0, points.shape[0], block):  # blocks of humans, robot by robot: the exp vectorises
-        m = block if points.shape[0] - first > block else points.shape[0] - first
+    for first in range(lo, hi, block):  # blocks of humans, robot by robot: the exp vectorises
+        m = block if hi - first > block else hi - first
         for j in range(m):
             xs[j] = points[first + j, 0]
             ys[j] = points[first + j, 1]
@@ -105,6 +79,49 @@ def gaussian_field_at(points, robots, headings, c, inv_eta, visible, reach, out,
             reached[first + j] = sx[j] * sx[j] + sy[j] * sy[j] >= r2
 
 
+@compiled(fallback=_gaussian_field_numpy, parallel=True)
+def gaussian_field_at(points, robots, headings, c, inv_eta, visible, reach, out, reached):
+    """``v_r`` of eq. (3) at every human for the Gaussian kernel, into ``out`` (N, 2).
+
+    Parameters
+    ----------
+    points : ndarray, shape (N, 2)
+        The humans.
+    robots : ndarray, shape (n, 2)
+        The robots' positions ``R_i``.
+    headings : ndarray, shape (n,)
+        Their headings ``θ_i``.
+    c : float
+        The kernel's strength.
+    inv_eta : float
+        ``1 / η``.
+    visible : ndarray of bool, shape (n, N) or (n, 0)
+        Which robot each human sees; an empty second axis means every robot is seen.
+    reach : float
+        ``reached[j] = |v_r(X_j)| >= reach``.
+    out : ndarray, shape (N, 2)
+    reached : ndarray of bool, shape (N,)
+
+    Chunks of :data:`~meanfield._compiled.core.PARALLEL_CHUNK` humans run on numba's threads (each
+    human's value is its own: the same on any number of threads).
+    """
+    n = robots.shape[0]
+    rx, ry, ex, ey = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    for i in range(n):
+        rx[i] = robots[i, 0]
+        ry[i] = robots[i, 1]
+        ex[i] = c * math.cos(headings[i])
+        ey[i] = c * math.sin(headings[i])
+    m = points.shape[0]
+    chunks = (m + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
+    if chunks <= 1:  # one chunk: on this thread (a thread's start would cost more than the pass)
+        _gaussian_rows(points, rx, ry, ex, ey, inv_eta, visible, reach, out, reached, 0, m)
+        return
+    for k in prange(chunks):
+        lo = k * PARALLEL_CHUNK
+        _gaussian_rows(points, rx, ry, ex, ey, inv_eta, visible, reach, out, reached, lo, min(lo + PARALLEL_CHUNK, m))
+
+
 # ----------------------------------------------------------------------------- v_r, sampled
 def _bilinear_numpy(vx, vy, x0, y0, inv_hx, inv_hy, points, reach, out, reached):
     mx, my = vx.shape
@@ -122,7 +139,30 @@ def _bilinear_numpy(vx, vy, x0, y0, inv_hx, inv_hy, points, reach, out, reached)
     return out
 
 
-@compiled(fallback=_bilinear_numpy)
+@inner
+def _bilinear_rows(vx, vy, x0, y0, inv_hx, inv_hy, points, reach, out, reached, lo, hi):
+    """The rows ``lo <= p < hi`` of :func:`bilinear_at`."""
+    mx, my = vx.shape
+    r2 = reach * reach
+    for p in range(lo, hi):
+        s = min(max((points[p, 0] - x0) * inv_hx, 0.0), mx - 1.0)
+        t = min(max((points[p, 1] - y0) * inv_hy, 0.0), my - 1.0)
+        i = int(min(s, mx - 2.0))
+        j = int(min(t, my - 2.0))
+        s -= i
+        t -= j
+        lo_x = vx[i, j] + (vx[i, j + 1] - vx[i, j]) * t
+        hi_x = vx[i + 1, j] + (vx[i + 1, j + 1] - vx[i + 1, j]) * t
+        ux = lo_x + (hi_x - lo_x) * s
+        lo_y = vy[i, j] + (vy[i, j + 1] - vy[i, j]) * t
+        hi_y = vy[i + 1, j] + (vy[i + 1, j + 1] - vy[i + 1, j]) * t
+        uy = lo_y + (hi_y - lo_y) * s
+        out[p, 0] = ux
+        out[p, 1] = uy
+        reached[p] = ux * ux + uy * uy >= r2
+
+
+@compiled(fallback=_bilinear_numpy, parallel=True)
 def bilinear_at(vx, vy, x0, y0, inv_hx, inv_hy, points, reach, out, reached):
     """Bilinear interpolation of a lattice field ``(vx, vy)`` at every human, into ``out`` (N, 2).
 
@@ -141,23 +181,16 @@ def bilinear_at(vx, vy, x0, y0, inv_hx, inv_hy, points, reach, out, reached):
         ``reached[j] = |v_r(X_j)| >= reach``.
     out : ndarray, shape (N, 2)
     reached : ndarray of bool, shape (N,)
+
+    Chunks of :data:`~meanfield._compiled.core.PARALLEL_CHUNK` humans run on numba's threads (each
+    human's value is its own: the same on any number of threads).
     """
-    mx, my = vx.shape
-    r2 = reach * reach
-    for p in range(points.shape[0]):
-        s = min(max((points[p, 0] - x0) * inv_hx, 0.0), mx - 1.0)
-        t = min(max((points[p, 1] - y0) * inv_hy, 0.0), my - 1.0)
-        i = int(min(s, mx - 2.0))
-        j = int(min(t, my - 2.0))
-        s -= i
-        t -= j
-        lo = vx[i, j] + (vx[i, j + 1] - vx[i, j]) * t
-        hi = vx[i + 1, j] + (vx[i + 1, j + 1] - vx[i + 1, j]) * t
-        ux = lo + (hi - lo) * s
-        lo = vy[i, j] + (vy[i, j + 1] - vy[i, j]) * t
-        hi = vy[i + 1, j] + (vy[i + 1, j + 1] - vy[i + 1, j]) * t
-        uy = lo + (hi - lo) * s
-        out[p, 0] = ux
-        out[p, 1] = uy
-        reached[p] = ux * ux + uy * uy >= r2
+    n = points.shape[0]
+    chunks = (n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
+    if chunks <= 1:  # one chunk: on this thread (a thread's start would cost more than the pass)
+        _bilinear_rows(vx, vy, x0, y0, inv_hx, inv_hy, points, reach, out, reached, 0, n)
+        return out
+    for c in prange(chunks):
+        lo = c * PARALLEL_CHUNK
+        _bilinear_rows(vx, vy, x0, y0, inv_hx, inv_hy, points, reach, out, reached, lo, min(lo + PARALLEL_CHUNK, n))
     return out

@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from meanfield._compiled.blas import gemm
-from meanfield._compiled.core import compiled
+from meanfield._compiled.core import PARALLEL_CHUNK, compiled, inner, prange
 from meanfield._compiled.vector_exp import ARG_MAX, exp_inplace
 from meanfield.geometry.grid import linear_binning
 
@@ -270,7 +270,34 @@ def _binning_numpy(points, x0, y0, bx, by, counts):
     return counts
 
 
-@compiled(fallback=_binning_numpy)
+BINNING_PARTS = 8
+"""At most this many parts of the humans are binned on lattices of their own by :func:`linear_binning_into`
+(one per thread at a time; their number depends on the number of humans only, never on the threads)."""
+
+
+@inner
+def _bin_rows(points, x0, y0, bx, by, mx, my, flat, lo, hi):
+    """Add the cloud-in-cell weights of the points ``lo <= p < hi`` to the lattice ``flat`` (mx * my, row-major)."""
+    ix = 1.0 / bx
+    iy = 1.0 / by
+    for p in range(lo, hi):
+        s = min(max((points[p, 0] - x0) * ix - 0.5, 0.0), mx - 1.0)
+        t = min(max((points[p, 1] - y0) * iy - 0.5, 0.0), my - 1.0)
+        i = min(int(s), mx - 2)
+        j = min(int(t), my - 2)
+        s -= i
+        t -= j
+        w11 = s * t
+        w10 = s - w11
+        w01 = t - w11
+        b = i * my + j
+        flat[b] += ((1.0 - w11) - w10) - w01
+        flat[b + 1] += w01
+        flat[b + my] += w10
+        flat[b + my + 1] += w11
+
+
+@compiled(fallback=_binning_numpy, parallel=True)
 def linear_binning_into(
     points: np.ndarray, x0: float, y0: float, bx: float, by: float, counts: np.ndarray
 ) -> np.ndarray:
@@ -291,25 +318,32 @@ def linear_binning_into(
         Its spacings.
     counts : ndarray, shape (mx, my)
         Overwritten with the weights (each point's sum to 1).
+
+    With more than one chunk of :data:`~meanfield._compiled.core.PARALLEL_CHUNK` points, up to
+    :data:`BINNING_PARTS` consecutive parts of the points are binned on lattices of their own, on
+    numba's threads, then added cell by cell in the parts' order: the parts depend on ``N`` alone,
+    so the counts are the same on any number of threads.
     """
     mx, my = counts.shape
+    n = points.shape[0]
     flat = counts.reshape(mx * my)
-    flat[:] = 0.0
-    ix = 1.0 / bx
-    iy = 1.0 / by
-    for p in range(points.shape[0]):
-        s = min(max((points[p, 0] - x0) * ix - 0.5, 0.0), mx - 1.0)
-        t = min(max((points[p, 1] - y0) * iy - 0.5, 0.0), my - 1.0)
-        i = min(int(s), mx - 2)
-        j = min(int(t), my - 2)
-        s -= i
-        t -= j
-        w11 = s * t
-        w10 = s - w11
-        w01 = t - w11
-        b = i * my + j
-        flat[b] += ((1.0 - w11) - w10) - w01
-        flat[b + 1] += w01
-        flat[b + my] += w10
-        flat[b + my + 1] += w11
+    chunks = (n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
+    if chunks <= 1:  # one chunk: on this thread (a thread's start would cost more than the pass)
+        flat[:] = 0.0
+        _bin_rows(points, x0, y0, bx, by, mx, my, flat, 0, n)
+        return counts
+    parts = min(chunks, BINNING_PARTS)
+    size = (n + parts - 1) // parts
+    partial = np.empty((parts, mx * my))
+    for q in prange(parts):  # each part of the humans on its own lattice
+        partial[q, :] = 0.0
+        _bin_rows(points, x0, y0, bx, by, mx, my, partial[q], q * size, min((q + 1) * size, n))
+    cells = mx * my
+    blocks = (cells + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
+    for r in prange(blocks):  # the parts added in their order, cell by cell
+        for c in range(r * PARALLEL_CHUNK, min((r + 1) * PARALLEL_CHUNK, cells)):
+            total = partial[0, c]
+            for q in range(1, parts):
+                total += partial[q, c]
+            flat[c] = total
     return counts

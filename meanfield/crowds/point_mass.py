@@ -16,11 +16,14 @@ from typing import Any
 import numpy as np
 
 from meanfield._compiled.core import NO_BOX
+from meanfield._compiled.philox import ZIG_FI, ZIG_KI, ZIG_WI, noise_key
 from meanfield.crowds._point_mass_loops import euler_maruyama
 from meanfield.errors import ParameterError, SigmaLike, SimulationDiverged, check_sigma
 from meanfield.geometry.region import Region
 
 __all__ = ["PointMassEngine"]
+
+_NOBODY = np.empty(0, dtype=bool)  # euler_maruyama's ``standing`` when nobody stands
 
 
 class PointMassEngine:
@@ -35,7 +38,11 @@ class PointMassEngine:
     sigma : float or callable
         Diffusion ``σ >= 0`` or ``σ(x, y, t)``; the noise is ``sqrt(2σ) dB``.
     rng : numpy.random.Generator
-        Source of the Brownian increments.
+        The run's generator.  The Brownian increments come from a counter-based generator
+        (:mod:`meanfield._compiled.philox`) keyed by a child of it (``rng.spawn``, which leaves
+        ``rng``'s own stream where it was): increment ``j`` of step ``n`` is a pure function of
+        (key, ``n``, ``j``), the same on any number of threads.  ``rng`` itself draws the exits'
+        bridge tests.
 
     Attributes
     ----------
@@ -69,6 +76,8 @@ class PointMassEngine:
         self.domain = domain
         self.sigma = sigma
         self.rng = rng
+        self._key = noise_key(int(rng.spawn(1)[0].integers(0, 2**64, dtype=np.uint64)))
+        self._steps = 0  # steps taken: the noise's counter
         # a region whose walls are not all convex follows each step from its start (Plan.reflect)
         self._path_reflection = bool(getattr(domain, "reflects_along_paths", False))
         self._noise = np.empty_like(positions)  # work array, reused every step
@@ -114,9 +123,8 @@ class PointMassEngine:
         x = self.positions
         if self._noise.shape != x.shape:  # positions replaced by an array of another size
             self._noise = np.empty_like(x)
-        self.rng.standard_normal(out=self._noise)
-        if self.standing is not None:  # those waiting do not move: no noise (their drift is 0)
-            self._noise[self.standing] = 0.0
+        # those waiting do not move: no noise (their drift is 0)
+        standing = _NOBODY if self.standing is None else self.standing
         if callable(self.sigma):
             s = np.asarray(self.sigma(x[:, 0], x[:, 1], t), float)
             if len(self.exits):  # σ at those who left (NaN positions) is no one's
@@ -129,9 +137,12 @@ class PointMassEngine:
         previous = x.copy() if self._path_reflection or len(self.exits) else None
         # a box without exits folds its walls into the same pass (meanfield.crowds._field_loops)
         folded = self._box if previous is None else NO_BOX
-        if not euler_maruyama(x, drift, self._noise, dt, amp, folded):
+        step = np.uint64(self._steps)
+        tables = (ZIG_KI, ZIG_WI, ZIG_FI)
+        if not euler_maruyama(x, drift, self._noise, dt, amp, folded, standing, *self._key, step, *tables):
             msg = f"non-finite human drift at t = {t:.4g}; the crowd is kept at the last good step"
             raise SimulationDiverged(msg, -1)
+        self._steps += 1
         if not len(self.exits):
             if previous is not None:
                 self.domain.reflect(x, previous)

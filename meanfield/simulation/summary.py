@@ -164,8 +164,10 @@ def run_id(loop: LoopView, status: str) -> str:
 
 
 def _compiled_loops() -> dict[str, Any]:
-    """Which path ran (:mod:`meanfield._compiled.core`): chaotic runs agree between paths in distribution only."""
+    """Which path ran (:mod:`meanfield._compiled.core`; chaotic runs agree between paths in distribution only)
+    and on how many threads its parallel loops ran (their results do not depend on it)."""
     from meanfield._compiled import core as compiled
+    from meanfield._compiled.threads import loop_threads
 
     st = compiled.status()
-    return {"enabled": st["enabled"], "numba": st["numba"], "fallbacks": st["fallbacks"]}
+    return {"enabled": st["enabled"], "numba": st["numba"], "fallbacks": st["fallbacks"], "threads": loop_threads()}

@@ -18,6 +18,8 @@ import pytest
 
 from meanfield import ClosedLoop, Domain, GaussianKernel, ParameterError, paper_scenario
 from meanfield._compiled import core as compiled
+from meanfield._compiled.core import PARALLEL_CHUNK
+from meanfield._compiled.philox import ZIG_FI, ZIG_KI, ZIG_WI, noise_key, standard_normals
 from meanfield.crowds._field_loops import bilinear_at, gaussian_field_at
 from meanfield.crowds._point_mass_loops import euler_maruyama
 from meanfield.signs.robots import navigation_velocity
@@ -81,17 +83,28 @@ def test_bilinear_agrees_with_the_sampled_field():
     assert np.max(np.abs(got - f.at_points(pts))) <= 1e-15
 
 
+KEY = noise_key(2024)
+NOBODY = np.empty(0, bool)
+
+
+def em_args(noise, dt, amp, box, standing=NOBODY, step=5):
+    """``euler_maruyama``'s arguments after the positions and drifts (the noise of ``KEY`` at ``step``)."""
+    return (noise, dt, amp, box, standing, *KEY, np.uint64(step), ZIG_KI, ZIG_WI, ZIG_FI)
+
+
 @needs_numba
 @pytest.mark.parametrize("walls", [True, False])
 def test_euler_maruyama_matches_numpy_and_the_domain_reflection(walls):
     rng = np.random.default_rng(6)
     x = rng.uniform(0, 1, (400, 2))
-    drift, noise = rng.normal(size=(400, 2)), rng.normal(size=(400, 2))
+    drift = rng.normal(size=(400, 2))
     amp = np.full((1, 1), 1.7)  # long steps: several bounces
     box = np.array([0.0, 1.0, 0.0, 2.0]) if walls else np.empty(0)
-    moved, moved_ref, fresh = both(euler_maruyama, x, drift, noise, 0.3, amp, box)
+    moved, moved_ref, fresh = both(euler_maruyama, x, drift, *em_args(np.empty((400, 2)), 0.3, amp, box))
     assert moved is True and moved_ref is True
-    fast, ref = fresh[0], _numpy_result(euler_maruyama, x, drift, noise, 0.3, amp, box)
+    noise = standard_normals(2024, 5, np.empty((400, 2)))  # the draws of (seed, step, human)
+    assert np.array_equal(fresh[2], noise)
+    fast, ref = fresh[0], _numpy_result(euler_maruyama, x, drift, *em_args(np.empty((400, 2)), 0.3, amp, box))
     assert np.max(np.abs(fast - ref)) <= 1e-14
     free = x + 0.3 * drift + 1.7 * noise
     if walls:
@@ -100,8 +113,41 @@ def test_euler_maruyama_matches_numpy_and_the_domain_reflection(walls):
     else:
         assert np.max(np.abs(fast - free)) <= 1e-15
     per_human = rng.uniform(0, 1, (400, 1))
-    _, _, fresh = both(euler_maruyama, x, drift, noise, 0.3, per_human, box)
-    assert np.max(np.abs(fresh[0] - _numpy_result(euler_maruyama, x, drift, noise, 0.3, per_human, box))) <= 1e-14
+    _, _, fresh = both(euler_maruyama, x, drift, *em_args(np.empty((400, 2)), 0.3, per_human, box))
+    ref = _numpy_result(euler_maruyama, x, drift, *em_args(np.empty((400, 2)), 0.3, per_human, box))
+    assert np.max(np.abs(fresh[0] - ref)) <= 1e-14
+
+
+@needs_numba
+def test_euler_maruyama_gives_the_same_numbers_on_one_and_two_threads_and_in_any_chunks():
+    import numba
+
+    rng = np.random.default_rng(8)
+    n = 3 * PARALLEL_CHUNK + 17  # several chunks, the last one short
+    x = rng.uniform(0, 1, (n, 2))
+    drift = rng.normal(size=(n, 2))
+    box = np.array([0.0, 1.0, 0.0, 1.0])
+    standing = rng.uniform(size=n) < 0.2
+    before = numba.get_num_threads()
+    results = []
+    try:
+        for threads in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
+            numba.set_num_threads(threads)
+            y = x.copy()
+            noise = np.empty((n, 2))
+            assert euler_maruyama(y, drift, *em_args(noise, 0.1, np.full((1, 1), 0.3), box, standing))
+            results.append((y, noise))
+    finally:
+        numba.set_num_threads(before)
+    assert np.array_equal(results[0][0], results[1][0]) and np.array_equal(results[0][1], results[1][1])
+    y, noise = results[0]
+    assert not noise[standing].any()  # those standing: no noise
+    drawn = standard_normals(2024, 5, np.empty((n, 2)))
+    assert np.array_equal(noise[~standing], drawn[~standing])
+    # humans 100..: the same draws when the crowd is cut elsewhere (the counter is the human's index)
+    assert np.array_equal(standard_normals(2024, 5, np.empty((n - 100, 2)), first=100), drawn[100:])
+    ref = _numpy_result(euler_maruyama, x, drift, *em_args(np.empty((n, 2)), 0.1, np.full((1, 1), 0.3), box, standing))
+    assert np.max(np.abs(y - ref)) <= 1e-14
 
 
 def _numpy_result(kernel, x, *args):
@@ -114,13 +160,15 @@ def _numpy_result(kernel, x, *args):
 
 @needs_numba
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
-def test_euler_maruyama_moves_nobody_when_a_drift_is_not_finite(bad):
+@pytest.mark.parametrize("n", [50, 2 * PARALLEL_CHUNK + 50])
+def test_euler_maruyama_moves_nobody_when_a_drift_is_not_finite(bad, n):
     rng = np.random.default_rng(7)
-    x = rng.uniform(0, 1, (50, 2))
-    drift, noise = rng.normal(size=(50, 2)), rng.normal(size=(50, 2))
-    drift[37, 1] = bad  # one value, late in the array: the rows before it must not have moved either
+    x = rng.uniform(0, 1, (n, 2))
+    drift = rng.normal(size=(n, 2))
+    drift[n - 13, 1] = bad  # one value, late in the array: the rows before it must not have moved either
     box = np.array([0.0, 1.0, 0.0, 1.0])
-    moved, moved_ref, fresh = both(euler_maruyama, x, drift, noise, 0.01, np.full((1, 1), 0.1), box)
+    args = em_args(np.empty((n, 2)), 0.01, np.full((1, 1), 0.1), box)
+    moved, moved_ref, fresh = both(euler_maruyama, x, drift, *args)
     assert moved is False and moved_ref is False
     assert np.array_equal(fresh[0], x)
 

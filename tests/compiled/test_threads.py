@@ -63,3 +63,28 @@ def test_the_command_line_sets_the_count_and_refuses_a_bad_one(tmp_path, capsys,
     import os
 
     assert os.environ[ENV] == str(cores)
+
+
+def test_the_crowds_threads_are_set_from_the_command_line_and_a_bad_count_is_refused(tmp_path, capsys):
+    numba = pytest.importorskip("numba")
+    import json
+
+    from meanfield.cli.app import main
+    from meanfield.cli.run import available_cores
+
+    argv = ["run", "paper", "--set", "t_final=0.02", "--quiet", "--no-figures"]
+    cores = available_cores()
+    for bad in ("0", str(cores + 1)):
+        assert main([*argv, "--crowd-threads", bad, "--out", str(tmp_path / bad)]) == 2
+        assert "--crowd-threads" in capsys.readouterr().err
+    for bad in ("two", "1.5"):
+        with pytest.raises(SystemExit) as exc:
+            main([*argv, "--crowd-threads", bad, "--out", str(tmp_path / bad)])
+        assert exc.value.code == 2 and "--crowd-threads" in capsys.readouterr().err
+    before = numba.get_num_threads()
+    try:
+        assert main([*argv, "--crowd-threads", "1", "--out", str(tmp_path / "one")]) == 0
+        summary = json.loads((tmp_path / "one" / "summary.json").read_text())
+        assert numba.get_num_threads() == 1 and summary["compiled_loops"]["threads"] == 1
+    finally:
+        numba.set_num_threads(before)

@@ -1,0 +1,95 @@
+"""The crowd's loops on numba's threads give the same numbers on any number of threads (issue 32).
+
+Each loop that runs chunks of :data:`~meanfield._compiled.core.PARALLEL_CHUNK` humans on ``prange``
+(the field at each human, the lattice field's interpolation, the binning, the Euler–Maruyama step
+with its counter-based noise) is run on one and on two threads over several chunks and compared
+bit for bit, and against its numpy twin; then a whole closed loop of point masses.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from meanfield import ClosedLoop, GaussianKernel
+from meanfield._compiled import core as compiled
+from meanfield._compiled.core import PARALLEL_CHUNK
+from meanfield.crowds._field_loops import bilinear_at, gaussian_field_at
+from meanfield.crowds._kde_loops import BINNING_PARTS, linear_binning_into
+from meanfield.geometry.grid import linear_binning
+from meanfield.scenarios.scenario import stadium_scenario
+
+numba = pytest.importorskip("numba")
+needs_two = pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="numba has one thread here")
+
+
+def on_threads(threads, call):
+    """``call()`` with numba on ``threads`` threads (the count restored after)."""
+    before = numba.get_num_threads()
+    numba.set_num_threads(threads)
+    try:
+        return call()
+    finally:
+        numba.set_num_threads(before)
+
+
+N = 5 * PARALLEL_CHUNK + 123  # several chunks, the last one short
+
+
+@needs_two
+def test_the_field_at_each_human_is_the_same_on_one_and_two_threads():
+    rng = np.random.default_rng(11)
+    pts, robots, theta = rng.uniform(0, 10, (N, 2)), rng.uniform(0, 10, (9, 2)), rng.uniform(0, 6.3, 9)
+    k = GaussianKernel(0.5, 2.0)
+
+    def exact():
+        out, reached = np.empty((N, 2)), np.empty(N, bool)
+        gaussian_field_at(pts, robots, theta, k.c, 1 / k.eta, np.ones((9, 0), bool), 0.05, out, reached)
+        return out, reached
+
+    vx, vy = rng.normal(size=(40, 30)), rng.normal(size=(40, 30))
+
+    def sampled():
+        out, reached = np.empty((N, 2)), np.empty(N, bool)
+        bilinear_at(vx, vy, 0.0, 0.0, 3.9, 2.9, pts, 0.5, out, reached)
+        return out, reached
+
+    for call in (exact, sampled):
+        one, two = on_threads(1, call), on_threads(2, call)
+        assert np.array_equal(one[0], two[0]) and np.array_equal(one[1], two[1])
+        with compiled.numpy_path():
+            ref = call()
+        assert np.max(np.abs(one[0] - ref[0])) <= 1e-14
+        assert 0 < one[1].sum() < N  # the flags separate the crowd: they were compared on both sides
+
+
+@needs_two
+def test_the_binning_is_the_same_on_one_and_two_threads_and_sums_to_the_crowd():
+    rng = np.random.default_rng(12)
+    pts = rng.uniform(-0.2, 1.2, (N, 2))  # some beyond the outer centres: they go to the edge
+    assert (N + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK >= BINNING_PARTS - 2  # several parts
+
+    def binned():
+        return linear_binning_into(pts, 0.0, 0.0, 1 / 50, 1 / 40, np.empty((50, 40)))
+
+    one, two = on_threads(1, binned), on_threads(2, binned)
+    assert np.array_equal(one, two)
+    ref = linear_binning(pts, (0.0, 0.0), (1 / 50, 1 / 40), (50, 40))
+    assert np.max(np.abs(one - ref)) <= 1e-12
+    assert abs(one.sum() - N) <= 1e-9 * N  # each point's weights sum to 1
+
+
+@needs_two
+def test_a_closed_loop_of_point_masses_is_the_same_on_one_and_two_threads():
+    sc = stadium_scenario(seed=4).with_values({"crowd.n": 3 * PARALLEL_CHUNK + 5, "robots.n": 6})
+    sc = sc.replace(t_final=10 * sc.dt)
+
+    def final():
+        loop = ClosedLoop(sc)
+        for _ in range(10):
+            loop.step()
+        return loop.crowd.positions.copy(), loop.robots.positions.copy()
+
+    one, two = on_threads(1, final), on_threads(2, final)
+    assert np.array_equal(one[0], two[0]) and np.array_equal(one[1], two[1])
+    assert np.all(np.isfinite(one[0]))
