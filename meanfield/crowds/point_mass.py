@@ -46,6 +46,9 @@ class PointMassEngine:
 
     Attributes
     ----------
+    noise_seed : int
+        The key of the Brownian increments: step ``n``'s are
+        :func:`meanfield._compiled.philox.standard_normals` ``(noise_seed, n, ...)`` (0 for those standing).
     standing : ndarray of bool, shape (N,), or None
         Who stands still during the next step (set by the crowd before it: those whose
         pre-movement time has not come, :class:`~meanfield.crowds.agent_crowd.Individuals`).  Their
@@ -76,7 +79,8 @@ class PointMassEngine:
         self.domain = domain
         self.sigma = sigma
         self.rng = rng
-        self._key = noise_key(int(rng.spawn(1)[0].integers(0, 2**64, dtype=np.uint64)))
+        self.noise_seed = int(rng.spawn(1)[0].integers(0, 2**64, dtype=np.uint64))
+        self._key = noise_key(self.noise_seed)
         self._steps = 0  # steps taken: the noise's counter
         # a region whose walls are not all convex follows each step from its start (Plan.reflect)
         self._path_reflection = bool(getattr(domain, "reflects_along_paths", False))
