@@ -27,24 +27,15 @@ def _evacuation_time(scenario) -> float:
     return float(t)
 
 
-NOISE_AT_THE_DOOR = pytest.mark.xfail(
-    strict=True,
-    reason=(
-        "known failure, docs/buildings.md 'RiMEA tests': the ratio is 1.57 on seed 2 (1.57-1.78 over seeds"
-        " 0-9). At a door in a wall the point masses' Brownian steps carry people out of the jam pressed"
-        " against it, the more the longer the queue: the two doors left pass 2.5-2.9 persons/(m s), the four"
-        " 2.1-2.7, so closing two does not quite double the time"
-    ),
-)
-
-
-@pytest.mark.parametrize("seed", [0, 1, pytest.param(2, marks=NOISE_AT_THE_DOOR)])
+@pytest.mark.parametrize("seed", SEEDS)
 def test_rimea_9_closing_two_of_four_exits_about_doubles_the_evacuation_time(seed):
     """RiMEA test 9: 1000 persons in a 30 m x 20 m room with four 1 m exits; with the two exits of
     one long wall closed the evacuation time "approximately doubles".
 
     The tolerance is JuPedSim's reading of "approximately" in its check of the same test: the
     ratio within [1.6, 2.4], i.e. 2 within 20 %. The full crowd of 1000 runs, on every seed here.
+    Over seeds 0-9 the ratio is 1.62-1.96 (docs/buildings.md, 'RiMEA tests'): near the band's lower
+    edge on some seeds (numpy's former noise stream gave 1.57 on seed 2), for the reason given there.
     """
     sc = builtin_scenarios()["rimea-9"](seed=seed)
     assert sc.crowd.n == 1000 and len(sc.domain.exits) == 4
