@@ -138,6 +138,7 @@ def study_controllers(
     """
     from meanfield.geometry.exits import exit_segments
     from meanfield.scenarios.scenario import load_scenario
+    from meanfield.workflows.dask_cluster import jobs_on
     from meanfield.workflows.sweep import run_sweep
 
     base = load_scenario(scenario) if isinstance(scenario, (str, Path)) else scenario
@@ -153,11 +154,12 @@ def study_controllers(
     exits = len(exit_segments(base.domain)) > 0
     out = Path(out_dir)
     rows, statuses = [], []
-    for name in chosen:
-        sets = {key: [value] for key, value in known[name].items()}
-        ds = run_sweep(base, sets, seeds, out / name, workers=workers, progress=progress)
-        statuses.append(ds.attrs["status"])
-        rows.append(_row(name, ds, exits))
+    with jobs_on(None, workers):  # one cluster for every controller's sweep, started at the first
+        for name in chosen:
+            sets = {key: [value] for key, value in known[name].items()}
+            ds = run_sweep(base, sets, seeds, out / name, workers=workers, progress=progress)
+            statuses.append(ds.attrs["status"])
+            rows.append(_row(name, ds, exits))
     law = next((r["ms_per_step"] for r in rows if r["controller"] == reference_law()[0]), math.nan)
     for r in rows:
         r["compute_vs_law"] = r["ms_per_step"] / law if law > 0 else math.nan

@@ -19,7 +19,7 @@ from typing import Any, TypeVar
 
 from meanfield.errors import ParameterError
 
-__all__ = ["CONNECT_TIMEOUT", "connect", "jobs_on", "map_jobs"]
+__all__ = ["CONNECT_TIMEOUT", "connect", "jobs_on", "map_jobs", "shared_client"]
 
 T = TypeVar("T")
 
@@ -112,6 +112,16 @@ def jobs_on(
     finally:
         _CURRENT.reset(token)
         jobs.close()
+
+
+def shared_client(scheduler: str | None, workers: int | None) -> Any | None:
+    """The client of the enclosing :func:`jobs_on` when it serves the same ``scheduler`` and ``workers``
+    (started now if it was not yet), else None: several sweeps of one command then share one cluster
+    instead of starting and closing one each (a few seconds each)."""
+    current = _CURRENT.get()
+    if current is None or current.scheduler != scheduler or workers not in (None, current.workers):
+        return None
+    return current.get()
 
 
 def map_jobs(

@@ -51,6 +51,7 @@ from typing import Any
 from meanfield.errors import ParameterError
 from meanfield.workflows.dask_cluster import CONNECT_TIMEOUT
 from meanfield.workflows.dask_cluster import connect as _connect
+from meanfield.workflows.dask_cluster import shared_client
 from meanfield.workflows.sweep_plan import (
     CACHED_STATUSES,
     SUMMARY_KEYS,
@@ -218,7 +219,8 @@ def run_sweep(
     reused = len(records)
 
     client = cluster = None
-    if todo:
+    shared = shared_client(scheduler, workers) if todo else None  # the enclosing jobs_on's cluster, kept open
+    if todo and shared is None:
         client, cluster = _connect(scheduler, workers, connect_timeout)  # refuses a bad address
     runs_dir.mkdir(parents=True, exist_ok=True)
 
@@ -233,8 +235,9 @@ def run_sweep(
         if todo:
             # this client serves the futures without becoming dask's default (its global config
             # stays the user's: an xarray or dask call after the sweep must not look for it)
-            with client.as_current():
-                state, pending_exc, executed = _collect(client, todo, runs_dir, records, bar, on_result)
+            serving = shared if shared is not None else client
+            with serving.as_current():
+                state, pending_exc, executed = _collect(serving, todo, runs_dir, records, bar, on_result)
     finally:
         bar.close()
         # closing a local cluster takes seconds after 100 %, when a user is tempted to press
