@@ -2,9 +2,10 @@
 
 :mod:`~meanfield._compiled.core` (the :func:`compiled` decorator, :class:`CompiledLoop`, the switch),
 :mod:`~meanfield._compiled.blas` (dgemm from compiled loops), :mod:`~meanfield._compiled.vector_exp`
-(a vectorised exp), :mod:`~meanfield._compiled.warmup` (the first compile on several cores) and
+(a vectorised exp), :mod:`~meanfield._compiled.warmup` (the first compile on several cores),
 :mod:`~meanfield._compiled.philox` (counter-based random numbers: Philox4x32-10 and a ziggurat's Gaussian draws
-keyed by seed, step and human, the same on any number of threads; not yet used by the crowd's step).
+keyed by seed, step and human, the same on any number of threads: the point masses' noise) and
+:mod:`~meanfield._compiled.threads` (BLAS on one thread, the crowd's ``prange`` loops on every core).
 
 Names are imported on first use (:mod:`meanfield._namespace`).
 """
@@ -18,6 +19,7 @@ _LAZY = {
     "CompiledLoop": "meanfield._compiled.core",
     "ENV": "meanfield._compiled.warmup",
     "NO_BOX": "meanfield._compiled.core",
+    "PARALLEL_CHUNK": "meanfield._compiled.core",
     "UNAVAILABLE": "meanfield._compiled.core",
     "ZIG_FI": "meanfield._compiled.philox",
     "ZIG_KI": "meanfield._compiled.philox",
@@ -32,9 +34,11 @@ _LAZY = {
     "enabled": "meanfield._compiled.core",
     "exp_inplace": "meanfield._compiled.vector_exp",
     "fill_normal_pairs": "meanfield._compiled.philox",
+    "fill_pairs_rows": "meanfield._compiled.philox",
     "gemm": "meanfield._compiled.blas",
     "inner": "meanfield._compiled.core",
     "limited_blas": "meanfield._compiled.threads",
+    "loop_threads": "meanfield._compiled.threads",
     "matmul_into": "meanfield._compiled.blas",
     "noise_key": "meanfield._compiled.philox",
     "normal_pair": "meanfield._compiled.philox",
@@ -43,6 +47,8 @@ _LAZY = {
     "parallel_compile_possible": "meanfield._compiled.warmup",
     "philox4x32_10": "meanfield._compiled.philox",
     "philox4x32_block": "meanfield._compiled.philox",
+    "prange": "meanfield._compiled.core",
+    "set_loop_threads": "meanfield._compiled.threads",
     "standard_normals": "meanfield._compiled.philox",
     "status": "meanfield._compiled.core",
     "use_compiled": "meanfield._compiled.core",

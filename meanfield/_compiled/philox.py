@@ -46,9 +46,11 @@ The crowd's noise
     Philox blocks of a chunk of :data:`CHUNK` humans in a branch-free loop that LLVM vectorises,
     then the ziggurat of each (7-8 ms per 10⁶ pairs on one core, about 2.9 times faster than numpy's
     ``default_rng().standard_normal``); its numpy twin is vectorised over all the humans, rejections
-    included.  :func:`standard_normals` is the same from a seed, arguments checked.  A compiled
-    crowd step calls :func:`normal_pair` inside its own loop (``prange`` included: it allocates
-    nothing and shares no state), with the tables as arguments.
+    included; ranges of :data:`~meanfield._compiled.core.PARALLEL_CHUNK` humans run on numba's
+    threads.  :func:`standard_normals` is the same from a seed, arguments checked.  The crowd's
+    step (:func:`meanfield.crowds._point_mass_loops.euler_maruyama`) calls :func:`fill_pairs_rows`,
+    the chunked loop over one range of rows, for each of its chunks, and uses the draws at once;
+    :func:`normal_pair` is one human's pair, for loops that draw one at a time.
 
 The two paths give the same bits, on every machine.  The integer part (blocks, layers,
 magnitudes, uniforms) is exact; the rare path's ``exp`` and ``log`` are computed here from

@@ -83,6 +83,9 @@ def _gaussian_rows(points, rx, ry, ex, ey, inv_eta, visible, reach, out, reached
 def gaussian_field_at(points, robots, headings, c, inv_eta, visible, reach, out, reached):
     """``v_r`` of eq. (3) at every human for the Gaussian kernel, into ``out`` (N, 2).
 
+    Chunks of :data:`~meanfield._compiled.core.PARALLEL_CHUNK` humans run on numba's threads (each
+    human's value is its own: the same on any number of threads).
+
     Parameters
     ----------
     points : ndarray, shape (N, 2)
@@ -101,9 +104,6 @@ def gaussian_field_at(points, robots, headings, c, inv_eta, visible, reach, out,
         ``reached[j] = |v_r(X_j)| >= reach``.
     out : ndarray, shape (N, 2)
     reached : ndarray of bool, shape (N,)
-
-    Chunks of :data:`~meanfield._compiled.core.PARALLEL_CHUNK` humans run on numba's threads (each
-    human's value is its own: the same on any number of threads).
     """
     n = robots.shape[0]
     rx, ry, ex, ey = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
@@ -170,6 +170,9 @@ def bilinear_at(vx, vy, x0, y0, inv_hx, inv_hy, points, reach, out, reached):
     the lattice takes the value at its nearest edge.  The interpolation error is bounded
     in :mod:`meanfield.signs.sampled_field`.
 
+    Chunks of :data:`~meanfield._compiled.core.PARALLEL_CHUNK` humans run on numba's threads (each
+    human's value is its own: the same on any number of threads).
+
     Parameters
     ----------
     vx, vy : ndarray, shape (mx, my)
@@ -181,9 +184,6 @@ def bilinear_at(vx, vy, x0, y0, inv_hx, inv_hy, points, reach, out, reached):
         ``reached[j] = |v_r(X_j)| >= reach``.
     out : ndarray, shape (N, 2)
     reached : ndarray of bool, shape (N,)
-
-    Chunks of :data:`~meanfield._compiled.core.PARALLEL_CHUNK` humans run on numba's threads (each
-    human's value is its own: the same on any number of threads).
     """
     n = points.shape[0]
     chunks = (n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK

@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from meanfield._compiled.core import compiled
+from meanfield._compiled.core import PARALLEL_CHUNK, compiled, inner, prange
 
 __all__ = ["first_exit_crossed", "bridge_exits", "segment_distances"]
 
@@ -57,20 +57,10 @@ def _first_exit_numpy(start, end, segs, out):
     return out
 
 
-@compiled(fallback=_first_exit_numpy)
-def first_exit_crossed(start, end, segs, out):
-    """Into ``out`` (N,) (left as it is for a step that crosses none): the first exit each step crosses.
-
-    Parameters
-    ----------
-    start, end : ndarray, shape (N, 2)
-        Where each step starts and (before any reflection) ends.
-    segs : ndarray, shape (E, 2, 2)
-        The exits' end points.
-    out : ndarray of intp, shape (N,)
-        The exit index of each step that crosses one.
-    """
-    for i in range(start.shape[0]):
+@inner
+def _first_exit_rows(start, end, segs, out, lo, hi):
+    """The steps ``lo <= i < hi`` of :func:`first_exit_crossed`."""
+    for i in range(lo, hi):
         px, py = start[i, 0], start[i, 1]
         dx, dy = end[i, 0] - px, end[i, 1] - py
         best, first = -math.inf, -1
@@ -87,6 +77,32 @@ def first_exit_crossed(start, end, segs, out):
                 best, first = -t, k
         if first >= 0:
             out[i] = first
+
+
+@compiled(fallback=_first_exit_numpy, parallel=True)
+def first_exit_crossed(start, end, segs, out):
+    """Into ``out`` (N,) (left as it is for a step that crosses none): the first exit each step crosses.
+
+    Chunks of :data:`~meanfield._compiled.core.PARALLEL_CHUNK` steps run on numba's threads (each
+    step is its own).
+
+    Parameters
+    ----------
+    start, end : ndarray, shape (N, 2)
+        Where each step starts and (before any reflection) ends.
+    segs : ndarray, shape (E, 2, 2)
+        The exits' end points.
+    out : ndarray of intp, shape (N,)
+        The exit index of each step that crosses one.
+    """
+    n = start.shape[0]
+    chunks = (n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
+    if chunks <= 1:  # one chunk: on this thread (a thread's start would cost more than the pass)
+        _first_exit_rows(start, end, segs, out, 0, n)
+        return out
+    for c in prange(chunks):
+        lo = c * PARALLEL_CHUNK
+        _first_exit_rows(start, end, segs, out, lo, min(lo + PARALLEL_CHUNK, n))
     return out
 
 
@@ -100,24 +116,10 @@ def _bridge_numpy(start, end, segs, near, draws, sdt, out):
     return out
 
 
-@compiled(fallback=_bridge_numpy)
-def bridge_exits(start, end, segs, near, draws, sdt, out):
-    """The Brownian-bridge test of the humans ``near`` (indices): ``out[i] = k`` when ``draws[j] < p_k``.
-
-    Parameters
-    ----------
-    start, end : ndarray, shape (N, 2)
-    segs : ndarray, shape (E, 2, 2)
-    near : ndarray of intp, shape (M,)
-        The humans to test (those whose step crossed no exit).
-    draws : ndarray, shape (M,)
-        One uniform draw on [0, 1) per human of ``near``, in order.
-    sdt : float
-        ``σ Δt``.
-    out : ndarray of intp, shape (N,)
-        Set to the most likely exit ``k`` of each human whose path touched it.
-    """
-    for j in range(near.shape[0]):
+@inner
+def _bridge_rows(start, end, segs, near, draws, sdt, out, lo, hi):
+    """The humans ``near[lo:hi]`` of :func:`bridge_exits`."""
+    for j in range(lo, hi):
         i = near[j]
         best, first = -math.inf, 0
         for k in range(segs.shape[0]):
@@ -135,4 +137,34 @@ def bridge_exits(start, end, segs, near, draws, sdt, out):
                 best, first = p, k
         if draws[j] < best:
             out[i] = first
+
+
+@compiled(fallback=_bridge_numpy, parallel=True)
+def bridge_exits(start, end, segs, near, draws, sdt, out):
+    """The Brownian-bridge test of the humans ``near`` (indices): ``out[i] = k`` when ``draws[j] < p_k``.
+
+    Chunks of :data:`~meanfield._compiled.core.PARALLEL_CHUNK` humans run on numba's threads (each
+    human's test is its own, its draw given).
+
+    Parameters
+    ----------
+    start, end : ndarray, shape (N, 2)
+    segs : ndarray, shape (E, 2, 2)
+    near : ndarray of intp, shape (M,)
+        The humans to test (those whose step crossed no exit).
+    draws : ndarray, shape (M,)
+        One uniform draw on [0, 1) per human of ``near``, in order.
+    sdt : float
+        ``σ Δt``.
+    out : ndarray of intp, shape (N,)
+        Set to the most likely exit ``k`` of each human whose path touched it.
+    """
+    m = near.shape[0]
+    chunks = (m + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
+    if chunks <= 1:  # one chunk: on this thread (a thread's start would cost more than the pass)
+        _bridge_rows(start, end, segs, near, draws, sdt, out, 0, m)
+        return out
+    for c in prange(chunks):
+        lo = c * PARALLEL_CHUNK
+        _bridge_rows(start, end, segs, near, draws, sdt, out, lo, min(lo + PARALLEL_CHUNK, m))
     return out

@@ -37,7 +37,7 @@ import math
 
 import numpy as np
 
-from meanfield._compiled.core import compiled, inner
+from meanfield._compiled.core import PARALLEL_CHUNK, compiled, inner, prange
 
 __all__ = ["first_hits", "reflect_steps", "robot_steps", "segment_hits", "BOUNCES", "FULL_TEST_BELOW"]
 
@@ -240,17 +240,10 @@ def first_hits(start, end, a, e, near, box, t_out, k_out):
     return t_out, k_out
 
 
-@compiled(fallback=_reflect_steps_numpy)
-def reflect_steps(previous, points, a, e, near, box):
-    """Mirror, in place, each step ``previous[i] → points[i]`` at the walls it meets, in order.
-
-    At the first wall met the rest of the step ``r = q - x`` (``x`` the impact) becomes
-    ``r - 2 (r·n) n``, ``n`` the wall's unit normal, and is followed again from ``x``, at
-    most :data:`BOUNCES` times (docs/buildings.md: walls reflect).  A point still outside
-    the plan after that is the caller's to project.  ``previous`` is not changed; the other
-    arguments are those of :func:`first_hits`.
-    """
-    for i in range(points.shape[0]):
+@inner
+def _reflect_rows(previous, points, a, e, near, box, lo, hi):
+    """The steps ``lo <= i < hi`` of :func:`reflect_steps`."""
+    for i in range(lo, hi):
         sx, sy = previous[i, 0], previous[i, 1]
         px, py = points[i, 0], points[i, 1]
         for _ in range(BOUNCES):
@@ -269,6 +262,27 @@ def reflect_steps(previous, points, a, e, near, box):
             sx, sy = ix, iy
         points[i, 0] = px
         points[i, 1] = py
+
+
+@compiled(fallback=_reflect_steps_numpy, parallel=True)
+def reflect_steps(previous, points, a, e, near, box):
+    """Mirror, in place, each step ``previous[i] → points[i]`` at the walls it meets, in order.
+
+    At the first wall met the rest of the step ``r = q - x`` (``x`` the impact) becomes
+    ``r - 2 (r·n) n``, ``n`` the wall's unit normal, and is followed again from ``x``, at
+    most :data:`BOUNCES` times (docs/buildings.md: walls reflect).  A point still outside
+    the plan after that is the caller's to project.  ``previous`` is not changed; the other
+    arguments are those of :func:`first_hits`.  Chunks of
+    :data:`~meanfield._compiled.core.PARALLEL_CHUNK` steps run on numba's threads (each step is its own).
+    """
+    n = points.shape[0]
+    chunks = (n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
+    if chunks <= 1:  # one chunk: on this thread (a thread's start would cost more than the pass)
+        _reflect_rows(previous, points, a, e, near, box, 0, n)
+        return points
+    for c in prange(chunks):
+        lo = c * PARALLEL_CHUNK
+        _reflect_rows(previous, points, a, e, near, box, lo, min(lo + PARALLEL_CHUNK, n))
     return points
 
 

@@ -49,9 +49,8 @@ from pathlib import Path
 from typing import Any
 
 from meanfield.errors import ParameterError
-from meanfield.workflows.dask_cluster import CONNECT_TIMEOUT
+from meanfield.workflows.dask_cluster import CONNECT_TIMEOUT, shared_client
 from meanfield.workflows.dask_cluster import connect as _connect
-from meanfield.workflows.dask_cluster import shared_client
 from meanfield.workflows.sweep_plan import (
     CACHED_STATUSES,
     SUMMARY_KEYS,

@@ -93,3 +93,29 @@ def test_a_closed_loop_of_point_masses_is_the_same_on_one_and_two_threads():
     one, two = on_threads(1, final), on_threads(2, final)
     assert np.array_equal(one[0], two[0]) and np.array_equal(one[1], two[1])
     assert np.all(np.isfinite(one[0]))
+
+
+@needs_two
+def test_a_plans_walls_and_exits_are_the_same_on_one_and_two_threads():
+    from meanfield.geometry.exits import exit_segments, leaving
+    from meanfield.scenarios.scenario import load_scenario
+
+    plan = load_scenario("office").domain
+    rng = np.random.default_rng(13)
+    start = plan.sample_uniform(N, rng)
+    end = start + rng.normal(scale=0.8, size=start.shape)  # long steps: many cross walls and exits
+    segs = exit_segments(plan)
+
+    def walls_and_exits():
+        moved = end.copy()
+        plan.reflect(moved, start)
+        gone = leaving(start, end, segs, 0.3, 0.5, np.random.default_rng(14))
+        return moved, gone
+
+    one, two = on_threads(1, walls_and_exits), on_threads(2, walls_and_exits)
+    assert np.array_equal(one[0], two[0]) and np.array_equal(one[1], two[1])
+    assert plan.contains(one[0][:, 0], one[0][:, 1], tol=1e-9).all()
+    assert 0 < (one[1] >= 0).sum() < N  # some steps leave, through the exits: compared on both sides
+    with compiled.numpy_path():
+        ref = walls_and_exits()
+    assert np.max(np.abs(one[0] - ref[0])) <= 1e-12 and np.array_equal(one[1], ref[1])

@@ -384,3 +384,28 @@ def test_map_jobs_carries_the_permission_to_separate_workers(tmp_path, scheduler
             map_jobs(check, jobs, workers=None, desc="t", progress=False)
         with plugins.allow_scenario_plugins([module]):
             assert map_jobs(check, jobs, workers=None, desc="t", progress=False) == [None, None]
+
+
+def test_the_sweeps_of_one_command_share_its_cluster(tiny_toml, tmp_path, monkeypatch):
+    """Inside ``jobs_on`` (a study's several sweeps) every sweep runs on the one cluster, started once and
+    closed at the end, with the same runs as a sweep on a cluster of its own."""
+    from meanfield.workflows import dask_cluster, sweep
+
+    started = []
+    real = dask_cluster.connect
+
+    def counting(*args):
+        started.append(args)
+        return real(*args)
+
+    monkeypatch.setattr(dask_cluster, "connect", counting)
+    monkeypatch.setattr(sweep, "_connect", counting)
+    with dask_cluster.jobs_on(None, 2):
+        a = run_sweep(tiny_toml, {"robots.n": [4]}, 2, tmp_path / "a", workers=2, progress=False)
+        b = run_sweep(tiny_toml, {"robots.n": [9]}, 2, tmp_path / "b", workers=2, progress=False)
+        assert len(started) == 1  # one cluster for both sweeps, still open
+        assert dask_cluster._CURRENT.get().client.status == "running"
+    assert a.attrs["status"] == b.attrs["status"] == "completed"
+    alone = run_sweep(tiny_toml, {"robots.n": [9]}, 2, tmp_path / "c", workers=2, progress=False)
+    assert len(started) == 2  # outside: a cluster of its own
+    np.testing.assert_array_equal(alone["l2_error_final"].values, b["l2_error_final"].values)
