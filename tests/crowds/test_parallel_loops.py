@@ -119,3 +119,15 @@ def test_a_plans_walls_and_exits_are_the_same_on_one_and_two_threads():
     with compiled.numpy_path():
         ref = walls_and_exits()
     assert np.max(np.abs(one[0] - ref[0])) <= 1e-12 and np.array_equal(one[1], ref[1])
+
+
+@needs_two
+def test_the_count_in_the_target_is_the_same_on_one_and_two_threads():
+    from meanfield.geometry._target_loops import count_in_disk
+
+    pts = np.random.default_rng(15).uniform(0, 1, (N, 2))
+    pts[[3, N - 2]] = np.nan  # those who left: counted nowhere
+    one = on_threads(1, lambda: count_in_disk(pts, 0.6, 0.4, 0.3))
+    two = on_threads(2, lambda: count_in_disk(pts, 0.6, 0.4, 0.3))
+    inside = np.hypot(pts[:, 0] - 0.6, pts[:, 1] - 0.4) <= 0.3
+    assert one == two == int(inside.sum()) > 0
