@@ -30,8 +30,10 @@ not bit for bit.  A given path is deterministic: the same seed gives the same nu
 from __future__ import annotations
 
 import functools
+import inspect
 import os
 import struct
+import types
 import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -287,16 +289,63 @@ def compile_inner(helper: Callable[..., Any]) -> Any:
 
 
 class CompiledLoop:
-    """A loop compiled by numba on first call, with its numpy fallback (see the module's doc)."""
+    """A loop compiled by numba on first call, with its numpy fallback (see the module's doc).
 
-    def __init__(self, loop: Callable[..., Any], fallback: Callable[..., Any] | None, options: dict[str, Any]):
+    A loop declared ``parallel_over`` an argument has a second compiled version, on numba's
+    threads (``parallel=True``: its :func:`prange` loops run their iterations on threads),
+    compiled the first time that argument has more than :data:`PARALLEL_CHUNK` rows, and used
+    from then on for such calls; smaller calls run the one-thread version.  Compiling a
+    ``parallel=True`` loop costs several times more than the loop alone, and a crowd of a few
+    hundred (the paper's, a building's) never needs it: its first run does not pay for it.  The
+    two versions are the same code, so they give the same numbers.  A threaded version that does
+    not compile is replaced by the one-thread version, with one warning.
+    """
+
+    def __init__(
+        self,
+        loop: Callable[..., Any],
+        fallback: Callable[..., Any] | None,
+        options: dict[str, Any],
+        parallel_over: str | None = None,
+    ):
         self.loop = loop
         self.fallback = fallback
         self.name = f"{loop.__module__}.{loop.__qualname__}"
         self._options = options
         self._jitted: Callable[..., Any] | None = None
         self._ready = False
+        self._over = None if parallel_over is None else list(inspect.signature(loop).parameters).index(parallel_over)
+        self._threaded: Callable[..., Any] | None = None  # the parallel version, compiled on the first large call
+        self._threads_failed = False
         functools.update_wrapper(self, loop)
+
+    def _compile_threaded(self) -> Callable[..., Any]:
+        """The loop's ``parallel=True`` version: a copy of the function under its own name, so that numba's
+        on-disk cache keeps the two versions apart (the cache is keyed by the function's qualified name)."""
+        nb = _numba()
+        loop = self.loop
+        twin = types.FunctionType(loop.__code__, loop.__globals__, loop.__name__, loop.__defaults__, loop.__closure__)
+        twin.__qualname__ = f"{loop.__qualname__}_on_threads"
+        twin.__module__ = loop.__module__
+        return nb.njit(cache=True, parallel=True, **{"error_model": "numpy", **self._options})(twin)
+
+    def _on_threads(self, *args: Any) -> Any:
+        """A large call: the threaded version (compiled now on the first), or the one-thread version if it failed."""
+        if self._threaded is None:
+            try:
+                self._threaded = self._compile_threaded()
+                return self._threaded(*args)  # (numba's typing and lowering fail before anything runs)
+            except Exception as exc:
+                self._threads_failed = True
+                self._threaded = None
+                cause = f"{type(exc).__name__}: {str(exc).strip().splitlines()[0] if str(exc).strip() else ''}"
+                warnings.warn(
+                    f"the compiled {self.name} could not run on threads ({cause}); it runs on one",
+                    CompiledFallbackWarning,
+                    stacklevel=3,
+                )
+                return self._jitted(*args)
+        return self._threaded(*args)
 
     def _compile(self) -> Callable[..., Any] | None:
         nb = _numba()
@@ -319,7 +368,10 @@ class CompiledLoop:
 
     def __call__(self, *args: Any) -> Any:
         if self._ready and (_selected if _selected is not None else enabled()):
-            return self._jitted(*args)  # the common case first: a few hundred ns per call matter here
+            # the common case first: a few hundred ns per call matter here
+            if self._over is not None and args[self._over].shape[0] > PARALLEL_CHUNK and not self._threads_failed:
+                return self._on_threads(*args)
+            return self._jitted(*args)
         if self.name in _failures or not enabled():
             return self._numpy(*args)
         try:  # the first call compiles (or loads the cache); a failure there falls back, once
@@ -337,7 +389,9 @@ class CompiledLoop:
         return out
 
 
-def compiled(fallback: Callable[..., Any] | None, **options: Any) -> Callable[[Callable[..., Any]], CompiledLoop]:
+def compiled(
+    fallback: Callable[..., Any] | None, parallel_over: str | None = None, **options: Any
+) -> Callable[[Callable[..., Any]], CompiledLoop]:
     """Decorator: the loop below, compiled by numba (``cache=True``), with ``fallback`` its numpy twin.
 
     Parameters
@@ -345,6 +399,10 @@ def compiled(fallback: Callable[..., Any] | None, **options: Any) -> Callable[[C
     fallback : callable or None
         The numpy implementation, same arguments, same result (to round-off).  None: the
         caller has its own numpy path and takes it when the call returns :data:`UNAVAILABLE`.
+    parallel_over : str, optional
+        The argument whose rows the loop's :func:`prange` loops split: above
+        :data:`PARALLEL_CHUNK` rows the call runs a second, ``parallel=True`` version of the loop
+        (:class:`CompiledLoop`).  None: one thread always.
     **options
         Passed to ``numba.njit`` (``fastmath`` is left off: the two paths must agree).  Loops
         use numpy's error model (``error_model="numpy"``: a division by zero gives inf/nan as
@@ -352,7 +410,7 @@ def compiled(fallback: Callable[..., Any] | None, **options: Any) -> Callable[[C
     """
 
     def wrap(loop: Callable[..., Any]) -> CompiledLoop:
-        compiled_loop = CompiledLoop(loop, fallback, options)
+        compiled_loop = CompiledLoop(loop, fallback, options, parallel_over)
         _loops.append(compiled_loop)
         return compiled_loop
 

@@ -557,7 +557,7 @@ def fill_pairs_rows(key0, key1, step, first, out, lo, hi, ki, wi, fi):
             out[r0 + j, 1] = z1
 
 
-@compiled(fallback=_fill_normal_pairs_numpy, parallel=True)
+@compiled(fallback=_fill_normal_pairs_numpy, parallel_over="out")
 def fill_normal_pairs(
     key0: np.uint64,
     key1: np.uint64,

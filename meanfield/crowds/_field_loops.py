@@ -79,7 +79,7 @@ def _gaussian_rows(points, rx, ry, ex, ey, inv_eta, visible, reach, out, reached
             reached[first + j] = sx[j] * sx[j] + sy[j] * sy[j] >= r2
 
 
-@compiled(fallback=_gaussian_field_numpy, parallel=True)
+@compiled(fallback=_gaussian_field_numpy, parallel_over="points")
 def gaussian_field_at(points, robots, headings, c, inv_eta, visible, reach, out, reached):
     """``v_r`` of eq. (3) at every human for the Gaussian kernel, into ``out`` (N, 2).
 
@@ -162,7 +162,7 @@ def _bilinear_rows(vx, vy, x0, y0, inv_hx, inv_hy, points, reach, out, reached, 
         reached[p] = ux * ux + uy * uy >= r2
 
 
-@compiled(fallback=_bilinear_numpy, parallel=True)
+@compiled(fallback=_bilinear_numpy, parallel_over="points")
 def bilinear_at(vx, vy, x0, y0, inv_hx, inv_hy, points, reach, out, reached):
     """Bilinear interpolation of a lattice field ``(vx, vy)`` at every human, into ``out`` (N, 2).
 

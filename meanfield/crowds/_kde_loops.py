@@ -271,8 +271,10 @@ def _binning_numpy(points, x0, y0, bx, by, counts):
 
 
 BINNING_PARTS = 8
-"""At most this many parts of the humans are binned on lattices of their own by :func:`linear_binning_into`
-(one per thread at a time; their number depends on the number of humans only, never on the threads)."""
+"""At most this many parts of the points are binned on lattices of their own by :func:`linear_binning_into`
+(one per thread at a time), and no more parts than points per cell of the lattice (each part costs a
+lattice to clear and to add, and adds at most as many cells as points); their number depends on the
+points and the lattice only, never on the threads."""
 
 
 @inner
@@ -297,7 +299,7 @@ def _bin_rows(points, x0, y0, bx, by, mx, my, flat, lo, hi):
         flat[b + my + 1] += w11
 
 
-@compiled(fallback=_binning_numpy, parallel=True)
+@compiled(fallback=_binning_numpy, parallel_over="points")
 def linear_binning_into(
     points: np.ndarray, x0: float, y0: float, bx: float, by: float, counts: np.ndarray
 ) -> np.ndarray:
@@ -309,6 +311,11 @@ def linear_binning_into(
     :func:`meanfield.geometry.grid.linear_binning`, in one pass per point.  The binning error of the
     estimate is second order in the lattice spacing (docs page *Discretisation*).
 
+    With more than one chunk of :data:`~meanfield._compiled.core.PARALLEL_CHUNK` points and more
+    points than cells, up to :data:`BINNING_PARTS` consecutive parts of the points are binned on
+    lattices of their own, on numba's threads, then added cell by cell in the parts' order: the
+    parts depend on ``N`` and the lattice alone, so the counts are the same on any number of threads.
+
     Parameters
     ----------
     points : ndarray, shape (N, 2)
@@ -318,21 +325,16 @@ def linear_binning_into(
         Its spacings.
     counts : ndarray, shape (mx, my)
         Overwritten with the weights (each point's sum to 1).
-
-    With more than one chunk of :data:`~meanfield._compiled.core.PARALLEL_CHUNK` points, up to
-    :data:`BINNING_PARTS` consecutive parts of the points are binned on lattices of their own, on
-    numba's threads, then added cell by cell in the parts' order: the parts depend on ``N`` alone,
-    so the counts are the same on any number of threads.
     """
     mx, my = counts.shape
     n = points.shape[0]
     flat = counts.reshape(mx * my)
     chunks = (n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
-    if chunks <= 1:  # one chunk: on this thread (a thread's start would cost more than the pass)
+    parts = min(chunks, BINNING_PARTS, max(1, n // (mx * my)))
+    if parts <= 1:  # one part: on this thread, straight into the counts
         flat[:] = 0.0
         _bin_rows(points, x0, y0, bx, by, mx, my, flat, 0, n)
         return counts
-    parts = min(chunks, BINNING_PARTS)
     size = (n + parts - 1) // parts
     partial = np.empty((parts, mx * my))
     for q in prange(parts):  # each part of the humans on its own lattice

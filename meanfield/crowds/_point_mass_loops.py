@@ -79,7 +79,7 @@ def _step_rows(x, drift, noise, dt, amp, box, standing, key0, key1, step, ki, wi
             x[j, k] = v
 
 
-@compiled(fallback=_euler_maruyama_numpy, parallel=True)
+@compiled(fallback=_euler_maruyama_numpy, parallel_over="x")
 def euler_maruyama(x, drift, noise, dt, amp, box, standing, key0, key1, step, ki, wi, fi):
     """One Euler–Maruyama step of eq. (1), in place: ``X_j += b_j dt + a_j ξ_j``, then the box's walls;
     returns False, ``x`` untouched, when some drift is not finite (else True).

@@ -79,7 +79,7 @@ def _first_exit_rows(start, end, segs, out, lo, hi):
             out[i] = first
 
 
-@compiled(fallback=_first_exit_numpy, parallel=True)
+@compiled(fallback=_first_exit_numpy, parallel_over="start")
 def first_exit_crossed(start, end, segs, out):
     """Into ``out`` (N,) (left as it is for a step that crosses none): the first exit each step crosses.
 
@@ -139,7 +139,7 @@ def _bridge_rows(start, end, segs, near, draws, sdt, out, lo, hi):
             out[i] = first
 
 
-@compiled(fallback=_bridge_numpy, parallel=True)
+@compiled(fallback=_bridge_numpy, parallel_over="near")
 def bridge_exits(start, end, segs, near, draws, sdt, out):
     """The Brownian-bridge test of the humans ``near`` (indices): ``out[i] = k`` when ``draws[j] < p_k``.
 

@@ -30,7 +30,7 @@ def _count_rows(points, cx, cy, r2, lo, hi):
     return count
 
 
-@compiled(fallback=_count_in_disk_numpy, parallel=True)
+@compiled(fallback=_count_in_disk_numpy, parallel_over="points")
 def count_in_disk(points, cx, cy, radius):
     """How many of ``points`` (N, 2) lie within ``radius`` of ``(cx, cy)`` (NaN rows: none).
 

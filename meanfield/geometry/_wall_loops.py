@@ -264,7 +264,7 @@ def _reflect_rows(previous, points, a, e, near, box, lo, hi):
         points[i, 1] = py
 
 
-@compiled(fallback=_reflect_steps_numpy, parallel=True)
+@compiled(fallback=_reflect_steps_numpy, parallel_over="points")
 def reflect_steps(previous, points, a, e, near, box):
     """Mirror, in place, each step ``previous[i] → points[i]`` at the walls it meets, in order.
 

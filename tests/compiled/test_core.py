@@ -456,3 +456,33 @@ def test_the_vectorised_exponential_is_within_one_ulp_of_exp():
     out = below.copy()
     exp(out, 3)
     assert np.array_equal(out, np.zeros(3))  # below the clamp: 0 (the callers' Gaussians are negligible there)
+
+
+@needs_numba
+def test_a_loop_runs_on_threads_only_above_one_chunk_and_falls_back_to_one_thread_with_one_warning(monkeypatch):
+    """``parallel_over``: a small call runs (and compiles) the one-thread version only; a large one the
+    threaded version, with the same numbers; a threaded version that does not compile leaves the
+    one-thread version running, with one warning."""
+    from meanfield.geometry._target_loops import count_in_disk
+
+    loop = compiled.CompiledLoop(count_in_disk.loop, count_in_disk.fallback, {}, parallel_over="points")
+    small = np.random.default_rng(1).uniform(0, 1, (PARALLEL_CHUNK, 2))
+    large = np.random.default_rng(2).uniform(0, 1, (3 * PARALLEL_CHUNK + 1, 2))
+    expected = int((np.hypot(large[:, 0] - 0.5, large[:, 1] - 0.5) <= 0.3).sum())
+    assert loop(small, 0.5, 0.5, 0.3) == int((np.hypot(small[:, 0] - 0.5, small[:, 1] - 0.5) <= 0.3).sum())
+    assert loop._threaded is None  # not compiled for a crowd of one chunk
+    assert loop(large, 0.5, 0.5, 0.3) == expected and loop._threaded is not None
+
+    failing = compiled.CompiledLoop(count_in_disk.loop, count_in_disk.fallback, {}, parallel_over="points")
+    failing(small, 0.5, 0.5, 0.3)
+
+    def broken():
+        raise RuntimeError("no threading layer")
+
+    monkeypatch.setattr(failing, "_compile_threaded", broken)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert failing(large, 0.5, 0.5, 0.3) == expected
+        assert failing(large, 0.5, 0.5, 0.3) == expected
+    messages = [str(w.message) for w in caught if issubclass(w.category, compiled.CompiledFallbackWarning)]
+    assert len(messages) == 1 and "could not run on threads" in messages[0] and "no threading layer" in messages[0]
