@@ -594,11 +594,7 @@ def fill_normal_pairs(
         ``out``.
     """
     n = out.shape[0]
-    chunks = (n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
-    if chunks <= 1:  # (a thread's start would cost more than the draws)
-        fill_pairs_rows(key0, key1, step, first, out, 0, n, ki, wi, fi)
-        return out
-    for c in prange(chunks):
+    for c in prange((n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):
         lo = c * PARALLEL_CHUNK
         fill_pairs_rows(key0, key1, step, first, out, lo, min(lo + PARALLEL_CHUNK, n), ki, wi, fi)
     return out

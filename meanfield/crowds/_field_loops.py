@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from meanfield._compiled.core import PARALLEL_CHUNK, compiled, inner, prange
+from meanfield._compiled.core import PARALLEL_CHUNK, compiled, prange
 from meanfield._compiled.vector_exp import exp_inplace
 
 __all__ = ["gaussian_field_at", "bilinear_at"]
@@ -41,42 +41,6 @@ def _gaussian_field_numpy(points, robots, headings, c, inv_eta, visible, reach, 
         out[a : a + block, 0] = ex @ k
         out[a : a + block, 1] = ey @ k
     np.greater_equal(out[:, 0] * out[:, 0] + out[:, 1] * out[:, 1], reach * reach, out=reached)
-
-
-@inner
-def _gaussian_rows(points, rx, ry, ex, ey, inv_eta, visible, reach, out, reached, lo, hi):
-    """The rows ``lo <= j < hi`` of :func:`gaussian_field_at` (``ex, ey`` the headings times ``c``)."""
-    n = rx.shape[0]
-    masked = visible.shape[1] > 0
-    r2 = reach * reach
-    block = _FIELD_BLOCK
-    xs, ys = np.empty(block), np.empty(block)
-    sx, sy = np.empty(block), np.empty(block)
-    k = np.empty(block)
-    for first in range(lo, hi, block):  # blocks of humans, robot by robot: the exp vectorises
-        m = block if hi - first > block else hi - first
-        for j in range(m):
-            xs[j] = points[first + j, 0]
-            ys[j] = points[first + j, 1]
-            sx[j] = 0.0
-            sy[j] = 0.0
-        for i in range(n):
-            for j in range(m):
-                dx = xs[j] - rx[i]
-                dy = ys[j] - ry[i]
-                k[j] = -(dx * dx + dy * dy) * inv_eta
-            exp_inplace(k, m)
-            if masked:
-                for j in range(m):
-                    if not visible[i, first + j]:
-                        k[j] = 0.0
-            for j in range(m):
-                sx[j] += ex[i] * k[j]
-                sy[j] += ey[i] * k[j]
-        for j in range(m):
-            out[first + j, 0] = sx[j]
-            out[first + j, 1] = sy[j]
-            reached[first + j] = sx[j] * sx[j] + sy[j] * sy[j] >= r2
 
 
 @compiled(fallback=_gaussian_field_numpy, parallel_over="points")
@@ -112,14 +76,39 @@ def gaussian_field_at(points, robots, headings, c, inv_eta, visible, reach, out,
         ry[i] = robots[i, 1]
         ex[i] = c * math.cos(headings[i])
         ey[i] = c * math.sin(headings[i])
-    m = points.shape[0]
-    chunks = (m + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
-    if chunks <= 1:  # one chunk: on this thread (a thread's start would cost more than the pass)
-        _gaussian_rows(points, rx, ry, ex, ey, inv_eta, visible, reach, out, reached, 0, m)
-        return
-    for k in prange(chunks):
-        lo = k * PARALLEL_CHUNK
-        _gaussian_rows(points, rx, ry, ex, ey, inv_eta, visible, reach, out, reached, lo, min(lo + PARALLEL_CHUNK, m))
+    masked = visible.shape[1] > 0
+    r2 = reach * reach
+    total = points.shape[0]
+    for chunk in prange((total + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):
+        lo = chunk * PARALLEL_CHUNK
+        hi = min(lo + PARALLEL_CHUNK, total)
+        xs, ys = np.empty(_FIELD_BLOCK), np.empty(_FIELD_BLOCK)  # (each chunk its own buffers)
+        sx, sy = np.empty(_FIELD_BLOCK), np.empty(_FIELD_BLOCK)
+        k = np.empty(_FIELD_BLOCK)
+        for first in range(lo, hi, _FIELD_BLOCK):  # blocks of humans, robot by robot: the exp vectorises
+            m = _FIELD_BLOCK if hi - first > _FIELD_BLOCK else hi - first
+            for j in range(m):
+                xs[j] = points[first + j, 0]
+                ys[j] = points[first + j, 1]
+                sx[j] = 0.0
+                sy[j] = 0.0
+            for i in range(n):
+                for j in range(m):
+                    dx = xs[j] - rx[i]
+                    dy = ys[j] - ry[i]
+                    k[j] = -(dx * dx + dy * dy) * inv_eta
+                exp_inplace(k, m)
+                if masked:
+                    for j in range(m):
+                        if not visible[i, first + j]:
+                            k[j] = 0.0
+                for j in range(m):
+                    sx[j] += ex[i] * k[j]
+                    sy[j] += ey[i] * k[j]
+            for j in range(m):
+                out[first + j, 0] = sx[j]
+                out[first + j, 1] = sy[j]
+                reached[first + j] = sx[j] * sx[j] + sy[j] * sy[j] >= r2
 
 
 # ----------------------------------------------------------------------------- v_r, sampled
@@ -137,29 +126,6 @@ def _bilinear_numpy(vx, vy, x0, y0, inv_hx, inv_hy, points, reach, out, reached)
         out[:, col] = lo + (hi - lo) * s
     np.greater_equal(out[:, 0] * out[:, 0] + out[:, 1] * out[:, 1], reach * reach, out=reached)
     return out
-
-
-@inner
-def _bilinear_rows(vx, vy, x0, y0, inv_hx, inv_hy, points, reach, out, reached, lo, hi):
-    """The rows ``lo <= p < hi`` of :func:`bilinear_at`."""
-    mx, my = vx.shape
-    r2 = reach * reach
-    for p in range(lo, hi):
-        s = min(max((points[p, 0] - x0) * inv_hx, 0.0), mx - 1.0)
-        t = min(max((points[p, 1] - y0) * inv_hy, 0.0), my - 1.0)
-        i = int(min(s, mx - 2.0))
-        j = int(min(t, my - 2.0))
-        s -= i
-        t -= j
-        lo_x = vx[i, j] + (vx[i, j + 1] - vx[i, j]) * t
-        hi_x = vx[i + 1, j] + (vx[i + 1, j + 1] - vx[i + 1, j]) * t
-        ux = lo_x + (hi_x - lo_x) * s
-        lo_y = vy[i, j] + (vy[i, j + 1] - vy[i, j]) * t
-        hi_y = vy[i + 1, j] + (vy[i + 1, j + 1] - vy[i + 1, j]) * t
-        uy = lo_y + (hi_y - lo_y) * s
-        out[p, 0] = ux
-        out[p, 1] = uy
-        reached[p] = ux * ux + uy * uy >= r2
 
 
 @compiled(fallback=_bilinear_numpy, parallel_over="points")
@@ -185,12 +151,24 @@ def bilinear_at(vx, vy, x0, y0, inv_hx, inv_hy, points, reach, out, reached):
     out : ndarray, shape (N, 2)
     reached : ndarray of bool, shape (N,)
     """
+    mx, my = vx.shape
+    r2 = reach * reach
     n = points.shape[0]
-    chunks = (n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
-    if chunks <= 1:  # one chunk: on this thread (a thread's start would cost more than the pass)
-        _bilinear_rows(vx, vy, x0, y0, inv_hx, inv_hy, points, reach, out, reached, 0, n)
-        return out
-    for c in prange(chunks):
-        lo = c * PARALLEL_CHUNK
-        _bilinear_rows(vx, vy, x0, y0, inv_hx, inv_hy, points, reach, out, reached, lo, min(lo + PARALLEL_CHUNK, n))
+    for chunk in prange((n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):
+        for p in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, n)):
+            s = min(max((points[p, 0] - x0) * inv_hx, 0.0), mx - 1.0)
+            t = min(max((points[p, 1] - y0) * inv_hy, 0.0), my - 1.0)
+            i = int(min(s, mx - 2.0))
+            j = int(min(t, my - 2.0))
+            s -= i
+            t -= j
+            lo = vx[i, j] + (vx[i, j + 1] - vx[i, j]) * t
+            hi = vx[i + 1, j] + (vx[i + 1, j + 1] - vx[i + 1, j]) * t
+            ux = lo + (hi - lo) * s
+            lo = vy[i, j] + (vy[i, j + 1] - vy[i, j]) * t
+            hi = vy[i + 1, j] + (vy[i + 1, j + 1] - vy[i + 1, j]) * t
+            uy = lo + (hi - lo) * s
+            out[p, 0] = ux
+            out[p, 1] = uy
+            reached[p] = ux * ux + uy * uy >= r2
     return out

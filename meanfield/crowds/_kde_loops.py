@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from meanfield._compiled.blas import gemm
-from meanfield._compiled.core import PARALLEL_CHUNK, compiled, inner, prange
+from meanfield._compiled.core import PARALLEL_CHUNK, compiled, prange
 from meanfield._compiled.vector_exp import ARG_MAX, exp_inplace
 from meanfield.geometry.grid import linear_binning
 
@@ -277,28 +277,6 @@ lattice to clear and to add, and adds at most as many cells as points); their nu
 points and the lattice only, never on the threads."""
 
 
-@inner
-def _bin_rows(points, x0, y0, bx, by, mx, my, flat, lo, hi):
-    """Add the cloud-in-cell weights of the points ``lo <= p < hi`` to the lattice ``flat`` (mx * my, row-major)."""
-    ix = 1.0 / bx
-    iy = 1.0 / by
-    for p in range(lo, hi):
-        s = min(max((points[p, 0] - x0) * ix - 0.5, 0.0), mx - 1.0)
-        t = min(max((points[p, 1] - y0) * iy - 0.5, 0.0), my - 1.0)
-        i = min(int(s), mx - 2)
-        j = min(int(t), my - 2)
-        s -= i
-        t -= j
-        w11 = s * t
-        w10 = s - w11
-        w01 = t - w11
-        b = i * my + j
-        flat[b] += ((1.0 - w11) - w10) - w01
-        flat[b + 1] += w01
-        flat[b + my] += w10
-        flat[b + my + 1] += w11
-
-
 @compiled(fallback=_binning_numpy, parallel_over="points")
 def linear_binning_into(
     points: np.ndarray, x0: float, y0: float, bx: float, by: float, counts: np.ndarray
@@ -328,24 +306,36 @@ def linear_binning_into(
     """
     mx, my = counts.shape
     n = points.shape[0]
-    flat = counts.reshape(mx * my)
-    chunks = (n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
-    parts = min(chunks, BINNING_PARTS, max(1, n // (mx * my)))
-    if parts <= 1:  # one part: on this thread, straight into the counts
-        flat[:] = 0.0
-        _bin_rows(points, x0, y0, bx, by, mx, my, flat, 0, n)
-        return counts
-    size = (n + parts - 1) // parts
-    partial = np.empty((parts, mx * my))
-    for q in prange(parts):  # each part of the humans on its own lattice
-        partial[q, :] = 0.0
-        _bin_rows(points, x0, y0, bx, by, mx, my, partial[q], q * size, min((q + 1) * size, n))
     cells = mx * my
-    blocks = (cells + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
-    for r in prange(blocks):  # the parts added in their order, cell by cell
-        for c in range(r * PARALLEL_CHUNK, min((r + 1) * PARALLEL_CHUNK, cells)):
-            total = partial[0, c]
-            for q in range(1, parts):
-                total += partial[q, c]
-            flat[c] = total
+    flat = counts.reshape(cells)
+    parts = min((n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK, BINNING_PARTS, max(1, n // cells))
+    size = (n + parts - 1) // parts
+    partial = np.empty((parts if parts > 1 else 0, cells))  # one part: straight into the counts
+    ix = 1.0 / bx
+    iy = 1.0 / by
+    for q in prange(parts):  # each part of the points on its own lattice
+        lattice = flat if parts == 1 else partial[q]
+        lattice[:] = 0.0
+        for p in range(q * size, min((q + 1) * size, n)):
+            s = min(max((points[p, 0] - x0) * ix - 0.5, 0.0), mx - 1.0)
+            t = min(max((points[p, 1] - y0) * iy - 0.5, 0.0), my - 1.0)
+            i = min(int(s), mx - 2)
+            j = min(int(t), my - 2)
+            s -= i
+            t -= j
+            w11 = s * t
+            w10 = s - w11
+            w01 = t - w11
+            b = i * my + j
+            lattice[b] += ((1.0 - w11) - w10) - w01
+            lattice[b + 1] += w01
+            lattice[b + my] += w10
+            lattice[b + my + 1] += w11
+    if parts > 1:
+        for r in prange((cells + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):  # the parts added in their order
+            for c in range(r * PARALLEL_CHUNK, min((r + 1) * PARALLEL_CHUNK, cells)):
+                total = partial[0, c]
+                for q in range(1, parts):
+                    total += partial[q, c]
+                flat[c] = total
     return counts

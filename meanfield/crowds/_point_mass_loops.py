@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from meanfield._compiled.core import PARALLEL_CHUNK, compiled, inner, prange
+from meanfield._compiled.core import PARALLEL_CHUNK, compiled, prange
 from meanfield._compiled.philox import fill_normal_pairs, fill_pairs_rows
 
 __all__ = ["euler_maruyama"]
@@ -42,41 +42,6 @@ def _euler_maruyama_numpy(x, drift, noise, dt, amp, box, standing, key0, key1, s
         _fold_numpy(x[:, 0], box[0], box[1])
         _fold_numpy(x[:, 1], box[2], box[3])
     return True
-
-
-@inner
-def _finite_rows(drift, lo, hi):
-    """Whether the drifts of the rows ``lo <= j < hi`` are all finite."""
-    for j in range(lo, hi):
-        if not (math.isfinite(drift[j, 0]) and math.isfinite(drift[j, 1])):
-            return False
-    return True
-
-
-@inner
-def _step_rows(x, drift, noise, dt, amp, box, standing, key0, key1, step, ki, wi, fi, lo, hi):
-    """The rows ``lo <= j < hi`` of :func:`euler_maruyama`: their noise drawn, then their step."""
-    fill_pairs_rows(key0, key1, step, 0, noise, lo, hi, ki, wi, fi)
-    if standing.shape[0]:
-        for j in range(lo, hi):
-            if standing[j]:
-                noise[j, 0] = 0.0
-                noise[j, 1] = 0.0
-    walls = box.shape[0] == 4
-    one = amp.shape[0] == 1
-    for j in range(lo, hi):
-        a = amp[0, 0] if one else amp[j, 0]
-        for k in range(2):
-            v = x[j, k] + drift[j, k] * dt
-            v = v + noise[j, k] * a
-            if walls:
-                low = box[2 * k]
-                high = box[2 * k + 1]
-                if v < low or v > high:
-                    period = 2.0 * (high - low)
-                    s = (v - low) % period
-                    v = low + (period - s if s > high - low else s)
-            x[j, k] = v
 
 
 @compiled(fallback=_euler_maruyama_numpy, parallel_over="x")
@@ -114,19 +79,37 @@ def euler_maruyama(x, drift, noise, dt, amp, box, standing, key0, key1, step, ki
     """
     n = x.shape[0]
     chunks = (n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
-    if chunks <= 1:  # one chunk: on this thread (a thread's start would cost more than the step)
-        if not _finite_rows(drift, 0, n):
-            return False
-        _step_rows(x, drift, noise, dt, amp, box, standing, key0, key1, step, ki, wi, fi, 0, n)
-        return True
-    ok = np.empty(chunks, np.bool_)
+    finite = np.empty(chunks, np.bool_)
     for c in prange(chunks):  # every drift finite, or nothing moves (the caller keeps the last good state)
-        ok[c] = _finite_rows(drift, c * PARALLEL_CHUNK, min((c + 1) * PARALLEL_CHUNK, n))
+        good = True
+        for j in range(c * PARALLEL_CHUNK, min((c + 1) * PARALLEL_CHUNK, n)):
+            if not (math.isfinite(drift[j, 0]) and math.isfinite(drift[j, 1])):
+                good = False
+                break
+        finite[c] = good
     for c in range(chunks):
-        if not ok[c]:
+        if not finite[c]:
             return False
+    walls = box.shape[0] == 4
+    one = amp.shape[0] == 1
     for c in prange(chunks):
         lo = c * PARALLEL_CHUNK
         hi = min(lo + PARALLEL_CHUNK, n)
-        _step_rows(x, drift, noise, dt, amp, box, standing, key0, key1, step, ki, wi, fi, lo, hi)
+        fill_pairs_rows(key0, key1, step, 0, noise, lo, hi, ki, wi, fi)  # the chunk's draws, used at once
+        for j in range(lo, hi):
+            if standing.shape[0] and standing[j]:
+                noise[j, 0] = 0.0
+                noise[j, 1] = 0.0
+            a = amp[0, 0] if one else amp[j, 0]
+            for k in range(2):
+                v = x[j, k] + drift[j, k] * dt
+                v = v + noise[j, k] * a
+                if walls:
+                    low = box[2 * k]
+                    high = box[2 * k + 1]
+                    if v < low or v > high:
+                        period = 2.0 * (high - low)
+                        r = (v - low) % period
+                        v = low + (period - r if r > high - low else r)
+                x[j, k] = v
     return True

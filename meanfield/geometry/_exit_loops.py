@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from meanfield._compiled.core import PARALLEL_CHUNK, compiled, inner, prange
+from meanfield._compiled.core import PARALLEL_CHUNK, compiled, prange
 
 __all__ = ["first_exit_crossed", "bridge_exits", "segment_distances"]
 
@@ -57,28 +57,6 @@ def _first_exit_numpy(start, end, segs, out):
     return out
 
 
-@inner
-def _first_exit_rows(start, end, segs, out, lo, hi):
-    """The steps ``lo <= i < hi`` of :func:`first_exit_crossed`."""
-    for i in range(lo, hi):
-        px, py = start[i, 0], start[i, 1]
-        dx, dy = end[i, 0] - px, end[i, 1] - py
-        best, first = -math.inf, -1
-        for k in range(segs.shape[0]):
-            ax, ay = segs[k, 0, 0], segs[k, 0, 1]
-            ex, ey = segs[k, 1, 0] - ax, segs[k, 1, 1] - ay
-            cross = dx * ey - dy * ex
-            if cross == 0:
-                continue
-            wx, wy = ax - px, ay - py
-            t = (wx * ey - wy * ex) / cross
-            u = (wx * dy - wy * dx) / cross
-            if t > 0 and t <= 1 and u >= 0 and u <= 1 and -t > best:
-                best, first = -t, k
-        if first >= 0:
-            out[i] = first
-
-
 @compiled(fallback=_first_exit_numpy, parallel_over="start")
 def first_exit_crossed(start, end, segs, out):
     """Into ``out`` (N,) (left as it is for a step that crosses none): the first exit each step crosses.
@@ -96,13 +74,24 @@ def first_exit_crossed(start, end, segs, out):
         The exit index of each step that crosses one.
     """
     n = start.shape[0]
-    chunks = (n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
-    if chunks <= 1:  # one chunk: on this thread (a thread's start would cost more than the pass)
-        _first_exit_rows(start, end, segs, out, 0, n)
-        return out
-    for c in prange(chunks):
-        lo = c * PARALLEL_CHUNK
-        _first_exit_rows(start, end, segs, out, lo, min(lo + PARALLEL_CHUNK, n))
+    for chunk in prange((n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):
+        for i in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, n)):
+            px, py = start[i, 0], start[i, 1]
+            dx, dy = end[i, 0] - px, end[i, 1] - py
+            best, first = -math.inf, -1
+            for k in range(segs.shape[0]):
+                ax, ay = segs[k, 0, 0], segs[k, 0, 1]
+                ex, ey = segs[k, 1, 0] - ax, segs[k, 1, 1] - ay
+                cross = dx * ey - dy * ex
+                if cross == 0:
+                    continue
+                wx, wy = ax - px, ay - py
+                t = (wx * ey - wy * ex) / cross
+                u = (wx * dy - wy * dx) / cross
+                if t > 0 and t <= 1 and u >= 0 and u <= 1 and -t > best:
+                    best, first = -t, k
+            if first >= 0:
+                out[i] = first
     return out
 
 
@@ -114,29 +103,6 @@ def _bridge_numpy(start, end, segs, near, draws, sdt, out):
     touched = draws < p[np.arange(len(near)), k]
     out[near[touched]] = k[touched]
     return out
-
-
-@inner
-def _bridge_rows(start, end, segs, near, draws, sdt, out, lo, hi):
-    """The humans ``near[lo:hi]`` of :func:`bridge_exits`."""
-    for j in range(lo, hi):
-        i = near[j]
-        best, first = -math.inf, 0
-        for k in range(segs.shape[0]):
-            ax, ay = segs[k, 0, 0], segs[k, 0, 1]
-            abx, aby = segs[k, 1, 0] - ax, segs[k, 1, 1] - ay
-            den = abx * abx + aby * aby
-            qx, qy = start[i, 0], start[i, 1]  # the distance from each end of the step to the segment
-            t = min(max(((qx - ax) * abx + (qy - ay) * aby) / den, 0.0), 1.0)
-            d0 = math.hypot(qx - (ax + t * abx), qy - (ay + t * aby))
-            qx, qy = end[i, 0], end[i, 1]
-            t = min(max(((qx - ax) * abx + (qy - ay) * aby) / den, 0.0), 1.0)
-            d1 = math.hypot(qx - (ax + t * abx), qy - (ay + t * aby))
-            p = math.exp(-d0 * d1 / sdt)
-            if p > best:
-                best, first = p, k
-        if draws[j] < best:
-            out[i] = first
 
 
 @compiled(fallback=_bridge_numpy, parallel_over="near")
@@ -160,11 +126,23 @@ def bridge_exits(start, end, segs, near, draws, sdt, out):
         Set to the most likely exit ``k`` of each human whose path touched it.
     """
     m = near.shape[0]
-    chunks = (m + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
-    if chunks <= 1:  # one chunk: on this thread (a thread's start would cost more than the pass)
-        _bridge_rows(start, end, segs, near, draws, sdt, out, 0, m)
-        return out
-    for c in prange(chunks):
-        lo = c * PARALLEL_CHUNK
-        _bridge_rows(start, end, segs, near, draws, sdt, out, lo, min(lo + PARALLEL_CHUNK, m))
+    for chunk in prange((m + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):
+        for j in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, m)):
+            i = near[j]
+            best, first = -math.inf, 0
+            for k in range(segs.shape[0]):
+                ax, ay = segs[k, 0, 0], segs[k, 0, 1]
+                abx, aby = segs[k, 1, 0] - ax, segs[k, 1, 1] - ay
+                den = abx * abx + aby * aby
+                qx, qy = start[i, 0], start[i, 1]  # the distance from each end of the step to the segment
+                t = min(max(((qx - ax) * abx + (qy - ay) * aby) / den, 0.0), 1.0)
+                d0 = math.hypot(qx - (ax + t * abx), qy - (ay + t * aby))
+                qx, qy = end[i, 0], end[i, 1]
+                t = min(max(((qx - ax) * abx + (qy - ay) * aby) / den, 0.0), 1.0)
+                d1 = math.hypot(qx - (ax + t * abx), qy - (ay + t * aby))
+                p = math.exp(-d0 * d1 / sdt)
+                if p > best:
+                    best, first = p, k
+            if draws[j] < best:
+                out[i] = first
     return out

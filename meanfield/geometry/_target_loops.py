@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from meanfield._compiled.core import PARALLEL_CHUNK, compiled, inner, prange
+from meanfield._compiled.core import PARALLEL_CHUNK, compiled, prange
 
 __all__ = ["count_in_disk"]
 
@@ -16,18 +16,6 @@ def _count_in_disk_numpy(points, cx, cy, radius):
     dx = points[:, 0] - cx
     dy = points[:, 1] - cy
     return int(np.count_nonzero(dx * dx + dy * dy <= radius * radius))
-
-
-@inner
-def _count_rows(points, cx, cy, r2, lo, hi):
-    """How many of the points ``lo <= j < hi`` lie within ``sqrt(r2)`` of ``(cx, cy)``."""
-    count = 0
-    for j in range(lo, hi):
-        dx = points[j, 0] - cx
-        dy = points[j, 1] - cy
-        if dx * dx + dy * dy <= r2:
-            count += 1
-    return count
 
 
 @compiled(fallback=_count_in_disk_numpy, parallel_over="points")
@@ -45,12 +33,15 @@ def count_in_disk(points, cx, cy, radius):
     r2 = radius * radius
     n = points.shape[0]
     chunks = (n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
-    if chunks <= 1:  # one chunk: on this thread (a thread's start would cost more than the count)
-        return _count_rows(points, cx, cy, r2, 0, n)
-    counts = np.empty(chunks, np.int64)
+    counts = np.zeros(chunks, np.int64)
     for c in prange(chunks):
-        lo = c * PARALLEL_CHUNK
-        counts[c] = _count_rows(points, cx, cy, r2, lo, min(lo + PARALLEL_CHUNK, n))
+        count = 0
+        for j in range(c * PARALLEL_CHUNK, min((c + 1) * PARALLEL_CHUNK, n)):
+            dx = points[j, 0] - cx
+            dy = points[j, 1] - cy
+            if dx * dx + dy * dy <= r2:
+                count += 1
+        counts[c] = count
     total = 0
     for c in range(chunks):
         total += counts[c]

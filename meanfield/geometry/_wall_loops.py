@@ -240,30 +240,6 @@ def first_hits(start, end, a, e, near, box, t_out, k_out):
     return t_out, k_out
 
 
-@inner
-def _reflect_rows(previous, points, a, e, near, box, lo, hi):
-    """The steps ``lo <= i < hi`` of :func:`reflect_steps`."""
-    for i in range(lo, hi):
-        sx, sy = previous[i, 0], previous[i, 1]
-        px, py = points[i, 0], points[i, 1]
-        for _ in range(BOUNCES):
-            if px == sx and py == sy:
-                break
-            t, k = _first_wall(sx, sy, px, py, a, e, near, box)
-            if not t < np.inf:
-                break
-            ix, iy = sx + t * (px - sx), sy + t * (py - sy)
-            nx, ny = -e[k, 1], e[k, 0]
-            h = math.hypot(nx, ny)
-            nx, ny = nx / h, ny / h
-            rx, ry = px - ix, py - iy
-            twice = 2.0 * (rx * nx + ry * ny)
-            px, py = ix + rx - twice * nx, iy + ry - twice * ny
-            sx, sy = ix, iy
-        points[i, 0] = px
-        points[i, 1] = py
-
-
 @compiled(fallback=_reflect_steps_numpy, parallel_over="points")
 def reflect_steps(previous, points, a, e, near, box):
     """Mirror, in place, each step ``previous[i] → points[i]`` at the walls it meets, in order.
@@ -276,13 +252,26 @@ def reflect_steps(previous, points, a, e, near, box):
     :data:`~meanfield._compiled.core.PARALLEL_CHUNK` steps run on numba's threads (each step is its own).
     """
     n = points.shape[0]
-    chunks = (n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
-    if chunks <= 1:  # one chunk: on this thread (a thread's start would cost more than the pass)
-        _reflect_rows(previous, points, a, e, near, box, 0, n)
-        return points
-    for c in prange(chunks):
-        lo = c * PARALLEL_CHUNK
-        _reflect_rows(previous, points, a, e, near, box, lo, min(lo + PARALLEL_CHUNK, n))
+    for chunk in prange((n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):
+        for i in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, n)):
+            sx, sy = previous[i, 0], previous[i, 1]
+            px, py = points[i, 0], points[i, 1]
+            for _ in range(BOUNCES):
+                if px == sx and py == sy:
+                    break
+                t, k = _first_wall(sx, sy, px, py, a, e, near, box)
+                if not t < np.inf:
+                    break
+                ix, iy = sx + t * (px - sx), sy + t * (py - sy)
+                nx, ny = -e[k, 1], e[k, 0]
+                h = math.hypot(nx, ny)
+                nx, ny = nx / h, ny / h
+                rx, ry = px - ix, py - iy
+                twice = 2.0 * (rx * nx + ry * ny)
+                px, py = ix + rx - twice * nx, iy + ry - twice * ny
+                sx, sy = ix, iy
+            points[i, 0] = px
+            points[i, 1] = py
     return points
 
 
