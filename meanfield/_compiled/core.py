@@ -288,6 +288,12 @@ def compile_inner(helper: Callable[..., Any]) -> Any:
     return _helper_dispatchers[helper]
 
 
+def _cause(exc: BaseException) -> str:
+    """An exception in one line, for the fallback warnings: its type and the first line of its message."""
+    text = str(exc).strip()
+    return f"{type(exc).__name__}: {text.splitlines()[0] if text else ''}"
+
+
 class CompiledLoop:
     """A loop compiled by numba on first call, with its numpy fallback (see the module's doc).
 
@@ -338,7 +344,7 @@ class CompiledLoop:
             except Exception as exc:
                 self._threads_failed = True
                 self._threaded = None
-                cause = f"{type(exc).__name__}: {str(exc).strip().splitlines()[0] if str(exc).strip() else ''}"
+                cause = _cause(exc)
                 warnings.warn(
                     f"the compiled {self.name} could not run on threads ({cause}); it runs on one",
                     CompiledFallbackWarning,
@@ -355,7 +361,7 @@ class CompiledLoop:
         return nb.njit(cache=True, **{"error_model": "numpy", **self._options})(self.loop)
 
     def _fail(self, exc: BaseException) -> None:
-        cause = f"{type(exc).__name__}: {str(exc).strip().splitlines()[0] if str(exc).strip() else ''}"
+        cause = _cause(exc)
         _failures[self.name] = cause
         warnings.warn(
             f"the compiled {self.name} could not be used ({cause}); the numpy path runs instead",

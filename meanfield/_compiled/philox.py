@@ -519,7 +519,7 @@ def fill_pairs_rows(key0, key1, step, first, out, lo, hi, ki, wi, fi):
 
     The loop of :func:`fill_normal_pairs` over one range of rows, for compiled loops that draw the
     noise of a range of humans and use it at once (the crowd's step,
-    :func:`meanfield.crowds._point_mass_loops.euler_maruyama_drawn`): chunks of :data:`CHUNK`
+    :func:`meanfield.crowds._point_mass_loops.euler_maruyama`): chunks of :data:`CHUNK`
     humans, their Philox4x32-10 blocks of attempt 0 first, in a branch-free loop that LLVM
     vectorises across the humans (the rounds of :func:`philox4x32_block`, written out), then
     each human's ziggurat: the first attempts written out too, a human with a rejected draw

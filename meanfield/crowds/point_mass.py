@@ -24,6 +24,7 @@ from meanfield.geometry.region import Region
 __all__ = ["PointMassEngine"]
 
 _NOBODY = np.empty(0, dtype=bool)  # euler_maruyama's ``standing`` when nobody stands
+_ZIGGURAT = (ZIG_KI, ZIG_WI, ZIG_FI)  # the noise's ziggurat tables, as euler_maruyama takes them
 
 
 class PointMassEngine:
@@ -142,8 +143,7 @@ class PointMassEngine:
         # a box without exits folds its walls into the same pass (meanfield.crowds._field_loops)
         folded = self._box if previous is None else NO_BOX
         step = np.uint64(self._steps)
-        tables = (ZIG_KI, ZIG_WI, ZIG_FI)
-        if not euler_maruyama(x, drift, self._noise, dt, amp, folded, standing, *self._key, step, *tables):
+        if not euler_maruyama(x, drift, self._noise, dt, amp, folded, standing, *self._key, step, *_ZIGGURAT):
             msg = f"non-finite human drift at t = {t:.4g}; the crowd is kept at the last good step"
             raise SimulationDiverged(msg, -1)
         self._steps += 1
