@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import importlib.abc
 import os
+import sys
 
 import matplotlib
 import numpy as np
@@ -10,8 +12,91 @@ import pytest
 from hypothesis import Phase, settings
 
 from meanfield import Domain, Grid
+from tests.optional import OPTIONAL, missing
 
 matplotlib.use("Agg")
+
+# ---------------------------------------------------------------------- optional dependencies
+# A test that needs JuPedSim, PedPy or the CF checker carries @pytest.mark.requires(name) (tests/optional.py) and
+# skips, naming the install command, where that dependency is missing. Every other test runs with those modules
+# hidden, as on a machine with only what the README's test command installs; one that reaches for a hidden module
+# and then fails or skips is reported as a failure naming the marker it lacks. So the suite checks its own marks
+# wherever it runs, with the extras installed or without.
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line(
+        "markers",
+        f"requires(name): the test needs an optional dependency, one of {sorted(OPTIONAL)} (tests/optional.py)",
+    )
+    for name in OPTIONAL:
+        missing(name)  # tried (and cached) now, before any test hides the modules
+
+
+def _required(item: pytest.Item) -> set[str]:
+    return {name for mark in item.iter_markers("requires") for name in mark.args}
+
+
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    for name in sorted(_required(item)):
+        reason = missing(name)
+        if reason is not None:
+            pytest.skip(reason)
+
+
+_ASKED = pytest.StashKey[set]()
+
+
+class _HiddenModules(importlib.abc.MetaPathFinder):
+    """Refuses to import the hidden top-level modules and remembers which were asked for."""
+
+    def __init__(self, names: set[str]) -> None:
+        self.names = names
+        self.asked: set[str] = set()
+
+    def find_spec(self, fullname, path, target=None):  # noqa: ANN001, ANN201 (importlib's signature)
+        top = fullname.partition(".")[0]
+        if top in self.names:
+            self.asked.add(top)
+            raise ModuleNotFoundError(f"No module named {fullname!r} (hidden from tests without requires({top!r}))",
+                                      name=fullname)  # fmt: skip
+        return None
+
+
+@pytest.fixture(autouse=True)
+def _optional_dependencies_hidden(request: pytest.FixtureRequest):
+    """Hide each optional module the test does not declare (``sys.modules`` and the import system alike)."""
+    hidden = {OPTIONAL[name][0].partition(".")[0] for name in OPTIONAL} - {
+        OPTIONAL[name][0].partition(".")[0] for name in _required(request.node)
+    }
+    saved = {key: sys.modules.pop(key) for key in list(sys.modules) if key.partition(".")[0] in hidden}
+    finder = _HiddenModules(hidden)
+    sys.meta_path.insert(0, finder)
+    request.node.stash[_ASKED] = finder.asked
+    try:
+        yield
+    finally:
+        sys.meta_path.remove(finder)
+        for key in [key for key in sys.modules if key.partition(".")[0] in hidden]:
+            del sys.modules[key]  # half-imported leftovers of a refused import
+        sys.modules.update(saved)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
+    outcome = yield
+    report = outcome.get_result()
+    asked = item.stash.get(_ASKED, set())
+    if asked and report.when in ("setup", "call") and report.outcome in ("failed", "skipped"):
+        names = sorted(name for name in OPTIONAL if OPTIONAL[name][0].partition(".")[0] in asked)
+        what = report.outcome
+        report.outcome = "failed"
+        report.longrepr = (
+            f"{item.nodeid} reached for {', '.join(names)} and {what} "
+            f"without it: mark it {' '.join(f'@pytest.mark.requires({n!r})' for n in names)} (tests/optional.py), "
+            f"so that it skips naming the install command where it is missing.\n\nThe test's own report:\n"
+            f"{report.longrepr}"
+        )
 
 # ---------------------------------------------------------------------- hypothesis profiles
 # Select with HYPOTHESIS_PROFILE (default "ci"); a decorator's own settings (e.g. an explicit

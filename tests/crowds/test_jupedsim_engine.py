@@ -58,13 +58,13 @@ def test_missing_jupedsim_is_refused_with_the_install_command(monkeypatch, capsy
 
 
 # ---------------------------------------------------------------------- with JuPedSim
-jps = pytest.importorskip("jupedsim", reason="JuPedSim not installed (see README: the pedestrians extra)")
 
 from meanfield.crowds._jupedsim_api import JuPedSimAdapter  # noqa: E402
 from meanfield.crowds.jupedsim_engine import JuPedSimEngine  # noqa: E402
 from meanfield.simulation.loop import ClosedLoop  # noqa: E402
 
 
+@pytest.mark.requires("jupedsim")
 def test_a_free_agent_walks_straight_at_its_desired_speed():
     room = Domain.box(20.0, 20.0)
     ad = JuPedSimAdapter(room.to_shapely(), "collision-free-speed", 0.05)
@@ -77,6 +77,7 @@ def test_a_free_agent_walks_straight_at_its_desired_speed():
 
 
 @pytest.mark.parametrize("model", PEDESTRIAN_MODELS)
+@pytest.mark.requires("jupedsim")
 def test_every_model_builds_and_walks_its_bodies(model):
     room = Domain.box(20.0, 20.0)
     pos = place_bodies(_uniform(room, 1), 20, 0.2, room)
@@ -89,6 +90,7 @@ def test_every_model_builds_and_walks_its_bodies(model):
     assert room.contains(crowd.positions[:, 0], crowd.positions[:, 1]).all()
 
 
+@pytest.mark.requires("jupedsim")
 def test_steering_targets_stay_in_the_walkable_area():
     room = Domain.box(10.0, 10.0)
     pos = np.array([[0.3, 5.0], [9.7, 9.7], [5.0, 5.0], [5.0, 0.25]])
@@ -101,6 +103,7 @@ def test_steering_targets_stay_in_the_walkable_area():
         crowd.step(v, 0.0, 0.25)
 
 
+@pytest.mark.requires("jupedsim")
 def test_a_body_outside_the_walkable_area_is_refused():
     room = Domain.box(10.0, 10.0)
     with pytest.raises(ParameterError) as info:
@@ -108,6 +111,7 @@ def test_a_body_outside_the_walkable_area_is_refused():
     assert info.value.name == "crowd.positions[1]"
 
 
+@pytest.mark.requires("jupedsim")
 def test_short_closed_loop_run_with_bodies_and_view():
     sc = paper_unity_scenario(seed=1).with_values({"crowd.kind": "jupedsim", "t_final": 50.0})
     a = ClosedLoop(sc).run(progress=False)
@@ -122,6 +126,7 @@ def test_short_closed_loop_run_with_bodies_and_view():
     np.testing.assert_array_equal(x, b.dataset["human_x"].values)  # same seed, same run
 
 
+@pytest.mark.requires("jupedsim")
 def test_the_adapters_per_agent_loops_restore_the_garbage_collector():
     import gc
 

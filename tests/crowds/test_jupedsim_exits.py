@@ -56,7 +56,6 @@ def test_door_areas_open_a_vestibule_or_keep_a_strip_inside():
 
 
 # ---------------------------------------------------------------------- with JuPedSim
-jps = pytest.importorskip("jupedsim", reason="JuPedSim not installed (see README: the pedestrians extra)")
 
 from meanfield.crowds.jupedsim_engine import JuPedSimEngine  # noqa: E402
 
@@ -78,6 +77,7 @@ def _evacuate(crowd, goals, steps, check=None):
     return t
 
 
+@pytest.mark.requires("jupedsim")
 def test_bodies_leave_through_their_door_once_with_their_time_and_exit():
     pos = _bodies(TWO_DOORS, 80)
     door = np.where(pos[:, 0] > 6.0, 0, 1)  # each body walks to the door on its side
@@ -107,6 +107,7 @@ def test_bodies_leave_through_their_door_once_with_their_time_and_exit():
     assert s["last_exit_time"] == crowd.exit_time.max() and s["body_overlap_max"] <= 1e-6 * RADIUS
 
 
+@pytest.mark.requires("jupedsim")
 def test_the_adapter_follows_its_agents_after_jupedsim_erases_some():
     pos = _bodies(TWO_DOORS, 40, seed=3)
     crowd = JuPedSimEngine(pos, TWO_DOORS, RADIUS, SPEED, 0.05)
@@ -122,6 +123,7 @@ def test_the_adapter_follows_its_agents_after_jupedsim_erases_some():
     assert 0 < len(alive) < 20  # some agents were erased, the others are still followed
 
 
+@pytest.mark.requires("jupedsim")
 def test_a_door_has_a_capacity_for_bodies_and_none_for_point_masses():
     """A 1 m door and 200 bodies (2 per m²) walking to it at 1.34 m/s: the specific flow.
 
@@ -153,6 +155,7 @@ def test_a_door_has_a_capacity_for_bodies_and_none_for_point_masses():
 
 
 @pytest.mark.parametrize("model", ["collision-free-speed", "anticipation-velocity"])
+@pytest.mark.requires("jupedsim")
 def test_same_seed_same_bodies_and_same_exits(model):
     def run():
         pos = _bodies(TWO_DOORS, 60, seed=5)
@@ -170,6 +173,7 @@ def test_same_seed_same_bodies_and_same_exits(model):
 
 
 @pytest.mark.parametrize("door", [((10.0, 3.5), (10.0, 4.5)), ((6.0, 1.5), (6.0, 2.5))], ids=["outline", "pillar"])
+@pytest.mark.requires("jupedsim")
 def test_bodies_leave_a_plan_with_a_pillar(door):
     """A 10 m x 8 m room with a 1 m x 2 m pillar, the door on the outer wall or on the pillar
     (a stairwell); the crowd starts west of the pillar."""

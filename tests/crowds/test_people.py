@@ -77,10 +77,8 @@ def first_moves(loop: ClosedLoop, until: float) -> tuple[np.ndarray, np.ndarray]
     return start, still
 
 
-@pytest.mark.parametrize("kind", ["point-mass", "jupedsim"])
+@pytest.mark.parametrize("kind", ["point-mass", pytest.param("jupedsim", marks=pytest.mark.requires("jupedsim"))])
 def test_rimea_5_each_person_starts_within_one_step_of_its_time_and_not_before(kind):
-    if kind == "jupedsim":
-        pytest.importorskip("jupedsim")
     sc = rimea_room(kind)
     assert sc.crowd.sigma > 0  # the point masses have noise: it must not move those who wait
     loop = ClosedLoop(sc)
@@ -189,9 +187,9 @@ def test_non_followers_never_receive_the_robots_field():
     assert s["non_followers"] == len(crowd.individuals.walkers) and s["compliance"] == 0.95
 
 
+@pytest.mark.requires("jupedsim")
 def test_jupedsim_bodies_ignore_the_signs_as_the_point_masses_do():
     """The bodies' desired velocity: the walk of [view] for the non-followers, 0 for those who wait."""
-    pytest.importorskip("jupedsim")
     sc = rimea_room("jupedsim", **{"crowd.n": 40, "crowd.compliance": 0.5, "crowd.premovement": "none"})
     loop = ClosedLoop(sc)
     crowd = loop.crowd

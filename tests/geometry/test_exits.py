@@ -90,13 +90,10 @@ def test_the_closed_loop_evacuates_through_a_door_on_agents_and_on_the_density()
     assert pde["mass_final"] + pde["fraction_evacuated"] == pytest.approx(1.0, abs=1e-11)
 
 
+@pytest.mark.requires("jupedsim")
 def test_jupedsim_bodies_leave_through_a_door_in_the_closed_loop():
     from meanfield import load_scenario
 
-    try:
-        import jupedsim  # noqa: F401
-    except ImportError:
-        pytest.skip("JuPedSim is not installed (the pedestrians extra)")
     sc = load_scenario("paper-unity")
     side = sc.domain.bounds[1]
     room = Domain.box(side, side, exits=[((side, 0.0), (side, 10.0))])

@@ -6,7 +6,7 @@ The checker reads the CF standard-name, area-type and region tables from cfconve
 ``standard_name``, ``area_type`` or region, so the tables' entries are never consulted: every other
 rule of the conventions (units UDUNITS can read, flags, coordinates, the ``Conventions``
 attribute, ...) is checked in full.  Skipped, with the reason, where ``cfchecker`` or the udunits2
-C library it needs is not installed (``.ci/run`` installs both).
+C library it needs is not installed (``tests/optional.py``; ``.ci/run`` installs both).
 """
 
 from __future__ import annotations
@@ -17,6 +17,9 @@ from typing import Any
 import pytest
 
 from meanfield.cli.app import main
+from tests.optional import load
+
+pytestmark = pytest.mark.requires("cfchecker")
 
 _TABLES = {
     "cfStandardNamesXML": (
@@ -29,13 +32,7 @@ _TABLES = {
 
 
 def _checker_module() -> Any:
-    try:
-        from cfchecker import cfchecks
-    except ImportError as exc:
-        pytest.skip(f"the CF checker is not installed (pip install cfchecker): {exc}")
-    except OSError as exc:  # cfunits loads the udunits2 C library when it is imported
-        pytest.skip(f"the CF checker needs the udunits2 C library (apt-get install libudunits2-dev): {exc}")
-    return cfchecks
+    return load("cfchecker")  # skips naming the install command where the checker or udunits2 is missing
 
 
 def _check(path: Path, tables: Path) -> dict[str, list[str]]:

@@ -9,8 +9,10 @@ import pytest
 
 from meanfield import load_scenario, run
 from meanfield.io.trajectories import JUPEDSIM_SQLITE_VERSION, write_jupedsim_sqlite
+from tests.optional import load
 
-pedpy = pytest.importorskip("pedpy", reason="PedPy comes with the pedestrians extra (CI installs it)")
+pytestmark = pytest.mark.requires("pedpy")
+pedpy = load("pedpy")
 
 
 @pytest.fixture(scope="module")

@@ -126,6 +126,7 @@ def test_an_event_outside_the_run_is_a_warning():
         hall(events=[{"time": 500.0, "close_exit": 0}])
 
 
+@pytest.mark.requires("jupedsim")
 def test_jupedsim_s_bodies_stop_leaving_through_a_closed_exit():
     """No body is routed through the closed exit after the event (the last passage is at the event's step) and the
     informed bodies all get out by the other three."""

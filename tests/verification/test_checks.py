@@ -224,8 +224,8 @@ def test_pedestrians_without_jupedsim_is_inconclusive_with_the_install_command(t
     assert "paper_unity_scenario" in res.measured["settings"]["scenario"]
 
 
+@pytest.mark.requires("jupedsim")
 def test_check_pedestrians_end_to_end_on_a_short_horizon(tiny, tmp_path, monkeypatch):
-    pytest.importorskip("jupedsim", reason="JuPedSim not installed (see README: the pedestrians extra)")
     real = agents_mod.paper_unity_scenario
     monkeypatch.setattr(agents_mod, "paper_unity_scenario", lambda seed=0: real(seed).replace(t_final=25.0))
     res = check_pedestrians(tiny, tmp_path, quick=True, workers=1)  # the tiny scenario is ignored

@@ -11,8 +11,8 @@ from meanfield.errors import ParameterError
 from tests.analysis.pedestrians.conftest import crowd_positions, run_dataset
 
 
+@pytest.mark.requires("pedpy")
 def test_command_writes_report_and_refuses_bad_arguments(tmp_path, capsys):
-    pytest.importorskip("pedpy")
     from analysis.pedestrians.cli import register
 
     x, y = crowd_positions([1, 3], seed=3)

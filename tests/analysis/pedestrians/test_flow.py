@@ -8,7 +8,10 @@ import math
 import numpy as np
 import pytest
 
-pedpy = pytest.importorskip("pedpy", reason="PedPy comes with the pedestrians extra (CI installs it)")
+from tests.optional import load
+
+pytestmark = pytest.mark.requires("pedpy")
+pedpy = load("pedpy")
 pd = pytest.importorskip("pandas")
 shapely = pytest.importorskip("shapely")
 

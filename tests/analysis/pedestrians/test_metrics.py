@@ -83,10 +83,12 @@ def test_dataset_without_humans_is_refused(tmp_path):
 
 
 # ------------------------------------------------------------------ PedPy
+@pytest.mark.requires("pedpy")
 def test_round_trip_through_pedpy_gives_the_same_frames_and_positions(tmp_path):
-    pedpy = pytest.importorskip("pedpy")
     x, y = crowd_positions([0, 4, 9, 2])
     path = write_pedpy_trajectories(run_dataset(x, y, [10.0, 12.5, 15.0, 17.5]), tmp_path / "t.txt")
+    import pedpy
+
     traj = pedpy.load_trajectory_from_txt(trajectory_file=path)
     assert traj.frame_rate == 0.4
     d = traj.data.sort_values(["frame", "id"])
@@ -97,8 +99,8 @@ def test_round_trip_through_pedpy_gives_the_same_frames_and_positions(tmp_path):
 
 
 @pytest.mark.parametrize("center, radius", [((1.0, 1.0), 0.3), ((0.5, 0.45), 0.2), ((0.0, 0.6), 0.25)])
+@pytest.mark.requires("pedpy")
 def test_pedpy_count_in_target_is_exactly_k(tmp_path, center, radius):
-    pytest.importorskip("pedpy")
     from analysis.pedestrians.metrics import count_in_target, load_pedpy_trajectories, target_measurement_area
 
     ks = [0, 1, 7, N, 13]
@@ -116,8 +118,8 @@ def test_pedpy_count_in_target_is_exactly_k(tmp_path, center, radius):
         assert area.area > full * (1 - 1e-4)
 
 
+@pytest.mark.requires("pedpy")
 def test_pedestrian_metrics_end_to_end(tmp_path):
-    pytest.importorskip("pedpy")
     from analysis.pedestrians.metrics import pedestrian_metrics
 
     ks = [2, 5, 9, 12, 15]
