@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 __all__ = [
+    "ScenarioWarning",
     "num",
     "range_text",
     "integer",
@@ -53,6 +54,13 @@ class ParameterError(ValueError):
         self.value = value
         self.allowed = allowed
         super().__init__(f"invalid {name} = {value!r}: expected {allowed}")
+
+
+class ScenarioWarning(UserWarning):
+    """Something in the user's scenario that runs but may not do what was meant (an event after the run's end).
+
+    The command line prints it as one line, ``meanfield: warning: ...``, without a source line of ours.
+    """
 
 
 class MeanfieldDeprecationWarning(FutureWarning):
@@ -133,7 +141,7 @@ def num(
     name : str
         The field, as named in the error.
     value : Any
-        The value to check; booleans are refused.
+        The value to check; booleans and strings are refused (``"0.5"`` is text, as ``robots.n = "4"`` is).
     lo, hi : float, optional
         Lower and upper bounds (inclusive unless ``lo_open``).
     lo_open : bool
@@ -151,7 +159,7 @@ def num(
         If the value is not a finite number in range.
     """
     desc = allowed or range_text(lo, lo_open, hi)
-    if isinstance(value, bool):
+    if isinstance(value, (bool, str, bytes)):  # a number is a number: "0.5" is text, not coerced
         raise ParameterError(name, value, desc)
     try:
         x = float(value)
@@ -189,8 +197,8 @@ def range_text(lo: float | None, lo_open: bool, hi: float | None) -> str:
     return f"a number in [{lo:g}, {hi:g}]"
 
 
-def integer(name: str, value: Any, lo: int) -> int:
-    """An integer ``>= lo`` (a float with an integral value is accepted; booleans are not).
+def integer(name: str, value: Any, lo: int, hi: int | None = None) -> int:
+    """An integer ``>= lo`` (and ``<= hi``; a float with an integral value is accepted; booleans are not).
 
     Parameters
     ----------
@@ -200,6 +208,8 @@ def integer(name: str, value: Any, lo: int) -> int:
         The value to check.
     lo : int
         Smallest allowed value.
+    hi : int, optional
+        Largest allowed value.
 
     Returns
     -------
@@ -208,15 +218,16 @@ def integer(name: str, value: Any, lo: int) -> int:
     Raises
     ------
     ParameterError
-        If the value is not an integer ``>= lo``.
+        If the value is not an integer in ``[lo, hi]``.
     """
+    allowed = f"an integer >= {lo}" if hi is None else f"an integer from {lo} to {hi}"
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         if isinstance(value, float) and value.is_integer():
             value = int(value)
         else:
-            raise ParameterError(name, value, f"an integer >= {lo}")
-    if value < lo:
-        raise ParameterError(name, value, f"an integer >= {lo}")
+            raise ParameterError(name, value, allowed)
+    if value < lo or (hi is not None and value > hi):
+        raise ParameterError(name, value, allowed)
     return int(value)
 
 

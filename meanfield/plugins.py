@@ -410,6 +410,20 @@ def check_scenario_plugins(modules: Sequence[str], allow: bool = False, field: s
         raise ParameterError(field, list(modules), ALLOW_PLUGINS_HINT)
 
 
+def _failure(exc: BaseException) -> str:
+    """An import's failure in one line: its type, message and where (file and line) it was raised."""
+    where = ""
+    if isinstance(exc, SyntaxError):
+        where = f" at {exc.filename}:{exc.lineno}"
+    else:
+        tb = exc.__traceback__
+        while tb is not None and tb.tb_next is not None:
+            tb = tb.tb_next
+        if tb is not None:
+            where = f" at {tb.tb_frame.f_code.co_filename}:{tb.tb_lineno}"
+    return f"{type(exc).__name__}: {exc}{where}"
+
+
 def import_plugin_modules(modules: list[str] | tuple[str, ...], field: str = "plugins") -> None:
     """Import user modules (dotted names, or paths to ``.py`` files) that call :func:`register`.
 
@@ -434,11 +448,18 @@ def import_plugin_modules(modules: list[str] | tuple[str, ...], field: str = "pl
             sys.modules[name] = module
             try:
                 mod_spec.loader.exec_module(module)
-            except BaseException:
+            except (KeyboardInterrupt, SystemExit, ParameterError):
                 del sys.modules[name]
                 raise
+            except BaseException as exc:  # a syntax error, or anything the plugin's own code raises
+                del sys.modules[name]
+                raise ParameterError(field, spec, f"a module that imports ({_failure(exc)})") from None
         else:
             try:
                 importlib.import_module(spec)
             except ImportError as exc:
                 raise ParameterError(field, spec, f"an importable module ({exc})") from None
+            except (KeyboardInterrupt, SystemExit, ParameterError):
+                raise
+            except BaseException as exc:
+                raise ParameterError(field, spec, f"a module that imports ({_failure(exc)})") from None

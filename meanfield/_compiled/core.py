@@ -78,7 +78,15 @@ _loops: list[CompiledLoop] = []
 def _numba() -> Any:
     try:
         import numba
-    except Exception as exc:  # ImportError, or a numba broken against this numpy
+    except Exception as exc:  # ImportError, or a numba broken against this numpy or its environment
+        if _from_environment():  # (MEANFIELD_COMPILED=0 asked for numpy: nothing to say)
+            warnings.warn(
+                f"numba could not be imported ({_cause(exc)}); the compiled loops are off and their numpy twins "
+                "run instead (slower)" + (" (NUMBA_NUM_THREADS must be >= 1)" if "NUMBA_NUM_THREADS" in os.environ
+                                           and "threads" in str(exc).lower() else ""),
+                CompiledFallbackWarning,
+                stacklevel=4,
+            )  # fmt: skip
         return exc
     return numba
 

@@ -76,10 +76,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     import warnings
 
-    from meanfield.errors import MeanfieldDeprecationWarning
+    from meanfield.errors import MeanfieldDeprecationWarning, ScenarioWarning
 
     def show(message, category, filename, lineno, file=None, line=None):  # warnings.showwarning's signature
-        if issubclass(category, MeanfieldDeprecationWarning):  # the user's field or option, not our line
+        from meanfield._compiled.core import CompiledFallbackWarning
+
+        if issubclass(category, (MeanfieldDeprecationWarning, ScenarioWarning, CompiledFallbackWarning)):  # one line
             print(f"meanfield: warning: {message}", file=sys.stderr)
         else:
             default_show(message, category, filename, lineno, file, line)

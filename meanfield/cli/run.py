@@ -111,9 +111,10 @@ def available_cores() -> int:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from meanfield._compiled import core as compiled
-    from meanfield.io.atomic import folder_lock
+    from meanfield.io.atomic import check_output_names, folder_lock
     from meanfield.simulation.loop import ClosedLoop, signals_deferred
     from meanfield.simulation.preflight import check_fits
+    from meanfield.simulation.result import SimulationResult
 
     if args.threads is not None:
         cores = available_cores()
@@ -136,6 +137,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             "--out", str(args.out), f"a folder other than the one holding {own} (the run writes a scenario.toml there)"
         )
     check_fits(sc, args.out)  # memory and the output's disk, before anything is allocated
+    check_output_names(args.out, SimulationResult.FILE_NAMES)  # each file the run writes, before any work
     unregister = compiled.before_cold_compile(_say_compiling) if not args.quiet else None
     with folder_lock(args.out):  # a second run into this folder is refused while this one lasts
         try:

@@ -10,6 +10,7 @@ from collections.abc import Callable
 from typing import Any
 
 from meanfield.cli.arguments import output_dir
+from meanfield.errors import ParameterError
 from meanfield.workflows.controller_study import _Incomplete, study_controllers, table
 
 __all__ = ["register"]
@@ -23,7 +24,7 @@ def register(subparsers: Any) -> Callable[[argparse.Namespace], int]:
         description=(
             "Run every installed controller (or --controllers) on the scenario for the same seeds, each as a "
             "resumable Dask sweep in OUT/<controller>, and write OUT/controllers.md, .csv and .png: median and "
-            "worst seed of the fraction in the target (or evacuated), time to 90 %% (or 95 %% out), errors, "
+            "worst seed of the fraction in the target (or evacuated), time to 90 % (or 95 % out), errors, "
             "steps at a speed limit, compute per step against the paper's law, stragglers. Exit status: 0 "
             "every run completed; 1 a run did not (outputs written); 2 bad input."
         ),
@@ -51,6 +52,11 @@ def _handle(args: argparse.Namespace) -> int:
     from meanfield.workflows.sweep_plan import parse_seeds
 
     names = None if args.controllers is None else [n.strip() for n in args.controllers.split(",") if n.strip()]
+    if names is not None:
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if not names or twice:
+            got = f"{twice[0]!r} twice" if twice else repr(args.controllers)
+            raise ParameterError("--controllers", got, "comma-separated controller labels, at least one, each once")
     try:
         rows = study_controllers(
             args.scenario,

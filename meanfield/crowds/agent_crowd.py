@@ -121,6 +121,10 @@ _PREMOVEMENT_ALLOWED = (
 )
 
 
+LOGNORMAL_SIGMA_MAX = 5.0
+"""The largest ``sigma`` of a lognormal pre-movement law (larger spreads draw times of 0 and of infinity)."""
+
+
 def premovement_law(value: Any, field: str = "crowd.premovement") -> dict[str, Any] | None:
     """``crowd.premovement`` checked: None for ``"none"``, else the law's table with float parameters.
 
@@ -161,10 +165,16 @@ def premovement_law(value: Any, field: str = "crowd.premovement") -> dict[str, A
     out: dict[str, Any] = {"law": law}
     if law == "uniform":
         out["low"] = num(f"{field}.low", value["low"], lo=0.0, allowed="a time >= 0 (no pre-movement time below 0)")
-        out["high"] = num(f"{field}.high", value["high"], lo=out["low"], allowed=f"a time >= low = {out['low']:g}")
+        out["high"] = num(
+            f"{field}.high", value["high"], lo=out["low"], allowed=f"a finite time >= low = {out['low']:g}"
+        )
     else:
         out["median"] = num(f"{field}.median", value["median"], lo=0.0, lo_open=True, allowed="a time > 0")
-        out["sigma"] = num(f"{field}.sigma", value["sigma"], lo=0.0, allowed="a number >= 0 (the log's spread)")
+        out["sigma"] = num(
+            f"{field}.sigma", value["sigma"], lo=0.0, hi=LOGNORMAL_SIGMA_MAX,
+            allowed=f"a number in [0, {LOGNORMAL_SIGMA_MAX:g}] (the log's spread: {LOGNORMAL_SIGMA_MAX:g} already puts "
+            "one person in a thousand beyond e^15 times the median)",
+        )  # fmt: skip
     return out
 
 

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from meanfield.errors import ParameterError
+from meanfield.errors import ParameterError, integer
 
 __all__ = ["GROUP_KEYS", "crowd_groups", "group_positions", "assigned_exits", "group_region"]
 
@@ -39,6 +39,9 @@ GROUP_KEYS = ("region", "n", "exit")
 def crowd_groups(value: Any, initial: str, n: int) -> list[dict[str, Any]]:
     """``crowd.groups`` checked against ``crowd.initial`` and ``crowd.n`` (module docstring): a list of tables."""
     groups = [] if value is None else value
+    if not isinstance(groups, (list, tuple)):
+        allowed = 'an array of tables [[crowd.groups]] (with crowd.initial = "groups")'
+        raise ParameterError("crowd.groups", groups, allowed)
     if initial != "groups":
         if groups:
             raise ParameterError("crowd.groups", f"{len(groups)} group(s)", 'none unless crowd.initial = "groups"')
@@ -56,12 +59,13 @@ def crowd_groups(value: Any, initial: str, n: int) -> list[dict[str, Any]]:
         for key in ("region", "n"):
             if key not in g:
                 raise ParameterError(f"{name}.{key}", None, "a value (region: a WKT polygon; n: an integer >= 1)")
-        size = g["n"]
-        if isinstance(size, bool) or not isinstance(size, int) or size < 1:
-            raise ParameterError(f"{name}.n", size, "an integer >= 1")
-        exit_ = g.get("exit")
-        if exit_ is not None and (isinstance(exit_, bool) or not isinstance(exit_, int) or exit_ < 0):
-            raise ParameterError(f"{name}.exit", exit_, "an index into domain.exits (an integer >= 0)")
+        g = {**g, "n": integer(f"{name}.n", g["n"], 1)}  # 100.0 is 100, as for crowd.n; 100.5 is refused
+        if g.get("exit") is not None:
+            try:
+                g["exit"] = integer(f"{name}.exit", g["exit"], 0)
+            except ParameterError:
+                allowed = "an index into domain.exits (an integer >= 0)"
+                raise ParameterError(f"{name}.exit", g["exit"], allowed) from None
         group_region(g["region"], f"{name}.region")
         out.append({k: g[k] for k in GROUP_KEYS if k in g})
     total = sum(g["n"] for g in out)

@@ -59,7 +59,13 @@ def blocked_region(region: Any, block: Any, name: str = "block") -> Any:
         raise ParameterError(name, f"a block in a {kind!r} region", "a region of kind 'box', 'polygon' or 'plan'")
     omega = region.to_shapely()
     tol = PIECE_AREA * omega.area
-    if omega.intersection(polygon).area <= tol:
+    overlap = omega.intersection(polygon).area
+    if overlap <= tol:
+        if overlap > 0.0:  # inside the plan, but too small to be a wall of it
+            raise ParameterError(
+                name, f"a block of {overlap:.3g} in the plan",
+                f"a block covering more than {tol:.3g} (a {PIECE_AREA:g} share of the plan's area {omega.area:.4g})",
+            )  # fmt: skip
         raise ParameterError(name, polygon.wkt, f"a polygon that overlaps the plan (bounds {omega.bounds})")
     rest = omega.difference(polygon)
     pieces = [p for p in polygon_pieces(rest) if p.geom_type == "Polygon" and p.area > tol]
@@ -71,7 +77,7 @@ def blocked_region(region: Any, block: Any, name: str = "block") -> Any:
             raise ParameterError(
                 name, f"a block that meets exit {k}", f"a region clear of the exits (close exit {k} with close_exit)"
             )
-    if any(not exits_on(p, segs, 1e-9 * region.diameter) for p in pieces):
+    if len(segs) and any(not exits_on(p, segs, 1e-9 * region.diameter) for p in pieces):  # (no exits: none to reach)
         raise ParameterError(
             name, "a block that cuts people off from every exit", "a region whose every side still has an exit"
         )

@@ -143,6 +143,8 @@ def disk_share(region: Any, radius: float, spacing: float | None = None) -> Disk
     from scipy.signal import fftconvolve
 
     weights = _footprint(float(radius), h)
+    if not weights.sum() > 0.0:  # a disk that misses every sample of its cell (r far below the spacing):
+        weights = np.ones((1, 1))  # its share is its cell's
     table = fftconvolve(_cell_shares(region, xe, ye), weights, mode="same") / weights.sum()
     np.clip(table, 0.0, 1.0, out=table)  # the transform's round-off: whole disks are 1 exactly,
     table[table > 1.0 - 1e-9] = 1.0  # so that a crowd away from the walls counts as without them

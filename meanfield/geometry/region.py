@@ -188,7 +188,8 @@ def wkt_polygon(text: Any, name: str, pieces: bool = False) -> Any:
     except Exception:  # noqa: BLE001 - shapely's GEOS errors have no common public type
         raise ParameterError(name, text, what) from None
     if polygon is None or polygon.geom_type not in kinds or polygon.is_empty:
-        raise ParameterError(name, text, "one " + what)
+        got = "an empty geometry" if polygon is None or polygon.is_empty else f"a {polygon.geom_type}"
+        raise ParameterError(name, got, "exactly one " + what[2:])
     if not polygon.is_valid or polygon.area <= 0:
         reason = shapely.is_valid_reason(polygon) if not polygon.is_valid else "no area"
         raise ParameterError(name, reason, "a valid polygon with an area > 0")

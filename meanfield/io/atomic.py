@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import tempfile
 from collections.abc import Callable, Iterator
@@ -75,9 +76,31 @@ def _json_default(obj: Any) -> Any:
     raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
 
 
+def strict_json(data: Any) -> Any:
+    """``data`` with every non-finite number (``inf``, ``nan``, in floats, numpy scalars and arrays) as None.
+
+    JSON has no infinity and no NaN: a strict reader refuses ``Infinity``, so they are written as ``null``.
+    """
+    import numpy as np
+
+    if isinstance(data, dict):
+        return {k: strict_json(v) for k, v in data.items()}
+    if isinstance(data, (list, tuple)):
+        return [strict_json(v) for v in data]
+    if isinstance(data, np.ndarray):
+        return strict_json(data.tolist())
+    if isinstance(data, np.generic):
+        data = data.item()
+    if isinstance(data, float) and not math.isfinite(data):
+        return None
+    return data
+
+
 def atomic_write_json(path: Path, data: Any) -> Path:
-    """Write ``data`` as indented JSON atomically (numpy scalars and arrays allowed)."""
-    return atomic_write_text(Path(path), json.dumps(data, indent=2, default=_json_default) + "\n")
+    """Write ``data`` as indented, strict JSON atomically (numpy scalars and arrays allowed; a non-finite number is
+    written as ``null``, :func:`strict_json`)."""
+    text = json.dumps(strict_json(data), indent=2, default=_json_default, allow_nan=False)
+    return atomic_write_text(Path(path), text + "\n")
 
 
 def save_figure(fig: Any, path: str | Path, *, dpi: int = 110, close: bool = True, **kwargs: Any) -> Path:
@@ -164,6 +187,20 @@ def _check_path_length(path: Path, name: str) -> None:
             f"a folder path of at most {path_max - ROOM_FOR_FILES} bytes from the root (this one has {len(full)}): "
             f"the system's limit is {path_max}, and the files written in the folder need room under it",
         )
+
+
+def check_output_names(folder: str | Path, names: tuple[str, ...], name: str = "--out") -> None:
+    """Refuse, before any work, a ``folder`` where one of the files a run will write, ``names``, is a folder
+    (or anything but a file): the run would find it only when saving, after all its work."""
+    from meanfield.errors import ParameterError
+
+    folder = Path(folder)
+    for file in names:
+        path = folder / file
+        if path.exists() and not path.is_file():
+            raise ParameterError(
+                name, str(folder), f"a folder where the run can write {file} ({path} is a folder, not a file)"
+            )
 
 
 def check_output_dir(path: str | Path, name: str = "--out") -> Path:

@@ -53,7 +53,7 @@ from typing import Any
 import numpy as np
 
 from meanfield import plugins as registry
-from meanfield.errors import ParameterError, choice, integer, module_list, num
+from meanfield.errors import ParameterError, ScenarioWarning, choice, integer, module_list, num
 from meanfield.geometry.domain import Domain
 from meanfield.geometry.region import Region, region_from_table
 from meanfield.scenarios.sections import (
@@ -251,7 +251,7 @@ class Scenario:
         registry.import_plugin_modules(self.plugins, field="plugins")
         if not isinstance(self.name, str) or not self.name:
             raise ParameterError("name", self.name, "a non-empty string")
-        self.seed = integer("seed", self.seed, 0)
+        self.seed = integer("seed", self.seed, 0, 2**63 - 1)  # (stored as a 64-bit integer in the run's files)
         self.dt = num("dt", self.dt, lo=0.0, lo_open=True)
         self.t_final = num("t_final", self.t_final, lo=0.0, lo_open=True)
         if self.dt > self.t_final:
@@ -299,6 +299,12 @@ class Scenario:
                     f"{default!r} with the {c.kind!r} crowd, which does not model individuals (it declares no "
                     "models_individuals): use a crowd of agents, such as point masses or JuPedSim's bodies",
                 )
+        if c.compliance < 1.0 and c.guidance != CrowdSpec.guidance:  # here, so that a sweep refuses the combination
+            raise ParameterError(
+                "crowd.compliance", c.compliance,
+                f"1 with crowd.guidance = {c.guidance!r} (compliance is the share who follow the robots' signs: "
+                f'a crowd that follows no sign has none to ignore; use crowd.guidance = "{CrowdSpec.guidance}")',
+            )  # fmt: skip
         if self._congestion().slows and self.units != "SI":
             raise ParameterError(
                 "crowd.congestion",
@@ -306,6 +312,11 @@ class Scenario:
                 f'"none" in a scenario in {self.units} units: a fundamental diagram takes densities in '
                 'persons/m² and speeds in m/s (units = "SI")',
             )
+        if self._congestion().slows and c.congestion_radius > dom.diameter:
+            raise ParameterError(
+                "crowd.congestion_radius", c.congestion_radius,
+                f"a radius of at most the plan's size, {dom.diameter:.3g} m (the local density's disk)",
+            )  # fmt: skip
         self.events = self._checked_events(self.events)
         if self.robots.margin > 0:
             x0, x1, y0, y1 = dom.bounds
@@ -376,10 +387,11 @@ class Scenario:
             if ev.close_exit is not None and ev.close_exit >= n_exits:
                 allowed = f"an index into domain.exits, 0 to {n_exits - 1}" if n_exits else "none (no exits)"
                 raise ParameterError(f"{name}.close_exit", ev.close_exit, allowed)
-            if not 0.0 <= ev.time <= self.t_final:
+            if not 0.0 <= ev.time < self.t_final:  # the last step ends at t_final: an event then has nothing to act on
                 warnings.warn(
-                    f"{name}.time = {ev.time:g} is outside the run [0, {self.t_final:g}]: "
+                    f"{name}.time = {ev.time:g} is outside the run [0, {self.t_final:g}): "
                     + ("it happens at the first step" if ev.time < 0 else "it never happens"),
+                    ScenarioWarning,
                     stacklevel=4,
                 )
             out.append(ev)

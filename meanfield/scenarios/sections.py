@@ -134,10 +134,16 @@ class CrowdSpec:
         self.guidance = choice("crowd.guidance", self.guidance, plugins.available("guidance"))
         self.free_speed = num("crowd.free_speed", self.free_speed, lo=0.0, lo_open=True)
         self.congestion = choice("crowd.congestion", self.congestion, ("auto", *plugins.available("congestion")))
-        self.rho_max = num("crowd.rho_max", self.rho_max, lo=0.0, lo_open=True)
+        self.rho_max = num(
+            "crowd.rho_max", self.rho_max, lo=RHO_MAX_RANGE[0], hi=RHO_MAX_RANGE[1],
+            allowed=f"a jam density in [{RHO_MAX_RANGE[0]:g}, {RHO_MAX_RANGE[1]:g}] persons/m² (Weidmann's is 5.4; "
+            "below it nobody could stand, above it people would overlap)",
+        )  # fmt: skip
         self.congestion_radius = num(
-            "crowd.congestion_radius", self.congestion_radius, lo=0.0, lo_open=True, allowed="a radius > 0 (m)"
-        )
+            "crowd.congestion_radius", self.congestion_radius, lo=MIN_CONGESTION_RADIUS,
+            allowed=f"a radius >= {MIN_CONGESTION_RADIUS:g} m (a few centimetres: a smaller disk holds nobody) "
+            "and at most the plan's size",
+        )  # fmt: skip
         from meanfield.crowds.agent_crowd import premovement_law  # (loaded with the crowds anyway)
 
         law = premovement_law(self.premovement, "crowd.premovement")
@@ -161,6 +167,13 @@ class CrowdSpec:
                     known = sorted(f.name for f in fields(options)) if is_dataclass(options) else "its options"
                     raise ParameterError(f"crowd.options.{kind}", table, f"keys among {known}") from None
         self.options = {k: dict(v) for k, v in self.options.items()}
+
+
+MIN_CONGESTION_RADIUS = 0.05
+"""m: the smallest ``crowd.congestion_radius`` (a disk of 5 cm holds nobody but its own human)."""
+RHO_MAX_RANGE = (1.0, 20.0)
+"""persons/m²: the ``crowd.rho_max`` a fundamental diagram takes (a jam below 1 person/m² freezes everyone; above
+20 persons/m² people would overlap: bodies of 0.2 m radius cannot stand closer than about 8 per m²)."""
 
 
 @dataclass

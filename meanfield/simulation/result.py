@@ -43,6 +43,13 @@ class SimulationResult:
     summary: dict[str, Any]
     kernel: NavigationKernel | None = None
 
+    FILE_NAMES = (
+        "timeseries.nc", "scenario.toml", "summary.json", "trajectories.sqlite",
+        "target_and_error.png", "snapshots.png", "evacuation.png", "animation.gif",
+    )  # fmt: skip
+    """Every name :meth:`save` may write into a run's folder (with the artifacts of ``meanfield run``), so that a
+    folder can be checked before the run (:func:`meanfield.io.atomic.check_output_names`)."""
+
     def save(self, out_dir: str | Path, artifacts: Iterable[ArtifactWriter] = ()) -> dict[str, Path]:
         """Write ``timeseries.nc``, ``scenario.toml``, the ``artifacts`` and (last) ``summary.json``.
 
