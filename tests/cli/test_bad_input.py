@@ -198,3 +198,26 @@ def test_numba_that_cannot_start_is_said_on_stderr(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "meanfield: warning: numba could not be imported" in proc.stderr
     assert "NUMBA_NUM_THREADS must be >= 1" in proc.stderr and "Traceback" not in proc.stderr
+
+
+@pytest.mark.parametrize("name", ["bottleneck", "hall", "hall-crowded-west", "l-room", "office", "paper", "paper-unity",
+                                  "rimea-10", "rimea-12", "rimea-9", "stadium"])  # fmt: skip
+def test_every_shipped_scenario_s_summary_is_strict_json(name, tmp_path, capsys):
+    """Ten steps of each built-in scenario (the stadium with 10⁴ of its 10⁶ humans); its summary parses strictly."""
+    from meanfield.cli.arguments import builtin_names
+    from meanfield.scenarios.scenario import load_scenario
+
+    assert name in builtin_names()
+    sc = load_scenario(name)
+    extra = ["--set", "crowd.n=10000"] if name == "stadium" else []
+    code, err = _run(tmp_path, capsys, *extra[1:], scenario=name, t_final=10 * sc.dt)
+    assert code == 0, err
+    summary = _strict((tmp_path / "out" / "summary.json").read_text())
+    assert summary["status"] == "completed" and summary["steps"] == 10
+
+
+def test_the_shipped_list_above_is_every_built_in():
+    from meanfield.cli.arguments import builtin_names
+
+    names = test_every_shipped_scenario_s_summary_is_strict_json.pytestmark[0].args[1]
+    assert sorted(names) == sorted(builtin_names())
