@@ -191,14 +191,14 @@ def tridiagonal_solve(
 
 
 # --------------------------------------------------------------------------- one ADI step
-def _adi_numpy(rho, V, lx, rx, ly, ry, h, gx, rpx, gy, rpy, work, out) -> float:
+def _adi_numpy(rho, V1, V2, lx, rx, ly, ry, h, gx, rpx, gy, rpy, work, out) -> float:
     """One Peaceman–Rachford step with numpy (the reference of :func:`adi_step`)."""
-    b = V * rho
+    b = V1 * rho
     G = ly * rho[:, :-1] - ry * rho[:, 1:]  # y-flux of ρ
     b[:, :-1] -= h * G
     b[:, 1:] += h * G
     _solve_numpy(b, rx, h, gx, rpx, 0, work)  # r: (V - h A_x) r = (V + h A_y) ρ
-    c = V * work
+    c = V2 * work
     F = lx * work[:-1, :] - rx * work[1:, :]  # x-flux of r
     c[:-1, :] -= h * F
     c[1:, :] += h * F
@@ -209,7 +209,8 @@ def _adi_numpy(rho, V, lx, rx, ly, ry, h, gx, rpx, gy, rpy, work, out) -> float:
 @compiled(fallback=_adi_numpy)
 def adi_step(
     rho: np.ndarray,
-    V: np.ndarray,
+    V1: np.ndarray,
+    V2: np.ndarray,
     lx: np.ndarray,
     rx: np.ndarray,
     ly: np.ndarray,
@@ -235,8 +236,9 @@ def adi_step(
     ----------
     rho : ndarray, shape (nx, ny)
         The density at the start of the step (not modified).
-    V : ndarray, shape (nx, ny)
-        Cell volumes.
+    V1, V2 : ndarray, shape (nx, ny)
+        The diagonal of the explicit halves, ``V + h A_y`` and ``V + h A_x``: the cell volumes, less ``h s`` where an
+        exit along that axis takes mass at the rate ``s ρ`` (:func:`meanfield.fokker_planck.stepping._with_sink`).
     lx, rx, ly, ry : ndarray
         Face coefficients along x (``(nx-1, ny)``) and y (``(nx, ny-1)``), see
         :func:`tridiagonal_factor`.
@@ -258,14 +260,14 @@ def adi_step(
     nx, ny = rho.shape
     # down: b = V ρ + h A_y ρ (row-local; each cell from its two y-faces), eliminated along x into work
     for i in range(nx):
-        work[i, 0] = V[i, 0] * rho[i, 0] - h * (ly[i, 0] * rho[i, 0] - ry[i, 0] * rho[i, 1])
+        work[i, 0] = V1[i, 0] * rho[i, 0] - h * (ly[i, 0] * rho[i, 0] - ry[i, 0] * rho[i, 1])
         for j in range(1, ny - 1):
-            work[i, j] = V[i, j] * rho[i, j] + h * (
+            work[i, j] = V1[i, j] * rho[i, j] + h * (
                 (ly[i, j - 1] * rho[i, j - 1] - ry[i, j - 1] * rho[i, j])
                 - (ly[i, j] * rho[i, j] - ry[i, j] * rho[i, j + 1])
             )
         m = ny - 1
-        work[i, m] = V[i, m] * rho[i, m] + h * (ly[i, m - 1] * rho[i, m - 1] - ry[i, m - 1] * rho[i, m])
+        work[i, m] = V1[i, m] * rho[i, m] + h * (ly[i, m - 1] * rho[i, m - 1] - ry[i, m - 1] * rho[i, m])
         if i > 0:
             for j in range(ny):
                 work[i, j] += gx[i, j] * work[i - 1, j]
@@ -286,13 +288,13 @@ def adi_step(
         for k in range(k0, k1 + 1):  # c = V r + h A_x r, into out
             if k == 0:
                 for j in range(ny):
-                    out[k, j] = V[k, j] * work[k, j] - h * (lx[k, j] * work[k, j] - rx[k, j] * work[k + 1, j])
+                    out[k, j] = V2[k, j] * work[k, j] - h * (lx[k, j] * work[k, j] - rx[k, j] * work[k + 1, j])
             elif k == nx - 1:
                 for j in range(ny):
-                    out[k, j] = V[k, j] * work[k, j] + h * (lx[k - 1, j] * work[k - 1, j] - rx[k - 1, j] * work[k, j])
+                    out[k, j] = V2[k, j] * work[k, j] + h * (lx[k - 1, j] * work[k - 1, j] - rx[k - 1, j] * work[k, j])
             else:
                 for j in range(ny):
-                    out[k, j] = V[k, j] * work[k, j] + h * (
+                    out[k, j] = V2[k, j] * work[k, j] + h * (
                         (lx[k - 1, j] * work[k - 1, j] - rx[k - 1, j] * work[k, j])
                         - (lx[k, j] * work[k, j] - rx[k, j] * work[k + 1, j])
                     )

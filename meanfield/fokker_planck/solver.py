@@ -300,6 +300,10 @@ class FokkerPlanck:
         self._exit_normals = exit_normals(grid, segs) if len(segs) else np.zeros((0, 2))
         self._door_lengths = door_lengths(self.sink) if self.sink is not None else None
         self._all_exits = self.sink  # (exits_closed closes some of these)
+        self._sink_seen: tuple[Any, Any] | None = None  # the sink (and its rates) _exit_sink last split by axis
+        self._sink_axes: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
+        #: A counter of the exits' rates the steppers integrate: their factors are kept per version.
+        self._sink_version = 0
         #: The time-stepping method (docs/fokker_planck.md, "Time stepping"), built on this operator.
         self.stepper: Stepper = stepper(self)
 
@@ -445,7 +449,7 @@ class FokkerPlanck:
         """
         cacheable = not self.time_dependent and self.interaction is None and face_velocity is None
         if cacheable and self._coeff_cache is not None:
-            return self._coeff_cache
+            return self._with_exit_sink(self._coeff_cache)
         g = self.grid
         nx, ny = g.shape
         (bx, by), (dxf, dyf) = self._base_drift(t)
@@ -480,12 +484,40 @@ class FokkerPlanck:
             )
         if cacheable:
             self._coeff_cache = _Coefficients(*arrays)
-            return self._coeff_cache
+            return self._with_exit_sink(self._coeff_cache)
         c = self._dynamic
         if c is None:
             c = self._dynamic = _Coefficients(*arrays)
         else:
             c.reset()
+        return self._with_exit_sink(c)
+
+    def _exit_sink(self) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """The exits' outflow coefficients ``(s_x, s_y)`` the steppers integrate (mass rate ``s ρ`` per cell).
+
+        ``s = k V`` from the current :attr:`sink` (``σ ℓ / d``, the Dirichlet face, plus a drift's outflow where the
+        crowd set one), each exit's counted along the axis closest to its normal.  ``(None, None)`` where the exits
+        are not the solver's to integrate: none, ``exits=False``, or congestion (its doors are faces of the
+        congested flux).  Recomputed when :attr:`sink` or its rates change.
+        """
+        sink = self.sink
+        if sink is None or not self.absorbing or self.congestion is not None:
+            return None, None
+        if self._sink_seen is None or self._sink_seen[0] is not sink or self._sink_seen[1] is not sink.rates:
+            mass_rate = np.where(sink.rates > 0, sink.rates * self.grid.volume[None], 0.0)  # (E, nx, ny)
+            normals = exit_normals(self.grid, sink.segments)
+            along_x = np.abs(normals[:, 0]) >= np.abs(normals[:, 1])
+            self._sink_axes = (mass_rate[along_x].sum(axis=0), mass_rate[~along_x].sum(axis=0))
+            self._sink_seen = (sink, sink.rates)
+            self._sink_version += 1
+        return self._sink_axes
+
+    def _with_exit_sink(self, c: _Coefficients) -> _Coefficients:
+        """``c`` carrying the exits' outflow coefficients (:meth:`_exit_sink`); its bounds forgotten if they changed."""
+        sx, sy = self._exit_sink()
+        if c.sink_version != self._sink_version or c.sink_x is not sx:
+            c.sink_x, c.sink_y, c.sink_version = sx, sy, self._sink_version
+            c.bounds, c._out_x, c._out_y = {}, None, None
         return c
 
     def _diffusion_coefficients(self, t: float) -> _Coefficients:
@@ -526,10 +558,19 @@ class FokkerPlanck:
         (the stepper counts their outflow).  Either way ``mass_out`` counts the mass that left.
         """
         new = self.stepper.step(rho, t, dt, fv, check=True)
-        if self.congestion is None and self.absorbing and self.sink is not None:
-            new, lost = self.sink.apply(new, dt)
-            self.mass_out += lost
+        if self._exit_sink()[0] is not None:  # the exits were integrated with the step: count what left
+            self.mass_out += self._out_per_exit(rho, new)
         return new
+
+    def _out_per_exit(self, before: np.ndarray, after: np.ndarray) -> np.ndarray:
+        """The mass that left over a step, ``∫ρ − ∫ρ'`` (the operator conserves mass otherwise), shared among the
+        exits by their outflow ``s_j (ρ + ρ') / 2`` over the step."""
+        g = self.grid
+        lost = g.integrate(before) - g.integrate(after)
+        sink = self.sink
+        flow = (np.where(sink.rates > 0, sink.rates, 0.0) * (g.volume * (before + after))[None]).sum(axis=(1, 2))
+        total = flow.sum()
+        return lost * flow / total if total > 0 else np.zeros(sink.n_exits)
 
     # ------------------------------------------------------------------ right-hand side
     def flux(self, rho: np.ndarray, t: float = 0.0, face_velocity: FaceField | None = None) -> FaceField:
@@ -587,6 +628,8 @@ class FokkerPlanck:
         diag[1:, :] += dt * c.rx
         diag[:, :-1] += dt * c.ly
         diag[:, 1:] += dt * c.ry
+        if c.sink_x is not None:  # the exits' outflow (Dirichlet faces)
+            diag += dt * (c.sink_x + c.sink_y)
         diag[V <= 0] = 1.0
         rows = [idx.ravel(), idx[:-1, :].ravel(), idx[1:, :].ravel(), idx[:, :-1].ravel(), idx[:, 1:].ravel()]
         cols = [idx.ravel(), idx[1:, :].ravel(), idx[:-1, :].ravel(), idx[:, 1:].ravel(), idx[:, :-1].ravel()]

@@ -84,15 +84,23 @@ def _check_face_field(name: str, value, grid: Grid) -> FaceField:
 
 
 class _Coefficients:
-    """Scharfetter–Gummel face coefficients times face length, and derived bounds."""
+    """Scharfetter–Gummel face coefficients times face length, and derived bounds.
 
-    __slots__ = ("lx", "rx", "ly", "ry", "_out_x", "_out_y", "bounds")
+    ``sink_x``, ``sink_y`` (None, or arrays of the grid's shape): the exits' outflow coefficients of each cell, the
+    mass rate ``s ρ`` that leaves through an exit face (``s = σ ℓ / d + a_n⁺ ℓ``, the Dirichlet face of
+    :class:`~meanfield.geometry.exits.ExitSink`), counted with the sweeps along x or along y (the axis closest to the
+    exit's normal), so that the steppers integrate the exits with the rest of the operator.
+    """
+
+    __slots__ = ("lx", "rx", "ly", "ry", "_out_x", "_out_y", "bounds", "sink_x", "sink_y", "sink_version")
 
     def __init__(self, lx, rx, ly, ry):
         self.lx, self.rx, self.ly, self.ry = lx, rx, ly, ry
         self._out_x = None
         self._out_y = None
         self.bounds: dict[str, float] = {}
+        self.sink_x = self.sink_y = None
+        self.sink_version = -1
 
     def reset(self) -> None:
         """Forget the derived quantities (the arrays were overwritten)."""
@@ -109,6 +117,9 @@ class _Coefficients:
             oy = np.zeros(shape)
             oy[:, :-1] += self.ly
             oy[:, 1:] += self.ry
+            if self.sink_x is not None:  # an exit face is an outgoing face too
+                ox += self.sink_x
+                oy += self.sink_y
             self._out_x, self._out_y = ox, oy
         return self._out_x, self._out_y
 
@@ -147,6 +158,19 @@ class _Coefficients:
 
 #: factorisations kept for a fixed drift (one per step size and axis): the latest few
 _CACHED_FACTORS = 8
+
+
+def _with_sink(V: np.ndarray, c: _Coefficients, axis: str, tau: float) -> np.ndarray:
+    """``V + τ s_axis``: the volumes with the exits' outflow along ``axis`` over ``τ`` (``V`` itself without exits)."""
+    s = c.sink_x if axis == "x" else c.sink_y
+    return V if s is None else V + tau * s
+
+
+def _with_exits(c: _Coefficients, rho: np.ndarray, rate: np.ndarray) -> np.ndarray:
+    """``A ρ − s ρ``, in place in ``rate``: the mass rate with the exits' outflow (``rate`` itself without exits)."""
+    if c.sink_x is not None:
+        rate -= (c.sink_x + c.sink_y) * rho
+    return rate
 
 
 class _StepTooLarge(ParameterError):
@@ -243,7 +267,7 @@ class Stepper(ABC):
     def _cache_key(self, fv):
         op = self.operator
         cacheable = not op.time_dependent and op.interaction is None and fv is None
-        return "static" if cacheable else None
+        return ("static", op._sink_version) if cacheable else None  # (new exits' rates: new factors)
 
     def _remember(self, key, factors) -> None:
         """Keep a factorisation for a fixed drift; steps of many sizes keep only the latest few."""
@@ -282,13 +306,13 @@ class ExplicitStepper(Stepper):
         c1 = op._coefficients(rho, t, face_velocity)
         if check and dt > self.positivity_bound(c1) * (1 + 1e-12):
             raise self._too_large(dt, self.positivity_bound(c1), "stability/positivity")
-        r1 = op._apply(c1, rho, "xy", np.empty(rho.shape))
+        r1 = _with_exits(c1, rho, op._apply(c1, rho, "xy", np.empty(rho.shape)))
         r1 *= dt * iv
         r1 += rho
         c2 = op._coefficients(r1, t + dt, face_velocity)
         if check and dt > self.positivity_bound(c2) * (1 + 1e-12):
             raise self._too_large(dt, self.positivity_bound(c2), "stability/positivity")
-        out = op._apply(c2, r1, "xy", np.empty(rho.shape))
+        out = _with_exits(c2, r1, op._apply(c2, r1, "xy", np.empty(rho.shape)))
         out *= dt * iv
         out += r1
         out += rho
@@ -345,7 +369,7 @@ class _LineStepper(Stepper):
         lines), solved by one LAPACK call; ``rhs_mass`` may be overwritten.
         """
         g = self.operator.grid
-        V = g.volume
+        V = _with_sink(g.volume, c, axis, tau)  # (the diagonal: V + τ s along this axis)
         if axis == "x":
             lo, hi, Vt = c.lx.T, c.rx.T, V.T
             b = self._buffer("bx", (V.shape[1], V.shape[0]))
@@ -398,7 +422,7 @@ class _LineStepper(Stepper):
         else:
             g, rp = np.empty(shape), np.empty(shape)
         lo, hi = (c.lx, c.rx) if axis == "x" else (c.ly, c.ry)
-        fp_compiled.tridiagonal_factor(grid.volume, lo, hi, tau, 0 if axis == "x" else 1, g, rp)
+        fp_compiled.tridiagonal_factor(_with_sink(grid.volume, c, axis, tau), lo, hi, tau, 0 if axis == "x" else 1, g, rp)
         if ck is not None:
             self._remember(ck, (g, rp))
         return g, rp
@@ -476,18 +500,19 @@ class AdiStepper(_LineStepper):
             gy, rpy = self._thomas(c, h, "y", key)
             out = np.empty(rho.shape)
             work = self._buffer("r", rho.shape)
-            lowest = fp_compiled.adi_step(rho, V, c.lx, c.rx, c.ly, c.ry, h, gx, rpx, gy, rpy, work, out)
+            v1, v2 = _with_sink(V, c, "y", -h), _with_sink(V, c, "x", -h)  # the explicit halves: V - h s
+            lowest = fp_compiled.adi_step(rho, v1, v2, c.lx, c.rx, c.ly, c.ry, h, gx, rpx, gy, rpy, work, out)
             if check and lowest < 0:  # possible only above the positivity bound
                 raise self._too_large(dt, self.positivity_bound(c), "positivity")
             return out
         vr = self._buffer("vr", rho.shape)
         b = op._apply(c, rho, "y", self._buffer("rhs", rho.shape))
         b *= h
-        b += np.multiply(V, rho, out=vr)
+        b += np.multiply(_with_sink(V, c, "y", -h), rho, out=vr)
         r = self._sweep(c, b, h, "x", key)
         b = op._apply(c, r, "x", self._buffer("rhs", rho.shape))
         b *= h
-        b += np.multiply(V, r, out=vr)
+        b += np.multiply(_with_sink(V, c, "x", -h), r, out=vr)
         out = np.array(self._sweep(c, b, h, "y", key))
         if check and out.min() < 0:  # possible only above the positivity bound
             raise self._too_large(dt, self.positivity_bound(c), "positivity")
