@@ -422,7 +422,8 @@ class _LineStepper(Stepper):
         else:
             g, rp = np.empty(shape), np.empty(shape)
         lo, hi = (c.lx, c.rx) if axis == "x" else (c.ly, c.ry)
-        fp_compiled.tridiagonal_factor(_with_sink(grid.volume, c, axis, tau), lo, hi, tau, 0 if axis == "x" else 1, g, rp)
+        diagonal = _with_sink(grid.volume, c, axis, tau)  # (V + τ s: the exits' outflow along this axis)
+        fp_compiled.tridiagonal_factor(diagonal, lo, hi, tau, 0 if axis == "x" else 1, g, rp)
         if ck is not None:
             self._remember(ck, (g, rp))
         return g, rp
