@@ -682,6 +682,8 @@ point_mass_crowd.models_individuals = True  # type: ignore[attr-defined]
 point_mass_crowd.places_groups = True  # type: ignore[attr-defined]
 """People may be placed in groups, each in its region with its own exit (``crowd.initial = "groups"``,
 :mod:`meanfield.crowds.groups`)."""
+point_mass_crowd.group_exits = True  # type: ignore[attr-defined]
+"""A group may walk to an exit of its own (``[[crowd.groups]] exit = k``): each person keeps its group's."""
 point_mass_crowd.changes_walls = True  # type: ignore[attr-defined]
 """A region can become wall during a run (``[[events]] block``, :meth:`AgentCrowd.walls_changed`): the people in it
 step out, and the signs, routes and walks go round it."""

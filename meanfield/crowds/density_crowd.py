@@ -49,11 +49,42 @@ __all__ = ["DensityCrowd", "initial_density"]
 
 def initial_density(scenario: Any, grid: Grid) -> np.ndarray:
     """The density of the scenario's initial crowd law on ``grid`` (unit mass): uniform on Ω,
-    or the normal law restricted to Ω — the mean-field initial condition of eq. (4)."""
+    the normal law restricted to Ω, or the groups' — the mean-field initial condition of eq. (4).
+
+    With ``crowd.initial = "groups"`` (:mod:`meanfield.crowds.groups`) group ``g`` of ``n_g`` people is uniform on
+    its region ``R_g`` ∩ Ω, as the point masses are drawn: ``ρ = Σ_g (n_g / N) 1_{R_g} / |R_g ∩ Ω|``, each cell
+    taking the share of its area in ``R_g`` (:func:`region_shares`).
+    """
     c = scenario.crowd
     if c.initial == "uniform":
         return grid.normalize(np.ones(grid.shape))
+    if c.initial == "groups":
+        from meanfield.crowds.groups import group_region
+
+        rho = np.zeros(grid.shape)
+        for i, g in enumerate(c.groups):
+            inside = region_shares(grid, group_region(g["region"], f"crowd.groups[{i}].region"))
+            mass = float((inside * grid.volume).sum())
+            if not mass > 0:
+                raise ParameterError(f"crowd.groups[{i}].region", g["region"], "a region with room inside the plan")
+            rho += (g["n"] / c.n) * inside / mass
+        return rho
     return gaussian_target(grid, c.initial_center, c.initial_std)
+
+
+def region_shares(grid: Grid, region: Any) -> np.ndarray:
+    """The share of each cell's part in Ω (its volume) that lies in ``region`` (a shapely polygon), in [0, 1]."""
+    import shapely
+
+    nx, ny = grid.shape
+    x0, _, y0, _ = grid.domain.bounds
+    XL, YL = np.meshgrid(x0 + np.arange(nx) * grid.dx, y0 + np.arange(ny) * grid.dy, indexing="ij")
+    boxes = shapely.box(XL, YL, XL + grid.dx, YL + grid.dy)
+    to_shapely = getattr(grid.domain, "to_shapely", None)
+    if to_shapely is not None:
+        region = shapely.intersection(region, to_shapely())
+    area = shapely.area(shapely.intersection(boxes, region))
+    return np.divide(area, grid.volume, out=np.zeros(grid.shape), where=grid.volume > 0).clip(0.0, 1.0)
 
 
 class DensityCrowd:
@@ -92,6 +123,11 @@ class DensityCrowd:
     default_congestion = {"SI": "linear"}
     """``crowd.congestion = "auto"``: as the point masses, the linear diagram in SI units, none in the
     paper's dimensionless units (:attr:`~meanfield.scenarios.scenario.Scenario.congestion_model`)."""
+
+    places_groups = True
+    """People may start in groups, each uniform in its region (``crowd.initial = "groups"``,
+    :func:`initial_density`): the same starting law as the point masses'.  A group's own ``exit`` is refused (one
+    density cannot hold people bound for different exits; it declares no ``group_exits``)."""
 
     def __init__(
         self,

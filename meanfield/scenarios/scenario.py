@@ -338,7 +338,7 @@ class Scenario:
         if not registry.declared("crowd", c.kind, "places_groups", False):
             raise ParameterError(
                 "crowd.initial", c.initial, f"'uniform' or 'gaussian' with the {c.kind!r} crowd (it declares no "
-                "places_groups): use point masses"
+                "places_groups): use point masses or the density"
             )  # fmt: skip
         n_exits = len(exit_segments(self.domain))
         to_shapely = getattr(self.domain, "to_shapely", None)
@@ -350,6 +350,12 @@ class Scenario:
             if g.get("exit") is not None and g["exit"] >= n_exits:
                 allowed = f"an index into domain.exits, 0 to {n_exits - 1}" if n_exits else "none (no exits)"
                 raise ParameterError(f"crowd.groups[{i}].exit", g["exit"], allowed)
+            if g.get("exit") is not None and not registry.declared("crowd", c.kind, "group_exits", False):
+                raise ParameterError(
+                    f"crowd.groups[{i}].exit", g["exit"],
+                    f"no exit of the group's own with the {c.kind!r} crowd (it declares no group_exits: its people "
+                    "walk as the crowd's guidance says); leave exit out, or use point masses",
+                )  # fmt: skip
 
     def _checked_events(self, events: Any) -> tuple[EventSpec, ...]:
         """``events`` as :class:`EventSpec` in time order, each checked against the plan and the parts.

@@ -72,7 +72,8 @@ def test_groups_survive_toml():
         ([{"region": WEST, "n": 2, "exit": 4}], {}, "crowd.groups[0].exit"),
         ([{"region": WEST, "n": 2, "exit": -1}], {}, "crowd.groups[0].exit"),
         ([{"region": WEST, "n": 2}], {"crowd.n": 3}, "crowd.n"),
-        ([{"region": WEST, "n": 2}], {"crowd.kind": "fokker-planck"}, "crowd.initial"),
+        ([{"region": WEST, "n": 2}], {"crowd.kind": "jupedsim"}, "crowd.initial"),  # (no places_groups)
+        ([{"region": WEST, "n": 2, "exit": 1}], {"crowd.kind": "fokker-planck"}, "crowd.groups[0].exit"),
         ([{"region": WEST, "n": 2}], {"crowd.initial": "uniform"}, "crowd.groups"),
     ],
 )
@@ -86,3 +87,40 @@ def test_groups_are_needed_with_initial_groups():
     with pytest.raises(ParameterError) as exc:
         builtin_scenarios()["hall"](seed=0).with_values({"crowd.initial": "groups"})
     assert exc.value.name == "crowd.groups"
+
+
+def test_the_density_starts_as_the_groups_do_each_uniform_in_its_region():
+    """``crowd.initial = "groups"`` for the density (issue 42, item 6): group ``g`` carries ``n_g / N`` of the mass,
+    uniform on its region (cells across the region's edge take their share), none elsewhere; its run goes."""
+    from meanfield.crowds.density_crowd import initial_density
+    from meanfield.geometry.grid import Grid
+
+    groups = [{"region": WEST, "n": 150}, {"region": "POLYGON ((23.3 1, 29 1, 29 19, 23.3 19, 23.3 1))", "n": 50}]
+    sc = _hall(groups, **{"crowd.kind": "fokker-planck"})
+    grid = Grid(sc.domain, tuple(sc.grid.cells))
+    rho = initial_density(sc, grid)
+    X, Y = grid.centers
+    west = (X < 6) & (Y > 1) & (Y < 19)
+    east = (X > 23.3) & (X < 29) & (Y > 1) & (Y < 19)
+    assert grid.integrate(rho) == pytest.approx(1.0, rel=1e-12)
+    assert (grid.volume * rho)[west].sum() == pytest.approx(0.75, rel=1e-9)  # cell edges on the region's: exact
+    assert (grid.volume * rho)[~west].sum() == pytest.approx(0.25, rel=1e-9)
+    x0 = grid.domain.bounds[0]
+    left = x0 + np.floor((23.3 - x0) / grid.dx) * grid.dx  # the column of cells the region's west edge crosses
+    across = np.isclose(X, left + grid.dx / 2) & (Y > 1) & (Y < 19)
+    inside = (X > left + grid.dx) & (X < 28) & (Y > 2) & (Y < 18)
+    share = (left + grid.dx - 23.3) / grid.dx
+    np.testing.assert_allclose(rho[across], share * rho[inside].max(), rtol=1e-9)  # its share of a full cell
+    assert rho[east | across].min() > 0 and rho[~(west | east | across)].max() == 0.0
+    inner = (X > 2) & (X < 5) & (Y > 2) & (Y < 18)
+    assert np.ptp(rho[inner]) < 1e-12 * rho.max() and rho[inner][0] == pytest.approx(0.75 / (5 * 18), rel=1e-9)
+    s = ClosedLoop(sc.with_values({"t_final": 2.0})).run(progress=False).summary
+    assert s["status"] == "completed"
+
+
+def test_the_density_and_the_points_start_with_the_same_share_in_each_group_s_region():
+    groups = [{"region": WEST, "n": 30}, {"region": EAST, "n": 10}]
+    sc = _hall(groups)
+    x = initial_positions(sc, sc.crowd.n, np.random.default_rng(0))
+    in_west = shapely.contains_xy(shapely.from_wkt(WEST), x[:, 0], x[:, 1])
+    assert in_west.sum() == 30 and (~in_west).sum() == 10
