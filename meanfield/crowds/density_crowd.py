@@ -76,10 +76,7 @@ def region_shares(grid: Grid, region: Any) -> np.ndarray:
     """The share of each cell's part in Ω (its volume) that lies in ``region`` (a shapely polygon), in [0, 1]."""
     import shapely
 
-    nx, ny = grid.shape
-    x0, _, y0, _ = grid.domain.bounds
-    XL, YL = np.meshgrid(x0 + np.arange(nx) * grid.dx, y0 + np.arange(ny) * grid.dy, indexing="ij")
-    boxes = shapely.box(XL, YL, XL + grid.dx, YL + grid.dy)
+    boxes = grid.cell_boxes()
     to_shapely = getattr(grid.domain, "to_shapely", None)
     if to_shapely is not None:
         region = shapely.intersection(region, to_shapely())

@@ -115,10 +115,8 @@ class ExitSink:
         self.segments = np.asarray(segs, float).reshape(-1, 2, 2)
         self.n_exits = len(segs)
         nx, ny = grid.shape
-        x0, _, y0, _ = grid.domain.bounds
-        XL, YL = np.meshgrid(x0 + np.arange(nx) * grid.dx, y0 + np.arange(ny) * grid.dy, indexing="ij")
         tol = 1e-9 * max(nx * grid.dx, ny * grid.dy)  # an exit on the outer edge of a cell, up to round-off
-        boxes = shapely.box(XL - tol, YL - tol, XL + grid.dx + tol, YL + grid.dy + tol)
+        boxes = grid.cell_boxes(tol)
         X, Y = grid.centers
         centres = np.column_stack([X.ravel(), Y.ravel()])
         self.rates = np.zeros((self.n_exits, nx, ny))  # k per exit and cell (1/time)

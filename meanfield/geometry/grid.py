@@ -260,6 +260,16 @@ class Grid:
         v[:, 1:-1] = F[1]
         return 0.5 * (u[1:] + u[:-1]), 0.5 * (v[:, 1:] + v[:, :-1])
 
+    def cell_boxes(self, grow: float = 0.0) -> np.ndarray:
+        """Each cell's square as a shapely polygon, ``(nx, ny)``, grown by ``grow`` on every side (whole squares: a
+        cut cell's part in Ω is the square's intersection with it)."""
+        import shapely
+
+        x0, _, y0, _ = self.domain.bounds
+        nx, ny = self.cells
+        XL, YL = np.meshgrid(x0 + np.arange(nx) * self.dx, y0 + np.arange(ny) * self.dy, indexing="ij")
+        return shapely.box(XL - grow, YL - grow, XL + self.dx + grow, YL + self.dy + grow)
+
     def cell_of(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The cell ``(i, j)`` each of ``points`` (N, 2) lies in, clamped to the grid's edge cells outside it."""
         x0, _, y0, _ = self.domain.bounds
