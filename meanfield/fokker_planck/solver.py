@@ -302,6 +302,7 @@ class FokkerPlanck:
         self._all_exits = self.sink  # (exits_closed closes some of these)
         self._sink_seen: tuple[Any, Any] | None = None  # the sink (and its rates) _exit_sink last split by axis
         self._sink_axes: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
+        self._sink_mass_rate: np.ndarray | None = None  # s per exit and cell, (E, nx, ny)
         #: A counter of the exits' rates the steppers integrate: their factors are kept per version.
         self._sink_version = 0
         #: The time-stepping method (docs/fokker_planck.md, "Time stepping"), built on this operator.
@@ -508,6 +509,7 @@ class FokkerPlanck:
             normals = exit_normals(self.grid, sink.segments)
             along_x = np.abs(normals[:, 0]) >= np.abs(normals[:, 1])
             self._sink_axes = (mass_rate[along_x].sum(axis=0), mass_rate[~along_x].sum(axis=0))
+            self._sink_mass_rate = mass_rate
             self._sink_seen = (sink, sink.rates)
             self._sink_version += 1
         return self._sink_axes
@@ -517,7 +519,7 @@ class FokkerPlanck:
         sx, sy = self._exit_sink()
         if c.sink_version != self._sink_version or c.sink_x is not sx:
             c.sink_x, c.sink_y, c.sink_version = sx, sy, self._sink_version
-            c.bounds, c._out_x, c._out_y = {}, None, None
+            c.reset()  # (its bounds counted the exits it had)
         return c
 
     def _diffusion_coefficients(self, t: float) -> _Coefficients:
@@ -564,13 +566,12 @@ class FokkerPlanck:
 
     def _out_per_exit(self, before: np.ndarray, after: np.ndarray) -> np.ndarray:
         """The mass that left over a step, ``∫ρ − ∫ρ'`` (the operator conserves mass otherwise), shared among the
-        exits by their outflow ``s_j (ρ + ρ') / 2`` over the step."""
+        exits by their outflow ``s_j (ρ + ρ') / 2`` over the step (``s_j`` as :meth:`_exit_sink` keeps it)."""
         g = self.grid
         lost = g.integrate(before) - g.integrate(after)
-        sink = self.sink
-        flow = (np.where(sink.rates > 0, sink.rates, 0.0) * (g.volume * (before + after))[None]).sum(axis=(1, 2))
+        flow = (self._sink_mass_rate * (before + after)[None]).sum(axis=(1, 2))
         total = flow.sum()
-        return lost * flow / total if total > 0 else np.zeros(sink.n_exits)
+        return lost * flow / total if total > 0 else np.zeros(len(flow))
 
     # ------------------------------------------------------------------ right-hand side
     def flux(self, rho: np.ndarray, t: float = 0.0, face_velocity: FaceField | None = None) -> FaceField:
