@@ -110,6 +110,7 @@ BUILTIN: dict[str, dict[str, str]] = {
         "signs": "meanfield.crowds.guidance:signs",
         "geodesic": "meanfield.crowds.guidance:geodesic",
         "hughes": "meanfield.crowds.guidance:hughes",
+        "fastest-route": "meanfield.crowds.guidance:fastest_route",
         "random-walk": "meanfield.crowds.guidance:random_walk",
     },
     "congestion": {

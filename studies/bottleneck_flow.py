@@ -29,8 +29,9 @@ the congested mean-field equation ``∂ₜρ + ∇·(ρ g(Nρ) v) = σΔρ`` wit
 ``v = v₀ (−∇φ/|∇φ|)`` (``pde-linear``, ``pde-weidmann``: ``crowd.kind = "fokker-planck"``; docs page
 *Congestion*, "The PDE"), or on Hughes' route, ``φ`` the travel time at the crowd's speed recomputed
 every control period (``pde-hughes`` with the linear diagram, ``pde-hughes-weidmann``:
-``crowd.guidance = "hughes"``; :data:`PDE_MODELS`).  The density is deterministic: one run per width (seed 0), on the
-scenario's 0.1 m cells or, for the grid convergence, ``--cells-per-metre`` (those runs are
+``crowd.guidance = "hughes"``), or on the fastest route to the exit (``pde-fastest``,
+``crowd.guidance = "fastest-route"``; :data:`PDE_MODELS`).  The density is deterministic: one run per width
+(seed 0), on the scenario's 0.1 m cells or, for the grid convergence, ``--cells-per-metre`` (those runs are
 reported apart).  Its ``J`` is measured as the agents' is, from the exits' cumulative outflow
 ``N × mass out`` after every step of ``dt`` (the solver's count, the ``fraction_evacuated`` of the
 run's records), linearly interpolated at ``N₁₀`` and ``N₉₀``; its peak local density is the mass
@@ -79,6 +80,7 @@ MEASURED_RANGE = (1.6, 2.5)
 PDE_MODELS = {
     "pde-linear": ("linear", "geodesic"),
     "pde-weidmann": ("weidmann", "geodesic"),
+    "pde-fastest": ("linear", "fastest-route"),
     "pde-hughes": ("linear", "hughes"),
     "pde-hughes-weidmann": ("weidmann", "hughes"),
 }

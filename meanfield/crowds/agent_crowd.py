@@ -383,6 +383,7 @@ class AgentCrowd:
         self.field_evaluation = field_evaluation
         self.sight = sight
         self.guidance = guidance
+        self._guidance_observes = callable(getattr(guidance, "observe", None))  # (declared by the guidance)
         if sight is not None and field_evaluation == "sampled":
             raise ParameterError(
                 "crowd.field_evaluation",
@@ -448,6 +449,8 @@ class AgentCrowd:
         """
         positions = self.positions
         if self.guidance is not None:  # a baseline: the humans ignore the robots
+            if self._guidance_observes:  # a guidance that plans from where the crowd is (routes round it)
+                self.guidance.observe(positions, self._here(), t)
             drift = self.guidance.velocity(positions, t, dt)
         elif self.sampled_field is not None:
             f = self.sampled_field
@@ -508,6 +511,11 @@ class AgentCrowd:
         if self._drift is None or len(self._drift) != n:
             self._drift, self._reached = np.empty((n, 2)), np.empty(n, dtype=bool)
         return self._drift, self._reached
+
+    def _here(self) -> np.ndarray | None:
+        """Who is still in Ω (None: everyone)."""
+        gone = self._gone()
+        return None if gone is None else ~gone
 
     def _gone(self) -> np.ndarray | None:
         """The rows of the humans who left through an exit (None: everyone is here)."""

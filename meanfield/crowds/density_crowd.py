@@ -23,8 +23,9 @@ declares nothing is refused (docs page *Congestion*, "The PDE").  The informed c
 (``geodesic``) walks ``v₀ (−∇φ/|∇φ|)``, the route to the nearest exit; without congestion its
 exits pass what the drift brings them, ``a_n⁺ ρ`` per metre of door (upwind, as the congested
 exits without their capacity), beside the diffusive outflow.  A guidance's drift may depend on
-the density (``velocity_of``: Hughes' route, ``hughes``, the travel time at the crowd's speed):
-it is asked afresh at the start of every control period, from the density then.
+the density (``velocity_of``: the routes the crowd shapes, ``fastest-route`` and ``hughes``,
+:mod:`meanfield.crowds.crowd_routes`): it is asked afresh at the start of every control period,
+from the density then.
 """
 
 from __future__ import annotations

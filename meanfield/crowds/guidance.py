@@ -16,10 +16,14 @@ buildings (docs page *Buildings*), on the same plan and seeds:
 ``random-walk`` (the *uninformed crowd*)
     Nobody sees a sign: everyone walks the persistent random walk of ``[view]``
     (``walk_speed``, ``turning_rate``), as the Unity study's humans do out of view.
-``hughes`` (the informed crowd that routes round the crowd; the density only)
-    Everyone walks the route of least travel time given the crowd (R. L. Hughes, "A continuum
-    theory for the flow of pedestrians", Transp. Res. B 36 (2002) 507–535): the density's
-    guidance (below); the agents refuse it, naming ``crowd.guidance`` (:func:`hughes`).
+``fastest-route`` (the informed crowd on the routes the crowd shapes)
+    Everyone keeps the exit nearest where it started (or its group's) and walks the route of least
+    travel time to it through the crowd, Hughes' eikonal restricted to that exit's basin
+    (:mod:`meanfield.crowds.crowd_routes`; :class:`RouteGuidance`).
+``hughes`` (Hughes' model)
+    Everyone walks the route of least travel time to any exit given the crowd (R. L. Hughes, "A
+    continuum theory for the flow of pedestrians", Transp. Res. B 36 (2002) 507–535), changing
+    exits as the queues grow (:mod:`meanfield.crowds.crowd_routes`).
 
 A factory receives the :class:`~meanfield.interfaces.CrowdContext` and the agents' initial
 positions and returns a :class:`Guidance`, or None for the robots' signs.
@@ -41,13 +45,9 @@ by the density, naming ``crowd.guidance``.  The built-in ones (docs page *Conges
 ``random-walk``
     No drift: the persistent random walk's long-time diffusion ``D = s²/(2 D_r)`` added to σ
     (:func:`walk_diffusion`; :func:`random_walk_for_density`).
-``hughes``
-    Hughes' route, recomputed from the density at every control period: ``φ`` the travel time
-    to the exits, ``|∇φ| = 1/f̂``, ``f̂ = max(v₀ g(Nρ), f_min)`` (the diagram of
-    ``crowd.congestion``, ``f_min`` = :data:`HUGHES_SPEED_FLOOR` ``· v₀``), by fast marching
-    (:class:`~meanfield.geometry.geodesic.ExitEikonal`), and the drift ``v₀ (−∇φ/|∇φ|)`` on the
-    faces (:func:`route_velocity`), which the congested flux slows by ``g``
-    (:class:`HughesRoute`; :func:`hughes_for_density`).
+``fastest-route``, ``hughes``
+    The same routes, planned from the density at every control period, its cells' basins following
+    their exits (:class:`DensityRoutes`; :mod:`meanfield.crowds.crowd_routes`).
 """
 
 from __future__ import annotations
@@ -59,8 +59,9 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from meanfield.crowds.crowd_routes import route_velocity  # (where it lives: the routes' drift on the faces)
 from meanfield.errors import ParameterError
-from meanfield.geometry.grid import FaceField, Grid
+from meanfield.geometry.grid import FaceField
 from meanfield.interfaces import CrowdContext
 
 __all__ = [
@@ -68,23 +69,31 @@ __all__ = [
     "GeodesicGuidance",
     "RandomWalkGuidance",
     "DensityGuidance",
-    "HughesRoute",
-    "HUGHES_SPEED_FLOOR",
+    "RouteGuidance",
+    "DensityRoutes",
     "signs",
     "geodesic",
     "random_walk",
     "hughes",
+    "fastest_route",
+    "crowd_routes",
     "signs_for_density",
     "geodesic_for_density",
     "random_walk_for_density",
     "hughes_for_density",
+    "fastest_route_for_density",
     "route_velocity",
     "walk_diffusion",
 ]
 
 
 class Guidance(Protocol):
-    """A velocity the humans choose without the robots (a baseline)."""
+    """A velocity the humans choose without the robots (a baseline).
+
+    A guidance that plans from where the crowd is also declares ``observe(positions, here, t)``: the agent
+    crowd calls it before :meth:`velocity` every step with who is still in Ω (``here``, None: everyone), as
+    the rows of those who left hold stand-in points (:class:`RouteGuidance`).
+    """
 
     def velocity(self, positions: np.ndarray, t: float, dt: float) -> np.ndarray:
         """The chosen velocity ``(N, 2)`` at ``positions`` (rows of those who left are ignored)."""
@@ -166,6 +175,50 @@ class RandomWalkGuidance:
         self.view.advance(dt)
 
 
+class RouteGuidance:
+    """The informed crowd on the routes the crowd shapes (:class:`~meanfield.crowds.crowd_routes.CrowdRoutes`).
+
+    Each human walks ``speed`` along the route of least travel time through the crowd: to the exit it keeps
+    (``fastest-route``: the nearest where it started, or its group's) or to the exit of least travel time
+    (``hughes``).  The routes are planned every step from the humans still here (:meth:`observe`, which the
+    agent crowd calls before :meth:`velocity`), their density counted within ``radius``.
+
+    Parameters
+    ----------
+    routes : CrowdRoutes
+    speed : float
+        The free walking speed, > 0.
+    radius : float
+        ``r`` of the agents' density (``crowd.congestion_radius``; module :mod:`meanfield.crowds.crowd_routes`, (R2)).
+    exit_of : ndarray of int, shape (N,), optional
+        Each human's exit (-1: its cell's nearest open exit); ignored without ``routes.keep_exit``.
+    """
+
+    def __init__(self, routes: Any, speed: float, radius: float, exit_of: np.ndarray | None = None):
+        if not (math.isfinite(radius) and radius > 0):
+            raise ParameterError("crowd.congestion_radius", radius, "a radius > 0")
+        self.routes, self.speed, self.radius = routes, float(speed), float(radius)
+        self.exit_of = None if exit_of is None else np.asarray(exit_of, np.intp).copy()
+
+    def observe(self, positions: np.ndarray, here: np.ndarray | None, t: float) -> None:
+        """The humans ``here`` (None: everyone) at ``t``: the routes planned again round them."""
+        self.routes.plan_for_agents(positions, here, self.radius)
+
+    def velocity(self, positions: np.ndarray, t: float, dt: float) -> np.ndarray:
+        return self.speed * self.routes.headings(positions, self.exit_of)
+
+    def exits_closed(self, open_exits: np.ndarray) -> None:
+        """Plan to the exits still open; those who kept a closed one take their cell's nearest open exit."""
+        self.routes.exits_closed(open_exits)
+
+    def walls_changed(self, change: Any) -> None:
+        """Plan round the new walls (a ``block`` event)."""
+        self.routes.walls_changed(change)
+
+    def advance(self, dt: float) -> None:
+        """No memory beyond the routes."""
+
+
 def signs(ctx: CrowdContext, positions: np.ndarray) -> None:
     """Registry factory (kind ``guidance``, name ``signs``): the robots' signs, the paper's eq. (3)."""
     return None
@@ -195,21 +248,40 @@ def random_walk(ctx: CrowdContext, positions: np.ndarray) -> RandomWalkGuidance:
     )
 
 
-def hughes(ctx: CrowdContext, positions: np.ndarray) -> Guidance:
-    """Registry factory (``hughes``): Hughes' route round the crowd, for the density only.
+def crowd_routes(ctx: CrowdContext, keep_exit: bool) -> Any:
+    """The scenario's :class:`~meanfield.crowds.crowd_routes.CrowdRoutes`: its exits, the diagram of
+    ``crowd.congestion`` (with ``crowd.free_speed`` and ``crowd.rho_max``) and ``crowd.congestion_radius``."""
+    from meanfield import plugins
+    from meanfield.crowds.crowd_routes import CrowdRoutes
+    from meanfield.geometry.exits import exit_segments
 
-    The agents refuse it, naming ``crowd.guidance``: an agent's guidance sees the positions, not
-    the density Hughes' potential is solved for, and the point masses, which nothing keeps below the
-    jam density (docs page *Congestion*, "What does not match"), would put the speed of every
-    queue on the floor of :data:`HUGHES_SPEED_FLOOR`.  The density (``crowd.kind =
-    "fokker-planck"``) takes it (:func:`hughes_for_density`).
-    """
-    raise ParameterError(
-        "crowd.guidance",
-        "hughes",
-        "'geodesic', 'random-walk' or 'signs' for the agents: Hughes' route is the density's "
-        "(crowd.kind = 'fokker-planck')",
-    )
+    name = "fastest-route" if keep_exit else "hughes"
+    segs = exit_segments(ctx.scenario.domain)
+    if not len(segs):
+        raise ParameterError("crowd.guidance", name, "a plan with exits (domain.exits) for the routes to them")
+    c = ctx.scenario.crowd
+    diagram = plugins.load("congestion", ctx.scenario.congestion_model)(free_speed=c.free_speed, rho_max=c.rho_max)
+    return CrowdRoutes(ctx.grid, segs, diagram, keep_exit, ctx.sight)
+
+
+def fastest_route(ctx: CrowdContext, positions: np.ndarray) -> RouteGuidance:
+    """Registry factory (``fastest-route``): the informed crowd, each to the exit nearest where it started (or
+    its group's), on the route of least travel time through the crowd (:mod:`meanfield.crowds.crowd_routes`)."""
+    from meanfield.crowds.groups import assigned_exits
+
+    routes = crowd_routes(ctx, keep_exit=True)
+    c = ctx.scenario.crowd
+    exit_of = routes.nearest_exit(positions)
+    if c.initial == "groups":
+        own = assigned_exits(c.groups)
+        exit_of = np.where(own >= 0, own, exit_of)
+    return RouteGuidance(routes, c.free_speed, c.congestion_radius, exit_of)
+
+
+def hughes(ctx: CrowdContext, positions: np.ndarray) -> RouteGuidance:
+    """Registry factory (``hughes``): Hughes' model, each to the exit of least travel time through the crowd."""
+    c = ctx.scenario.crowd
+    return RouteGuidance(crowd_routes(ctx, keep_exit=False), c.free_speed, c.congestion_radius)
 
 
 # ---------------------------------------------------------------------------------------------- the density
@@ -233,7 +305,7 @@ class DensityGuidance:
         A drift that depends on the density: ``velocity_of(ρ)`` returns the drift on the interior
         faces for the current density ``ρ`` (unit mass, on the grid's cells), which the density
         follows over the next control period (:meth:`~meanfield.crowds.density_crowd.DensityCrowd.advance`
-        asks it at the start of every period); Hughes' route (:class:`HughesRoute`).  At most one of
+        asks it at the start of every period); the routes the crowd shapes (:class:`DensityRoutes`).  At most one of
         ``velocity``, ``velocity_of`` and ``follows_signs``.  One that declares ``exits_closed`` is told
         when exits close (a scenario's ``[[events]]``).
     replan : callable, optional
@@ -263,60 +335,6 @@ class DensityGuidance:
     def drifts(self) -> bool:
         """Whether the density follows a drift of the guidance's own (``velocity`` or ``velocity_of``)."""
         return self.velocity is not None or self.velocity_of is not None
-
-
-def route_velocity(grid: Grid, phi: np.ndarray, speed: float) -> FaceField:
-    """``speed · (−∇φ/|∇φ|)`` on the interior faces: walking the route down ``φ`` at ``speed``.
-
-    On each face the normal component of ``∇φ`` is the difference of its two cells over their
-    distance; the tangential one is the mean of the differences across the open faces of the
-    same two cells in the other direction; the face gets ``−speed`` times the normal component
-    over the length of the two.  So ``|a| <= speed`` on every face, with equality where the route
-    crosses the face straight; a face that is closed (no aperture) or next to a cell without a
-    finite ``φ`` carries nothing, and neither does a face where ``∇φ = 0``.
-
-    Parameters
-    ----------
-    grid : Grid
-    phi : ndarray
-        The distance to the exits on the cells (:func:`~meanfield.geometry.geodesic.exit_distance`;
-        ``inf`` outside Ω).
-    speed : float
-        The walking speed, > 0 (``crowd.free_speed``).
-
-    Returns
-    -------
-    FaceField
-        The normal velocities ``(ax, ay)`` on the x- and y-faces.
-    """
-    if not (math.isfinite(speed) and speed > 0):
-        raise ParameterError("crowd.free_speed", speed, "a walking speed > 0")
-    phi = np.asarray(phi, float)
-    if phi.shape != grid.shape:
-        raise ParameterError("phi", phi.shape, f"an array of grid.shape {grid.shape}")
-    known = grid.active & np.isfinite(phi)
-    f = np.where(known, phi, 0.0)
-    open_x = known[1:, :] & known[:-1, :] & (grid.aperture_x > 0)
-    open_y = known[:, 1:] & known[:, :-1] & (grid.aperture_y > 0)
-    gx = np.where(open_x, (f[1:, :] - f[:-1, :]) / grid.dx, 0.0)
-    gy = np.where(open_y, (f[:, 1:] - f[:, :-1]) / grid.dy, 0.0)
-    nx, ny = grid.shape
-    # the other component on each face: the mean over the open faces of its two cells in the other direction
-    py, cy = np.zeros((nx, ny + 1)), np.zeros((nx, ny + 1))
-    py[:, 1:-1], cy[:, 1:-1] = gy, open_y
-    ty_sum = py[:-1, :-1] + py[:-1, 1:] + py[1:, :-1] + py[1:, 1:]
-    ty_n = cy[:-1, :-1] + cy[:-1, 1:] + cy[1:, :-1] + cy[1:, 1:]
-    ty = np.divide(ty_sum, ty_n, out=np.zeros_like(ty_sum), where=ty_n > 0)
-    px, cx = np.zeros((nx + 1, ny)), np.zeros((nx + 1, ny))
-    px[1:-1, :], cx[1:-1, :] = gx, open_x
-    tx_sum = px[:-1, :-1] + px[1:, :-1] + px[:-1, 1:] + px[1:, 1:]
-    tx_n = cx[:-1, :-1] + cx[1:, :-1] + cx[:-1, 1:] + cx[1:, 1:]
-    tx = np.divide(tx_sum, tx_n, out=np.zeros_like(tx_sum), where=tx_n > 0)
-    out = []
-    for g, t, is_open in ((gx, ty, open_x), (gy, tx, open_y)):
-        norm = np.hypot(g, t)
-        out.append(np.divide(-speed * g, norm, out=np.zeros_like(g), where=is_open & (norm > 0)))
-    return out[0], out[1]
 
 
 def walk_diffusion(walk_speed: float, turning_rate: float) -> float:
@@ -376,86 +394,6 @@ def geodesic_for_density(ctx: CrowdContext) -> DensityGuidance:
     return to(np.ones(len(segs), dtype=bool))
 
 
-HUGHES_SPEED_FLOOR = 0.05
-"""``f_min / v₀``: the floor of the walking speed in Hughes' eikonal equation, as the evacuation
-controller's (``meanfield.controllers.evacuation.SPEED_FLOOR``): crossing a jammed cell costs as long as
-crossing 20 free ones, so that ``φ`` stays finite behind a jam and a route prefers a detour of up to
-20 cells to a jam."""
-
-
-class HughesRoute:
-    """Hughes' route on the faces at the density ``ρ`` (R. L. Hughes, Transp. Res. B 36 (2002) 507–535).
-
-    The potential ``φ`` is the remaining travel time to the exits at the walking speed the crowd
-    allows, the eikonal equation::
-
-        |∇φ| = 1/f̂(ρ)  in Ω,   φ = 0  on the exits,   f̂ = max(v₀ g(Nρ), f_min)
-
-    (Hughes' eq. with his discomfort factor 1; ``g`` the diagram of ``crowd.congestion``, ``Nρ`` in
-    persons/m², ``f_min`` = ``floor · v₀``), solved by fast marching with the speed ``f̂`` on the
-    cells (:meth:`~meanfield.geometry.geodesic.ExitEikonal.travel_time`).  The density walks
-    ``v₀ e``, ``e = −∇φ/|∇φ|`` (:func:`route_velocity`), and the congested flux multiplies it by
-    ``g`` (:mod:`meanfield.fokker_planck.congested`): the crowd walks at ``f = v₀ g`` along the
-    route of least travel time, Hughes' model (docs page *Congestion*, "The PDE").  Where nobody
-    is (``ρ = 0``) ``f̂ = v₀`` and ``φ`` is the distance over ``v₀``: the ``geodesic`` route.
-
-    Parameters
-    ----------
-    grid : Grid
-    eikonal : ExitEikonal
-        The exits' fast-marching solver on ``grid`` (:class:`~meanfield.geometry.geodesic.ExitEikonal`).
-    diagram : FundamentalDiagram
-        ``g`` and ``v₀`` (``free_speed``) (:mod:`meanfield.crowds.congestion`); one that does not slow
-        (``"none"``) gives the geodesic route at every density, computed once.
-    people : float
-        ``N``: the density has unit mass, ``N ρ`` persons/m² (``crowd.n``), > 0.
-    floor : float, default HUGHES_SPEED_FLOOR
-        ``f_min / v₀`` in ``(0, 1]``.
-    """
-
-    def __init__(self, grid: Grid, eikonal: Any, diagram: Any, people: float, floor: float = HUGHES_SPEED_FLOOR):
-        if not (math.isfinite(people) and people > 0):
-            raise ParameterError("crowd.n", people, "a number of people > 0")
-        if not (math.isfinite(floor) and 0 < floor <= 1):
-            raise ParameterError("floor", floor, "a share of the free speed in (0, 1]")
-        self.grid, self.eikonal, self.diagram = grid, eikonal, diagram
-        self.people, self.floor = float(people), float(floor)
-        self.free_speed = float(diagram.free_speed)
-        self._still: FaceField | None = None  # a diagram that does not slow: the geodesic route, once
-        self._all_exits = eikonal.segs  # (exits_closed plans to a subset of these)
-
-    def speed(self, rho: np.ndarray) -> np.ndarray:
-        """``f̂ = max(v₀ g(Nρ), f_min)`` on the cells (``v₀`` on the inactive ones)."""
-        rho = np.asarray(rho, float)
-        if rho.shape != self.grid.shape:
-            raise ParameterError("rho", rho.shape, f"an array of grid.shape {self.grid.shape}")
-        persons = self.people * np.where(self.grid.active, np.maximum(rho, 0.0), 0.0)
-        f = self.free_speed * np.asarray(self.diagram.speed_factor(persons), float)
-        return np.where(self.grid.active, np.maximum(f, self.floor * self.free_speed), self.free_speed)
-
-    def exits_closed(self, open_exits: np.ndarray) -> None:
-        """Plan to the exits with ``open_exits[k]`` from now on (a scenario's ``[[events]]``; none left: unchanged)."""
-        from meanfield.geometry.geodesic import ExitEikonal
-
-        open_exits = np.asarray(open_exits, dtype=bool)
-        if open_exits.any():
-            e = self.eikonal
-            self.eikonal = ExitEikonal(e.grid, self._all_exits[open_exits], e.sight)
-            self._still = None
-
-    def potential(self, rho: np.ndarray) -> np.ndarray:
-        """Hughes' ``φ`` (s): the travel time to the exits at the speed :meth:`speed` (``inf`` off Ω)."""
-        return self.eikonal.travel_time(self.speed(rho))
-
-    def __call__(self, rho: np.ndarray) -> FaceField:
-        """The drift ``v₀ (−∇φ/|∇φ|)`` on the interior faces for the density ``rho`` (:func:`route_velocity`)."""
-        if not self.diagram.slows:
-            if self._still is None:
-                self._still = route_velocity(self.grid, self.eikonal.distance, self.free_speed)
-            return self._still
-        return route_velocity(self.grid, self.potential(rho), self.free_speed)
-
-
 def random_walk_for_density(ctx: CrowdContext) -> DensityGuidance:
     """What ``random-walk`` gives the density: no drift, the walk's diffusion :func:`walk_diffusion` added to σ."""
     v = ctx.scenario.view
@@ -468,24 +406,41 @@ geodesic.for_density = geodesic_for_density  # type: ignore[attr-defined]
 random_walk.for_density = random_walk_for_density  # type: ignore[attr-defined]
 
 
-def hughes_for_density(ctx: CrowdContext) -> DensityGuidance:
-    """What ``hughes`` gives the density: Hughes' route at the current density (:class:`HughesRoute`).
+class DensityRoutes:
+    """The density's drift on the routes the crowd shapes: ``velocity_of`` of a :class:`DensityGuidance`.
 
-    The diagram is the scenario's (:attr:`~meanfield.scenarios.scenario.Scenario.congestion_model`, with
-    ``crowd.free_speed`` and ``crowd.rho_max``), ``N = crowd.n``; with ``"none"`` the route is the
-    ``geodesic`` one.  A plan without exits is refused, naming ``crowd.guidance``.
+    Parameters
+    ----------
+    routes : CrowdRoutes
+    people : float
+        ``N``: the density has unit mass, ``N ρ`` persons per unit area (``crowd.n``), > 0.
     """
-    from meanfield import plugins
-    from meanfield.geometry.exits import exit_segments
-    from meanfield.geometry.geodesic import ExitEikonal
 
-    segs = exit_segments(ctx.scenario.domain)
-    if not len(segs):
-        raise ParameterError("crowd.guidance", "hughes", "a plan with exits (domain.exits) for Hughes' route")
-    c = ctx.scenario.crowd
-    diagram = plugins.load("congestion", ctx.scenario.congestion_model)(free_speed=c.free_speed, rho_max=c.rho_max)
-    route = HughesRoute(ctx.grid, ExitEikonal(ctx.grid, segs, ctx.sight), diagram, c.n)
-    return DensityGuidance(velocity_of=route)
+    def __init__(self, routes: Any, people: float):
+        if not (math.isfinite(people) and people > 0):
+            raise ParameterError("crowd.n", people, "a number of people > 0")
+        self.routes, self.people = routes, float(people)
+
+    def __call__(self, rho: np.ndarray) -> FaceField:
+        """The drift on the interior faces at the density ``rho`` (the routes planned again)."""
+        self.routes.plan_for_density(rho, self.people)
+        return self.routes.density_velocity()
+
+    def exits_closed(self, open_exits: np.ndarray) -> None:
+        """Plan to the exits still open (a scenario's ``[[events]]``)."""
+        self.routes.exits_closed(open_exits)
 
 
+def fastest_route_for_density(ctx: CrowdContext) -> DensityGuidance:
+    """What ``fastest-route`` gives the density: each cell's mass to the exit of its basin, on the route of least
+    travel time through the crowd (:class:`DensityRoutes`)."""
+    return DensityGuidance(velocity_of=DensityRoutes(crowd_routes(ctx, keep_exit=True), ctx.scenario.crowd.n))
+
+
+def hughes_for_density(ctx: CrowdContext) -> DensityGuidance:
+    """What ``hughes`` gives the density: Hughes' route at the current density (:class:`DensityRoutes`)."""
+    return DensityGuidance(velocity_of=DensityRoutes(crowd_routes(ctx, keep_exit=False), ctx.scenario.crowd.n))
+
+
+fastest_route.for_density = fastest_route_for_density  # type: ignore[attr-defined]
 hughes.for_density = hughes_for_density  # type: ignore[attr-defined]

@@ -75,8 +75,9 @@ class CrowdSpec:
     bilinearly, O(N + n M): :mod:`meanfield.signs.sampled_field`) or ``"auto"`` (sampled when
     ``N n > 2·10⁶``).  ``guidance`` is what the humans follow: the robots' ``"signs"``
     (the paper), or a baseline, ``"geodesic"`` (the informed crowd, walking the shortest
-    route to an exit at ``free_speed``), ``"random-walk"`` (the uninformed crowd) or, for the
-    density only, ``"hughes"`` (the informed crowd routed by travel time through the crowd;
+    route to an exit at ``free_speed``), ``"fastest-route"`` (the informed crowd on the route of
+    least travel time through the crowd to the exit nearest where each started), ``"hughes"``
+    (to the exit of least travel time, Hughes' model) or ``"random-walk"`` (the uninformed crowd;
     registry kind ``guidance``, :mod:`meanfield.crowds.guidance`).  ``free_speed`` is the free walking speed
     (1.34 m/s, Weidmann), also used by the evacuation lower bound.  ``congestion`` is the
     speed–density relation the humans walk by (registry kind ``congestion``,

@@ -16,10 +16,10 @@ import pytest
 
 from meanfield import ClosedLoop, ParameterError, paper_scenario, plugins
 from meanfield.crowds.congestion import Linear
-from meanfield.crowds.guidance import HUGHES_SPEED_FLOOR, DensityGuidance, HughesRoute, route_velocity, walk_diffusion
+from meanfield.crowds.guidance import DensityGuidance, route_velocity, walk_diffusion
 from meanfield.geometry.domain import Domain
-from meanfield.geometry.exits import distance_to_segments, exit_segments
-from meanfield.geometry.geodesic import ExitEikonal, exit_distance
+from meanfield.geometry.exits import exit_segments
+from meanfield.geometry.geodesic import exit_distance
 from meanfield.geometry.grid import Grid
 from meanfield.simulation.assembly import assemble
 
@@ -252,56 +252,6 @@ def test_the_agents_random_walk_spreads_with_the_densitys_diffusion():
 # ---------------------------------------------------------------------------------------------- Hughes' route
 
 
-def _bottleneck_plan():
-    from meanfield.geometry.plan import Plan
-
-    plan = Plan.from_wkt("POLYGON ((0 0, 10 0, 10 3.5, 12 3.5, 12 4.5, 10 4.5, 10 8, 0 8, 0 0))")
-    return Plan(plan.polygon, [((12.0, 3.5), (12.0, 4.5))])
-
-
-def _faces_apart(a, b) -> float:
-    return max(float(np.abs(a[k] - b[k]).max()) for k in range(2))
-
-
-def test_hughes_route_in_an_empty_room_is_the_geodesic_route():
-    """``ρ = 0``: ``f̂ = v₀`` on every cell, and a march of a constant speed is exactly the distance over it
-    (:class:`~meanfield.geometry.geodesic.ExitEikonal`), so the drift is the geodesic one to round-off, round the
-    bottleneck's corners included."""
-    plan = _bottleneck_plan()
-    grid = Grid(plan, (60, 40))
-    segs = exit_segments(plan)
-    route = HughesRoute(grid, ExitEikonal(grid, segs), Linear(free_speed=SPEED, rho_max=5.4), 200)
-    empty = np.zeros(grid.shape)
-    np.testing.assert_array_equal(route.speed(empty)[grid.active], SPEED)
-    phi = route.potential(empty)
-    dist = exit_distance(grid, segs)
-    np.testing.assert_allclose(SPEED * phi[grid.active], dist[grid.active], rtol=1e-13)
-    assert _faces_apart(route(empty), route_velocity(grid, dist, SPEED)) < 1e-12
-
-
-def test_hughes_route_at_a_small_density_is_the_geodesic_route_to_fast_marching_accuracy():
-    """A room 6 m × 4 m with a 1 m door, a crowd of at most 10⁻⁴ persons/m² (``g`` ≥ 1 − 2·10⁻⁵, not constant):
-    the travel time times ``v₀`` and the drift are the geodesic ones to within the fast march's own error, that
-    is the geodesic route's distance from the exact one (the straight line to the door in a convex room)."""
-    room = Domain.box(6.0, 4.0, exits=[((6.0, 1.5), (6.0, 2.5))])
-    grid = Grid(room, (60, 40))
-    segs = exit_segments(room)
-    X, Y = grid.centers
-    exact = distance_to_segments(np.column_stack([X.ravel(), Y.ravel()]), segs).min(axis=1).reshape(grid.shape)
-    dist = exit_distance(grid, segs)
-    geodesic = route_velocity(grid, dist, SPEED)
-    march_error = float(np.abs(dist - exact)[grid.active].max())  # measured 0.040 h
-    route_error = _faces_apart(geodesic, route_velocity(grid, exact, SPEED))  # measured 0.036 m/s
-    people = 200
-    rho = 1e-4 * np.exp(-((X - 2.0) ** 2 + (Y - 2.0) ** 2) / 2.0) / people
-    route = HughesRoute(grid, ExitEikonal(grid, segs), Linear(free_speed=SPEED, rho_max=5.4), people)
-    speed = route.speed(rho)[grid.active]
-    assert speed.min() < speed.max()  # the speed is not constant: a march of its own
-    phi = SPEED * route.potential(rho)
-    assert np.abs(phi - dist)[grid.active].max() <= march_error  # measured 0.018 h
-    assert _faces_apart(route(rho), geodesic) <= route_error  # measured 0.017 m/s
-
-
 def _two_doors(guidance: str, congestion: str = "linear", n: int = 60):
     """A room 12 m × 4 m with a door of 1 m in the middle of each end wall, equally far from the room's middle;
     the crowd a normal law about 1.5 m east of the middle (std 1.5 m, at most 5.2 persons/m² with n = 60)."""
@@ -397,35 +347,3 @@ def test_hughes_without_congestion_is_the_geodesic_crowd_exactly():
     np.testing.assert_array_equal(t_h, t_g)
     np.testing.assert_allclose(out_h, out_g, rtol=1e-13, atol=1e-15)
     assert out_h[-1] > 0.7  # the drift's outflow, not the diffusion's (σ = 0)
-
-
-def test_hughes_is_refused_by_the_agents_and_needs_exits():
-    sc = _corridor("linear", **{"crowd.guidance": "hughes", "crowd.kind": "point-mass"})
-    with pytest.raises(ParameterError) as exc:
-        ClosedLoop(sc)
-    assert exc.value.name == "crowd.guidance" and exc.value.value == "hughes" and "fokker-planck" in str(exc.value)
-    with pytest.raises(ParameterError) as exc:
-        ClosedLoop(paper_scenario(seed=0).with_values({"crowd.guidance": "hughes"}), crowd="fokker-planck")
-    assert exc.value.name == "crowd.guidance"
-    ones = (np.zeros((2, 1)), np.zeros((1, 2)))
-    with pytest.raises(ParameterError) as exc:
-        DensityGuidance(velocity=ones, velocity_of=lambda rho: ones)
-    assert exc.value.name == "velocity_of"
-    with pytest.raises(ParameterError) as exc:
-        DensityGuidance(follows_signs=True, velocity_of=lambda rho: ones)
-    assert exc.value.name == "velocity_of"
-    from meanfield.controllers.evacuation import SPEED_FLOOR
-
-    assert HUGHES_SPEED_FLOOR == SPEED_FLOOR  # the evacuation controller's Hughes potential takes the same floor
-
-
-def test_hughes_speed_is_the_diagram_floored():
-    """``f̂ = max(v₀ g(Nρ), f_min)`` on the cells: 0.05 v₀ at and beyond the jam density, ``v₀ g`` above the floor."""
-    room = Domain.box(2.0, 1.0, exits=[((2.0, 0.0), (2.0, 1.0))])
-    grid = Grid(room, (4, 2))
-    people = 10
-    route = HughesRoute(grid, ExitEikonal(grid, exit_segments(room)), Linear(free_speed=SPEED, rho_max=5.4), people)
-    persons = np.array([[0.0, 1.08], [2.7, 5.13], [5.4, 6.0], [5.4, 5.3]])  # per m²
-    floor = HUGHES_SPEED_FLOOR * SPEED
-    expected = [[SPEED, 0.8 * SPEED], [0.5 * SPEED, floor], [floor, floor], [floor, floor]]  # g(5.13) = 0.05
-    np.testing.assert_allclose(route.speed(persons / people), expected, rtol=1e-12)

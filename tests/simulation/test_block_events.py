@@ -63,8 +63,9 @@ def test_routes_go_round_a_block_the_shortest_way(cells):
     assert walled.bounds == room.bounds  # the grid's lattice is the room's
 
 
-def test_nobody_stands_in_the_block_after_it_and_nobody_is_lost():
-    loop = ClosedLoop(hall(**{"crowd.guidance": "geodesic"}))
+@pytest.mark.parametrize("guidance", ["geodesic", "fastest-route"])
+def test_nobody_stands_in_the_block_after_it_and_nobody_is_lost(guidance):
+    loop = ClosedLoop(hall(**{"crowd.guidance": guidance}))
     block = shapely.from_wkt(CENTRE)
     run_to(loop, BLOCK_AT)
     x = loop.crowd.positions

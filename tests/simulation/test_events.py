@@ -36,8 +36,9 @@ def hall(**values):
     )
 
 
-def test_nobody_leaves_through_an_exit_after_it_closes_and_the_others_take_everyone():
-    loop = ClosedLoop(hall())
+@pytest.mark.parametrize("guidance", ["geodesic", "fastest-route", "hughes"])
+def test_nobody_leaves_through_an_exit_after_it_closes_and_the_others_take_everyone(guidance):
+    loop = ClosedLoop(hall(**{"crowd.guidance": guidance}))
     s = loop.run(progress=False).summary
     engine = loop.crowd.engine
     through_0 = engine.exit_time[engine.exit_index == 0]
@@ -45,7 +46,7 @@ def test_nobody_leaves_through_an_exit_after_it_closes_and_the_others_take_every
     assert s["evacuation_time_100"] is not None and engine.remaining() == 0
     assert s["events"] == [{"time": CLOSE_AT, "at": CLOSE_AT, "close_exit": 0, "exits_open": 3}]
     assert s["no_exit_left"] is False
-    open_run = ClosedLoop(hall(events=[])).run(progress=False).summary
+    open_run = ClosedLoop(hall(events=[], **{"crowd.guidance": guidance})).run(progress=False).summary
     assert "events" not in open_run
     assert s["evacuated_per_exit"][0] < open_run["evacuated_per_exit"][0]
 
