@@ -5,7 +5,20 @@
     ρ_j = #{k ≠ j active : |X_k − X_j|² < r²} / (π r² max(s(X_j), s_min))
 
 with ``s`` the share of the disk inside Ω (:mod:`meanfield.geometry.disk_share`, read bilinearly)
-or 1 when no table is given (docs page *Congestion*, "The local density").
+or 1 when no table is given (docs page *Congestion*, "The local density").  Given each human's
+walking direction ``e_j`` (``directed``), the same pass also counts the density *ahead*, in the
+half of the disk in front of it::
+
+    ρ⁺_j = #{k ≠ j active : |X_k − X_j|² < r², (X_k − X_j)·e_j > 0} / (½ π r² max(s(X_j), s_min))
+
+(0 for a human with no direction, ``e_j = 0``): the downwind density of the Godunov twin
+(docs page *Congestion*, "The agents' door model"), and each human's share of the overlaps with
+the others closer than the jam spacing ``d``, the excluded volume's push::
+
+    P_j = Σ_{k ≠ j active : 0 < |X_k − X_j| < d} (d − |X_k − X_j|)/2 · (X_j − X_k)/|X_k − X_j|
+
+(each pair moved apart by half its overlap, one Jacobi sweep of the contact constraint; a pair at
+the same point has no direction and is left alone).
 
 The count is a cell list: the active humans are sorted into the cells of a lattice over their
 bounding box (cells at least ``r`` wide, at most about four per human) by a counting sort, and
@@ -54,8 +67,10 @@ class DensityWork:
             raise ValueError(f"at most {MAX_HUMANS} humans")
         self.order = np.arange(n, dtype=np.int32)
         self.slot = np.arange(n, dtype=np.int32)
-        self.positions = np.empty((4, n))  # last order's x, y; cell order's x, y
-        self.indices = np.empty((3, n), dtype=np.int32)  # cell; humans in cell order; counts
+        # last order's x, y; cell order's x, y; last order's direction; cell order's direction; the push (cell order)
+        self.positions = np.empty((10, n))
+        # cell; humans in cell order; counts; counts ahead
+        self.indices = np.empty((4, n), dtype=np.int32)
         self.valid = np.empty(n, dtype=np.bool_)
         self.starts = np.empty(MAX_CELLS_PER_HUMAN * n + 66, dtype=np.int32)
 
@@ -76,8 +91,12 @@ def _lattice(x0: float, x1: float, y0: float, y1: float, radius: float, m: int) 
     return h, nx, ny
 
 
-def _counts_numpy(p: np.ndarray, radius: float) -> np.ndarray:
-    """For each of the points ``p`` (M, 2), how many others are closer than ``radius`` (full stencil)."""
+def _counts_numpy(
+    p: np.ndarray, radius: float, e: np.ndarray | None = None, spacing: float = 0.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each of the points ``p`` (M, 2), how many others are closer than ``radius`` (full stencil), how many
+    of those lie ahead along the direction ``e`` (M, 2) (``(X_k − X_j)·e_j > 0``; zeros when ``e`` is None), and
+    the push ``P_j`` (M, 2) of the others closer than ``spacing`` (module docstring; zeros when ``e`` is None)."""
     m = len(p)
     x0, y0 = float(p[:, 0].min()), float(p[:, 1].min())
     h, nx, ny = _lattice(x0, float(p[:, 0].max()), y0, float(p[:, 1].max()), radius, m)
@@ -89,6 +108,9 @@ def _counts_numpy(p: np.ndarray, radius: float) -> np.ndarray:
     start = np.cumsum(occupancy) - occupancy
     r2 = radius * radius
     total = np.zeros(m, dtype=np.int64)
+    ahead = np.zeros(m, dtype=np.int64)
+    push = np.zeros((m, 2))
+    c2 = spacing * spacing
     for di in (-1, 0, 1):
         for dk in (-1, 0, 1):
             ni, nk = ci + di, ck + dk
@@ -102,19 +124,32 @@ def _counts_numpy(p: np.ndarray, radius: float) -> np.ndarray:
             dy = p[cand, 1] - p[rows, 1]
             hit = (dx * dx + dy * dy < r2) & (cand != rows)
             total += np.bincount(rows[hit], minlength=m)
-    return total
+            if e is not None:
+                front = hit & (dx * e[rows, 0] + dy * e[rows, 1] > 0.0)
+                ahead += np.bincount(rows[front], minlength=m)
+                d2 = dx * dx + dy * dy
+                close = hit & (d2 < c2) & (d2 > 0.0)
+                dist = np.sqrt(d2[close])
+                w = (spacing - dist) / (2.0 * dist)
+                push[:, 0] -= np.bincount(rows[close], weights=w * dx[close], minlength=m)
+                push[:, 1] -= np.bincount(rows[close], weights=w * dy[close], minlength=m)
+    return total, ahead, push
 
 
 def _neighbour_density_numpy(
     x, active, radius, inv_area, table, ox, oy, spacing, floor, clipped,
-    order, slot, positions, indices, valid, starts, out,
+    directions, directed, jam_spacing, order, slot, positions, indices, valid, starts, out, out_ahead, out_push,
 ):  # fmt: skip
     out[:] = 0.0
+    if directed:
+        out_ahead[:] = 0.0
+        out_push[:] = 0.0
     idx = np.flatnonzero(active & np.isfinite(x[:, 0]) & np.isfinite(x[:, 1]))
     if len(idx) < 2:
         return
     p = x[idx]
-    counts = _counts_numpy(p, radius)
+    counts, ahead, push = _counts_numpy(p, radius, directions[idx] if directed else None, jam_spacing)
+    share = np.ones(len(idx))
     if clipped:
         nx, ny = table.shape
         fx = (p[:, 0] - ox) / spacing
@@ -125,15 +160,19 @@ def _neighbour_density_numpy(
         wy = np.clip(fy - k, 0.0, 1.0)
         lo = table[i, k] + wy * (table[i, k + 1] - table[i, k])
         hi = table[i + 1, k] + wy * (table[i + 1, k + 1] - table[i + 1, k])
-        out[idx] = counts * inv_area / np.maximum(lo + wx * (hi - lo), floor)
+        share = np.maximum(lo + wx * (hi - lo), floor)
+        out[idx] = counts * inv_area / share
     else:
         out[idx] = counts * inv_area
+    if directed:
+        out_ahead[idx] = ahead * (2.0 * inv_area) / share
+        out_push[idx] = push
 
 
 @compiled(fallback=_neighbour_density_numpy)
 def neighbour_density(
     x, active, radius, inv_area, table, ox, oy, spacing, floor, clipped,
-    order, slot, positions, indices, valid, starts, out,
+    directions, directed, jam_spacing, order, slot, positions, indices, valid, starts, out, out_ahead, out_push,
 ):  # fmt: skip
     """Each active human's neighbours within ``radius`` over the disk's area in Ω; in place.
 
@@ -154,21 +193,40 @@ def neighbour_density(
         ``s_min``: the share is taken as at least this.
     clipped : bool
         Divide by the share (else by the whole disk).
+    directions : ndarray, shape (N, 2)
+        Each human's walking direction ``e_j`` (any length: only its sign along ``X_k − X_j`` matters; 0: none);
+        read only when ``directed``.
+    directed : bool
+        Also count the density ahead, into ``out_ahead``, and the push of the excluded volume, into ``out_push``.
+    jam_spacing : float
+        ``d``: the others closer than this push (read only when ``directed``; ``d <= radius``).
     order, slot, positions, indices, valid, starts : ndarray
         The work arrays of :class:`DensityWork`.  ``order`` (a permutation of the humans) and its
         inverse ``slot`` carry the last call's order to the next; any permutation will do: it
         changes the speed, not the numbers.  The numpy twin neither reads nor changes them.
     out : ndarray of float, shape (N,)
         ``ρ_j``, persons per unit area; 0 for the humans who are not active.
+    out_ahead : ndarray of float, shape (N,)
+        ``ρ⁺_j``, the density in the half disk ahead (written only when ``directed``; 0 for those not active).
+    out_push : ndarray of float, shape (N, 2)
+        ``P_j`` (module docstring; written only when ``directed``; 0 for those not active).  A sum of floats: the
+        compiled loop and its numpy twin add the pairs in different orders and agree to round-off.
     """
     n = x.shape[0]
     px = positions[0]
     py = positions[1]
     sx = positions[2]
     sy = positions[3]
+    pex = positions[4]
+    pey = positions[5]
+    sex = positions[6]
+    sey = positions[7]
     cell = indices[0]
     ids = indices[1]
     cnt = indices[2]
+    fwd = indices[3]
+    qx = positions[8]
+    qy = positions[9]
     x0 = math.inf
     x1 = -math.inf
     y0 = math.inf
@@ -179,9 +237,16 @@ def neighbour_density(
         b = x[j, 1]
         s = slot[j]
         out[j] = 0.0
+        if directed:
+            out_ahead[j] = 0.0
+            out_push[j, 0] = 0.0
+            out_push[j, 1] = 0.0
         if active[j] and math.isfinite(a) and math.isfinite(b):
             px[s] = a
             py[s] = b
+            if directed:
+                pex[s] = directions[j, 0]
+                pey[s] = directions[j, 1]
             valid[s] = True
             m += 1
             x0 = min(x0, a)
@@ -217,13 +282,20 @@ def neighbour_density(
             start[c] = q + 1
             sx[q] = px[p]
             sy[q] = py[p]
+            if directed:
+                sex[q] = pex[p]
+                sey[q] = pey[p]
             ids[q] = order[p]
     for c in range(nc, 0, -1):
         start[c] = start[c - 1]
     start[0] = 0
     for q in range(m):
         cnt[q] = 0
+        fwd[q] = 0
+        qx[q] = 0.0
+        qy[q] = 0.0
     r2 = radius * radius
+    c2 = jam_spacing * jam_spacing
     for i in range(nx):  # each pair once: the rest of one's cell and the cell above, then the next column's three
         for k in range(ny):
             c = i * ny + k
@@ -241,6 +313,49 @@ def neighbour_density(
                 xp = sx[p]
                 yp = sy[p]
                 mine = 0
+                if directed:  # the same pairs, each also told whether the other is ahead of it, and the pushes
+                    ep = sex[p]
+                    fp = sey[p]
+                    front = 0
+                    for q in range(p + 1, up):
+                        dx = sx[q] - xp
+                        dy = sy[q] - yp
+                        d2 = dx * dx + dy * dy
+                        if d2 < r2:
+                            mine += 1
+                            cnt[q] += 1
+                            if dx * ep + dy * fp > 0.0:
+                                front += 1
+                            if dx * sex[q] + dy * sey[q] < 0.0:  # (X_p − X_q)·e_q > 0
+                                fwd[q] += 1
+                            if 0.0 < d2 < c2:
+                                dist = math.sqrt(d2)
+                                w = (jam_spacing - dist) / (2.0 * dist)
+                                qx[p] -= w * dx
+                                qy[p] -= w * dy
+                                qx[q] += w * dx
+                                qy[q] += w * dy
+                    for q in range(lo, hi):
+                        dx = sx[q] - xp
+                        dy = sy[q] - yp
+                        d2 = dx * dx + dy * dy
+                        if d2 < r2:
+                            mine += 1
+                            cnt[q] += 1
+                            if dx * ep + dy * fp > 0.0:
+                                front += 1
+                            if dx * sex[q] + dy * sey[q] < 0.0:
+                                fwd[q] += 1
+                            if 0.0 < d2 < c2:
+                                dist = math.sqrt(d2)
+                                w = (jam_spacing - dist) / (2.0 * dist)
+                                qx[p] -= w * dx
+                                qy[p] -= w * dy
+                                qx[q] += w * dx
+                                qy[q] += w * dy
+                    fwd[p] += front
+                    cnt[p] += mine
+                    continue
                 for q in range(p + 1, up):
                     dx = sx[q] - xp
                     dy = sy[q] - yp
@@ -261,6 +376,7 @@ def neighbour_density(
     ty = table.shape[1]
     for q in range(m):  # in cell order, so the table is read where the last human read it
         rho = cnt[q] * inv_area
+        share = 1.0
         if clipped:
             fx = (sx[q] - ox) / spacing
             fy = (sy[q] - oy) / spacing
@@ -270,9 +386,14 @@ def neighbour_density(
             wy = min(max(fy - k, 0.0), 1.0)
             lo = table[i, k] + wy * (table[i, k + 1] - table[i, k])  # as DiskShare.at: exactly 1 among 1s
             hi = table[i + 1, k] + wy * (table[i + 1, k + 1] - table[i + 1, k])
-            rho = rho / max(lo + wx * (hi - lo), floor)
+            share = max(lo + wx * (hi - lo), floor)
+            rho = rho / share
         j = ids[q]
         out[j] = rho
+        if directed:
+            out_ahead[j] = fwd[q] * (2.0 * inv_area) / share
+            out_push[j, 0] = qx[q]
+            out_push[j, 1] = qy[q]
         order[q] = j
         slot[j] = q
     t = m

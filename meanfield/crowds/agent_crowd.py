@@ -44,7 +44,7 @@ import numpy as np
 
 from meanfield import plugins
 from meanfield.crowds._field_loops import bilinear_at, gaussian_field_at
-from meanfield.crowds.congestion import FundamentalDiagram
+from meanfield.crowds.congestion import FundamentalDiagram, GodunovTwin
 from meanfield.crowds.groups import group_positions
 from meanfield.crowds.guidance import Guidance
 from meanfield.crowds.kde import KernelDensityEstimator
@@ -353,6 +353,9 @@ class AgentCrowd:
     memory : RouteMemory, optional
         People who remember the way once a sign has reached them (``view.memory = "route"`` or ``"sign"``,
         :mod:`meanfield.crowds.memory`); None: the paper's humans.
+    door_model : {"count", "godunov-twin"}
+        How a congested human's speed follows the density round it (``crowd.door_model``): ``g(ρ_j)`` of the
+        count in its disk, or the Godunov twin (:class:`~meanfield.crowds.congestion.GodunovTwin`).
     """
 
     def __init__(
@@ -372,6 +375,7 @@ class AgentCrowd:
         density_radius: float = DENSITY_RADIUS,
         individuals: Individuals | None = None,
         memory: RouteMemory | None = None,
+        door_model: str = "count",
     ):
         self.engine = engine
         self.memory = memory
@@ -403,6 +407,11 @@ class AgentCrowd:
             raise ParameterError("density_radius", density_radius, "a radius > 0 (m)")
         self.density_radius = float(density_radius)
         self._density = None if self.congestion is None else LocalDensity(len(engine.positions), density_radius, domain)
+        if door_model not in ("count", "godunov-twin"):
+            raise ParameterError("crowd.door_model", door_model, "'count' or 'godunov-twin'")
+        self.door_model = door_model
+        twin = self.congestion is not None and door_model == "godunov-twin"
+        self._twin = GodunovTwin(self.congestion) if twin else None
         self.local_density: np.ndarray | None = None  # persons/m² around each human at the last step (congestion)
         self.congestion_name = "none" if self.congestion is None else type(self.congestion).__name__.lower()
         self.peak_local_density = 0.0  # its largest value over the run so far
@@ -484,7 +493,7 @@ class AgentCrowd:
         if self.memory is not None and self.reached is not None:  # who a sign reached knows the way from then on
             self.memory.walk(drift, positions, self.reached)
         if self.congestion is not None:  # (without congestion not one operation more: every number as before)
-            self._slow_down(drift, positions, t)
+            self._slow_down(drift, positions, t, dt)
         if self.interaction is not None:
             drift += self.interaction.at_points(positions)
         if self.disturbance is not None:
@@ -497,10 +506,33 @@ class AgentCrowd:
                 drift[self.standing] = 0.0
         return drift
 
-    def _slow_down(self, velocity: np.ndarray, positions: np.ndarray, t: float) -> None:
-        """``velocity *= g(ρ_j)`` in place, ``ρ_j`` the local density of those still here (:class:`LocalDensity`)."""
-        rho = self._density(positions, getattr(self.engine, "active", None))
-        velocity *= self.congestion.speed_factor(rho)[:, None]
+    def _slow_down(self, velocity: np.ndarray, positions: np.ndarray, t: float, dt: float) -> None:
+        """The door model in place.  ``"count"``: ``velocity *= g(ρ_j)``, ``ρ_j`` the local density of those still
+        here (:class:`LocalDensity`).  ``"godunov-twin"`` (:class:`~meanfield.crowds.congestion.GodunovTwin`):
+        ``velocity`` times ``f_j = min(D(ρ⁻_j), S(ρ⁺_j)) / (v₀ ρ⁻_j)``, ``ρ⁺_j`` the density ahead of human ``j``
+        along ``velocity`` and ``ρ⁻_j = 2 ρ_j − ρ⁺_j`` the density behind it (:meth:`LocalDensity.here_and_ahead`),
+        plus the excluded volume's push over ``dt`` without its part along the walk (nobody is pushed forward)."""
+        if self._twin is None:
+            rho = self._density(positions, getattr(self.engine, "active", None))
+            velocity *= self.congestion.speed_factor(rho)[:, None]
+            self._peak(rho, t)
+            return
+        twin = self._twin
+        e = velocity.copy()  # the walking directions, before the speed rule
+        norm = np.hypot(e[:, 0], e[:, 1])
+        np.divide(e, norm[:, None], out=e, where=norm[:, None] > 0)
+        e[norm == 0] = 0.0
+        rho, ahead, push = self._density.here_and_ahead(
+            positions, e, getattr(self.engine, "active", None), min(twin.jam_spacing, self.density_radius)
+        )
+        velocity *= twin.speed_factor(np.maximum(2.0 * rho - ahead, 0.0), ahead)[:, None]
+        forward = np.maximum((push * e).sum(axis=1), 0.0)
+        push -= forward[:, None] * e
+        velocity += push / dt
+        self._peak(rho, t)
+
+    def _peak(self, rho: np.ndarray, t: float) -> None:
+        """Keep the local densities of this step and their largest value over the run."""
         self.local_density = rho
         peak = float(rho.max()) if len(rho) else 0.0
         if peak > self.peak_local_density:
@@ -672,6 +704,7 @@ class AgentCrowd:
             sc.crowd.congestion_radius,
             people,
             memory,
+            sc.crowd.door_model,
         )
         crowd.congestion_name = sc.congestion_model
         return crowd
@@ -692,6 +725,8 @@ point_mass_crowd.places_groups = True  # type: ignore[attr-defined]
 :mod:`meanfield.crowds.groups`)."""
 point_mass_crowd.group_exits = True  # type: ignore[attr-defined]
 """A group may walk to an exit of its own (``[[crowd.groups]] exit = k``): each person keeps its group's."""
+point_mass_crowd.door_models = ("count", "godunov-twin")  # type: ignore[attr-defined]
+"""A congested human's speed from the count round it (``"count"``) or the Godunov twin (``crowd.door_model``)."""
 point_mass_crowd.changes_walls = True  # type: ignore[attr-defined]
 """A region can become wall during a run (``[[events]] block``, :meth:`AgentCrowd.walls_changed`): the people in it
 step out, and the signs, routes and walks go round it."""

@@ -41,6 +41,7 @@ __all__ = [
     "Weidmann",
     "Linear",
     "persons_per_m2",
+    "GodunovTwin",
     "WEIDMANN_GAMMA",
     "WEIDMANN_RHO_MAX",
     "FREE_SPEED",
@@ -182,3 +183,67 @@ class Linear:
 def persons_per_m2(density: np.ndarray, n: int) -> np.ndarray:
     """A unit-mass density of a crowd of ``n`` people as persons per m² (``n ρ``)."""
     return n * np.asarray(density, float)
+
+
+class GodunovTwin:
+    """The agents' door model, the Godunov twin: each human's speed from the density behind it and ahead of it.
+
+    A human ``j`` with density ``ρ⁻_j`` behind it and ``ρ⁺_j`` in front of it (persons/m², the two halves of its
+    disk, :meth:`~meanfield.crowds.local_density.LocalDensity.here_and_ahead`) walks at the flux the density's
+    Godunov scheme passes between the two, over the density it leaves, as a fraction of ``v₀``::
+
+        f_j = min(D(ρ⁻_j), S(ρ⁺_j)) / (v₀ ρ⁻_j),
+        D(ρ) = q(min(ρ, ρ_c)),   S(ρ) = q(max(ρ, ρ_c)),   q(ρ) = ρ v₀ g(ρ)          (G1)
+
+    (docs page *Congestion*, "The agents' door model"): the demand and the supply of the diagram, as the
+    density's face flux takes them (:mod:`meanfield.fokker_planck.congested`).  Where the crowd is even
+    (``ρ⁻ = ρ⁺ = ρ``) ``f = g(ρ)``, the diagram itself; the head of a queue with room in front of it
+    (``ρ⁻ > ρ_c``, ``ρ⁺ <= ρ_c``) walks at ``q_max / ρ⁻``, so that a door passes its capacity, where the
+    isotropic count stopped it (the people behind it counted); nobody walks into room at the jam density
+    (``S(ρ_max) = 0``); nobody behind (``ρ⁻ = 0``): ``g(0) = 1``, or 0 in front of a jam.
+
+    The excluded volume: the agents are points, and a count over half a disk of 0.5 m does not stop two of
+    them converging on the same spot from the sides.  Each pair closer than the jam spacing
+    ``d = sqrt(2 / (√3 ρ_max))``, the spacing of people packed hexagonally at the jam density (0.46 m at
+    5.4 persons/m², :attr:`jam_spacing`), is moved apart by half its overlap in the step (one Jacobi sweep of
+    the contact constraint of B. Maury and J. Venel, "A discrete contact model for crowd motion", ESAIM:
+    M2AN 45 (2011) 145–168), without the part along each one's walk: nobody is pushed forward, so the
+    push packs no more people through a door than (G1) lets through.
+
+    Parameters
+    ----------
+    diagram : FundamentalDiagram
+        A diagram that slows (finite ``rho_max``).
+    """
+
+    def __init__(self, diagram: FundamentalDiagram) -> None:
+        self.diagram = diagram
+        self.q_max, self.rho_c = diagram.capacity()
+        self.free_speed = float(diagram.free_speed)
+        self.jam_spacing = math.sqrt(2.0 / (math.sqrt(3.0) * float(diagram.rho_max)))
+
+    def q(self, rho: np.ndarray) -> np.ndarray:
+        """The flow ``q(ρ) = ρ v₀ g(ρ)``, persons/(m·s)."""
+        rho = np.asarray(rho, float)
+        return rho * self.free_speed * self.diagram.speed_factor(rho)
+
+    def demand(self, rho: np.ndarray) -> np.ndarray:
+        """``D(ρ) = q(min(ρ, ρ_c))``: what the crowd at density ``ρ`` can send (nondecreasing, persons/(m·s))."""
+        return self.q(np.minimum(rho, self.rho_c))
+
+    def supply(self, rho: np.ndarray) -> np.ndarray:
+        """``S(ρ) = q(max(ρ, ρ_c))``: what room at density ``ρ`` can take (nonincreasing; 0 at ``ρ_max``)."""
+        return self.q(np.maximum(rho, self.rho_c))
+
+    def speed_factor(self, behind: np.ndarray, ahead: np.ndarray) -> np.ndarray:
+        """``f`` of (G1) in ``[0, 1]`` for the densities ``behind`` and ``ahead`` of each human (persons/m²)."""
+        behind = np.asarray(behind, float)
+        ahead = np.asarray(ahead, float)
+        walk = self.diagram.speed_factor(np.minimum(behind, self.rho_c))  # D(ρ)/(v₀ ρ) below ρ_c ...
+        crowded = behind > self.rho_c
+        if crowded.any():  # ... and q_max/(v₀ ρ) above it
+            walk = np.where(crowded, self.q_max / (self.free_speed * np.maximum(behind, self.rho_c)), walk)
+        room = self.supply(ahead)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            front = np.where(behind > 0.0, room / (self.free_speed * behind), np.where(room > 0.0, np.inf, 0.0))
+        return np.clip(np.minimum(walk, front), 0.0, 1.0)

@@ -74,23 +74,63 @@ class LocalDensity:
         active : ndarray of bool, shape (n,), optional
             Who is still here (None: everyone).
         """
+        return self._count(positions, active, None)[0]
+
+    def here_and_ahead(
+        self, positions: np.ndarray, directions: np.ndarray, active: np.ndarray | None = None, jam_spacing: float = 0.0
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(ρ_j, ρ⁺_j, P_j)``: each human's density, the density in the half disk ahead of it (persons/m²), and
+        the push of those closer than ``jam_spacing`` (m, shape (n, 2); module
+        :mod:`meanfield.crowds._congestion_loops`).
+
+        ``ρ⁺_j = #{k ≠ j : |X_k − X_j| < r, (X_k − X_j)·e_j > 0} / (½ π r² max(s(X_j), s_min))``, the density
+        in front of human ``j`` along its walking direction ``e_j`` (docs page *Congestion*, "The agents' door
+        model"); 0 where ``e_j = 0``.  The density behind it, in the other half, is ``2 ρ_j − ρ⁺_j``.  One pass
+        over the pairs gives all three.
+
+        Parameters
+        ----------
+        positions : ndarray, shape (n, 2)
+        directions : ndarray, shape (n, 2)
+            Each human's walking direction (its velocity will do: only the sign along a neighbour's offset counts).
+        active : ndarray of bool, shape (n,), optional
+        jam_spacing : float
+            ``d``, m (``0 <= d <= r``; 0: no push).
+        """
+        e = np.ascontiguousarray(directions, dtype=float)
+        if e.shape != (self.n, 2):
+            raise ParameterError("directions", e.shape, f"shape ({self.n}, 2)")
+        if not 0.0 <= jam_spacing <= self.radius:
+            raise ParameterError("jam_spacing", jam_spacing, f"a distance in [0, {self.radius:g}] m (the radius)")
+        return self._count(positions, active, e, float(jam_spacing))
+
+    def _count(
+        self, positions: np.ndarray, active: np.ndarray | None, directions: np.ndarray | None, jam_spacing: float = 0.0
+    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         x = np.ascontiguousarray(positions, dtype=float)
         if x.shape != (self.n, 2):
             raise ParameterError("positions", x.shape, f"shape ({self.n}, 2)")
         here = self._everyone if active is None else np.ascontiguousarray(active, dtype=bool)
         out = np.empty(self.n)
+        directed = directions is not None
+        ahead = np.empty(self.n) if directed else _NO_AHEAD
+        push = np.empty((self.n, 2)) if directed else _NO_PUSH
         s = self.share
         if s is None:
             table, ox, oy, h = _NO_TABLE, 0.0, 0.0, 1.0
         else:
             table, (ox, oy), h = s.table, s.origin, s.spacing
         neighbour_density(
-            x, here, self.radius, self.inv_area, table, ox, oy, h, SHARE_FLOOR, s is not None, *self._work.arrays(), out
-        )
-        return out
+            x, here, self.radius, self.inv_area, table, ox, oy, h, SHARE_FLOOR, s is not None,
+            directions if directed else _NO_DIRECTIONS, directed, jam_spacing, *self._work.arrays(), out, ahead, push,
+        )  # fmt: skip
+        return (out, ahead, push) if directed else (out, None, None)
 
 
 _NO_TABLE = np.ones((2, 2))
+_NO_DIRECTIONS = np.zeros((1, 2))
+_NO_AHEAD = np.empty(1)
+_NO_PUSH = np.empty((1, 2))
 
 
 def local_density(

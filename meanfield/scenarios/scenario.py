@@ -286,6 +286,7 @@ class Scenario:
             )
         self._check_crowd()
         self._check_groups()
+        self._check_door_model()
         c = self.crowd  # individuals' traits (docs page Buildings, "People are not all alike")
         for key, value, default in (
             ("crowd.premovement", c.premovement, "none"),
@@ -324,6 +325,20 @@ class Scenario:
                 raise ParameterError(
                     "robots.margin", self.robots.margin, "less than half the domain's width and height"
                 )
+
+    def _check_door_model(self) -> None:
+        """``crowd.door_model`` against the crowd kind (the models it declares in ``door_models``; the default
+        ``"count"`` is taken by every kind, which ignores it without congestion)."""
+        c = self.crowd
+        if c.door_model == "count":
+            return
+        takes = registry.declared("crowd", c.kind, "door_models", ("count",))
+        if c.door_model not in takes:
+            raise ParameterError(
+                "crowd.door_model", c.door_model,
+                f"one of {', '.join(map(repr, takes))} with the {c.kind!r} crowd (it declares the door models it "
+                "takes, door_models): the density's flux is Godunov's already, JuPedSim's bodies queue by their own",
+            )  # fmt: skip
 
     def _check_groups(self) -> None:
         """``crowd.groups`` against the plan (each region inside it, each exit one it has) and the crowd kind."""

@@ -86,7 +86,13 @@ class CrowdSpec:
     the crowd kind's own default for the scenario's units
     (:attr:`~meanfield.scenarios.scenario.Scenario.congestion_model`; docs page *Congestion*).
     A congested agent's density is the others within ``congestion_radius`` (m, 0.5) over the
-    disk's area inside Ω (:mod:`meanfield.crowds.local_density`).
+    disk's area inside Ω (:mod:`meanfield.crowds.local_density`).  ``door_model`` is
+    how a congested agent turns the density round it into a speed (docs page *Congestion*, "The
+    agents' door model"): ``"count"`` (the default: ``g`` of the count in the whole disk) or
+    ``"godunov-twin"`` (the density's Godunov flux between the half disks behind and ahead of it,
+    with the excluded volume's push, :class:`~meanfield.crowds.congestion.GodunovTwin`); a crowd kind
+    takes the models it declares (``door_models``: the point masses both; the density's flux is
+    Godunov's and JuPedSim's bodies queue by their own model, so they take the default only).
 
     People are not all alike (docs pages *Scenarios*, "People who wait, people who do not
     follow", and *Buildings*; :class:`~meanfield.crowds.agent_crowd.Individuals`).
@@ -118,6 +124,7 @@ class CrowdSpec:
     congestion: str = "auto"
     rho_max: float = 5.4
     congestion_radius: float = DENSITY_RADIUS
+    door_model: str = "count"
     premovement: str | dict[str, Any] = "none"
     compliance: float = 1.0
     groups: list[dict[str, Any]] = field(default_factory=list)
@@ -145,6 +152,7 @@ class CrowdSpec:
             allowed=f"a radius >= {MIN_CONGESTION_RADIUS:g} m (a few centimetres: a smaller disk holds nobody) "
             "and at most the plan's size",
         )  # fmt: skip
+        self.door_model = choice("crowd.door_model", self.door_model, DOOR_MODELS)
         from meanfield.crowds.agent_crowd import premovement_law  # (loaded with the crowds anyway)
 
         law = premovement_law(self.premovement, "crowd.premovement")
@@ -175,6 +183,8 @@ MIN_CONGESTION_RADIUS = 0.05
 RHO_MAX_RANGE = (1.0, 20.0)
 """persons/m²: the ``crowd.rho_max`` a fundamental diagram takes (a jam below 1 person/m² freezes everyone; above
 20 persons/m² people would overlap: bodies of 0.2 m radius cannot stand closer than about 8 per m²)."""
+DOOR_MODELS = ("count", "godunov-twin")
+"""``crowd.door_model``: how a congested agent's speed follows the density round it (docs page *Congestion*)."""
 
 
 @dataclass

@@ -8,8 +8,12 @@
 * :func:`local_density` is persons/m²: 0 alone, ``k / (π r²)`` with ``k`` neighbours, and beside
   a wall ``k / (π r² s)`` with ``s`` the disk's share in Ω: a uniform crowd's density is seen as
   it is up to the wall (half of it without the share);
+* the directed pass counts the others ahead of each human and the excluded volume's push as a direct
+  sum over every pair does (the pushes add up to nothing; a pair alone moves apart by half its overlap);
 * with ``crowd.congestion = "none"`` nothing changes: no density is computed, the summary has
-  the same keys; with a diagram each human's chosen velocity is multiplied by ``g(ρ_j)``;
+  the same keys; with a diagram each human's chosen velocity is multiplied by ``g(ρ_j)`` (``crowd.door_model =
+  "count"``), or it walks the Godunov twin's speed (G1), ``min(D(ρ⁻), S(ρ⁺))/(v₀ ρ⁻)`` (exact values), plus the
+  push without its part along the walk (``"godunov-twin"``); the density and the bodies refuse the twin;
 * the run is deterministic for a seed, and the congested crowd leaves the bottleneck far slower;
 * the refusals: congestion outside SI units names ``crowd.congestion``; ``crowd.rho_max <= 0``
   and ``crowd.free_speed <= 0`` name their fields.
@@ -25,7 +29,7 @@ import pytest
 from meanfield._compiled import core as compiled
 from meanfield.crowds._congestion_loops import DensityWork, neighbour_density
 from meanfield.crowds.agent_crowd import AgentCrowd
-from meanfield.crowds.congestion import Linear, NoCongestion, Weidmann
+from meanfield.crowds.congestion import GodunovTwin, Linear, NoCongestion, Weidmann
 from meanfield.crowds.local_density import DENSITY_RADIUS, SHARE_FLOOR, LocalDensity, local_density
 from meanfield.errors import ParameterError
 from meanfield.geometry.disk_share import disk_share
@@ -64,8 +68,68 @@ def counted(x, active, radius, work=None):
     work = DensityWork(n) if work is None else work
     out = np.full(n, -1.0)
     inv = 1.0 / (math.pi * radius * radius)
-    neighbour_density(x, active, radius, inv, np.ones((2, 2)), 0.0, 0.0, 1.0, SHARE_FLOOR, False, *work.arrays(), out)
+    neighbour_density(
+        x, active, radius, inv, np.ones((2, 2)), 0.0, 0.0, 1.0, SHARE_FLOOR, False, np.zeros((1, 2)), False,
+        0.0, *work.arrays(), out, np.empty(1), np.empty((1, 2)),
+    )  # fmt: skip
     return np.rint(out / inv).astype(np.int64), out
+
+
+def directed(x, active, e, radius, spacing):
+    """``neighbour_density`` with directions: the densities, ahead, and the push (walls ignored)."""
+    n = len(x)
+    out, ahead, push = np.full(n, -1.0), np.full(n, -1.0), np.full((n, 2), -1.0)
+    inv = 1.0 / (math.pi * radius * radius)
+    neighbour_density(
+        x, active, radius, inv, np.ones((2, 2)), 0.0, 0.0, 1.0, SHARE_FLOOR, False, e, True,
+        spacing, *DensityWork(n).arrays(), out, ahead, push,
+    )  # fmt: skip
+    return out, ahead, push
+
+
+def direct_ahead_and_push(x, active, e, radius, spacing):
+    """Every pair compared: the others within ``radius`` ahead of each, and the push of those closer than
+    ``spacing`` (each pair apart by half its overlap)."""
+    ok = active & np.isfinite(x).all(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dx = x[None, :, 0] - x[:, None, 0]  # X_k − X_j
+        dy = x[None, :, 1] - x[:, None, 1]
+        d2 = dx * dx + dy * dy
+        pair = ok[:, None] & ok[None, :] & ~np.eye(len(x), dtype=bool)
+        near = pair & (d2 < radius * radius)
+        front = near & (dx * e[:, None, 0] + dy * e[:, None, 1] > 0)
+        close = near & (d2 < spacing * spacing) & (d2 > 0)
+        dist = np.sqrt(np.where(close, d2, 1.0))
+        w = np.where(close, (spacing - dist) / (2 * dist), 0.0)
+    push = -np.stack([(w * np.where(close, dx, 0)).sum(1), (w * np.where(close, dy, 0)).sum(1)], axis=1)
+    return np.where(ok, front.sum(1), 0), np.where(ok[:, None], push, 0.0)
+
+
+@pytest.mark.parametrize("n", [2, 7, 300, 1500])
+def test_the_density_ahead_and_the_push_are_every_pair_s(n):
+    """The directed pass: the count ahead is the direct one (integers, to the bit), the push the direct sum to
+    round-off, compiled and numpy alike; the pushes add up to nothing (each pair's two are opposite); a pair
+    alone at ``δ < d`` is moved apart by ``(d − δ)/2`` each, along its line."""
+    rng = np.random.default_rng(n)
+    x, active = crowd(n, rng, width=6.0)
+    e = rng.normal(size=(n, 2))
+    e[rng.random(n) < 0.1] = 0.0  # some with no direction: nobody ahead of them
+    spacing = 0.46
+    ahead_ref, push_ref = direct_ahead_and_push(x, active, e, DENSITY_RADIUS, spacing)
+    inv = 1.0 / (math.pi * DENSITY_RADIUS**2)
+    for path in ("compiled", "numpy"):
+        if path == "numpy":
+            with compiled.numpy_path():
+                out, ahead, push = directed(x, active, e, DENSITY_RADIUS, spacing)
+        else:
+            out, ahead, push = directed(x, active, e, DENSITY_RADIUS, spacing)
+        assert np.array_equal(out, direct_counts(x, active, DENSITY_RADIUS) * inv)
+        assert np.array_equal(ahead, ahead_ref * (2 * inv))
+        np.testing.assert_allclose(push, push_ref, rtol=0, atol=1e-13)
+        np.testing.assert_allclose(push[active].sum(axis=0), 0.0, atol=1e-12)
+    pair = np.array([[1.0, 1.0], [1.3, 1.4]])  # 0.5 apart
+    _, _, push = directed(pair, np.ones(2, bool), np.zeros((2, 2)), 1.0, 0.8)
+    np.testing.assert_allclose(push, [[-0.09, -0.12], [0.09, 0.12]], rtol=1e-12)  # (0.8 − 0.5)/2 along (0.6, 0.8)
 
 
 @pytest.mark.parametrize("n", [0, 1, 2, 7, 300, 2000])
@@ -192,6 +256,22 @@ def test_no_congestion_computes_nothing_and_keeps_the_summary():
     assert AgentCrowd(c.engine, c.kernel, c.kde, c.view, congestion=NoCongestion()).congestion is None
 
 
+def test_the_twin_s_speed_is_the_godunov_flux_over_the_density_behind():
+    """(G1) with the linear diagram (``v₀`` = 1.34 m/s, ``ρ_max`` = 5.4, ``ρ_c`` = 2.7, ``q_max`` = 1.809): an even
+    crowd walks at ``g(ρ)``; the head of a queue with room in front of it at ``q_max / (v₀ ρ⁻)``; nobody walks into
+    the jam; someone with nobody behind it walks free unless the room ahead is short, then at the supply's pace."""
+    twin = GodunovTwin(Linear(free_speed=1.34, rho_max=5.4))
+    q_max = 1.34 * 5.4 / 4
+    assert (twin.q_max, twin.rho_c) == pytest.approx((q_max, 2.7), rel=1e-12)
+    assert twin.jam_spacing == pytest.approx(math.sqrt(2 / (math.sqrt(3) * 5.4)), rel=1e-12)  # 0.463 m
+    even = np.array([0.0, 1.0, 2.7, 4.0, 5.4])
+    np.testing.assert_allclose(twin.speed_factor(even, even), 1 - even / 5.4, rtol=1e-12, atol=1e-15)
+    behind, ahead = np.array([5.0, 4.0, 1.0, 0.0, 0.0, 3.0]), np.array([0.0, 2.7, 5.4, 0.0, 5.4, 5.0])
+    s_ahead = 5.0 * 1.34 * (1 - 5.0 / 5.4)  # S(5) = q(5): what room at 5 persons/m² takes
+    expected = [q_max / (1.34 * 5.0), q_max / (1.34 * 4.0), 0.0, 1.0, 0.0, s_ahead / (1.34 * 3.0)]
+    np.testing.assert_allclose(twin.speed_factor(behind, ahead), expected, rtol=1e-12, atol=1e-15)
+
+
 @pytest.mark.parametrize("name, diagram", [("weidmann", Weidmann()), ("linear", Linear())])
 def test_congestion_multiplies_the_chosen_velocity_by_g(name, diagram):
     loop = ClosedLoop(bottleneck(name, t_final=1.0))
@@ -205,6 +285,27 @@ def test_congestion_multiplies_the_chosen_velocity_by_g(name, diagram):
     assert np.any(rho > local_density(x, crowd.engine.active, DENSITY_RADIUS))
     assert np.allclose(drift, chosen * diagram.speed_factor(rho)[:, None], rtol=0, atol=1e-15)
     assert rho.max() > 0 and np.all(np.hypot(*drift.T) <= 1.34 + 1e-12)
+    assert crowd.peak_local_density == rho.max()
+
+
+@pytest.mark.parametrize("name, diagram", [("weidmann", Weidmann()), ("linear", Linear())])
+def test_a_congested_human_walks_the_twin_s_speed_and_is_pushed_out_of_the_jam_but_never_forward(name, diagram):
+    loop = ClosedLoop(bottleneck(name, t_final=1.0, **{"crowd.door_model": "godunov-twin"}))
+    crowd = loop.crowd
+    assert crowd.congestion == diagram
+    x = crowd.positions.copy()
+    chosen = crowd.guidance.velocity(x, 0.0, 0.05).copy()
+    drift = crowd.drift(loop.robots, 0.0, 0.05).copy()
+    e = chosen / np.hypot(*chosen.T)[:, None]
+    twin = GodunovTwin(diagram)
+    density = LocalDensity(len(x), DENSITY_RADIUS, loop.scenario.domain)
+    rho, ahead, push = density.here_and_ahead(x, e, crowd.engine.active, twin.jam_spacing)
+    assert np.array_equal(crowd.local_density, rho)
+    assert np.array_equal(rho, local_density(x, crowd.engine.active, DENSITY_RADIUS, loop.scenario.domain))
+    f = twin.speed_factor(np.maximum(2 * rho - ahead, 0.0), ahead)
+    pushed = push - np.maximum((push * e).sum(1), 0.0)[:, None] * e
+    np.testing.assert_allclose(drift, chosen * f[:, None] + pushed / 0.05, rtol=0, atol=1e-12)
+    assert (np.hypot(*pushed.T) > 0).any() and ((pushed * e).sum(1) <= 1e-12).all()  # never forward
     assert crowd.peak_local_density == rho.max()
 
 
@@ -257,3 +358,14 @@ def test_the_local_density_radius_is_a_scenario_field():
         with pytest.raises(ParameterError) as exc:
             sc.with_values({"crowd.congestion_radius": bad})
         assert exc.value.name == "crowd.congestion_radius"
+
+
+@pytest.mark.parametrize("kind", ["fokker-planck", "jupedsim"])
+def test_the_density_and_the_bodies_refuse_the_twin_naming_the_door_model(kind):
+    with pytest.raises(ParameterError) as exc:
+        congestion = "none" if kind == "jupedsim" else "linear"
+        bottleneck(congestion, **{"crowd.kind": kind, "crowd.door_model": "godunov-twin"})
+    assert exc.value.name == "crowd.door_model" and "'count'" in str(exc.value)
+    with pytest.raises(ParameterError) as exc:
+        bottleneck("linear", **{"crowd.door_model": "push"})
+    assert exc.value.name == "crowd.door_model"

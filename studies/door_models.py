@@ -1,0 +1,165 @@
+"""The agents' door models against the density, in the bottleneck, at three noises (docs page *Congestion*).
+
+Run from the repository's root::
+
+    python studies/door_models.py [--sigmas 0.01 0.05 0.1] [--widths 0.8 1.0 2.0 2.5] [--seeds 3]
+    python studies/door_models.py --report        # only the table, from studies/results/door_models.jsonl
+
+The built-in ``bottleneck`` (a 10 m × 8 m room, a corridor 2 m long and ``b`` wide), with the 200 people
+starting in the room (``crowd.initial = "groups"``, the room's rectangle: none in the corridor), the
+informed crowd on the fastest route (``crowd.guidance = "fastest-route"``, docs page *Congestion*,
+"Routes") and the linear diagram, for
+
+* the point masses with each door model (``crowd.door_model`` = ``"count"`` or ``"godunov-twin"``), one
+  run per seed: the flow ``J`` between the exits of 10 % and 90 % of the crowd
+  (:func:`bottleneck_flow.steady_flow`) and the packing, the largest over the recorded seconds of the
+  95th percentile, among those still in the room, of the others within 0.5 m over ``π 0.25`` m²
+  (persons/m², the disk cut by the walls as the agents' own);
+* the density (``crowd.kind = "fokker-planck"``), one run (it is deterministic): ``J`` from its exits'
+  cumulative outflow (:func:`bottleneck_flow.pde_flow`).
+
+Each run is a line of ``studies/results/door_models.jsonl``, appended as it finishes (an interrupted
+study resumes); the table is the median and the worst seed of ``J/b`` and the worst seed's packing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bottleneck_flow import pde_flow, scenario, steady_flow  # noqa: E402
+
+RESULTS = Path("studies/results/door_models.jsonl")
+MODELS = ("count", "godunov-twin", "density")
+ROOM = "POLYGON ((0 0, 10 0, 10 8, 0 8, 0 0))"
+PACKING_RADIUS = 0.5
+"""m: the packing's disk."""
+
+
+def build(b: float, model: str, sigma: float, seed: int) -> Any:
+    """The bottleneck of width ``b`` with the crowd ``model`` at noise ``sigma``."""
+    sc = scenario(b, "pde-fastest" if model == "density" else "linear", seed)
+    values: dict[str, Any] = {
+        "crowd.sigma": sigma,
+        "crowd.guidance": "fastest-route",
+        "crowd.initial": "groups",
+        "crowd.groups": [{"region": ROOM, "n": sc.crowd.n}],
+    }
+    if model != "density":
+        values["crowd.door_model"] = model
+    return sc.with_values(values)
+
+
+class Packing:
+    """Observer: every recorded second, the 95th percentile of the local density of those still in the room."""
+
+    def __init__(self, every: int) -> None:
+        self.every, self.k, self.worst = every, 0, 0.0
+
+    def start(self, loop: Any) -> None:
+        from meanfield.crowds.local_density import LocalDensity
+
+        self.density = LocalDensity(len(loop.crowd.engine.positions), PACKING_RADIUS, loop.scenario.domain)
+
+    def step(self, loop: Any, record: Any) -> None:
+        self.k += 1
+        if self.k % self.every:
+            return
+        engine = loop.crowd.engine
+        room = engine.active & (engine.positions[:, 0] < 10.0)
+        if room.sum() < 10:
+            return
+        rho = self.density(engine.positions, engine.active)[room]
+        self.worst = max(self.worst, float(np.percentile(rho, 95)))
+
+
+def one_run(b: float, model: str, sigma: float, seed: int) -> dict[str, Any]:
+    from meanfield.simulation.loop import ClosedLoop
+
+    sc = build(b, model, sigma, seed)
+    start = time.perf_counter()
+    n = sc.crowd.n
+    if model == "density":
+        loop = ClosedLoop(sc)
+        crowd, times, out = loop.crowd, [0.0], [0.0]
+        while loop.t < sc.t_final - 1e-9 and out[-1] < n - 0.5:
+            loop.step()
+            times.append(loop.t)
+            out.append(n * float(crowd.out_per_exit.sum()) / crowd.initial_mass)
+        flow, packing = pde_flow(np.array(times), np.array(out), n), None
+    else:
+        packing_observer = Packing(round(1.0 / sc.dt))
+        loop = ClosedLoop(sc, observers=[packing_observer])
+        loop.run(progress=False)
+        flow = steady_flow(np.asarray(loop.crowd.engine.exit_time, float), n)
+        packing = packing_observer.worst
+    return {"model": model, "width": b, "sigma": sigma, "seed": seed, "flow": flow,
+            "specific_flow": None if flow is None else flow / b, "packing": packing,
+            "wall_seconds": time.perf_counter() - start}  # fmt: skip
+
+
+def rows() -> list[dict[str, Any]]:
+    if not RESULTS.exists():
+        return []
+    return [json.loads(line) for line in RESULTS.read_text().splitlines() if line.strip()]
+
+
+def report() -> str:
+    """The docs' table: ``J/b`` median (worst seed) per width, and the worst packing, per σ and model."""
+    table: dict[tuple, list[dict[str, Any]]] = {}
+    for r in rows():
+        table.setdefault((r["sigma"], r["model"]), []).append(r)
+    widths = sorted({r["width"] for r in rows()})
+    lines = ["| σ (m²/s) | model | " + " | ".join(f"b = {w:g}" for w in widths) + " | packing |",
+             "|---" * (len(widths) + 3) + "|"]  # fmt: skip
+    for (sigma, model), rs in sorted(table.items(), key=lambda kv: (kv[0][0], MODELS.index(kv[0][1]))):
+        cells = []
+        for w in widths:
+            js = [r["specific_flow"] for r in rs if r["width"] == w]
+            if not js:
+                cells.append("")
+            elif any(j is None for j in js):
+                cells.append(f"not 90 % out ({sum(j is None for j in js)} of {len(js)})")
+            elif len(js) == 1:
+                cells.append(f"{js[0]:.2f}")
+            else:
+                cells.append(f"{np.median(js):.2f} ({min(js):.2f})")
+        packs = [r["packing"] for r in rs if r["packing"] is not None]
+        lines.append(f"| {sigma:g} | {model} | " + " | ".join(cells) + f" | {max(packs):.1f} |" if packs else
+                     f"| {sigma:g} | {model} | " + " | ".join(cells) + " | — |")  # fmt: skip
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--sigmas", type=float, nargs="+", default=[0.01, 0.05, 0.1])
+    p.add_argument("--widths", type=float, nargs="+", default=[0.8, 1.0, 2.0, 2.5])
+    p.add_argument("--seeds", type=int, default=3)
+    p.add_argument("--models", nargs="+", default=list(MODELS), choices=MODELS)
+    p.add_argument("--report", action="store_true", help="only print the table from the results")
+    args = p.parse_args(argv)
+    if not args.report:
+        done = {(r["model"], r["width"], r["sigma"], r["seed"]) for r in rows()}
+        RESULTS.parent.mkdir(parents=True, exist_ok=True)
+        for sigma in args.sigmas:
+            for model in args.models:
+                for b in args.widths:
+                    for seed in range(1 if model == "density" else args.seeds):
+                        if (model, b, sigma, seed) in done:
+                            continue
+                        row = one_run(b, model, sigma, seed)
+                        with RESULTS.open("a") as f:
+                            f.write(json.dumps(row) + "\n")
+                        print(f"σ={sigma:g} {model} b={b:g} seed={seed}: J/b={row['specific_flow']}", flush=True)
+    print(report())
+
+
+if __name__ == "__main__":
+    main()
