@@ -153,23 +153,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if held():
         print("meanfield: a signal came after the last step: the run was finished and saved", file=sys.stderr)
     if not args.quiet:
-        keys = (
-            "status",
-            "fraction_in_target",
-            "l2_error_initial",
-            "l2_error_final",
-            "w2_to_target_final",
-            "time_to_90",
-            "max_robot_speed",
-            "speed_limit",
-            "backend",
-            "seen_fraction_final",
-            "steps",
-            "wall_seconds",
-            "seed",
-        )
-        extra = ("body_overlap_max", "jupedsim_version")
-        print(json.dumps({k: s[k] for k in keys + extra if k in s}, indent=2))
+        print(json.dumps(printed_summary(s), indent=2))
         print(f"outputs in {args.out}")
     shipped = _shipped_warnings(args.scenario, loop.grid, sc)
     for warning in s.get("warnings", ()):
@@ -179,3 +163,27 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(f"meanfield: run {s['status']}: {s['message']} (outputs of the last good state written)", file=sys.stderr)
         return 1
     return 0
+
+
+TARGET_KEYS = ("status", "fraction_in_target", "l2_error_initial", "l2_error_final", "w2_to_target_final", "time_to_90")
+"""What ``meanfield run`` prints first for a run towards the target (the paper's question: is the crowd there?)."""
+EVACUATION_KEYS = ("status", "fraction_evacuated", "evacuation_time_95", "evacuation_time_100", "rset_over_bound")
+"""What it prints first for a plan with exits (an evacuation engineer's: who is out, when, and against the bound)."""
+RUN_KEYS = ("max_robot_speed", "speed_limit", "backend", "seen_fraction_final", "steps", "wall_seconds", "seed",
+            "body_overlap_max", "jupedsim_version")  # fmt: skip
+"""Then, for every run: the robots' limits, the crowd, and the run itself."""
+
+
+def printed_summary(summary: dict) -> dict:
+    """The summary keys ``meanfield run`` prints (docs page *Command line*, ``run``): on a plan with exits the
+    evacuation figures, each exit's flow in persons/(m·s) included, in place of the target's figures (0 in the
+    target and no W2 to it look like a failed run there); otherwise the target's; then :data:`RUN_KEYS`."""
+    evacuation = "fraction_evacuated" in summary
+    out = {k: summary[k] for k in (EVACUATION_KEYS if evacuation else TARGET_KEYS) if k in summary}
+    if evacuation and summary.get("exit_flows"):
+        out["flow_per_exit"] = [
+            None if f.get("persons_per_metre_second") is None else round(f["persons_per_metre_second"], 3)
+            for f in summary["exit_flows"]
+        ]
+    out.update({k: summary[k] for k in RUN_KEYS if k in summary})
+    return out

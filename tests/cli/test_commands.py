@@ -75,6 +75,22 @@ def test_run_writes_outputs_and_exits_0(tmp_path, capsys):
     assert '"fraction_in_target"' in printed
 
 
+def test_a_plan_run_prints_the_evacuation_not_the_target(tmp_path, capsys):
+    """On a plan with exits ``meanfield run`` prints who is out, when, the flow per exit and RSET over the bound
+    (issue 43, item 6): not the target's figures, which read 0 and null there as if the run had failed."""
+    out = tmp_path / "l-room"
+    assert main(["run", "l-room", "--out", str(out), "--no-figures", "--set", "t_final=80"]) == 0
+    printed = json.loads(capsys.readouterr().out.split("outputs in")[0])
+    summary = json.loads((out / "summary.json").read_text())
+    assert list(printed)[:6] == ["status", "fraction_evacuated", "evacuation_time_95", "evacuation_time_100",
+                                 "rset_over_bound", "flow_per_exit"]  # fmt: skip
+    assert "fraction_in_target" not in printed and "w2_to_target_final" not in printed
+    assert printed["fraction_evacuated"] == summary["fraction_evacuated"] == 1.0
+    assert printed["evacuation_time_100"] == summary["evacuation_time_100"]
+    flows = [f["persons_per_metre_second"] for f in summary["exit_flows"]]
+    assert printed["flow_per_exit"] == [round(f, 3) for f in flows] and len(flows) == 1
+
+
 def test_scenario_command_prints_parseable_toml(capsys):
     assert main(["scenario", "paper"]) == 0
     text = capsys.readouterr().out
