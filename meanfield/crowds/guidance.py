@@ -76,7 +76,7 @@ __all__ = [
     "random_walk",
     "hughes",
     "fastest_route",
-    "crowd_routes",
+    "routes_of",
     "signs_for_density",
     "geodesic_for_density",
     "random_walk_for_density",
@@ -248,9 +248,10 @@ def random_walk(ctx: CrowdContext, positions: np.ndarray) -> RandomWalkGuidance:
     )
 
 
-def crowd_routes(ctx: CrowdContext, keep_exit: bool) -> Any:
-    """The scenario's :class:`~meanfield.crowds.crowd_routes.CrowdRoutes`: its exits, the diagram of
-    ``crowd.congestion`` (with ``crowd.free_speed`` and ``crowd.rho_max``) and ``crowd.congestion_radius``."""
+def routes_of(ctx: CrowdContext, keep_exit: bool) -> Any:
+    """The scenario's :class:`~meanfield.crowds.crowd_routes.CrowdRoutes`: to its exits, at the speed of the diagram of
+    ``crowd.congestion`` (with ``crowd.free_speed`` and ``crowd.rho_max``); refused, naming ``crowd.guidance``, on a
+    plan without exits."""
     from meanfield import plugins
     from meanfield.crowds.crowd_routes import CrowdRoutes
     from meanfield.geometry.exits import exit_segments
@@ -269,7 +270,7 @@ def fastest_route(ctx: CrowdContext, positions: np.ndarray) -> RouteGuidance:
     its group's), on the route of least travel time through the crowd (:mod:`meanfield.crowds.crowd_routes`)."""
     from meanfield.crowds.groups import assigned_exits
 
-    routes = crowd_routes(ctx, keep_exit=True)
+    routes = routes_of(ctx, keep_exit=True)
     c = ctx.scenario.crowd
     exit_of = routes.nearest_exit(positions)
     if c.initial == "groups":
@@ -281,7 +282,7 @@ def fastest_route(ctx: CrowdContext, positions: np.ndarray) -> RouteGuidance:
 def hughes(ctx: CrowdContext, positions: np.ndarray) -> RouteGuidance:
     """Registry factory (``hughes``): Hughes' model, each to the exit of least travel time through the crowd."""
     c = ctx.scenario.crowd
-    return RouteGuidance(crowd_routes(ctx, keep_exit=False), c.free_speed, c.congestion_radius)
+    return RouteGuidance(routes_of(ctx, keep_exit=False), c.free_speed, c.congestion_radius)
 
 
 # ---------------------------------------------------------------------------------------------- the density
@@ -434,12 +435,12 @@ class DensityRoutes:
 def fastest_route_for_density(ctx: CrowdContext) -> DensityGuidance:
     """What ``fastest-route`` gives the density: each cell's mass to the exit of its basin, on the route of least
     travel time through the crowd (:class:`DensityRoutes`)."""
-    return DensityGuidance(velocity_of=DensityRoutes(crowd_routes(ctx, keep_exit=True), ctx.scenario.crowd.n))
+    return DensityGuidance(velocity_of=DensityRoutes(routes_of(ctx, keep_exit=True), ctx.scenario.crowd.n))
 
 
 def hughes_for_density(ctx: CrowdContext) -> DensityGuidance:
     """What ``hughes`` gives the density: Hughes' route at the current density (:class:`DensityRoutes`)."""
-    return DensityGuidance(velocity_of=DensityRoutes(crowd_routes(ctx, keep_exit=False), ctx.scenario.crowd.n))
+    return DensityGuidance(velocity_of=DensityRoutes(routes_of(ctx, keep_exit=False), ctx.scenario.crowd.n))
 
 
 fastest_route.for_density = fastest_route_for_density  # type: ignore[attr-defined]
