@@ -509,9 +509,9 @@ class AgentCrowd:
     def _slow_down(self, velocity: np.ndarray, positions: np.ndarray, t: float, dt: float) -> None:
         """The door model in place.  ``"count"``: ``velocity *= g(ρ_j)``, ``ρ_j`` the local density of those still
         here (:class:`LocalDensity`).  ``"godunov-twin"`` (:class:`~meanfield.crowds.congestion.GodunovTwin`):
-        ``velocity`` times ``f_j = min(D(ρ⁻_j), S(ρ⁺_j)) / (v₀ ρ⁻_j)``, ``ρ⁺_j`` the density ahead of human ``j``
-        along ``velocity`` and ``ρ⁻_j = 2 ρ_j − ρ⁺_j`` the density behind it (:meth:`LocalDensity.here_and_ahead`),
-        plus the excluded volume's push over ``dt`` without its part along the walk (nobody is pushed forward)."""
+        ``velocity`` times ``f_j = min(D(ρ⁻_j), S(ρ⁺_j)) / (v₀ ρ⁻_j)``, ``ρ⁺_j`` and ``ρ⁻_j`` the densities ahead of
+        and behind human ``j`` along ``velocity`` (:meth:`LocalDensity.here_and_ahead`), then the excluded volume
+        (:meth:`GodunovTwin.exclude`)."""
         if self._twin is None:
             rho = self._density(positions, getattr(self.engine, "active", None))
             velocity *= self.congestion.speed_factor(rho)[:, None]
@@ -522,13 +522,11 @@ class AgentCrowd:
         norm = np.hypot(e[:, 0], e[:, 1])
         np.divide(e, norm[:, None], out=e, where=norm[:, None] > 0)
         e[norm == 0] = 0.0
-        rho, ahead, push = self._density.here_and_ahead(
+        rho, behind, ahead, push = self._density.here_and_ahead(
             positions, e, getattr(self.engine, "active", None), min(twin.jam_spacing, self.density_radius)
         )
-        velocity *= twin.speed_factor(np.maximum(2.0 * rho - ahead, 0.0), ahead)[:, None]
-        forward = np.maximum((push * e).sum(axis=1), 0.0)
-        push -= forward[:, None] * e
-        velocity += push / dt
+        velocity *= twin.speed_factor(behind, ahead)[:, None]
+        twin.exclude(velocity, e, push, dt)
         self._peak(rho, t)
 
     def _peak(self, rho: np.ndarray, t: float) -> None:

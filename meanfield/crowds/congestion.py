@@ -207,8 +207,9 @@ class GodunovTwin:
     ``d = sqrt(2 / (√3 ρ_max))``, the spacing of people packed hexagonally at the jam density (0.46 m at
     5.4 persons/m², :attr:`jam_spacing`), is moved apart by half its overlap in the step (one Jacobi sweep of
     the contact constraint of B. Maury and J. Venel, "A discrete contact model for crowd motion", ESAIM:
-    M2AN 45 (2011) 145–168), without the part along each one's walk: nobody is pushed forward, so the
-    push packs no more people through a door than (G1) lets through.
+    M2AN 45 (2011) 145–168) across each one's walk; along it the push only brakes (:meth:`exclude`, (G2)).
+    The densities of the halves are each over its own half's area in Ω, so that a human walking into a
+    wall's door does not read the density behind it doubled.
 
     Parameters
     ----------
@@ -247,3 +248,22 @@ class GodunovTwin:
         with np.errstate(divide="ignore", invalid="ignore"):
             front = np.where(behind > 0.0, room / (self.free_speed * behind), np.where(room > 0.0, np.inf, 0.0))
         return np.clip(np.minimum(walk, front), 0.0, 1.0)
+
+    def exclude(self, velocity: np.ndarray, directions: np.ndarray, push: np.ndarray, dt: float) -> None:
+        """The excluded volume, in place on the ``velocity`` of humans walking along unit ``directions``
+        (0: standing) under the ``push`` of the pairs closer than the jam spacing (m, over the step ``dt``)::
+
+            P_j = P∥_j e_j + P⊥_j,   v_j ← v_j − min(max(−P∥_j, 0)/Δt, v_j·e_j) e_j + P⊥_j/Δt        (G2)
+
+        The push across the walk moves the human aside; along the walk it only brakes: one too close to
+        the human ahead (``P∥ < 0``) cuts its walk by the overlap, down to standing, and is never moved
+        back; one too close to the human behind is not moved on.  Nobody is moved along its walk by the
+        push, either way (docs page *Congestion*, "The agents' door model": moving those behind back slowed
+        the doors as the noise grew, moving those ahead on sent more through them than (G1) lets through).
+        """
+        along = (push * directions).sum(axis=1)
+        push -= along[:, None] * directions
+        walk = np.maximum((velocity * directions).sum(axis=1), 0.0)
+        brake = np.minimum(np.maximum(-along, 0.0) / dt, walk)
+        velocity -= brake[:, None] * directions
+        velocity += push / dt

@@ -57,6 +57,8 @@ class LocalDensity:
         self.radius = float(radius)
         self.inv_area = 1.0 / (math.pi * self.radius * self.radius)
         self.share = None
+        self._region = region
+        self._half_share: Any = None  # the halves' shares, tabulated at the first directed call
         if region is not None:
             from meanfield.geometry.disk_share import disk_share
 
@@ -78,15 +80,18 @@ class LocalDensity:
 
     def here_and_ahead(
         self, positions: np.ndarray, directions: np.ndarray, active: np.ndarray | None = None, jam_spacing: float = 0.0
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(ρ_j, ρ⁺_j, P_j)``: each human's density, the density in the half disk ahead of it (persons/m²), and
-        the push of those closer than ``jam_spacing`` (m, shape (n, 2); module
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(ρ_j, ρ⁻_j, ρ⁺_j, P_j)``: each human's density, the densities in the halves of its disk behind and
+        ahead of it (persons/m²), and the push of those closer than ``jam_spacing`` (m, shape (n, 2); module
         :mod:`meanfield.crowds._congestion_loops`).
 
-        ``ρ⁺_j = #{k ≠ j : |X_k − X_j| < r, (X_k − X_j)·e_j > 0} / (½ π r² max(s(X_j), s_min))``, the density
-        in front of human ``j`` along its walking direction ``e_j`` (docs page *Congestion*, "The agents' door
-        model"); 0 where ``e_j = 0``.  The density behind it, in the other half, is ``2 ρ_j − ρ⁺_j``.  One pass
-        over the pairs gives all three.
+        ``ρ±_j = #{k ≠ j : |X_k − X_j| < r, ±(X_k − X_j)·e_j > 0} / (½ π r² max(s±(X_j, e_j), s_min))``, the
+        densities behind and in front of human ``j`` along its walking direction ``e_j``, each over its own half's
+        area in Ω (docs page *Congestion*, "The agents' door model"; ``s±`` of
+        :class:`~meanfield.geometry.disk_share.HalfDiskShare`, read only for the humans whose disk a wall cuts):
+        a human walking into a wall has a whole half behind it and none ahead, where the whole disk's share, a
+        half, would double the density behind it.  ``ρ⁺ = 0`` where ``e_j = 0`` (one who does not walk: its
+        speed factor multiplies nothing).  One pass over the pairs gives the counts and the push.
 
         Parameters
         ----------
@@ -102,7 +107,36 @@ class LocalDensity:
             raise ParameterError("directions", e.shape, f"shape ({self.n}, 2)")
         if not 0.0 <= jam_spacing <= self.radius:
             raise ParameterError("jam_spacing", jam_spacing, f"a distance in [0, {self.radius:g}] m (the radius)")
-        return self._count(positions, active, e, float(jam_spacing))
+        rho, ahead, push = self._count(positions, active, e, float(jam_spacing))
+        assert ahead is not None and push is not None
+        behind = 2.0 * rho - ahead  # both over half the whole disk's area in Ω, as the compiled pass counts them
+        np.maximum(behind, 0.0, out=behind)
+        if self.share is not None:
+            self._halves(positions, e, active, ahead, behind)
+        return rho, behind, ahead, push
+
+    def _halves(
+        self, positions: np.ndarray, e: np.ndarray, active: np.ndarray | None, ahead: np.ndarray, behind: np.ndarray
+    ) -> None:
+        """Put ``ρ±`` over their own halves' areas, in place, for the humans whose disk a wall cuts (``s < 1``)."""
+        x = np.asarray(positions, float)
+        here = np.isfinite(x[:, 0]) & np.isfinite(x[:, 1])
+        if active is not None:
+            here &= np.asarray(active, dtype=bool)
+        assert self.share is not None
+        cut = np.flatnonzero(here)
+        cut = cut[self.share.at(x[cut]) < 1.0]
+        cut = cut[(e[cut] != 0.0).any(axis=1)]
+        if not len(cut):
+            return
+        if self._half_share is None:
+            from meanfield.geometry.disk_share import half_disk_share
+
+            self._half_share = half_disk_share(self._region, self.radius)
+        whole, front, back = self._half_share.at(x[cut], e[cut])
+        whole = np.maximum(whole, SHARE_FLOOR)
+        ahead[cut] *= whole / np.maximum(front, SHARE_FLOOR)
+        behind[cut] *= whole / np.maximum(back, SHARE_FLOOR)
 
     def _count(
         self, positions: np.ndarray, active: np.ndarray | None, directions: np.ndarray | None, jam_spacing: float = 0.0

@@ -24,7 +24,16 @@ import numpy as np
 
 from meanfield.errors import ParameterError
 
-__all__ = ["DiskShare", "disk_share", "CELLS_PER_RADIUS", "MAX_TABLE_CELLS", "segment_share"]
+__all__ = [
+    "DiskShare",
+    "disk_share",
+    "HalfDiskShare",
+    "half_disk_share",
+    "CELLS_PER_RADIUS",
+    "MAX_TABLE_CELLS",
+    "HALF_DISK_DIRECTIONS",
+    "segment_share",
+]
 
 CELLS_PER_RADIUS = 8
 """The table's spacing is ``r / 8`` (coarser only when the plan would need more than
@@ -32,6 +41,9 @@ CELLS_PER_RADIUS = 8
 
 MAX_TABLE_CELLS = 4_000_000
 """At most this many cells (32 MB): a 707 m square room at ``r = 0.6 m`` is tabulated at 0.35 m."""
+
+HALF_DISK_DIRECTIONS = 16
+"""The half disks' shares are tabulated for this many directions, ``2πk/16`` (read linearly between them)."""
 
 _CELL_SAMPLES = 8  # a cut cell's share of Ω: 8 × 8 points
 _KERNEL_SAMPLES = 16  # each footprint cell's share of the disk: 16 × 16 points
@@ -98,14 +110,17 @@ def _cell_shares(region: Any, xe: np.ndarray, ye: np.ndarray) -> np.ndarray:
     return share
 
 
-def _footprint(radius: float, h: float) -> np.ndarray:
-    """The disk's area in each cell of its footprint (cells of width ``h`` centred on the disk's centre)."""
+def _footprint(radius: float, h: float, direction: float | None = None) -> np.ndarray:
+    """The disk's area in each cell of its footprint (cells of width ``h`` centred on the disk's centre); with
+    a ``direction`` (an angle), the area of the half disk ahead along it."""
     half = int(math.ceil(radius / h - 0.5))
     offsets = np.arange(-half, half + 1) * h
     u = ((np.arange(_KERNEL_SAMPLES) + 0.5) / _KERNEL_SAMPLES - 0.5) * h
     px = offsets[:, None, None, None] + u[None, None, :, None]
     py = offsets[None, :, None, None] + u[None, None, None, :]
     inside = px * px + py * py < radius * radius
+    if direction is not None:
+        inside &= px * math.cos(direction) + py * math.sin(direction) > 0.0
     return inside.mean(axis=(2, 3)) * h * h
 
 
@@ -140,15 +155,83 @@ def disk_share(region: Any, radius: float, spacing: float | None = None) -> Disk
     ny = int(math.ceil((y1 - y0) / h)) + 2  # wall lies between two cells' centres
     xe = x0 - h + h * np.arange(nx + 1)
     ye = y0 - h + h * np.arange(ny + 1)
-    from scipy.signal import fftconvolve
-
     weights = _footprint(float(radius), h)
     if not weights.sum() > 0.0:  # a disk that misses every sample of its cell (r far below the spacing):
         weights = np.ones((1, 1))  # its share is its cell's
-    table = fftconvolve(_cell_shares(region, xe, ye), weights, mode="same") / weights.sum()
+    table = _convolved(_cell_shares(region, xe, ye), weights, weights.sum())
+    return DiskShare(float(radius), (float(xe[0] + h / 2), float(ye[0] + h / 2)), h, table)
+
+
+def _convolved(cells: np.ndarray, weights: np.ndarray, area: float) -> np.ndarray:
+    """``Σ_d a_{c+d} w_d / area`` in [0, 1] (a correlation: ``w`` is flipped for the transform's convolution)."""
+    from scipy.signal import fftconvolve
+
+    table = fftconvolve(cells, weights[::-1, ::-1], mode="same") / area
     np.clip(table, 0.0, 1.0, out=table)  # the transform's round-off: whole disks are 1 exactly,
     table[table > 1.0 - 1e-9] = 1.0  # so that a crowd away from the walls counts as without them
-    return DiskShare(float(radius), (float(xe[0] + h / 2), float(ye[0] + h / 2)), h, table)
+    return table
+
+
+@dataclass(frozen=True)
+class HalfDiskShare:
+    """The shares in Ω of the two halves of each disk, ahead of and behind a direction ``e``::
+
+        s±(x, e) = |{y ∈ B(x, r) ∩ Ω : ±(y − x)·e > 0}| / (½ π r²),     s⁺ + s⁻ = 2 s(x)
+
+    (docs page *Congestion*, "The agents' door model"), tabulated as :class:`DiskShare` for the
+    :data:`HALF_DISK_DIRECTIONS` directions ``θ_k = 2πk/K``, read bilinearly in space and linearly in the
+    angle.  Only half of them are stored: the half disk ahead along ``θ_k + π`` is the one behind ``θ_k``.
+
+    Attributes
+    ----------
+    disk : DiskShare
+        ``s``, the whole disk's share, on the same lattice.
+    ahead : ndarray, shape (K/2, nx, ny)
+        ``s⁺(·, θ_k)`` for ``k < K/2``.
+    """
+
+    disk: DiskShare
+    ahead: np.ndarray
+
+    def at(self, points: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(s, s⁺, s⁻)`` at ``points`` (shape (M, 2)) for the ``directions`` (shape (M, 2), any length > 0)."""
+        p = np.asarray(points, float).reshape(-1, 2)
+        e = np.asarray(directions, float).reshape(-1, 2)
+        d = self.disk
+        whole = d.at(p)
+        half = len(self.ahead)
+        read = np.stack([bilinear(t, d.origin[0], d.origin[1], d.spacing, p[:, 0], p[:, 1]) for t in self.ahead])
+        # s⁺ for all K directions: the stored half, then the other half as 2s − s⁺ of the opposite direction
+        every = np.concatenate([read, 2.0 * whole[None, :] - read])
+        step = np.arctan2(e[:, 1], e[:, 0]) % (2.0 * math.pi) / (math.pi / half)
+        k0 = np.floor(step).astype(np.int64) % (2 * half)
+        w = step - np.floor(step)
+        rows = np.arange(len(p))
+        ahead = np.clip((1.0 - w) * every[k0, rows] + w * every[(k0 + 1) % (2 * half), rows], 0.0, 1.0)
+        return whole, ahead, np.clip(2.0 * whole - ahead, 0.0, 1.0)
+
+
+def half_disk_share(region: Any, radius: float, directions: int = HALF_DISK_DIRECTIONS) -> HalfDiskShare:
+    """Tabulate the half disks' shares ``s±(x, e)`` over ``region`` (:class:`HalfDiskShare`).
+
+    The lattice and the cells' shares of Ω are :func:`disk_share`'s; each direction's table is the
+    correlation of the cells' shares with the half disk's footprint.  ``directions`` (even, >= 4) of them:
+    ``s⁺`` is continuous in the angle, and linear reading between 16 is within a few hundredths of the
+    closed form beside a straight wall (tests/geometry/test_disk_share.py).
+    """
+    if not (isinstance(directions, int) and directions >= 4 and directions % 2 == 0):
+        raise ParameterError("directions", directions, "an even number of directions >= 4")
+    disk = disk_share(region, radius)
+    h = disk.spacing
+    nx, ny = disk.table.shape
+    xe = disk.origin[0] - h / 2 + h * np.arange(nx + 1)
+    ye = disk.origin[1] - h / 2 + h * np.arange(ny + 1)
+    cells = _cell_shares(region, xe, ye)
+    area = 0.5 * _footprint(float(radius), h).sum()
+    if not area > 0.0:  # a disk that misses every sample of its cell: both halves have their cell's share
+        return HalfDiskShare(disk, np.repeat(disk.table[None], directions // 2, axis=0))
+    angles = 2.0 * math.pi * np.arange(directions // 2) / directions
+    return HalfDiskShare(disk, np.stack([_convolved(cells, _footprint(float(radius), h, a), area) for a in angles]))
 
 
 def segment_share(distance: np.ndarray | float, radius: float) -> np.ndarray:

@@ -289,7 +289,7 @@ def test_congestion_multiplies_the_chosen_velocity_by_g(name, diagram):
 
 
 @pytest.mark.parametrize("name, diagram", [("weidmann", Weidmann()), ("linear", Linear())])
-def test_a_congested_human_walks_the_twin_s_speed_and_is_pushed_out_of_the_jam_but_never_forward(name, diagram):
+def test_a_congested_human_walks_the_twin_s_speed_and_is_pushed_aside_but_only_braked_along_its_walk(name, diagram):
     loop = ClosedLoop(bottleneck(name, t_final=1.0, **{"crowd.door_model": "godunov-twin"}))
     crowd = loop.crowd
     assert crowd.congestion == diagram
@@ -299,14 +299,43 @@ def test_a_congested_human_walks_the_twin_s_speed_and_is_pushed_out_of_the_jam_b
     e = chosen / np.hypot(*chosen.T)[:, None]
     twin = GodunovTwin(diagram)
     density = LocalDensity(len(x), DENSITY_RADIUS, loop.scenario.domain)
-    rho, ahead, push = density.here_and_ahead(x, e, crowd.engine.active, twin.jam_spacing)
+    rho, behind, ahead, push = density.here_and_ahead(x, e, crowd.engine.active, twin.jam_spacing)
     assert np.array_equal(crowd.local_density, rho)
     assert np.array_equal(rho, local_density(x, crowd.engine.active, DENSITY_RADIUS, loop.scenario.domain))
-    f = twin.speed_factor(np.maximum(2 * rho - ahead, 0.0), ahead)
-    pushed = push - np.maximum((push * e).sum(1), 0.0)[:, None] * e
-    np.testing.assert_allclose(drift, chosen * f[:, None] + pushed / 0.05, rtol=0, atol=1e-12)
-    assert (np.hypot(*pushed.T) > 0).any() and ((pushed * e).sum(1) <= 1e-12).all()  # never forward
+    walk = chosen * twin.speed_factor(behind, ahead)[:, None]
+    along = (push * e).sum(1)
+    aside = push - along[:, None] * e
+    brake = np.minimum(np.maximum(-along, 0.0) / 0.05, (walk * e).sum(1))
+    np.testing.assert_allclose(drift, walk - brake[:, None] * e + aside / 0.05, rtol=0, atol=1e-12)
+    forward = (drift * e).sum(1)
+    assert (brake > 0).any() and (np.hypot(*aside.T) > 0).any()  # the bottleneck's start has pairs too close
+    assert np.all(forward >= -1e-12) and np.all(forward <= (walk * e).sum(1) + 1e-12)  # braked, never moved back
     assert crowd.peak_local_density == rho.max()
+
+
+def test_the_halves_are_each_over_its_own_area_in_the_plan():
+    """Beside a wall: a human walking into it has a whole half behind it; the density behind it is its count
+    there over that half (not over half the disk's share, a quarter of it: twice the density); one walking along
+    the wall has the same count behind as ahead and reads the same density in both halves."""
+    room = builtin_scenarios()["rimea-9"](seed=0).domain  # 30 m × 20 m, the south wall at y = 0
+    x = np.array([[10.0, 0.05], [10.0, 0.35], [10.3, 0.05], [9.7, 0.05]])  # 0 walks into the wall
+    x = np.r_[x, x + [10.0, 0.0], [[15.0, 10.0], [15.2, 10.0]]]  # 4 walks along it; 8 in the middle
+    e = np.zeros_like(x)
+    e[0], e[4], e[8] = [0.0, -1.0], [1.0, 0.0], [1.0, 0.0]
+    density = LocalDensity(len(x), DENSITY_RADIUS, room)
+    rho, behind, ahead, _ = density.here_and_ahead(x, e)
+    halves = density._half_share
+    s, s_ahead, s_behind = halves.at(x[:1], e[:1])
+    assert s_ahead[0] < 0.2 and s_behind[0] > 0.95  # the wall's smoothing over a lattice cell
+    half_area = 0.5 * math.pi * DENSITY_RADIUS**2
+    assert ahead[0] == 0.0
+    assert behind[0] == pytest.approx(3 / (half_area * s_behind[0]), rel=1e-12)  # three behind, over a whole half
+    assert rho[0] == pytest.approx(3 / (2 * half_area * s[0]), rel=1e-12)
+    s, s_ahead, s_behind = halves.at(x[4:5], e[4:5])
+    assert s_ahead[0] == pytest.approx(s[0], abs=0.01) and s_behind[0] == pytest.approx(s[0], abs=0.01)
+    assert ahead[4] == pytest.approx(1 / (half_area * s_ahead[0]), rel=1e-12)  # one ahead, one behind, one aside
+    assert behind[4] == pytest.approx(2 / (half_area * s_behind[0]), rel=1e-12)  # (at 90°: behind, (X−x)·e = 0)
+    assert ahead[8] == pytest.approx(1 / half_area, rel=1e-12) and behind[8] == 0.0  # a whole disk: no table read
 
 
 def test_congested_runs_are_deterministic_and_slower():
