@@ -14,12 +14,13 @@ informed crowd on the fastest route (``crowd.guidance = "fastest-route"``, docs 
   run per seed: the flow ``J`` between the exits of 10 % and 90 % of the crowd
   (:func:`bottleneck_flow.steady_flow`) and the packing, the largest over the recorded seconds of the
   95th percentile, among those still in the room, of the others within 0.5 m over ``π 0.25`` m²
-  (persons/m², the disk cut by the walls as the agents' own);
+  (persons/m², the disk cut by the walls as the agents' own), and the same of their Voronoi densities
+  (:func:`voronoi_densities`, which read the jam density itself in a hexagonal jam, where the disk reads 7.6);
 * the density (``crowd.kind = "fokker-planck"``), one run (it is deterministic): ``J`` from its exits'
   cumulative outflow (:func:`bottleneck_flow.pde_flow`).
 
 Each run is a line of ``studies/results/door_models.jsonl``, appended as it finishes (an interrupted
-study resumes); the table is the median and the worst seed of ``J/b`` and the worst seed's packing.
+study resumes); the table is the median and the worst seed of ``J/b`` and the worst seed's packings.
 """
 
 from __future__ import annotations
@@ -146,8 +147,8 @@ def report() -> str:
     for r in rows():
         table.setdefault((r["sigma"], r["model"]), []).append(r)
     widths = sorted({r["width"] for r in rows()})
-    lines = ["| σ (m²/s) | model | " + " | ".join(f"b = {w:g}" for w in widths) + " | packing |",
-             "|---" * (len(widths) + 3) + "|"]  # fmt: skip
+    lines = ["| σ (m²/s) | model | " + " | ".join(f"b = {w:g}" for w in widths) + " | packing (disk) | (Voronoi) |",
+             "|---" * (len(widths) + 4) + "|"]  # fmt: skip
     for (sigma, model), rs in sorted(table.items(), key=lambda kv: (kv[0][0], MODELS.index(kv[0][1]))):
         cells = []
         for w in widths:
@@ -160,9 +161,11 @@ def report() -> str:
                 cells.append(f"{js[0]:.2f}")
             else:
                 cells.append(f"{np.median(js):.2f} ({min(js):.2f})")
-        packs = [r["packing"] for r in rs if r["packing"] is not None]
-        lines.append(f"| {sigma:g} | {model} | " + " | ".join(cells) + f" | {max(packs):.1f} |" if packs else
-                     f"| {sigma:g} | {model} | " + " | ".join(cells) + " | — |")  # fmt: skip
+        packs = [
+            "—" if not values else f"{max(values):.1f}"
+            for values in ([r.get(key) for r in rs if r.get(key) is not None] for key in ("packing", "packing_voronoi"))
+        ]
+        lines.append(f"| {sigma:g} | {model} | " + " | ".join(cells) + " | " + " | ".join(packs) + " |")
     return "\n".join(lines)
 
 
