@@ -251,7 +251,8 @@ class GodunovTwin:
 
     def exclude(self, velocity: np.ndarray, directions: np.ndarray, push: np.ndarray, dt: float) -> None:
         """The excluded volume, in place on the ``velocity`` of humans walking along unit ``directions``
-        (0: standing) under the ``push`` of the pairs closer than the jam spacing (m, over the step ``dt``)::
+        (0: standing, pushed whole) under the ``push`` of the pairs closer than the jam spacing (m, over the step
+        ``dt``)::
 
             P_j = P∥_j e_j + P⊥_j,   v_j ← v_j − min(max(−P∥_j, 0)/Δt, v_j·e_j) e_j + P⊥_j/Δt        (G2)
 
