@@ -4,6 +4,7 @@ Run from the repository's root::
 
     python studies/door_models.py [--sigmas 0.01 0.05 0.1] [--widths 0.8 1.0 2.0 2.5] [--seeds 3]
     python studies/door_models.py --report        # only the table, from studies/results/door_models.jsonl
+    python studies/door_models.py --dt 0.025 --models godunov-twin --widths 2.0   # the step halved
 
 The built-in ``bottleneck`` (a 10 m × 8 m room, a corridor 2 m long and ``b`` wide), with the 200 people
 starting in the room (``crowd.initial = "groups"``, the room's rectangle: none in the corridor), the
@@ -44,8 +45,13 @@ PACKING_RADIUS = 0.5
 """m: the packing's disk."""
 
 
-def build(b: float, model: str, sigma: float, seed: int) -> Any:
-    """The bottleneck of width ``b`` with the crowd ``model`` at noise ``sigma``."""
+DT = 0.05
+"""s: the bottleneck scenario's step (``--dt`` takes another; a row without ``dt`` was run at it)."""
+
+
+def build(b: float, model: str, sigma: float, seed: int, dt: float = DT) -> Any:
+    """The bottleneck of width ``b`` with the crowd ``model`` at noise ``sigma``, stepped by ``dt`` (recorded
+    every second)."""
     sc = scenario(b, "pde-fastest" if model == "density" else "linear", seed)
     values: dict[str, Any] = {
         "crowd.sigma": sigma,
@@ -55,6 +61,10 @@ def build(b: float, model: str, sigma: float, seed: int) -> Any:
     }
     if model != "density":
         values["crowd.door_model"] = model
+    if dt != sc.dt:
+        if not (dt > 0 and abs(1.0 / dt - round(1.0 / dt)) < 1e-9):
+            raise SystemExit(f"--dt: a step that divides a second (0.05, 0.025, 0.01, ...), not {dt}")
+        values["dt"], values["record_every"] = dt, round(1.0 / dt)
     return sc.with_values(values)
 
 
@@ -109,10 +119,10 @@ def voronoi_densities(points: np.ndarray, plan: Any) -> np.ndarray:
     return cells.sort_values("id")["density"].to_numpy()
 
 
-def one_run(b: float, model: str, sigma: float, seed: int) -> dict[str, Any]:
+def one_run(b: float, model: str, sigma: float, seed: int, dt: float = DT) -> dict[str, Any]:
     from meanfield.simulation.loop import ClosedLoop
 
-    sc = build(b, model, sigma, seed)
+    sc = build(b, model, sigma, seed, dt)
     start = time.perf_counter()
     n = sc.crowd.n
     if model == "density":
@@ -129,7 +139,7 @@ def one_run(b: float, model: str, sigma: float, seed: int) -> dict[str, Any]:
         loop.run(progress=False)
         flow = steady_flow(np.asarray(loop.crowd.engine.exit_time, float), n)
         packing, packing_voronoi = packing_observer.worst, packing_observer.worst_voronoi
-    return {"model": model, "width": b, "sigma": sigma, "seed": seed, "flow": flow,
+    return {"model": model, "width": b, "sigma": sigma, "seed": seed, "dt": sc.dt, "flow": flow,
             "specific_flow": None if flow is None else flow / b, "packing": packing,
             "packing_voronoi": packing_voronoi,
             "wall_seconds": time.perf_counter() - start}  # fmt: skip
@@ -138,18 +148,22 @@ def one_run(b: float, model: str, sigma: float, seed: int) -> dict[str, Any]:
 def rows() -> list[dict[str, Any]]:
     if not RESULTS.exists():
         return []
-    return [json.loads(line) for line in RESULTS.read_text().splitlines() if line.strip()]
+    found = [json.loads(line) for line in RESULTS.read_text().splitlines() if line.strip()]
+    for r in found:
+        r.setdefault("dt", DT)
+    return found
 
 
 def report() -> str:
     """The docs' table: ``J/b`` median (worst seed) per width, and the worst packing, per σ and model."""
     table: dict[tuple, list[dict[str, Any]]] = {}
     for r in rows():
-        table.setdefault((r["sigma"], r["model"]), []).append(r)
+        table.setdefault((r["sigma"], r["model"], r["dt"]), []).append(r)
     widths = sorted({r["width"] for r in rows()})
     lines = ["| σ (m²/s) | model | " + " | ".join(f"b = {w:g}" for w in widths) + " | packing (disk) | (Voronoi) |",
              "|---" * (len(widths) + 4) + "|"]  # fmt: skip
-    for (sigma, model), rs in sorted(table.items(), key=lambda kv: (kv[0][0], MODELS.index(kv[0][1]))):
+    for (sigma, model, dt), rs in sorted(table.items(), key=lambda kv: (kv[0][0], MODELS.index(kv[0][1]), -kv[0][2])):
+        name = model if dt == DT else f"{model}, dt = {dt:g} s"
         cells = []
         for w in widths:
             js = [r["specific_flow"] for r in rs if r["width"] == w]
@@ -165,7 +179,7 @@ def report() -> str:
             "—" if not values else f"{max(values):.1f}"
             for values in ([r.get(key) for r in rs if r.get(key) is not None] for key in ("packing", "packing_voronoi"))
         ]
-        lines.append(f"| {sigma:g} | {model} | " + " | ".join(cells) + " | " + " | ".join(packs) + " |")
+        lines.append(f"| {sigma:g} | {name} | " + " | ".join(cells) + " | " + " | ".join(packs) + " |")
     return "\n".join(lines)
 
 
@@ -175,21 +189,23 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--widths", type=float, nargs="+", default=[0.8, 1.0, 2.0, 2.5])
     p.add_argument("--seeds", type=int, default=3)
     p.add_argument("--models", nargs="+", default=list(MODELS), choices=MODELS)
+    p.add_argument("--dt", type=float, default=DT, help="the step, s (one that divides a second)")
     p.add_argument("--report", action="store_true", help="only print the table from the results")
     args = p.parse_args(argv)
     if not args.report:
-        done = {(r["model"], r["width"], r["sigma"], r["seed"]) for r in rows()}
+        done = {(r["model"], r["width"], r["sigma"], r["seed"], r["dt"]) for r in rows()}
         RESULTS.parent.mkdir(parents=True, exist_ok=True)
         for sigma in args.sigmas:
             for model in args.models:
                 for b in args.widths:
                     for seed in range(1 if model == "density" else args.seeds):
-                        if (model, b, sigma, seed) in done:
+                        if (model, b, sigma, seed, args.dt) in done:
                             continue
-                        row = one_run(b, model, sigma, seed)
+                        row = one_run(b, model, sigma, seed, args.dt)
                         with RESULTS.open("a") as f:
                             f.write(json.dumps(row) + "\n")
-                        print(f"σ={sigma:g} {model} b={b:g} seed={seed}: J/b={row['specific_flow']}", flush=True)
+                        print(f"σ={sigma:g} dt={args.dt:g} {model} b={b:g} seed={seed}: J/b={row['specific_flow']}",
+                              flush=True)  # fmt: skip
     print(report())
 
 
