@@ -12,6 +12,9 @@ sub-lattice), and each cell of the disk's footprint gets the area of the disk in
 ``w_d`` (sampled on a 16 × 16 sub-lattice).  Then ``s(x_c) = Σ_d a_{c+d} w_d / Σ_d w_d``
 (``scipy.signal.fftconvolve``; 1 exactly where the disk is whole): exact for a region made of
 whole cells, and within a few thousandths of the closed form beside a straight wall (tests/geometry/test_disk_share.py).
+
+The agents' door model also needs each half of the disk, ahead of and behind a walking direction:
+:func:`half_disk_share` tabulates those shares for 16 directions the same way (:class:`HalfDiskShare`).
 """
 
 from __future__ import annotations
@@ -216,8 +219,9 @@ def half_disk_share(region: Any, radius: float, directions: int = HALF_DISK_DIRE
 
     The lattice and the cells' shares of Ω are :func:`disk_share`'s; each direction's table is the
     correlation of the cells' shares with the half disk's footprint.  ``directions`` (even, >= 4) of them:
-    ``s⁺`` is continuous in the angle, and linear reading between 16 is within a few hundredths of the
-    closed form beside a straight wall (tests/geometry/test_disk_share.py).
+    ``s⁺`` is continuous in the angle, and reading it linearly between 16 directions is within 0.02 of a
+    polar quadrature at 95 % of the points, and within 1/16 where a wall along the direction puts a kink
+    between two of them (tests/geometry/test_disk_share.py).
     """
     if not (isinstance(directions, int) and directions >= 4 and directions % 2 == 0):
         raise ParameterError("directions", directions, "an even number of directions >= 4")
