@@ -132,7 +132,7 @@ class LocalDensity:
         if self._half_share is None:
             from meanfield.geometry.disk_share import half_disk_share
 
-            self._half_share = half_disk_share(self._region, self.radius)
+            self._half_share = half_disk_share(self._region, self.radius, disk=self.share)
         whole, front, back = self._half_share.at(x[cut], e[cut])
         whole = np.maximum(whole, SHARE_FLOOR)
         ahead[cut] *= whole / np.maximum(front, SHARE_FLOOR)

@@ -131,3 +131,9 @@ def test_the_halves_refuse_a_bad_number_of_directions():
     with pytest.raises(ParameterError) as info:
         half_disk_share(Domain.box(2.0, 2.0), R, directions=5)
     assert info.value.name == "directions"
+    room = Domain.box(2.0, 2.0)
+    with pytest.raises(ParameterError) as info:  # a whole disk's table of another radius
+        half_disk_share(room, R, disk=disk_share(room, 0.3))
+    assert info.value.name == "disk"
+    given, built = half_disk_share(room, R, disk=disk_share(room, R)), half_disk_share(room, R)
+    assert np.array_equal(given.ahead, built.ahead) and np.array_equal(given.disk.table, built.disk.table)
