@@ -39,7 +39,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bottleneck_flow import pde_flow, scenario, steady_flow  # noqa: E402
 
 RESULTS = Path("studies/results/door_models.jsonl")
-MODELS = ("count", "godunov-twin", "density")
+MODELS = ("count", "godunov-twin", "headway", "density")
 ROOM = "POLYGON ((0 0, 10 0, 10 8, 0 8, 0 0))"
 PACKING_RADIUS = 0.5
 """m: the packing's disk."""

@@ -38,6 +38,7 @@ so with the defaults (``"none"``, ``1.0``) nothing is drawn and every number is 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any, Protocol
 
 import numpy as np
@@ -47,6 +48,7 @@ from meanfield.crowds._field_loops import bilinear_at, gaussian_field_at
 from meanfield.crowds.congestion import FundamentalDiagram, GodunovTwin
 from meanfield.crowds.groups import group_positions
 from meanfield.crowds.guidance import Guidance
+from meanfield.crowds.headway import Headway
 from meanfield.crowds.kde import KernelDensityEstimator
 from meanfield.crowds.local_density import DENSITY_RADIUS, LocalDensity
 from meanfield.crowds.local_view import LocalView
@@ -77,6 +79,15 @@ __all__ = [
 SAMPLED_FIELD_ABOVE = 2_000_000
 """``crowd.field_evaluation = "auto"`` samples ``v_r`` on a lattice above this many human-robot pairs."""
 _EVERYONE = np.ones((0, 0), dtype=bool)  # no sight mask: every robot seen
+
+DOOR_MODELS: dict[str, Callable[[FundamentalDiagram], Any] | None] = {
+    "count": None,  # g of the count in the whole disk (AgentCrowd._slow_down)
+    "godunov-twin": GodunovTwin,
+    "headway": Headway,
+}
+"""The agents' door models (``crowd.door_model``; docs page *Congestion*, "The agents' door model"): each makes,
+from the diagram, an object whose ``slow_down(velocity, positions, active, dt, density)`` changes the walk in
+place and returns the local density to report (``density``: the crowd's :class:`LocalDensity`)."""
 
 
 class AgentEngine(Protocol):
@@ -353,9 +364,10 @@ class AgentCrowd:
     memory : RouteMemory, optional
         People who remember the way once a sign has reached them (``view.memory = "route"`` or ``"sign"``,
         :mod:`meanfield.crowds.memory`); None: the paper's humans.
-    door_model : {"count", "godunov-twin"}
-        How a congested human's speed follows the density round it (``crowd.door_model``): ``g(ρ_j)`` of the
-        count in its disk, or the Godunov twin (:class:`~meanfield.crowds.congestion.GodunovTwin`).
+    door_model : {"count", "godunov-twin", "headway"}
+        How a congested human's speed follows the crowd round it (``crowd.door_model``, :data:`DOOR_MODELS`):
+        ``g(ρ_j)`` of the count in its disk, the Godunov twin (:class:`~meanfield.crowds.congestion.GodunovTwin`)
+        or the spacing to the person ahead (:class:`~meanfield.crowds.headway.Headway`).
     """
 
     def __init__(
@@ -407,11 +419,11 @@ class AgentCrowd:
             raise ParameterError("density_radius", density_radius, "a radius > 0 (m)")
         self.density_radius = float(density_radius)
         self._density = None if self.congestion is None else LocalDensity(len(engine.positions), density_radius, domain)
-        if door_model not in ("count", "godunov-twin"):
-            raise ParameterError("crowd.door_model", door_model, "'count' or 'godunov-twin'")
+        if door_model not in DOOR_MODELS:
+            raise ParameterError("crowd.door_model", door_model, " or ".join(map(repr, DOOR_MODELS)))
         self.door_model = door_model
-        twin = self.congestion is not None and door_model == "godunov-twin"
-        self._twin = GodunovTwin(self.congestion) if twin else None
+        model = DOOR_MODELS[door_model]
+        self._door = None if self.congestion is None or model is None else model(self.congestion)
         self.local_density: np.ndarray | None = None  # persons/m² around each human at the last step (congestion)
         self.congestion_name = "none" if self.congestion is None else type(self.congestion).__name__.lower()
         self.peak_local_density = 0.0  # its largest value over the run so far
@@ -508,25 +520,14 @@ class AgentCrowd:
 
     def _slow_down(self, velocity: np.ndarray, positions: np.ndarray, t: float, dt: float) -> None:
         """The door model in place.  ``"count"``: ``velocity *= g(ρ_j)``, ``ρ_j`` the local density of those still
-        here (:class:`LocalDensity`).  ``"godunov-twin"`` (:class:`~meanfield.crowds.congestion.GodunovTwin`):
-        ``velocity`` times ``f_j = min(D(ρ⁻_j), S(ρ⁺_j)) / (v₀ ρ⁻_j)``, ``ρ⁺_j`` and ``ρ⁻_j`` the densities ahead of
-        and behind human ``j`` along ``velocity`` (:meth:`LocalDensity.here_and_ahead`), then the excluded volume
-        (:meth:`GodunovTwin.exclude`)."""
-        if self._twin is None:
-            rho = self._density(positions, getattr(self.engine, "active", None))
+        here (:class:`LocalDensity`); the others (:data:`DOOR_MODELS`) change the velocity by their own
+        ``slow_down``, and the count is kept as the local density all of them report."""
+        active = getattr(self.engine, "active", None)
+        if self._door is None:
+            rho = self._density(positions, active)
             velocity *= self.congestion.speed_factor(rho)[:, None]
-            self._peak(rho, t)
-            return
-        twin = self._twin
-        e = velocity.copy()  # the walking directions, before the speed rule
-        norm = np.hypot(e[:, 0], e[:, 1])
-        np.divide(e, norm[:, None], out=e, where=norm[:, None] > 0)
-        e[norm == 0] = 0.0
-        rho, behind, ahead, push = self._density.here_and_ahead(
-            positions, e, getattr(self.engine, "active", None), min(twin.jam_spacing, self.density_radius)
-        )
-        velocity *= twin.speed_factor(behind, ahead)[:, None]
-        twin.exclude(velocity, e, push, dt)
+        else:
+            rho = self._door.slow_down(velocity, positions, active, dt, self._density)
         self._peak(rho, t)
 
     def _peak(self, rho: np.ndarray, t: float) -> None:
@@ -723,8 +724,9 @@ point_mass_crowd.places_groups = True  # type: ignore[attr-defined]
 :mod:`meanfield.crowds.groups`)."""
 point_mass_crowd.group_exits = True  # type: ignore[attr-defined]
 """A group may walk to an exit of its own (``[[crowd.groups]] exit = k``): each person keeps its group's."""
-point_mass_crowd.door_models = ("count", "godunov-twin")  # type: ignore[attr-defined]
-"""A congested human's speed from the count round it (``"count"``) or the Godunov twin (``crowd.door_model``)."""
+point_mass_crowd.door_models = tuple(DOOR_MODELS)  # type: ignore[attr-defined]
+"""A congested human's speed from the count round it (``"count"``), the Godunov twin or the headway
+(``crowd.door_model``, :data:`DOOR_MODELS`)."""
 point_mass_crowd.changes_walls = True  # type: ignore[attr-defined]
 """A region can become wall during a run (``[[events]] block``, :meth:`AgentCrowd.walls_changed`): the people in it
 step out, and the signs, routes and walks go round it."""

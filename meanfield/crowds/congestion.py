@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -248,6 +248,22 @@ class GodunovTwin:
         with np.errstate(divide="ignore", invalid="ignore"):
             front = np.where(behind > 0.0, room / (self.free_speed * behind), np.where(room > 0.0, np.inf, 0.0))
         return np.clip(np.minimum(walk, front), 0.0, 1.0)
+
+    def slow_down(self, velocity: np.ndarray, positions: np.ndarray, active: np.ndarray | None, dt: float,
+                  density: Any) -> np.ndarray:  # fmt: skip
+        """(G1) then (G2), in place on ``velocity`` (the walk before congestion, whose directions are the lines of
+        walk); returns the local density ρ_j (persons/m²).  ``density`` is the crowd's
+        :class:`~meanfield.crowds.local_density.LocalDensity` (its halves ahead and behind, and the push)."""
+        e = velocity.copy()  # the walking directions, before the speed rule
+        norm = np.hypot(e[:, 0], e[:, 1])
+        np.divide(e, norm[:, None], out=e, where=norm[:, None] > 0)
+        e[norm == 0] = 0.0
+        rho, behind, ahead, push = density.here_and_ahead(
+            positions, e, active, min(self.jam_spacing, density.radius)
+        )
+        velocity *= self.speed_factor(behind, ahead)[:, None]
+        self.exclude(velocity, e, push, dt)
+        return rho
 
     def exclude(self, velocity: np.ndarray, directions: np.ndarray, push: np.ndarray, dt: float) -> None:
         """The excluded volume, in place on the ``velocity`` of humans walking along unit ``directions``

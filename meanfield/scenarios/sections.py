@@ -88,10 +88,12 @@ class CrowdSpec:
     A congested agent's density is the others within ``congestion_radius`` (m, 0.5) over the
     disk's area inside Ω (:mod:`meanfield.crowds.local_density`).  ``door_model`` is
     how a congested agent turns the density round it into a speed (docs page *Congestion*, "The
-    agents' door model"): ``"count"`` (the default: ``g`` of the count in the whole disk) or
+    agents' door model"): ``"count"`` (the default: ``g`` of the count in the whole disk),
     ``"godunov-twin"`` (the density's Godunov flux between the half disks behind and ahead of it,
-    with the excluded volume's push, :class:`~meanfield.crowds.congestion.GodunovTwin`); a crowd kind
-    takes the models it declares (``door_models``: the point masses both; the density's flux is
+    with the excluded volume's push, :class:`~meanfield.crowds.congestion.GodunovTwin`) or
+    ``"headway"`` (the diagram's speed at the spacing to the person ahead in one's lane, and a walk
+    that approaches nobody it touches, :class:`~meanfield.crowds.headway.Headway`); a crowd kind
+    takes the models it declares (``door_models``: the point masses all three; the density's flux is
     Godunov's and JuPedSim's bodies queue by their own model, so they take the default only).
 
     People are not all alike (docs pages *Scenarios*, "People who wait, people who do not
@@ -183,7 +185,7 @@ MIN_CONGESTION_RADIUS = 0.05
 RHO_MAX_RANGE = (1.0, 20.0)
 """persons/m²: the ``crowd.rho_max`` a fundamental diagram takes (a jam below 1 person/m² freezes everyone; above
 20 persons/m² people would overlap: bodies of 0.2 m radius cannot stand closer than about 8 per m²)."""
-DOOR_MODELS = ("count", "godunov-twin")
+DOOR_MODELS = ("count", "godunov-twin", "headway")
 """``crowd.door_model``: how a congested agent's speed follows the density round it (docs page *Congestion*)."""
 
 

@@ -1,0 +1,293 @@
+"""The headway door model's loops, compiled: the nearest person ahead in one's lane, and the contact cone.
+
+:func:`headways` gives every active human ``j`` walking along the unit direction ``e_j`` its *headway*::
+
+    s_j = min{ |X_k − X_j| : k ≠ j active, (X_k − X_j)·e_j > 0, |(X_k − X_j) × e_j| < w, |X_k − X_j| < R }
+
+(``inf`` where nobody is in the lane ahead within the reach ``R``, or ``e_j = 0``): the distance to the
+nearest person in front of it whose centre is less than the lane's half width ``w`` off its line of walk
+(docs page *Congestion*, "The headway door model", (H1)).
+
+:func:`contact_cone` projects each active human's velocity onto the velocities that do not approach anyone
+it touches (closer than the jam spacing ``d``)::
+
+    v_j ← argmin{ |u − v_j| : u·n_jk <= 0 for every k with |X_k − X_j| < d },  n_jk = (X_k − X_j)/|X_k − X_j|
+
+(docs page *Congestion*, "The headway door model", (H2)).  The set is a convex cone of the plane, so the
+nearest point is ``v_j`` itself, or its projection on one of the violated contacts' lines that satisfies
+every other contact (the one that removes least), or 0: exact, in any order of the contacts.
+
+The compiled loops search a cell list (cells of width ``d`` over the active humans' bounding box, sorted by
+:func:`cell_list`); the headway's search widens ring by ring and stops once a ring lies farther than the
+nearest found.  The numpy twins search a k-d tree (:class:`scipy.spatial.cKDTree`).  Both take the same
+minima over the same candidates: the headways agree to the last bit, the velocities to round-off.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from meanfield._compiled.core import compiled, prange
+
+__all__ = ["headways", "contact_cone", "cell_list", "CellList"]
+
+
+class CellList:
+    """The active humans sorted into square cells of width ``h`` over their bounding box.
+
+    ``order`` lists the humans cell by cell (row-major, ``cy * nx + cx``), ``starts`` (length ``nx·ny + 1``)
+    where each cell's run begins; ``origin`` is the lattice's lower-left corner.
+    """
+
+    __slots__ = ("order", "starts", "origin", "h", "nx", "ny")
+
+    def __init__(self, order: np.ndarray, starts: np.ndarray, origin: tuple[float, float], h: float, nx: int, ny: int):
+        self.order, self.starts, self.origin, self.h, self.nx, self.ny = order, starts, origin, h, nx, ny
+
+
+def cell_list(x: np.ndarray, active: np.ndarray, h: float) -> CellList:
+    """Sort the active humans with finite positions into cells of width ``h`` (a stable counting sort)."""
+    ok = active & np.isfinite(x[:, 0]) & np.isfinite(x[:, 1])
+    idx = np.flatnonzero(ok)
+    if not len(idx):
+        return CellList(idx.astype(np.int64), np.zeros(2, np.int64), (0.0, 0.0), h, 1, 1)
+    p = x[idx]
+    x0, y0 = float(p[:, 0].min()), float(p[:, 1].min())
+    nx = int((p[:, 0].max() - x0) // h) + 1
+    ny = int((p[:, 1].max() - y0) // h) + 1
+    cx = np.minimum(((p[:, 0] - x0) // h).astype(np.int64), nx - 1)
+    cy = np.minimum(((p[:, 1] - y0) // h).astype(np.int64), ny - 1)
+    key = cy * nx + cx
+    sort = np.argsort(key, kind="stable")
+    starts = np.zeros(nx * ny + 1, np.int64)
+    np.cumsum(np.bincount(key, minlength=nx * ny), out=starts[1:])
+    return CellList(idx[sort].astype(np.int64), starts, (x0, y0), h, nx, ny)
+
+
+def _pairs(x: np.ndarray, active: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every ordered pair ``(j, k)`` of active humans closer than ``radius`` (``|X_k − X_j|² < radius²``)."""
+    from scipy.spatial import cKDTree
+
+    ok = active & np.isfinite(x[:, 0]) & np.isfinite(x[:, 1])
+    idx = np.flatnonzero(ok)
+    if len(idx) < 2:
+        empty = np.empty(0, np.int64)
+        return empty, empty, np.empty(0)
+    pairs = cKDTree(x[idx]).query_pairs(radius * (1.0 + 1e-9), output_type="ndarray")
+    j = idx[np.concatenate([pairs[:, 0], pairs[:, 1]])]
+    k = idx[np.concatenate([pairs[:, 1], pairs[:, 0]])]
+    dx, dy = x[k, 0] - x[j, 0], x[k, 1] - x[j, 1]
+    r2 = dx * dx + dy * dy
+    keep = r2 < radius * radius
+    return j[keep], k[keep], r2[keep]
+
+
+def _headways_numpy(x, e, active, lane, reach, cells, out):
+    """The numpy twin of :func:`headways` (a k-d tree; ``cells`` unused)."""
+    out[:] = np.inf
+    j, k, r2 = _pairs(x, active, reach)
+    dx, dy = x[k, 0] - x[j, 0], x[k, 1] - x[j, 1]
+    ex, ey = e[j, 0], e[j, 1]
+    ahead = (dx * ex + dy * ey > 0.0) & (np.abs(dx * ey - dy * ex) < lane)
+    np.minimum.at(out, j[ahead], np.sqrt(r2[ahead]))
+
+
+@compiled(fallback=_headways_numpy, parallel_over="x")
+def _headways_compiled(x, e, active, lane, reach, cells, out):
+    order, starts, origin, h, nx, ny = cells
+    n = x.shape[0]
+    rings = int(math.ceil(reach / h)) + 1
+    for j in prange(n):
+        out[j] = math.inf
+        ex = e[j, 0]
+        ey = e[j, 1]
+        if not active[j] or (ex == 0.0 and ey == 0.0) or not (math.isfinite(x[j, 0]) and math.isfinite(x[j, 1])):
+            continue
+        cx = min(int((x[j, 0] - origin[0]) // h), nx - 1)
+        cy = min(int((x[j, 1] - origin[1]) // h), ny - 1)
+        best2 = reach * reach
+        for ring in range(rings + 1):
+            if ring >= 2 and (ring - 1) * h * ((ring - 1) * h) >= best2:
+                break
+            for gy in range(cy - ring, cy + ring + 1):
+                if gy < 0 or gy >= ny:
+                    continue
+                edge = gy == cy - ring or gy == cy + ring
+                step = 1 if edge else 2 * ring
+                gx = cx - ring
+                while gx <= cx + ring:
+                    if 0 <= gx < nx:
+                        c = gy * nx + gx
+                        for t in range(starts[c], starts[c + 1]):
+                            k = order[t]
+                            if k == j:
+                                continue
+                            dx = x[k, 0] - x[j, 0]
+                            dy = x[k, 1] - x[j, 1]
+                            r2 = dx * dx + dy * dy
+                            if r2 < best2 and dx * ex + dy * ey > 0.0 and abs(dx * ey - dy * ex) < lane:
+                                best2 = r2
+                    if step == 0:
+                        break
+                    gx += step
+        if best2 < reach * reach:
+            out[j] = math.sqrt(best2)
+
+
+def headways(x: np.ndarray, e: np.ndarray, active: np.ndarray, lane: float, reach: float, cells: CellList,
+             out: np.ndarray) -> np.ndarray:  # fmt: skip
+    """Each human's headway ``s_j`` (module docstring, (H1)) into ``out`` (m; ``inf``: nobody within ``reach``).
+
+    Parameters
+    ----------
+    x, e : ndarray, shape (N, 2)
+        Positions and unit walking directions (0: standing, no headway).
+    active : ndarray of bool, shape (N,)
+        Who counts and is counted (non-finite rows are ignored).
+    lane : float
+        ``w``, the lane's half width (m).
+    reach : float
+        ``R``: nobody farther counts (m).
+    cells : CellList
+        The active humans in cells (:func:`cell_list`, any width ``h > 0``; the compiled loop's search).
+    out : ndarray, shape (N,)
+    """
+    _headways_compiled(x, e, active, lane, reach, (cells.order, cells.starts, cells.origin, cells.h, cells.nx,
+                                                  cells.ny), out)  # fmt: skip
+    return out
+
+
+def _cone_numpy(v, x, active, jam, cells):
+    """The numpy twin of :func:`contact_cone` (a k-d tree; ``cells`` unused): the contacts of each human padded
+    to the most any has, then (H2) for all at once."""
+    j, k, r2 = _pairs(x, active, jam)
+    keep = r2 > 0.0
+    j, k, r2 = j[keep], k[keep], r2[keep]
+    if not len(j):
+        return
+    r = np.sqrt(r2)
+    nxs, nys = (x[k, 0] - x[j, 0]) / r, (x[k, 1] - x[j, 1]) / r
+    srt = np.argsort(j, kind="stable")
+    j, nxs, nys = j[srt], nxs[srt], nys[srt]
+    who, first, count = np.unique(j, return_index=True, return_counts=True)
+    m = int(count.max())
+    slot = np.arange(len(j)) - np.repeat(first, count)
+    row = np.repeat(np.arange(len(who)), count)
+    nx_, ny_ = np.zeros((len(who), m)), np.zeros((len(who), m))
+    nx_[row, slot], ny_[row, slot] = nxs, nys
+    vx, vy = v[who, 0].copy(), v[who, 1].copy()
+    a = vx[:, None] * nx_ + vy[:, None] * ny_  # v·n (0 in the padding)
+    bad = (a > 0.0).any(axis=1)
+    tol = 1e-12 * np.hypot(vx, vy)
+    best = np.full(len(who), np.inf)  # the least removal among the feasible faces
+    bx, by = np.zeros(len(who)), np.zeros(len(who))
+    for f in range(m):
+        af = a[:, f]
+        px, py = vx - af * nx_[:, f], vy - af * ny_[:, f]
+        ok = (af > 0.0) & ((px[:, None] * nx_ + py[:, None] * ny_) <= tol[:, None]).all(axis=1) & (af < best)
+        best = np.where(ok, af, best)
+        bx, by = np.where(ok, px, bx), np.where(ok, py, by)
+    v[who[bad], 0] = bx[bad]
+    v[who[bad], 1] = by[bad]
+
+
+@compiled(fallback=_cone_numpy, parallel_over="v")
+def _cone_compiled(v, x, active, jam, cells):
+    order, starts, origin, h, nx, ny = cells
+    n = x.shape[0]
+    jam2 = jam * jam
+    for j in prange(n):
+        if not active[j] or not (math.isfinite(x[j, 0]) and math.isfinite(x[j, 1])):
+            continue
+        vx = v[j, 0]
+        vy = v[j, 1]
+        if vx == 0.0 and vy == 0.0:
+            continue
+        cx = min(int((x[j, 0] - origin[0]) // h), nx - 1)
+        cy = min(int((x[j, 1] - origin[1]) // h), ny - 1)
+        # the contacts' normals, gathered (at most a few: people closer than the jam spacing)
+        m = 0
+        for gy in range(max(cy - 1, 0), min(cy + 2, ny)):
+            for gx in range(max(cx - 1, 0), min(cx + 2, nx)):
+                c = gy * nx + gx
+                for t in range(starts[c], starts[c + 1]):
+                    k = order[t]
+                    if k == j:
+                        continue
+                    dx = x[k, 0] - x[j, 0]
+                    dy = x[k, 1] - x[j, 1]
+                    r2 = dx * dx + dy * dy
+                    if 0.0 < r2 < jam2:
+                        m += 1
+        if m == 0:
+            continue
+        nxs = np.empty(m)
+        nys = np.empty(m)
+        m = 0
+        for gy in range(max(cy - 1, 0), min(cy + 2, ny)):
+            for gx in range(max(cx - 1, 0), min(cx + 2, nx)):
+                c = gy * nx + gx
+                for t in range(starts[c], starts[c + 1]):
+                    k = order[t]
+                    if k == j:
+                        continue
+                    dx = x[k, 0] - x[j, 0]
+                    dy = x[k, 1] - x[j, 1]
+                    r2 = dx * dx + dy * dy
+                    if 0.0 < r2 < jam2:
+                        r = math.sqrt(r2)
+                        nxs[m] = dx / r
+                        nys[m] = dy / r
+                        m += 1
+        bad = False
+        for f in range(m):
+            if vx * nxs[f] + vy * nys[f] > 0.0:
+                bad = True
+        if not bad:
+            continue
+        tol = 1e-12 * math.hypot(vx, vy)
+        best = math.inf
+        bx = 0.0
+        by = 0.0
+        for f in range(m):
+            af = vx * nxs[f] + vy * nys[f]
+            if af <= 0.0 or af >= best:
+                continue
+            px = vx - af * nxs[f]
+            py = vy - af * nys[f]
+            ok = True
+            for g in range(m):
+                if px * nxs[g] + py * nys[g] > tol:
+                    ok = False
+                    break
+            if ok:
+                best = af
+                bx = px
+                by = py
+        v[j, 0] = bx
+        v[j, 1] = by
+
+
+def contact_cone(v: np.ndarray, x: np.ndarray, active: np.ndarray, jam: float, cells: CellList) -> np.ndarray:
+    """Each active human's velocity projected on the cone of those that approach nobody it touches, in place
+    (module docstring, (H2)).
+
+    Parameters
+    ----------
+    v : ndarray, shape (N, 2)
+        Velocities, changed in place.
+    x : ndarray, shape (N, 2)
+        Positions.
+    active : ndarray of bool, shape (N,)
+        Who counts and is counted.
+    jam : float
+        ``d``: those closer than this touch (m).
+    cells : CellList
+        The active humans in cells of width at least ``d`` (:func:`cell_list`).
+    """
+    if cells.h < jam:
+        raise ValueError(f"contact_cone needs cells at least {jam} m wide, got {cells.h}")
+    _cone_compiled(v, x, active, jam, (cells.order, cells.starts, cells.origin, cells.h, cells.nx, cells.ny))
+    return v
