@@ -15,12 +15,16 @@ it touches (closer than the jam spacing ``d``)::
 
 (docs page *Congestion*, "The headway door model", (H2)).  The set is a convex cone of the plane, so the
 nearest point is ``v_j`` itself, or its projection on one of the violated contacts' lines that satisfies
-every other contact (the one that removes least), or 0: exact, in any order of the contacts.
+every other contact (the one that removes least), or 0: exact, in any order of the contacts.  Then each
+steps away from those it touches, the more the deeper the overlap (a soft core, (H3))::
+
+    v_j ← v_j − u Σ_{k : 0 < |X_k − X_j| < d} (1 − |X_k − X_j|/d) n_jk
 
 The compiled loops search a cell list (cells of width ``d`` over the active humans' bounding box, sorted by
 :func:`cell_list`); the headway's search widens ring by ring and stops once a ring lies farther than the
 nearest found.  The numpy twins search a k-d tree (:class:`scipy.spatial.cKDTree`).  Both take the same
-minima over the same candidates: the headways agree to the last bit, the velocities to round-off.
+minima over the same candidates: the headways agree to the last bit, the velocities to round-off (the
+separation is a sum, added in another order).
 """
 
 from __future__ import annotations
@@ -159,9 +163,9 @@ def headways(x: np.ndarray, e: np.ndarray, active: np.ndarray, lane: float, reac
     return out
 
 
-def _cone_numpy(v, x, active, jam, cells):
+def _cone_numpy(v, x, active, jam, separation, cells):
     """The numpy twin of :func:`contact_cone` (a k-d tree; ``cells`` unused): the contacts of each human padded
-    to the most any has, then (H2) for all at once."""
+    to the most any has, then (H2) for all at once, then (H3)."""
     j, k, r2 = _pairs(x, active, jam)
     keep = r2 > 0.0
     j, k, r2 = j[keep], k[keep], r2[keep]
@@ -170,7 +174,11 @@ def _cone_numpy(v, x, active, jam, cells):
     r = np.sqrt(r2)
     nxs, nys = (x[k, 0] - x[j, 0]) / r, (x[k, 1] - x[j, 1]) / r
     srt = np.argsort(j, kind="stable")
-    j, nxs, nys = j[srt], nxs[srt], nys[srt]
+    j, nxs, nys, r = j[srt], nxs[srt], nys[srt], r[srt]
+    w = separation * (jam - r) / jam
+    sep_x, sep_y = np.zeros(len(v)), np.zeros(len(v))
+    np.add.at(sep_x, j, -w * nxs)
+    np.add.at(sep_y, j, -w * nys)
     who, first, count = np.unique(j, return_index=True, return_counts=True)
     m = int(count.max())
     slot = np.arange(len(j)) - np.repeat(first, count)
@@ -191,10 +199,12 @@ def _cone_numpy(v, x, active, jam, cells):
         bx, by = np.where(ok, px, bx), np.where(ok, py, by)
     v[who[bad], 0] = bx[bad]
     v[who[bad], 1] = by[bad]
+    v[:, 0] += sep_x
+    v[:, 1] += sep_y
 
 
 @compiled(fallback=_cone_numpy, parallel_over="v")
-def _cone_compiled(v, x, active, jam, cells):
+def _cone_compiled(v, x, active, jam, separation, cells):
     order, starts, origin, h, nx, ny = cells
     n = x.shape[0]
     jam2 = jam * jam
@@ -203,8 +213,6 @@ def _cone_compiled(v, x, active, jam, cells):
             continue
         vx = v[j, 0]
         vy = v[j, 1]
-        if vx == 0.0 and vy == 0.0:
-            continue
         cx = min(int((x[j, 0] - origin[0]) // h), nx - 1)
         cy = min(int((x[j, 1] - origin[1]) // h), ny - 1)
         # the contacts' normals, gathered (at most a few: people closer than the jam spacing)
@@ -225,6 +233,8 @@ def _cone_compiled(v, x, active, jam, cells):
             continue
         nxs = np.empty(m)
         nys = np.empty(m)
+        sx = 0.0
+        sy = 0.0
         m = 0
         for gy in range(max(cy - 1, 0), min(cy + 2, ny)):
             for gx in range(max(cx - 1, 0), min(cx + 2, nx)):
@@ -240,12 +250,17 @@ def _cone_compiled(v, x, active, jam, cells):
                         r = math.sqrt(r2)
                         nxs[m] = dx / r
                         nys[m] = dy / r
+                        w = separation * (jam - r) / jam
+                        sx -= w * nxs[m]
+                        sy -= w * nys[m]
                         m += 1
         bad = False
         for f in range(m):
             if vx * nxs[f] + vy * nys[f] > 0.0:
                 bad = True
         if not bad:
+            v[j, 0] = vx + sx
+            v[j, 1] = vy + sy
             continue
         tol = 1e-12 * math.hypot(vx, vy)
         best = math.inf
@@ -266,13 +281,15 @@ def _cone_compiled(v, x, active, jam, cells):
                 best = af
                 bx = px
                 by = py
-        v[j, 0] = bx
-        v[j, 1] = by
+        v[j, 0] = bx + sx
+        v[j, 1] = by + sy
 
 
-def contact_cone(v: np.ndarray, x: np.ndarray, active: np.ndarray, jam: float, cells: CellList) -> np.ndarray:
-    """Each active human's velocity projected on the cone of those that approach nobody it touches, in place
-    (module docstring, (H2)).
+def contact_cone(
+    v: np.ndarray, x: np.ndarray, active: np.ndarray, jam: float, separation: float, cells: CellList
+) -> np.ndarray:
+    """Each active human's velocity projected on the cone of those that approach nobody it touches, then the
+    soft core's separation added, in place (module docstring, (H2) and (H3)).
 
     Parameters
     ----------
@@ -284,10 +301,14 @@ def contact_cone(v: np.ndarray, x: np.ndarray, active: np.ndarray, jam: float, c
         Who counts and is counted.
     jam : float
         ``d``: those closer than this touch (m).
+    separation : float
+        ``u``, m/s: the speed at which two people at the same point step apart ((H3); 0: none).
     cells : CellList
         The active humans in cells of width at least ``d`` (:func:`cell_list`).
     """
     if cells.h < jam:
         raise ValueError(f"contact_cone needs cells at least {jam} m wide, got {cells.h}")
-    _cone_compiled(v, x, active, jam, (cells.order, cells.starts, cells.origin, cells.h, cells.nx, cells.ny))
+    _cone_compiled(
+        v, x, active, jam, separation, (cells.order, cells.starts, cells.origin, cells.h, cells.nx, cells.ny)
+    )
     return v

@@ -19,12 +19,17 @@ diagram's speed instead of a time gap.  The head of a queue, with nobody ahead, 
 discharges by the speeds of the gaps that open in it, as in the conservation law: nobody waits for a count of
 those behind it to fall.
 
-The excluded volume acts on the walk only: each human's velocity is projected onto the velocities that do not
-approach anyone it touches (closer than ``d``), (H2) in
-:func:`~meanfield.crowds._headway_loops.contact_cone`.  It slides past a neighbour instead of walking into
-it, and it never moves anyone back or on.  The noise is left alone: a contact that reflected the noise turned
-σ into a pressure that drove people through the doors, more the finer the step (docs page *Congestion*,
-"The agents' door model"); on the walk alone the model has a limit as ``dt → 0``.
+The excluded volume is a velocity, never a displacement (:func:`~meanfield.crowds._headway_loops.contact_cone`):
+
+* (H2) each human's walk is projected onto the velocities that do not approach anyone it touches (closer than
+  ``d``): it slides past a neighbour instead of walking into it, and pushes nobody on;
+* (H3) a soft core: two people closer than ``d`` step apart at up to the free speed ``v₀`` (at the same point),
+  ``u (1 − r/d)`` each, so that the overlaps the noise makes are undone at a walker's pace.
+
+Both are drifts of the SDE that do not depend on the step, so the model has a limit as ``dt → 0``.  A contact
+that moves people by their overlap over the step (the twin's push, or a projection of the positions) reflects
+the noise, and turns σ into a pressure that drives people through the doors, more the finer the step (docs
+page *Congestion*, "The headway door model", where the three are measured against the step).
 """
 
 from __future__ import annotations
@@ -45,7 +50,7 @@ at 5.4 persons/m² jam, is within 2.5 % of ``v₀`` for the linear diagram)."""
 
 
 class Headway:
-    """The headway door model, (H1) and (H2).
+    """The headway door model, (H1), (H2) and (H3).
 
     Parameters
     ----------
@@ -53,10 +58,15 @@ class Headway:
         A diagram that slows (finite ``rho_max``).
     reach : float
         ``R``, m: the farthest person ahead that counts (:data:`HEADWAY_REACH`).
+    separation : float, optional
+        ``u`` of (H3), m/s (default: the diagram's free speed ``v₀``).
     """
 
-    def __init__(self, diagram: FundamentalDiagram, reach: float = HEADWAY_REACH) -> None:
+    def __init__(
+        self, diagram: FundamentalDiagram, reach: float = HEADWAY_REACH, separation: float | None = None
+    ) -> None:
         self.diagram = diagram
+        self.separation = float(diagram.free_speed if separation is None else separation)
         self.rho_max = float(diagram.rho_max)
         self.jam_spacing = math.sqrt(2.0 / (math.sqrt(3.0) * self.rho_max))
         self.lane = self.jam_spacing
@@ -75,7 +85,7 @@ class Headway:
 
     def slow_down(self, velocity: np.ndarray, positions: np.ndarray, active: np.ndarray | None, dt: float = 0.0,
                   density: Any = None) -> np.ndarray:  # fmt: skip
-        """(H1) then (H2), in place on ``velocity`` (m/s, the walk before congestion); returns the local density to
+        """(H1), (H2) and (H3), in place on ``velocity`` (m/s, the walk before congestion); returns the local density to
         report: ``density``'s count (a :class:`~meanfield.crowds.local_density.LocalDensity`), or, without one,
         the density (H1) reads from each headway.  ``dt`` is not used: nothing here depends on the step.
 
@@ -99,5 +109,5 @@ class Headway:
             self._headway = np.empty(n)
         s = headways(positions, e, active, self.lane, self.reach, cells, self._headway)
         velocity *= self.speed_factor(s)[:, None]
-        contact_cone(velocity, positions, active, self.jam_spacing, cells)
+        contact_cone(velocity, positions, active, self.jam_spacing, self.separation, cells)
         return self.density(s) if density is None else density(positions, active)
