@@ -22,7 +22,8 @@ steps away from those it touches, the more the deeper the overlap (a soft core, 
 
 The compiled loops search a cell list (cells of width ``d`` over the active humans' bounding box, sorted by
 :func:`cell_list`); the headway's search widens ring by ring and stops once a ring lies farther than the
-nearest found.  The numpy twins search a k-d tree (:class:`scipy.spatial.cKDTree`).  Both take the same
+nearest found.  The numpy twins list every pair closer than the reach (cells as wide as it, each against its
+nine neighbours, vectorised).  Both take the same
 minima over the same candidates: the headways agree to the last bit, the velocities to round-off (the
 separation is a sum, added in another order).
 """
@@ -52,15 +53,14 @@ class CellList:
 
 
 def cell_list(x: np.ndarray, active: np.ndarray, h: float) -> CellList:
-    """Sort the active humans with finite positions into cells of width ``h`` (a stable counting sort)."""
+    """Sort the active humans with finite positions into cells of width ``h`` (a stable counting sort; the width
+    doubled while there would be more than ``4 m + 64`` cells for ``m`` humans)."""
     ok = active & np.isfinite(x[:, 0]) & np.isfinite(x[:, 1])
     idx = np.flatnonzero(ok)
     if not len(idx):
         return CellList(idx.astype(np.int64), np.zeros(2, np.int64), (0.0, 0.0), h, 1, 1)
     p = x[idx]
-    x0, y0 = float(p[:, 0].min()), float(p[:, 1].min())
-    nx = int((p[:, 0].max() - x0) // h) + 1
-    ny = int((p[:, 1].max() - y0) // h) + 1
+    x0, y0, h, nx, ny = _lattice(p, h)
     cx = np.minimum(((p[:, 0] - x0) // h).astype(np.int64), nx - 1)
     cy = np.minimum(((p[:, 1] - y0) // h).astype(np.int64), ny - 1)
     key = cy * nx + cx
@@ -70,26 +70,56 @@ def cell_list(x: np.ndarray, active: np.ndarray, h: float) -> CellList:
     return CellList(idx[sort].astype(np.int64), starts, (x0, y0), h, nx, ny)
 
 
-def _pairs(x: np.ndarray, active: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Every ordered pair ``(j, k)`` of active humans closer than ``radius`` (``|X_k − X_j|² < radius²``)."""
-    from scipy.spatial import cKDTree
+def _lattice(p: np.ndarray, h: float) -> tuple[float, float, float, int, int]:
+    """Cells of width at least ``h`` over the points' bounding box, at most ``4 m + 64`` of them for ``m``
+    points (the width doubled until they are): ``(x0, y0, h, nx, ny)``."""
+    x0, y0 = float(p[:, 0].min()), float(p[:, 1].min())
+    wx, wy = float(p[:, 0].max()) - x0, float(p[:, 1].max()) - y0
+    while True:
+        nx, ny = int(wx // h) + 1, int(wy // h) + 1
+        if nx * ny <= 4 * len(p) + 64:
+            return x0, y0, h, nx, ny
+        h *= 2.0
 
+
+def _pairs(x: np.ndarray, active: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every ordered pair ``(j, k)`` of active humans closer than ``radius`` (``|X_k − X_j|² < radius²``), and
+    its squared distance: a cell list of cells at least ``radius`` wide, each cell against its 9 neighbours."""
     ok = active & np.isfinite(x[:, 0]) & np.isfinite(x[:, 1])
     idx = np.flatnonzero(ok)
+    empty = np.empty(0, np.int64)
     if len(idx) < 2:
-        empty = np.empty(0, np.int64)
         return empty, empty, np.empty(0)
-    pairs = cKDTree(x[idx]).query_pairs(radius * (1.0 + 1e-9), output_type="ndarray")
-    j = idx[np.concatenate([pairs[:, 0], pairs[:, 1]])]
-    k = idx[np.concatenate([pairs[:, 1], pairs[:, 0]])]
-    dx, dy = x[k, 0] - x[j, 0], x[k, 1] - x[j, 1]
-    r2 = dx * dx + dy * dy
-    keep = r2 < radius * radius
-    return j[keep], k[keep], r2[keep]
+    p = x[idx]
+    x0, y0, h, nx, ny = _lattice(p, radius)
+    ci = np.minimum(((p[:, 0] - x0) // h).astype(np.int64), nx - 1)
+    ck = np.minimum(((p[:, 1] - y0) // h).astype(np.int64), ny - 1)
+    cell = ck * nx + ci
+    order = np.argsort(cell, kind="stable")
+    occupancy = np.bincount(cell, minlength=nx * ny)
+    start = np.cumsum(occupancy) - occupancy
+    js, ks, r2s = [], [], []
+    for di in (-1, 0, 1):
+        for dk in (-1, 0, 1):
+            ni, nk = ci + di, ck + dk
+            a = np.flatnonzero((ni >= 0) & (ni < nx) & (nk >= 0) & (nk < ny))
+            nc = nk[a] * nx + ni[a]
+            count = occupancy[nc]
+            rows = np.repeat(a, count)
+            offsets = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+            cand = order[np.repeat(start[nc], count) + offsets]
+            dx = p[cand, 0] - p[rows, 0]
+            dy = p[cand, 1] - p[rows, 1]
+            r2 = dx * dx + dy * dy
+            hit = (r2 < radius * radius) & (cand != rows)
+            js.append(idx[rows[hit]])
+            ks.append(idx[cand[hit]])
+            r2s.append(r2[hit])
+    return np.concatenate(js), np.concatenate(ks), np.concatenate(r2s)
 
 
 def _headways_numpy(x, e, active, lane, reach, cells, out):
-    """The numpy twin of :func:`headways` (a k-d tree; ``cells`` unused)."""
+    """The numpy twin of :func:`headways` (every pair within the reach; ``cells`` unused)."""
     out[:] = np.inf
     j, k, r2 = _pairs(x, active, reach)
     dx, dy = x[k, 0] - x[j, 0], x[k, 1] - x[j, 1]
@@ -164,8 +194,8 @@ def headways(x: np.ndarray, e: np.ndarray, active: np.ndarray, lane: float, reac
 
 
 def _cone_numpy(v, x, active, jam, separation, cells):
-    """The numpy twin of :func:`contact_cone` (a k-d tree; ``cells`` unused): the contacts of each human padded
-    to the most any has, then (H2) for all at once, then (H3)."""
+    """The numpy twin of :func:`contact_cone` (every pair closer than ``d``; ``cells`` unused): the contacts of
+    each human padded to the most any has, then (H2) for all at once, then (H3)."""
     j, k, r2 = _pairs(x, active, jam)
     keep = r2 > 0.0
     j, k, r2 = j[keep], k[keep], r2[keep]

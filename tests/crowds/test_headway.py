@@ -1,0 +1,214 @@
+"""The headway door model (docs page *Congestion*, "The headway door model"; :mod:`meanfield.crowds.headway`).
+
+* (H1) the headway is the nearest person ahead in one's lane, every pair compared as the reference; in a
+  hexagonal crowd it is the lattice's spacing, so each human walks the diagram's speed at the lattice's density;
+* (H2) the walk projected on the cone of the velocities that approach nobody one touches: feasible, and no
+  feasible velocity is nearer (a fine polar grid of the plane as the reference);
+* (H3) two people closer than ``d`` step apart at ``u (1 − r/d)`` each;
+* the compiled loops equal their numpy twins; the point masses take the model, the density and the bodies
+  refuse it naming ``crowd.door_model``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from meanfield._compiled import core as compiled
+from meanfield.crowds._headway_loops import cell_list, contact_cone, headways
+from meanfield.crowds.congestion import Linear, Weidmann
+from meanfield.crowds.headway import HEADWAY_REACH, Headway
+from meanfield.errors import ParameterError
+from meanfield.simulation.loop import ClosedLoop
+from tests.crowds.test_agent_congestion import bottleneck
+
+needs_numba = pytest.mark.skipif(not compiled.numba_available(), reason="numba is not installed")
+
+JAM = math.sqrt(2.0 / (math.sqrt(3.0) * 5.4))
+
+
+def direct_headways(x, e, active, lane, reach):
+    """Every ordered pair compared: the reference of (H1)."""
+    n = len(x)
+    out = np.full(n, np.inf)
+    for j in range(n):
+        if not active[j] or not np.isfinite(x[j]).all() or not e[j].any():
+            continue
+        for k in range(n):
+            if k == j or not active[k] or not np.isfinite(x[k]).all():
+                continue
+            dx, dy = x[k] - x[j]
+            r2 = dx * dx + dy * dy
+            if r2 < reach * reach and dx * e[j, 0] + dy * e[j, 1] > 0 and abs(dx * e[j, 1] - dy * e[j, 0]) < lane:
+                out[j] = min(out[j], math.sqrt(r2))
+    return out
+
+
+def spread_crowd(n, rng, width=8.0):
+    x = rng.uniform(0.0, width, (n, 2))
+    e = rng.normal(size=(n, 2))
+    e /= np.hypot(*e.T)[:, None]
+    e[::11] = 0.0  # some stand
+    active = rng.random(n) > 0.1
+    x[3] = np.nan
+    return x, e, active
+
+
+def hexagonal(spacing, rows=9):
+    a = spacing
+    pts = [((i + 0.5 * (k % 2)) * a, k * a * math.sqrt(3) / 2) for k in range(rows) for i in range(rows)]
+    return np.array(pts)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_headway_is_the_nearest_person_ahead_in_one_s_lane(seed):
+    x, e, active = spread_crowd(300, np.random.default_rng(seed))
+    out = headways(x, e, active, JAM, 2.0, cell_list(x, active, JAM), np.empty(len(x)))
+    ref = direct_headways(x, e, active, JAM, 2.0)
+    assert np.array_equal(out, ref)
+    assert np.isfinite(out).sum() > 100 and np.isinf(out).sum() > 20
+
+
+def test_who_is_in_the_lane_ahead():
+    x = np.array([[0.0, 0.0], [1.0, 0.3], [0.5, -0.5], [-0.2, 0.0], [2.5, 0.0]])
+    e = np.array([[1.0, 0.0]] * 5)
+    s = headways(x, e, np.ones(5, bool), JAM, 3.0, cell_list(x, np.ones(5, bool), JAM), np.empty(5))
+    # human 0: human 2 is off the lane (0.5 > d = 0.46), human 3 behind, human 1 in it at 1.044 m
+    assert s[0] == pytest.approx(math.hypot(1.0, 0.3), abs=0)
+    # beyond the reach nobody counts
+    s = headways(x, e, np.ones(5, bool), JAM, 1.0, cell_list(x, np.ones(5, bool), JAM), np.empty(5))
+    assert math.isinf(s[0])
+
+
+@pytest.mark.parametrize("spacing", [0.5, 0.6, 0.8])
+@pytest.mark.parametrize("angle", [0.0, 10.0, 30.0, 47.0])
+def test_a_hexagonal_crowd_walks_the_diagram_s_speed_at_its_density(spacing, angle):
+    """Spacing ``a <= 2d``: whatever the direction, a neighbour in front is less than ``a/2 <= d`` off the line
+    of walk, so the headway is ``a`` and (H1) reads ``2/(√3 a²)``, the lattice's density."""
+    x = hexagonal(spacing)
+    t = math.radians(angle)
+    e = np.tile([math.cos(t), math.sin(t)], (len(x), 1))
+    active = np.ones(len(x), bool)
+    inner = np.hypot(*(x - x.mean(axis=0)).T) < 1.5 * spacing
+    for diagram in (Linear(), Weidmann()):
+        model = Headway(diagram)
+        s = headways(x, e, active, model.lane, model.reach, cell_list(x, active, model.jam_spacing), np.empty(len(x)))
+        np.testing.assert_allclose(s[inner], spacing, rtol=1e-12)
+        rho = 2.0 / (math.sqrt(3.0) * spacing**2)
+        np.testing.assert_allclose(model.density(s[inner]), rho, rtol=1e-12)
+        np.testing.assert_allclose(model.speed_factor(s[inner]), diagram.speed_factor(np.array(rho)), rtol=1e-12)
+
+
+def test_nobody_ahead_walks_free_and_nobody_walks_on_at_the_jam_spacing():
+    model = Headway(Linear())
+    assert model.speed_factor(np.array([np.inf]))[0] == 1.0
+    assert model.speed_factor(np.array([model.jam_spacing]))[0] == pytest.approx(0.0, abs=1e-12)
+    assert model.speed_factor(np.array([0.3]))[0] == 0.0
+    assert model.jam_spacing == pytest.approx(JAM)
+    assert 1.0 - model.speed_factor(np.array([HEADWAY_REACH]))[0] < 0.025
+
+
+def nearest_in_cone(v, normals, samples=20000):
+    """The reference of (H2): the feasible velocity nearest ``v`` on a fine polar grid of the plane."""
+    speed = np.linspace(0.0, 1.5 * np.hypot(*v), 301)
+    angle = np.linspace(0.0, 2 * math.pi, samples // 100, endpoint=False)
+    u = (speed[:, None, None] * np.stack([np.cos(angle), np.sin(angle)], -1)[None]).reshape(-1, 2)
+    ok = (u @ normals.T <= 1e-12).all(axis=1)
+    return np.min(np.hypot(*(u[ok] - v).T))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_walk_is_the_nearest_that_approaches_nobody_it_touches(seed):
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(0.0, 2.0, (40, 2))
+    v = rng.normal(size=(40, 2))
+    active = np.ones(40, bool)
+    out = contact_cone(v.copy(), x, active, JAM, 0.0, cell_list(x, active, JAM))
+    touched = 0
+    for j in range(40):
+        d = x - x[j]
+        r = np.hypot(*d.T)
+        near = (r > 0) & (r < JAM)
+        if not near.any():
+            assert np.array_equal(out[j], v[j])
+            continue
+        n = d[near] / r[near, None]
+        assert np.all(n @ out[j] <= 1e-12)  # feasible
+        if np.any(n @ v[j] > 0):
+            touched += 1
+            # no feasible velocity nearer (to the polar grid's resolution)
+            assert np.hypot(*(out[j] - v[j])) <= nearest_in_cone(v[j], n) + 1e-9
+        else:
+            assert np.array_equal(out[j], v[j])
+    assert touched >= 5
+
+
+def test_a_head_on_contact_stops_the_approach_and_a_wedge_stops_the_walk():
+    x = np.array([[0.0, 0.0], [0.4, 0.0], [0.3, 0.3], [0.3, -0.3]])
+    active = np.array([True, True, False, False])
+    v = np.array([[1.0, 0.5], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]])
+    out = contact_cone(v.copy(), x, active, JAM, 0.0, cell_list(x, active, JAM))
+    np.testing.assert_allclose(out[0], [0.0, 0.5], atol=1e-15)  # slides past, its part towards human 1 gone
+    active = np.array([True, False, True, True])
+    v = np.array([[1.0, 0.2], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]])
+    out = contact_cone(v.copy(), x, active, JAM, 0.0, cell_list(x, active, JAM))
+    np.testing.assert_allclose(out[0], [0.0, 0.0], atol=1e-15)  # the two at ±45° close the way
+    v = np.array([[-1.0, 0.2], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]])
+    out = contact_cone(v.copy(), x, active, JAM, 0.0, cell_list(x, active, JAM))
+    np.testing.assert_array_equal(out[0], v[0])  # walking away: untouched
+
+
+def test_the_soft_core_steps_two_people_apart_by_their_overlap():
+    r = 0.3
+    x = np.array([[0.0, 0.0], [r, 0.0], [5.0, 5.0]])
+    active = np.ones(3, bool)
+    out = contact_cone(np.zeros((3, 2)), x, active, JAM, 1.34, cell_list(x, active, JAM))
+    step = 1.34 * (1.0 - r / JAM)
+    np.testing.assert_allclose(out, [[-step, 0.0], [step, 0.0], [0.0, 0.0]], atol=1e-15)
+
+
+@needs_numba
+def test_compiled_loops_equal_their_numpy_twins():
+    x, e, active = spread_crowd(3000, np.random.default_rng(7), width=25.0)
+    cells = cell_list(x, active, JAM)
+    fast = headways(x, e, active, JAM, 3.0, cells, np.empty(len(x)))
+    with compiled.numpy_path():
+        ref = headways(x, e, active, JAM, 3.0, cells, np.empty(len(x)))
+    assert np.array_equal(fast, ref)
+    v = np.random.default_rng(8).normal(size=x.shape)
+    fast = contact_cone(v.copy(), x, active, JAM, 1.34, cells)
+    with compiled.numpy_path():
+        ref = contact_cone(v.copy(), x, active, JAM, 1.34, cells)
+    np.testing.assert_allclose(fast, ref, rtol=0, atol=1e-13)
+    assert np.sum(np.any(fast != v, axis=1)) > 1000
+
+
+def test_cells_narrower_than_the_jam_spacing_are_refused():
+    x = np.zeros((2, 2))
+    with pytest.raises(ValueError, match="cells at least"):
+        contact_cone(np.zeros((2, 2)), x, np.ones(2, bool), JAM, 0.0, cell_list(x, np.ones(2, bool), JAM / 2))
+
+
+def test_the_point_masses_walk_the_headway_model():
+    loop = ClosedLoop(bottleneck("linear", t_final=1.0, **{"crowd.door_model": "headway"}))
+    crowd = loop.crowd
+    x = crowd.positions.copy()
+    chosen = crowd.guidance.velocity(x, 0.0, 0.05).copy()
+    drift = crowd.drift(loop.robots, 0.0, 0.05).copy()
+    expected = chosen.copy()
+    Headway(Linear()).slow_down(expected, x, crowd.engine.active)
+    np.testing.assert_array_equal(drift, expected)
+    assert np.any(np.hypot(*drift.T) < 0.9 * np.hypot(*chosen.T))  # somebody is slowed at the start
+    assert crowd.peak_local_density > 0
+    loop.run(progress=False)
+    assert loop.crowd.remaining() < crowd.n
+
+
+@pytest.mark.parametrize("kind", ["fokker-planck", "jupedsim"])
+def test_the_density_and_the_bodies_refuse_the_headway_naming_the_door_model(kind):
+    congestion = "none" if kind == "jupedsim" else "linear"
+    with pytest.raises(ParameterError) as exc:
+        bottleneck(congestion, **{"crowd.kind": kind, "crowd.door_model": "headway"})
+    assert exc.value.name == "crowd.door_model"
