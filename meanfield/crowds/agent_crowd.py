@@ -87,7 +87,9 @@ DOOR_MODELS: dict[str, Callable[[FundamentalDiagram], Any] | None] = {
 }
 """The agents' door models (``crowd.door_model``; docs page *Congestion*, "The agents' door model"): each makes,
 from the diagram, an object whose ``slow_down(velocity, positions, active, dt, density)`` changes the walk in
-place and returns the local density to report (``density``: the crowd's :class:`LocalDensity`)."""
+place and returns the local density to report (``density``: the crowd's :class:`LocalDensity`).  One that
+declares ``caps_exits`` has each exit pass at most the diagram's capacity ``q_max`` per metre of its width
+(:meth:`~meanfield.crowds.point_mass.PointMassEngine.cap_exits`, on an engine that can)."""
 
 
 class AgentEngine(Protocol):
@@ -424,6 +426,9 @@ class AgentCrowd:
         self.door_model = door_model
         model = DOOR_MODELS[door_model]
         self._door = None if self.congestion is None or model is None else model(self.congestion)
+        if getattr(self._door, "caps_exits", False) and len(getattr(engine, "exits", ())):
+            ends = np.asarray(engine.exits, float)  # each exit passes at most q_max per metre of its width
+            engine.cap_exits(self.congestion.capacity()[0] * np.hypot(*(ends[:, 1] - ends[:, 0]).T))
         self.local_density: np.ndarray | None = None  # persons/m² around each human at the last step (congestion)
         self.congestion_name = "none" if self.congestion is None else type(self.congestion).__name__.lower()
         self.peak_local_density = 0.0  # its largest value over the run so far
