@@ -212,3 +212,63 @@ def test_the_density_and_the_bodies_refuse_the_headway_naming_the_door_model(kin
     with pytest.raises(ParameterError) as exc:
         bottleneck(congestion, **{"crowd.kind": kind, "crowd.door_model": "headway"})
     assert exc.value.name == "crowd.door_model"
+
+
+def exit_queue(capacity, burst, n=60, sigma=0.0):
+    """A 4 m × 2 m box whose right side (2 m) is an exit, ``n`` people walking at it at 1 m/s, capped."""
+    from meanfield import Domain
+    from meanfield.crowds.point_mass import PointMassEngine
+
+    room = Domain.box(4.0, 2.0, exits=[((4.0, 0.0), (4.0, 2.0))])
+    rng = np.random.default_rng(0)
+    engine = PointMassEngine(np.column_stack([rng.uniform(2.0, 3.99, n), rng.uniform(0.1, 1.9, n)]), room, sigma, rng)
+    engine.cap_exits(np.array([capacity]), burst)
+    return engine
+
+
+@pytest.mark.parametrize("capacity, burst", [(3.0, 2.0), (1.2, 1.0), (0.5, 0.1)])
+def test_an_exit_passes_at_most_its_capacity_and_its_burst(capacity, burst):
+    engine = exit_queue(capacity, burst)
+    drift = np.tile([1.0, 0.0], (engine.n, 1))
+    dt, out = 0.05, []
+    for step in range(1, 161):
+        engine.step(drift, (step - 1) * dt, dt)
+        out.append(engine.n - engine.remaining())
+        t = step * dt
+        assert out[-1] <= max(1.0, capacity * burst) + capacity * t + 1e-9  # never more than the bucket allows
+        assert np.all(engine.positions[engine.active, 0] <= 4.0)  # the held stay in the room
+    # with a queue always at the door, it passes its capacity: from 2 s to 8 s, within one person
+    passed = out[159] - out[39]
+    assert abs(passed - capacity * 6.0) <= 1.0 + 1e-9
+
+
+def test_the_nearest_to_the_exit_leaves_first_and_the_held_stand_where_they_were():
+    from meanfield import Domain
+    from meanfield.crowds.point_mass import PointMassEngine
+
+    room = Domain.box(4.0, 2.0, exits=[((4.0, 0.0), (4.0, 2.0))])
+    x = np.array([[3.9, 1.0], [3.95, 0.5], [3.8, 1.5]])
+    engine = PointMassEngine(x.copy(), room, 0.0, np.random.default_rng(0))
+    engine.cap_exits(np.array([0.5]), 2.0)  # a bucket of one person
+    engine.step(np.tile([10.0, 0.0], (3, 1)), 0.0, 0.05)  # all three reach the exit
+    assert engine.active.tolist() == [True, False, True]  # human 1 was nearest
+    np.testing.assert_array_equal(engine.positions[[0, 2]], x[[0, 2]])
+
+
+def test_an_exit_capacity_that_means_nothing_is_refused():
+    engine = exit_queue(1.0, 1.0)
+    for bad in ([0.0], [-1.0], [np.inf], [1.0, 2.0]):
+        with pytest.raises(ParameterError) as exc:
+            engine.cap_exits(np.array(bad))
+        assert exc.value.name == "exit capacity"
+    with pytest.raises(ParameterError):
+        engine.cap_exits(np.array([1.0]), 0.0)
+
+
+def test_the_headway_model_caps_the_exits_at_the_diagram_s_capacity():
+    loop = ClosedLoop(bottleneck("linear", b=1.0, t_final=1.0, **{"crowd.door_model": "headway"}))
+    engine = loop.crowd.engine
+    q_max = Linear().capacity()[0]
+    np.testing.assert_allclose(engine._capacity, [q_max * 1.0])
+    other = ClosedLoop(bottleneck("linear", b=1.0, t_final=1.0, **{"crowd.door_model": "godunov-twin"}))
+    assert other.crowd.engine._capacity is None
