@@ -43,13 +43,22 @@ class CellList:
     """The active humans sorted into square cells of width ``h`` over their bounding box.
 
     ``order`` lists the humans cell by cell (row-major, ``cy * nx + cx``), ``starts`` (length ``nx·ny + 1``)
-    where each cell's run begins; ``origin`` is the lattice's lower-left corner.
+    where each cell's run begins, ``sorted`` (``len(order)``, 2) their positions in that order (the compiled
+    loops read neighbours from contiguous memory); ``origin`` is the lattice's lower-left corner.
     """
 
-    __slots__ = ("order", "starts", "origin", "h", "nx", "ny")
+    __slots__ = ("order", "starts", "sorted", "origin", "h", "nx", "ny")
 
-    def __init__(self, order: np.ndarray, starts: np.ndarray, origin: tuple[float, float], h: float, nx: int, ny: int):
-        self.order, self.starts, self.origin, self.h, self.nx, self.ny = order, starts, origin, h, nx, ny
+    def __init__(
+        self, order: np.ndarray, starts: np.ndarray, sorted_positions: np.ndarray, origin: tuple[float, float],
+        h: float, nx: int, ny: int,
+    ):  # fmt: skip
+        self.order, self.starts, self.sorted, self.origin = order, starts, sorted_positions, origin
+        self.h, self.nx, self.ny = h, nx, ny
+
+    def arrays(self) -> tuple:
+        """What the compiled loops take: ``(order, starts, sorted, origin, h, nx, ny)``."""
+        return self.order, self.starts, self.sorted, self.origin, self.h, self.nx, self.ny
 
 
 def cell_list(x: np.ndarray, active: np.ndarray, h: float) -> CellList:
@@ -58,7 +67,7 @@ def cell_list(x: np.ndarray, active: np.ndarray, h: float) -> CellList:
     ok = active & np.isfinite(x[:, 0]) & np.isfinite(x[:, 1])
     idx = np.flatnonzero(ok)
     if not len(idx):
-        return CellList(idx.astype(np.int64), np.zeros(2, np.int64), (0.0, 0.0), h, 1, 1)
+        return CellList(idx.astype(np.int64), np.zeros(2, np.int64), np.zeros((0, 2)), (0.0, 0.0), h, 1, 1)
     p = x[idx]
     x0, y0, h, nx, ny = _lattice(p, h)
     cx = np.minimum(((p[:, 0] - x0) // h).astype(np.int64), nx - 1)
@@ -67,7 +76,8 @@ def cell_list(x: np.ndarray, active: np.ndarray, h: float) -> CellList:
     sort = np.argsort(key, kind="stable")
     starts = np.zeros(nx * ny + 1, np.int64)
     np.cumsum(np.bincount(key, minlength=nx * ny), out=starts[1:])
-    return CellList(idx[sort].astype(np.int64), starts, (x0, y0), h, nx, ny)
+    order = idx[sort].astype(np.int64)
+    return CellList(order, starts, np.ascontiguousarray(x[order]), (x0, y0), h, nx, ny)
 
 
 def _lattice(p: np.ndarray, h: float) -> tuple[float, float, float, int, int]:
@@ -130,43 +140,43 @@ def _headways_numpy(x, e, active, lane, reach, cells, out):
 
 @compiled(fallback=_headways_numpy, parallel_over="x")
 def _headways_compiled(x, e, active, lane, reach, cells, out):
-    order, starts, origin, h, nx, ny = cells
-    n = x.shape[0]
-    rings = int(math.ceil(reach / h)) + 1
-    for j in prange(n):
+    order, starts, pos, origin, h, nx, ny = cells
+    for j in prange(x.shape[0]):
         out[j] = math.inf
+    rings = int(math.ceil(reach / h)) + 1
+    reach2 = reach * reach
+    for t in prange(order.shape[0]):  # the humans in cell order: their neighbours are near in memory
+        j = order[t]
         ex = e[j, 0]
         ey = e[j, 1]
-        if not active[j] or (ex == 0.0 and ey == 0.0) or not (math.isfinite(x[j, 0]) and math.isfinite(x[j, 1])):
+        if ex == 0.0 and ey == 0.0:
             continue
-        cx = min(int((x[j, 0] - origin[0]) // h), nx - 1)
-        cy = min(int((x[j, 1] - origin[1]) // h), ny - 1)
-        best2 = reach * reach
+        xj = pos[t, 0]
+        yj = pos[t, 1]
+        cx = min(int((xj - origin[0]) // h), nx - 1)
+        cy = min(int((yj - origin[1]) // h), ny - 1)
+        best2 = reach2
         for ring in range(rings + 1):
             if ring >= 2 and (ring - 1) * h * ((ring - 1) * h) >= best2:
-                break
+                break  # every cell of this ring is farther than the nearest found
             for gy in range(cy - ring, cy + ring + 1):
                 if gy < 0 or gy >= ny:
                     continue
-                edge = gy == cy - ring or gy == cy + ring
-                step = 1 if edge else 2 * ring
+                step = 1 if (gy == cy - ring or gy == cy + ring) else 2 * ring  # the ring's rows, or its sides
                 gx = cx - ring
                 while gx <= cx + ring:
                     if 0 <= gx < nx:
                         c = gy * nx + gx
-                        for t in range(starts[c], starts[c + 1]):
-                            k = order[t]
-                            if k == j:
+                        for u in range(starts[c], starts[c + 1]):
+                            if u == t:
                                 continue
-                            dx = x[k, 0] - x[j, 0]
-                            dy = x[k, 1] - x[j, 1]
+                            dx = pos[u, 0] - xj
+                            dy = pos[u, 1] - yj
                             r2 = dx * dx + dy * dy
                             if r2 < best2 and dx * ex + dy * ey > 0.0 and abs(dx * ey - dy * ex) < lane:
                                 best2 = r2
-                    if step == 0:
-                        break
                     gx += step
-        if best2 < reach * reach:
+        if best2 < reach2:
             out[j] = math.sqrt(best2)
 
 
@@ -188,8 +198,7 @@ def headways(x: np.ndarray, e: np.ndarray, active: np.ndarray, lane: float, reac
         The active humans in cells (:func:`cell_list`, any width ``h > 0``; the compiled loop's search).
     out : ndarray, shape (N,)
     """
-    _headways_compiled(x, e, active, lane, reach, (cells.order, cells.starts, cells.origin, cells.h, cells.nx,
-                                                  cells.ny), out)  # fmt: skip
+    _headways_compiled(x, e, active, lane, reach, cells.arrays(), out)
     return out
 
 
@@ -235,84 +244,76 @@ def _cone_numpy(v, x, active, jam, separation, cells):
 
 @compiled(fallback=_cone_numpy, parallel_over="v")
 def _cone_compiled(v, x, active, jam, separation, cells):
-    order, starts, origin, h, nx, ny = cells
-    n = x.shape[0]
+    order, starts, pos, origin, h, nx, ny = cells
     jam2 = jam * jam
-    for j in prange(n):
-        if not active[j] or not (math.isfinite(x[j, 0]) and math.isfinite(x[j, 1])):
-            continue
+    for t in prange(order.shape[0]):  # the humans in cell order; the contacts are read again, not stored
+        j = order[t]
+        xj = pos[t, 0]
+        yj = pos[t, 1]
         vx = v[j, 0]
         vy = v[j, 1]
-        cx = min(int((x[j, 0] - origin[0]) // h), nx - 1)
-        cy = min(int((x[j, 1] - origin[1]) // h), ny - 1)
-        # the contacts' normals, gathered (at most a few: people closer than the jam spacing)
-        m = 0
-        for gy in range(max(cy - 1, 0), min(cy + 2, ny)):
-            for gx in range(max(cx - 1, 0), min(cx + 2, nx)):
-                c = gy * nx + gx
-                for t in range(starts[c], starts[c + 1]):
-                    k = order[t]
-                    if k == j:
-                        continue
-                    dx = x[k, 0] - x[j, 0]
-                    dy = x[k, 1] - x[j, 1]
-                    r2 = dx * dx + dy * dy
-                    if 0.0 < r2 < jam2:
-                        m += 1
-        if m == 0:
-            continue
-        nxs = np.empty(m)
-        nys = np.empty(m)
-        sx = 0.0
+        cx = min(int((xj - origin[0]) // h), nx - 1)
+        cy = min(int((yj - origin[1]) // h), ny - 1)
+        x0, x1, y0, y1 = max(cx - 1, 0), min(cx + 2, nx), max(cy - 1, 0), min(cy + 2, ny)
+        sx = 0.0  # (H3), and whether the walk approaches a contact
         sy = 0.0
-        m = 0
-        for gy in range(max(cy - 1, 0), min(cy + 2, ny)):
-            for gx in range(max(cx - 1, 0), min(cx + 2, nx)):
-                c = gy * nx + gx
-                for t in range(starts[c], starts[c + 1]):
-                    k = order[t]
-                    if k == j:
-                        continue
-                    dx = x[k, 0] - x[j, 0]
-                    dy = x[k, 1] - x[j, 1]
-                    r2 = dx * dx + dy * dy
-                    if 0.0 < r2 < jam2:
-                        r = math.sqrt(r2)
-                        nxs[m] = dx / r
-                        nys[m] = dy / r
-                        w = separation * (jam - r) / jam
-                        sx -= w * nxs[m]
-                        sy -= w * nys[m]
-                        m += 1
         bad = False
-        for f in range(m):
-            if vx * nxs[f] + vy * nys[f] > 0.0:
-                bad = True
-        if not bad:
-            v[j, 0] = vx + sx
-            v[j, 1] = vy + sy
-            continue
-        tol = 1e-12 * math.hypot(vx, vy)
-        best = math.inf
-        bx = 0.0
-        by = 0.0
-        for f in range(m):
-            af = vx * nxs[f] + vy * nys[f]
-            if af <= 0.0 or af >= best:
-                continue
-            px = vx - af * nxs[f]
-            py = vy - af * nys[f]
-            ok = True
-            for g in range(m):
-                if px * nxs[g] + py * nys[g] > tol:
-                    ok = False
-                    break
-            if ok:
-                best = af
-                bx = px
-                by = py
-        v[j, 0] = bx + sx
-        v[j, 1] = by + sy
+        for gy in range(y0, y1):
+            for gx in range(x0, x1):
+                c = gy * nx + gx
+                for u in range(starts[c], starts[c + 1]):
+                    dx = pos[u, 0] - xj
+                    dy = pos[u, 1] - yj
+                    r2 = dx * dx + dy * dy
+                    if u != t and 0.0 < r2 < jam2:
+                        r = math.sqrt(r2)
+                        w = separation * (jam - r) / jam
+                        sx -= w * (dx / r)
+                        sy -= w * (dy / r)
+                        if vx * (dx / r) + vy * (dy / r) > 0.0:
+                            bad = True
+        if bad:  # (H2): the violated contact whose line's projection satisfies all, removing least; else 0
+            tol = 1e-12 * math.hypot(vx, vy)
+            best = math.inf
+            bx = 0.0
+            by = 0.0
+            for gy in range(y0, y1):
+                for gx in range(x0, x1):
+                    c = gy * nx + gx
+                    for u in range(starts[c], starts[c + 1]):
+                        dx = pos[u, 0] - xj
+                        dy = pos[u, 1] - yj
+                        r2 = dx * dx + dy * dy
+                        if u == t or not (0.0 < r2 < jam2):
+                            continue
+                        r = math.sqrt(r2)
+                        fx = dx / r
+                        fy = dy / r
+                        af = vx * fx + vy * fy
+                        if af <= 0.0 or af >= best:
+                            continue
+                        px = vx - af * fx
+                        py = vy - af * fy
+                        ok = True
+                        for hy in range(y0, y1):
+                            for hx in range(x0, x1):
+                                d = hy * nx + hx
+                                for q in range(starts[d], starts[d + 1]):
+                                    ex = pos[q, 0] - xj
+                                    ey = pos[q, 1] - yj
+                                    s2 = ex * ex + ey * ey
+                                    if q != t and 0.0 < s2 < jam2:
+                                        rr = math.sqrt(s2)
+                                        if px * (ex / rr) + py * (ey / rr) > tol:
+                                            ok = False
+                        if ok:
+                            best = af
+                            bx = px
+                            by = py
+            vx = bx
+            vy = by
+        v[j, 0] = vx + sx
+        v[j, 1] = vy + sy
 
 
 def contact_cone(
@@ -338,7 +339,5 @@ def contact_cone(
     """
     if cells.h < jam:
         raise ValueError(f"contact_cone needs cells at least {jam} m wide, got {cells.h}")
-    _cone_compiled(
-        v, x, active, jam, separation, (cells.order, cells.starts, cells.origin, cells.h, cells.nx, cells.ny)
-    )
+    _cone_compiled(v, x, active, jam, separation, cells.arrays())
     return v

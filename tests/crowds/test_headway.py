@@ -171,14 +171,18 @@ def test_the_soft_core_steps_two_people_apart_by_their_overlap():
 
 @needs_numba
 def test_compiled_loops_equal_their_numpy_twins():
+    from meanfield.crowds._headway_loops import _cone_compiled, _headways_compiled
+
     x, e, active = spread_crowd(3000, np.random.default_rng(7), width=25.0)
     cells = cell_list(x, active, JAM)
     fast = headways(x, e, active, JAM, 3.0, cells, np.empty(len(x)))
+    assert _headways_compiled._ready  # the compiled loop ran (else both sides would be numpy)
     with compiled.numpy_path():
         ref = headways(x, e, active, JAM, 3.0, cells, np.empty(len(x)))
     assert np.array_equal(fast, ref)
     v = np.random.default_rng(8).normal(size=x.shape)
     fast = contact_cone(v.copy(), x, active, JAM, 1.34, cells)
+    assert _cone_compiled._ready
     with compiled.numpy_path():
         ref = contact_cone(v.copy(), x, active, JAM, 1.34, cells)
     np.testing.assert_allclose(fast, ref, rtol=0, atol=1e-13)
