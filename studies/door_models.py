@@ -11,8 +11,8 @@ starting in the room (``crowd.initial = "groups"``, the room's rectangle: none i
 informed crowd on the fastest route (``crowd.guidance = "fastest-route"``, docs page *Congestion*,
 "Routes") and the linear diagram, for
 
-* the point masses with each door model (``crowd.door_model`` = ``"count"`` or ``"godunov-twin"``), one
-  run per seed: the flow ``J`` between the exits of 10 % and 90 % of the crowd
+* the point masses with each door model (``crowd.door_model`` = ``"count"``, ``"godunov-twin"`` or
+  ``"headway"``, the last with its exits at their capacity), one run per seed: the flow ``J`` between the exits of 10 % and 90 % of the crowd
   (:func:`bottleneck_flow.steady_flow`) and the packing, the largest over the recorded seconds of the
   95th percentile, among those still in the room, of the others within 0.5 m over ``π 0.25`` m²
   (persons/m², the disk cut by the walls as the agents' own), and the same of their Voronoi densities
