@@ -34,7 +34,7 @@ import math
 
 import numpy as np
 
-from meanfield._compiled.core import compiled, prange
+from meanfield._compiled.core import compiled, inner, prange
 
 __all__ = ["headways", "contact_cone", "cell_list", "CellList"]
 
@@ -242,6 +242,26 @@ def _cone_numpy(v, x, active, jam, separation, cells):
     v[:, 1] += sep_y
 
 
+@inner
+def _approach(pos, starts, nx, x0, x1, y0, y1, t, jam2, ux, uy):
+    """The largest ``u·n_tk`` over the contacts of the human in slot ``t`` (closer than ``√jam2``, in the cells
+    ``[x0, x1) × [y0, y1)``); ``-inf`` without contacts.  ``u`` approaches none of them iff it is ``<= 0``."""
+    worst = -math.inf
+    xt = pos[t, 0]
+    yt = pos[t, 1]
+    for gy in range(y0, y1):
+        for gx in range(x0, x1):
+            c = gy * nx + gx
+            for q in range(starts[c], starts[c + 1]):
+                dx = pos[q, 0] - xt
+                dy = pos[q, 1] - yt
+                r2 = dx * dx + dy * dy
+                if q != t and 0.0 < r2 < jam2:
+                    r = math.sqrt(r2)
+                    worst = max(worst, ux * (dx / r) + uy * (dy / r))
+    return worst
+
+
 @compiled(fallback=_cone_numpy, parallel_over="v")
 def _cone_compiled(v, x, active, jam, separation, cells):
     order, starts, pos, origin, h, nx, ny = cells
@@ -294,18 +314,7 @@ def _cone_compiled(v, x, active, jam, separation, cells):
                             continue
                         px = vx - af * fx
                         py = vy - af * fy
-                        ok = True
-                        for hy in range(y0, y1):
-                            for hx in range(x0, x1):
-                                d = hy * nx + hx
-                                for q in range(starts[d], starts[d + 1]):
-                                    ex = pos[q, 0] - xj
-                                    ey = pos[q, 1] - yj
-                                    s2 = ex * ex + ey * ey
-                                    if q != t and 0.0 < s2 < jam2:
-                                        rr = math.sqrt(s2)
-                                        if px * (ex / rr) + py * (ey / rr) > tol:
-                                            ok = False
+                        ok = _approach(pos, starts, nx, x0, x1, y0, y1, t, jam2, px, py) <= tol
                         if ok:
                             best = af
                             bx = px
