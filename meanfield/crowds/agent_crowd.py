@@ -80,14 +80,22 @@ SAMPLED_FIELD_ABOVE = 2_000_000
 """``crowd.field_evaluation = "auto"`` samples ``v_r`` on a lattice above this many human-robot pairs."""
 _EVERYONE = np.ones((0, 0), dtype=bool)  # no sight mask: every robot seen
 
-DOOR_MODELS: dict[str, Callable[[FundamentalDiagram], Any] | None] = {
+def _twin(diagram: FundamentalDiagram, region: Region | None) -> GodunovTwin:
+    return GodunovTwin(diagram)
+
+
+def _headway(diagram: FundamentalDiagram, region: Region | None) -> Headway:
+    return Headway(diagram, region=region)
+
+
+DOOR_MODELS: dict[str, Callable[[FundamentalDiagram, Region | None], Any] | None] = {
     "count": None,  # g of the count in the whole disk (AgentCrowd._slow_down)
-    "godunov-twin": GodunovTwin,
-    "headway": Headway,
+    "godunov-twin": _twin,
+    "headway": _headway,
 }
 """The agents' door models (``crowd.door_model``; docs page *Congestion*, "The agents' door model"): each makes,
-from the diagram, an object whose ``slow_down(velocity, positions, active, dt, density)`` changes the walk in
-place and returns the local density to report (``density``: the crowd's :class:`LocalDensity`).  One that
+from the diagram and Ω, an object whose ``slow_down(velocity, positions, active, dt, density)`` changes the walk
+in place and returns the local density to report (``density``: the crowd's :class:`LocalDensity`).  One that
 declares ``caps_exits`` has each exit pass at most the diagram's capacity ``q_max`` per metre of its width
 (:meth:`~meanfield.crowds.point_mass.PointMassEngine.cap_exits`, on an engine that can)."""
 
@@ -425,7 +433,7 @@ class AgentCrowd:
             raise ParameterError("crowd.door_model", door_model, " or ".join(map(repr, DOOR_MODELS)))
         self.door_model = door_model
         model = DOOR_MODELS[door_model]
-        self._door = None if self.congestion is None or model is None else model(self.congestion)
+        self._door = None if self.congestion is None or model is None else model(self.congestion, domain)
         if getattr(self._door, "caps_exits", False) and len(getattr(engine, "exits", ())):
             ends = np.asarray(engine.exits, float)  # each exit passes at most q_max per metre of its width
             engine.cap_exits(self.congestion.capacity()[0] * np.hypot(*(ends[:, 1] - ends[:, 0]).T))

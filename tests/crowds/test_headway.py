@@ -19,7 +19,7 @@ import pytest
 from meanfield._compiled import core as compiled
 from meanfield.crowds._headway_loops import cell_list, contact_cone, headways
 from meanfield.crowds.congestion import Linear, Weidmann
-from meanfield.crowds.headway import HEADWAY_REACH, Headway
+from meanfield.crowds.headway import HEADWAY_REACH, TURNS, Headway
 from meanfield.errors import ParameterError
 from meanfield.simulation.loop import ClosedLoop
 from tests.crowds.test_agent_congestion import bottleneck
@@ -99,6 +99,88 @@ def test_a_hexagonal_crowd_walks_the_diagram_s_speed_at_its_density(spacing, ang
         rho = 2.0 / (math.sqrt(3.0) * spacing**2)
         np.testing.assert_allclose(model.density(s[inner]), rho, rtol=1e-12)
         np.testing.assert_allclose(model.speed_factor(s[inner]), diagram.speed_factor(np.array(rho)), rtol=1e-12)
+
+
+@pytest.mark.parametrize("spacing", [0.5, 0.6, 0.8])
+@pytest.mark.parametrize("angle", [0.0, 10.0, 30.0, 47.0])
+def test_in_a_hexagonal_crowd_no_turn_makes_more_progress(spacing, angle):
+    """(H4): with ``a <= 2d`` every turned lane holds a neighbour at ``a`` too, so its progress ``f cos θ`` is less
+    than the route's own, which each keeps, at the diagram's speed."""
+    x = hexagonal(spacing)
+    t = math.radians(angle)
+    e = np.tile([math.cos(t), math.sin(t)], (len(x), 1))
+    active = np.ones(len(x), bool)
+    inner = np.hypot(*(x - x.mean(axis=0)).T) < 1.5 * spacing
+    model = Headway(Linear())
+    s, f, walk = model.choose_direction(x, e, active, cell_list(x, active, model.jam_spacing))
+    np.testing.assert_array_equal(walk[inner], e[inner])
+    rho = 2.0 / (math.sqrt(3.0) * spacing**2)
+    np.testing.assert_allclose(f[inner], Linear().speed_factor(np.array(rho)), rtol=1e-12)
+
+
+def test_a_human_blocked_ahead_turns_to_the_direction_of_most_progress():
+    """One person 0.54 m away, 0.2 m right of the route (east), nobody else: a lane along ``θ`` holds it when its
+    centre is less than ``d`` off that line; the turns whose lanes hold it are as slow as the route's own, times
+    ``cos θ``, the others free.  The walk is the turn of largest ``f cos θ``: here 45° left, ``cos 45° = 0.71``
+    against ``f = 0.26`` straight on."""
+    model = Headway(Linear())
+    x = np.array([[0.0, 0.0], [0.5, -0.2]])
+    e = np.array([[1.0, 0.0], [1.0, 0.0]])
+    active = np.ones(2, bool)
+    s, f, walk = model.choose_direction(x, e, active, cell_list(x, active, model.jam_spacing))
+    ahead = x[1] - x[0]
+    blocked = model.speed_factor(np.array([np.hypot(*ahead)]))[0]
+    gains = []
+    for theta in TURNS:
+        line = np.array([math.cos(theta), math.sin(theta)])
+        in_lane = ahead @ line > 0 and abs(ahead[0] * line[1] - ahead[1] * line[0]) < model.lane
+        gains.append((blocked if in_lane else 1.0) * math.cos(theta))
+    best = TURNS[int(np.argmax(gains))]  # the first of equal gains, as the model settles ties
+    assert best == pytest.approx(math.radians(45.0)) and blocked < 0.3
+    np.testing.assert_allclose(walk[0], [math.cos(best), math.sin(best)], rtol=0, atol=1e-15)
+    assert f[0] == 1.0 and f[1] == 1.0 and np.array_equal(walk[1], e[1])  # the one ahead walks on, unturned
+
+
+def test_a_wall_along_a_turned_direction_counts_as_a_person_half_a_spacing_beyond_it():
+    """In a corridor 1 m wide (walls at y = 0 and y = 1), a human at y = 0.1 with a person 0.7 m straight ahead:
+    straight on it walks at ``f = g(ρ(0.7))`` = 0.56; the turns of 45° free its lane (the person is 0.49 m off
+    them, beyond ``d``).  Without walls it takes the first of the two, 45° right.  With them, 45° right meets the
+    wall at ``0.1/sin 45°``, a headway of ``0.14 + d/2 < d`` (it stops), and 45° left meets the far wall at
+    ``0.9/sin 45°``, a headway of 1.50 m, ``f = 0.90``, so it turns left: ``0.90 cos 45° = 0.64 > 0.56``."""
+    from meanfield.geometry.domain import Domain
+
+    x = np.array([[2.0, 0.1], [2.7, 0.1]])
+    e = np.array([[1.0, 0.0], [1.0, 0.0]])
+    active = np.ones(2, bool)
+    free = Headway(Linear())
+    cells = cell_list(x, active, free.jam_spacing)
+    _, _, walk = free.choose_direction(x, e, active, cells)
+    np.testing.assert_allclose(walk[0], [math.sqrt(0.5), -math.sqrt(0.5)], rtol=0, atol=1e-15)
+    walled = Headway(Linear(), region=Domain.box(10.0, 1.0))
+    s, f, walk = walled.choose_direction(x, e, active, cells)
+    np.testing.assert_allclose(walk[0], [math.sqrt(0.5), math.sqrt(0.5)], rtol=0, atol=1e-15)
+    far = 0.9 / math.sqrt(0.5) + walled.jam_spacing / 2
+    assert s[0] == pytest.approx(far, rel=1e-12)
+    assert f[0] * math.sqrt(0.5) > walled.speed_factor(np.array([0.7]))[0]
+    near = 0.1 / math.sqrt(0.5) + walled.jam_spacing / 2
+    assert near < walled.jam_spacing and walled.speed_factor(np.array([near]))[0] == 0.0
+
+
+def test_without_turns_the_model_is_h1_to_h3():
+    rng = np.random.default_rng(3)
+    x = rng.uniform(0.0, 4.0, (300, 2))
+    v = np.tile([1.34, 0.0], (300, 1))
+    active = np.ones(300, bool)
+    model = Headway(Linear(), turns=(0.0,))
+    out = v.copy()
+    model.slow_down(out, x, active)
+    cells = cell_list(x, active, model.jam_spacing)
+    s = headways(x, v / 1.34, active, model.lane, model.reach, cells, np.empty(300))
+    expected = v * model.speed_factor(s)[:, None]
+    contact_cone(expected, x, active, model.jam_spacing, model.separation, cells)
+    np.testing.assert_array_equal(out, expected)
+    with pytest.raises(ValueError, match="route's own direction"):
+        Headway(Linear(), turns=(0.3, 0.0))
 
 
 def test_nobody_ahead_walks_free_and_nobody_walks_on_at_the_jam_spacing():
@@ -205,7 +287,7 @@ def test_the_point_masses_walk_the_headway_model():
     chosen = crowd.guidance.velocity(x, 0.0, 0.05).copy()
     drift = crowd.drift(loop.robots, 0.0, 0.05).copy()
     expected = chosen.copy()
-    Headway(Linear()).slow_down(expected, x, crowd.engine.active)
+    Headway(Linear(), region=loop.scenario.domain).slow_down(expected, x, crowd.engine.active)
     np.testing.assert_array_equal(drift, expected)
     assert np.any(np.hypot(*drift.T) < 0.9 * np.hypot(*chosen.T))  # somebody is slowed at the start
     assert crowd.peak_local_density > 0
