@@ -70,6 +70,12 @@ SETTINGS: dict[str, dict[str, dict[str, Any]]] = {
         "quick": {"small": (40, 3, 2), "large": (4, 1, 1)},
         "full": {"small": (40, 10, 3), "large": (10, 1, 3)},
     },
+    # our cells per metre and hughes2d's largest triangle (m^2), coarse to fine; our other sigma (m^2/s), on the
+    # second of our grids (bench_hughes2d.py, hughes2d_peer.py)
+    "hughes2d": {
+        "quick": {"ours": [10], "peer": [0.12], "sigmas": []},
+        "full": {"ours": [10, 20, 40], "peer": [0.12, 0.06, 0.03], "sigmas": [0.0, 0.005, 0.02]},
+    },
     # bench_scaling.CROWDS / GRIDS: quick stops at N = 1e6 and 256^2
     "scaling": {
         "quick": {"max_humans": 1_000_000, "max_cells": 256},

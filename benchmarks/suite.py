@@ -34,12 +34,16 @@ controllers     each installed controller's ``act`` per control step against the
 congestion      a congested closed-loop step (``crowd.congestion = "linear"``) against the same
                 step without congestion, at N = 200 (``bottleneck``) and 10⁶; goal: at most
                 1.3× (``bench_congestion.py``)
+hughes2d        the density on Hughes' route (5 m × 4 m room, a 1 m door, 18 people, the linear
+                diagram): the times at which 10/50/90 % are out and the wall time, against the
+                independent peer hughes2d (finite volumes on triangles, fast marching), each on
+                its own refinement series; goal: the times within 3 % (``bench_hughes2d.py``)
 scaling         steps per second and peak memory against N (10² … 10⁷) and the grid (30² …
                 512²), with the fitted exponents (``bench_scaling.py``; the figure of
                 ``docs/scale.md`` with ``--figure``)
 ==============  ==========================================================================
 
-An anchor that is not installed (py-pde, FiPy, JuPedSim) gives a record with
+An anchor that is not installed (py-pde, FiPy, JuPedSim, hughes2d) gives a record with
 ``skipped: true`` and a ``note`` naming the install command, and no numbers.
 
 Everything runs on one core: the thread variables (``OMP_NUM_THREADS`` …) are set to 1
@@ -132,6 +136,7 @@ BENCHMARKS: dict[str, Benchmark] = {
         ("plan", "closed-loop step on the office plan", "the same loop on a box"),
         ("controllers", "act() per step of every installed controller", "the paper's law"),
         ("congestion", "congested closed-loop step, N = 200 and 1e6", "the same step without congestion"),
+        ("hughes2d", "density on Hughes' route: exit times and wall time, 5 m x 4 m room", "hughes2d (optional)"),
         ("scaling", "closed-loop step against N and the grid (log-log, fitted exponents)", "linear extrapolation"),
     )
 }

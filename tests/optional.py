@@ -22,6 +22,8 @@ OPTIONAL: dict[str, tuple[str, str]] = {
         'pip install -e ".[pedestrians]" && pip install --no-deps "jupedsim==1.4.2"',
     ),
     "pedpy": ("pedpy", 'pip install -e ".[pedestrians]"'),
+    # the peer of benchmarks/hughes2d_peer.py (GPL-3.0; also in the bench extra)
+    "hughes2d": ("hughes2d", 'pip install "hughes2d==1.1.8"'),
     # cfchecker itself comes with the test extra; importing its checker loads the udunits2 C library
     "cfchecker": ("cfchecker.cfchecks", "apt-get install libudunits2-0"),
 }

@@ -1,7 +1,7 @@
 """verification: each claim of the paper checked numerically, with a verdict.
 
 Built on :mod:`analysis` and :mod:`meanfield`; never imported by them.  One module per
-claim (``theorem1``, ``theorem2``, ``theorem3``, ``congested``, ``mean_field``, ``robot_count``,
+claim (``theorem1``, ``theorem2``, ``theorem3``, ``congested``, ``mean_field``, ``two_scales``, ``robot_count``,
 ``agents``), the plants they run (``plant``), the hypotheses a scenario's grid meets
 (``hypotheses``: Ω in one piece, no exits), the result type (``result``), the runner and
 the report behind ``meanfield verify`` (``runner``, ``report``, ``cli``), and the mutation
@@ -26,6 +26,7 @@ _LAZY = {
     "check_theorem1": "verification.theorem1",
     "check_theorem2": "verification.theorem2",
     "check_theorem3": "verification.theorem3",
+    "check_two_scales": "verification.two_scales",
 }
 
 __getattr__, __dir__ = lazy_namespace(__name__, globals(), _LAZY)
@@ -43,6 +44,7 @@ __all__ = [
     "check_theorem1",
     "check_theorem2",
     "check_theorem3",
+    "check_two_scales",
     "render_markdown",
     "verify",
     "write_report",

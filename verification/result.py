@@ -24,7 +24,17 @@ from typing import Any, Literal
 
 import numpy as np
 
-CHECK_NAMES = ("theorem1", "theorem2", "theorem3", "congested", "mean_field", "robot_count", "agents", "pedestrians")
+CHECK_NAMES = (
+    "theorem1",
+    "theorem2",
+    "theorem3",
+    "congested",
+    "mean_field",
+    "two_scales",
+    "robot_count",
+    "agents",
+    "pedestrians",
+)
 """The checks of ``meanfield verify``, in report order (:data:`verification.runner.CHECKS` maps them)."""
 
 __all__ = ["CHECK_NAMES", "VERDICTS", "Verdict", "CheckResult", "worst", "jsonable"]

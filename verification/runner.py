@@ -22,7 +22,7 @@ from typing import Any
 
 from meanfield.errors import ParameterError
 from meanfield.scenarios.scenario import Scenario
-from verification import agents, congested, mean_field, robot_count, theorem1, theorem2, theorem3
+from verification import agents, congested, mean_field, robot_count, theorem1, theorem2, theorem3, two_scales
 from verification.result import CheckResult
 
 __all__ = ["CHECKS", "CLAIMS", "VerificationRun", "verify", "unusable_scenario_reason"]
@@ -35,6 +35,7 @@ CHECKS: dict[str, Check] = {
     "theorem3": theorem3.check_theorem3,
     "congested": congested.check_congested,
     "mean_field": mean_field.check_mean_field,
+    "two_scales": two_scales.check_two_scales,
     "robot_count": robot_count.check_robot_count,
     "agents": agents.check_agents,
     "pedestrians": agents.check_pedestrians,
@@ -47,6 +48,7 @@ CLAIMS: dict[str, str] = {
     "theorem3": theorem3.CLAIM,
     "congested": congested.CLAIM,
     "mean_field": mean_field.CLAIM,
+    "two_scales": two_scales.CLAIM,
     "robot_count": robot_count.CLAIM,
     "agents": agents.CLAIM,
     "pedestrians": agents.PEDESTRIANS_CLAIM,

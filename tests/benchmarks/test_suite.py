@@ -19,7 +19,7 @@ from meanfield.cli.app import main
 
 EXPECTED = {
     *("kde", "closed_loop", "fokker_planck", "jupedsim", "large_crowd", "bounded", "nmpc", "startup", "compile"),
-    *("plan", "controllers", "congestion", "scaling"),
+    *("plan", "controllers", "congestion", "hughes2d", "scaling"),
 }
 TOP_KEYS = {
     "suite",
