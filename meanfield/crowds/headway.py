@@ -145,25 +145,25 @@ class Headway:
         A wall along a turned direction ``θ`` less than :attr:`reach` away, at ``w``, makes the headway there
         ``min(s_θ, w + d/2)``.
         """
-        n = len(positions)
-        if len(self._headway) != n:
-            self._headway = np.empty(n)
-        best = np.full(n, -np.inf)
-        best_s, best_f, best_e = np.full(n, np.inf), np.zeros(n), e.copy()
-        for theta in self.turns:
-            c, sn = math.cos(theta), math.sin(theta)
-            turned = e if theta == 0.0 else np.column_stack([c * e[:, 0] - sn * e[:, 1], sn * e[:, 0] + c * e[:, 1]])
-            s = headways(positions, turned, active, self.lane, self.reach, cells, self._headway).copy()
-            if theta != 0.0 and self.walls is not None:
-                t, _ = self.walls.first_hit(positions, positions + self.reach * turned)
-                hit = np.isfinite(t)
-                s[hit] = np.minimum(s[hit], t[hit] * self.reach + 0.5 * self.jam_spacing)
-            f = self.speed_factor(s)
-            gain = f * c
-            better = gain > best
-            best[better], best_s[better], best_f[better] = gain[better], s[better], f[better]
-            best_e[better] = turned[better]
-        return best_s, best_f, best_e
+        n, k = len(positions), len(self.turns)
+        if self._headway.shape != (k, n):
+            self._headway = np.empty((k, n))
+        c = np.array([math.cos(a) for a in self.turns])[:, None]
+        sn = np.array([math.sin(a) for a in self.turns])[:, None]
+        turned = np.empty((k, n, 2))  # each turn of every route direction
+        turned[:, :, 0] = c * e[:, 0] - sn * e[:, 1]
+        turned[:, :, 1] = sn * e[:, 0] + c * e[:, 1]
+        s = self._headway
+        for i in range(k):
+            headways(positions, turned[i], active, self.lane, self.reach, cells, s[i])
+        if self.walls is not None and k > 1:  # the turned directions' walls, one pass for all of them
+            start = np.broadcast_to(positions, (k - 1, n, 2)).reshape(-1, 2)
+            t, _ = self.walls.first_hit(start, start + self.reach * turned[1:].reshape(-1, 2))
+            np.minimum(s[1:], (t * self.reach + 0.5 * self.jam_spacing).reshape(k - 1, n), out=s[1:])
+        f = self.speed_factor(s)
+        best = np.argmax(f * c, axis=0)  # the first of equal gains: the smallest turn
+        pick = np.arange(n)
+        return s[best, pick].copy(), f[best, pick], turned[best, pick]
 
     def slow_down(self, velocity: np.ndarray, positions: np.ndarray, active: np.ndarray | None, dt: float = 0.0,
                   density: Any = None) -> np.ndarray:  # fmt: skip
