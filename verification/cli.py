@@ -26,7 +26,9 @@ def register(subparsers: Any):
     )
     add_scenario_arguments(v)
     v.add_argument(
-        "--quick", action="store_true", help="short variant of every check (about 45 s for paper on 2 cores)"
+        "--quick",
+        action="store_true",
+        help="short variant of every check (about 45 s for paper on 2 cores, plus about 5 min for two_scales)",
     )
     v.add_argument("--checks", default=None, help=f"comma-separated subset of: {', '.join(CHECK_NAMES)} (default: all)")
     v.add_argument("--workers", type=int, default=None, help="worker processes for the fan-out checks")
