@@ -20,10 +20,9 @@ discharges by the speeds of the gaps that open in it, as in the conservation law
 those behind it to fall.
 
 (H1) alone reads a disordered crowd as denser than a hexagonal one at the same density: the nearest person in a
-lane of random neighbours is nearer than the hexagonal spacing (at 2 persons/m² it is 0.54 m on average, against
-0.76 m).  On a periodic strip 3 m wide at σ = 0.05 m²/s, a crowd that starts at random walked at 0.53 m/s at 2
-persons/m², where the diagram says 0.84, and carried at most 1.06 persons/(m·s), against the diagram's 1.81.  So
-each human also chooses its line of walk (docs page *Congestion*, "The walk's direction"):
+lane of random neighbours is nearer than the hexagonal spacing, and an even crowd placed at random walks well
+under the diagram (docs page *Congestion*, "The walk's direction", measures it).  So each human also chooses its
+line of walk:
 
 * (H4) among the directions :data:`TURNS` off its route's (every 15° up to 45° on either side), each walks the
   one along which it makes most progress on its route, ``g(ρ(s_θ)) cos θ``, ``s_θ`` its headway along ``θ``; a
@@ -35,8 +34,7 @@ In a hexagonal crowd with spacing at most ``2d`` every lane holds a neighbour at
 within 30° of one of the six), so no turn makes more progress and (H1)'s diagram stands; in a disordered crowd
 people step into the gaps, as the heuristic walkers of M. Moussaïd, D. Helbing and G. Theraulaz ("How simple
 rules determine pedestrian behavior and crowd disasters", PNAS 108 (2011) 6884–6888) choose the direction of
-least obstruction within their field of view.  On the strip the crowd then walks the diagram within 5 % from 1 to
-3.5 persons/m² at σ = 0.05 m²/s.
+least obstruction within their field of view.
 
 The excluded volume is a velocity, never a displacement (:func:`~meanfield.crowds._headway_loops.contact_cone`):
 
@@ -143,7 +141,8 @@ class Headway:
         its route's direction ``e`` (unit, or 0 for one standing) along which ``f cos θ`` is largest.
 
         A wall along a turned direction ``θ`` less than :attr:`reach` away, at ``w``, makes the headway there
-        ``min(s_θ, w + d/2)``.
+        ``min(s_θ, w + d/2)``; every edge of Ω's outline is a wall here, its exits too (the route's own direction,
+        which is never turned off a wall, is the one that leads through them).
         """
         n, k = len(positions), len(self.turns)
         if self._headway.shape != (k, n):
