@@ -214,6 +214,11 @@ def scenario(model: str, rho0: float, seed: int) -> Any:
     }
     if model == "jupedsim":
         values["crowd.kind"] = "jupedsim"
+        # the bodies this study was measured with (docs page *Congestion*), not the bottleneck's since issue 42:
+        # JuPedSim's defaults, bodies of 0.2 m, steps of 0.01 s
+        values["crowd.options.jupedsim.radius"] = 0.2
+        values["crowd.options.jupedsim.time_step"] = 0.01
+        values["crowd.options.jupedsim.strength_neighbor_repulsion"] = "default"
     else:
         values["crowd.congestion"] = model
     return builtin_scenarios()["bottleneck"](seed=seed).with_values(values)

@@ -12,11 +12,12 @@ informed crowd on the fastest route (``crowd.guidance = "fastest-route"``, docs 
 "Routes") and the linear diagram, for
 
 * the point masses with each door model (``crowd.door_model`` = ``"count"``, ``"godunov-twin"`` or
-  ``"headway"``, the last with its exits at their capacity), one run per seed: the flow ``J`` between the exits of 10 % and 90 % of the crowd
-  (:func:`bottleneck_flow.steady_flow`) and the packing, the largest over the recorded seconds of the
-  95th percentile, among those still in the room, of the others within 0.5 m over ``π 0.25`` m²
-  (persons/m², the disk cut by the walls as the agents' own), and the same of their Voronoi densities
-  (:func:`voronoi_densities`, which read the jam density itself in a hexagonal jam, where the disk reads 7.6);
+  ``"headway"``, the last with its exits at their capacity), one run per seed: the flow ``J`` between the
+  exits of 10 % and 90 % of the crowd (:func:`bottleneck_flow.steady_flow`) and the packing, the largest
+  over the recorded seconds of the 95th percentile, among those still in the room, of the others within
+  0.5 m over ``π 0.25`` m² (persons/m², the disk cut by the walls as the agents' own), and the same of
+  their Voronoi densities (:func:`voronoi_densities`, which read the jam density itself in a hexagonal
+  jam, where the disk reads 7.6);
 * the density (``crowd.kind = "fokker-planck"``), one run (it is deterministic): ``J`` from its exits'
   cumulative outflow (:func:`bottleneck_flow.pde_flow`).
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 import gc
 import importlib
 import itertools
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from typing import Any
 
@@ -37,6 +37,8 @@ __all__ = [
     "jupedsim_version",
     "load_jupedsim",
     "MODELS",
+    "MODEL_PARAMETERS",
+    "REPULSION",
     "PEDESTRIAN_MODELS",
 ]
 
@@ -62,6 +64,28 @@ MODELS: dict[str, tuple[str, str]] = {
 
 PEDESTRIAN_MODELS: tuple[str, ...] = tuple(MODELS)
 """The operational models ``crowd.options.jupedsim.model`` may name (the keys of :data:`MODELS`)."""
+
+REPULSION: tuple[str, ...] = (
+    "strength_neighbor_repulsion",
+    "range_neighbor_repulsion",
+    "strength_geometry_repulsion",
+    "range_geometry_repulsion",
+)
+"""The repulsion parameters of the collision-free speed models, by JuPedSim's names (neighbours' first)."""
+
+MODEL_PARAMETERS: dict[str, dict[str, str]] = {
+    "collision-free-speed": {"time_gap": "agent", **dict.fromkeys(REPULSION, "model")},
+    "collision-free-speed-v2": {"time_gap": "agent", **dict.fromkeys(REPULSION, "agent")},
+    "collision-free-speed-v3": {"time_gap": "agent", **dict.fromkeys(REPULSION, "agent")},
+    "anticipation-velocity": dict.fromkeys(("time_gap", *REPULSION[:2]), "agent"),
+    "generalized-centrifugal-force": {},
+    "social-force": {},
+    "warp-driver": {},
+}
+"""The parameters of each model that ``[crowd.options.jupedsim]`` may set, and where JuPedSim takes each: on the
+model's class (``"model"``: ``CollisionFreeSpeedModel(strength_neighbor_repulsion=...)``, the same for every body)
+or on every agent's parameters (``"agent"``: ``CollisionFreeSpeedModelAgentParameters(time_gap=...)``).  The
+names are JuPedSim's (1.4.2); a parameter left unset keeps JuPedSim's default."""
 
 
 class JuPedSimUnavailable(ParameterError):
@@ -118,6 +142,22 @@ def _first_attribute(obj: Any, names: tuple[str, ...], what: str) -> str:
     )
 
 
+def _split_parameters(model: str, parameters: Mapping[str, float]) -> tuple[dict[str, float], dict[str, float]]:
+    """The keyword arguments of the model's class and of every agent's parameters (:data:`MODEL_PARAMETERS`)."""
+    where = MODEL_PARAMETERS[model]
+    on = {"model": {}, "agent": {}}
+    for name, value in parameters.items():
+        if name not in where:
+            allowed = ", ".join(where) or "none"
+            raise ParameterError(
+                f"crowd.options.jupedsim.{name}",
+                value,
+                f"no value (the model {model} has no such parameter; it has: {allowed})",
+            )
+        on[where[name]][name] = float(value)
+    return on["model"], on["agent"]
+
+
 class JuPedSimAdapter:
     """One JuPedSim simulation of bodies under direct steering.
 
@@ -133,6 +173,9 @@ class JuPedSimAdapter:
         Seed of the models that draw random numbers (anticipation velocity).
     exit_areas : sequence of shapely.Polygon
         One exit stage per area, in this order (the exit's index); each inside ``geometry``.
+    parameters : mapping of str to float, optional
+        The model's parameters that differ from JuPedSim's defaults, by their names in
+        :data:`MODEL_PARAMETERS` (``crowd.options.jupedsim.time_gap``, ...); another name is refused.
 
     Attributes
     ----------
@@ -152,10 +195,19 @@ class JuPedSimAdapter:
     others: the native handles are fetched again after every removal (:meth:`_refresh`).
     """
 
-    def __init__(self, geometry: Any, model: str, time_step: float, seed: int = 0, exit_areas: Any = ()):
+    def __init__(
+        self,
+        geometry: Any,
+        model: str,
+        time_step: float,
+        seed: int = 0,
+        exit_areas: Any = (),
+        parameters: Mapping[str, float] | None = None,
+    ):
         jps = load_jupedsim()
         if model not in MODELS:
             raise ParameterError("crowd.options.jupedsim.model", model, "one of " + ", ".join(MODELS))
+        on_model, self._agent_kwargs = _split_parameters(model, parameters or {})
         self.jps = jps
         self.model_name = model
         self.version = str(getattr(jps, "__version__", "?"))
@@ -165,6 +217,8 @@ class JuPedSimAdapter:
                 "crowd.options.jupedsim.model", model, f"a model this JuPedSim ({self.version}) provides"
             )
         kwargs = {"rng_seed": int(seed)} if model == "anticipation-velocity" else {}
+        kwargs.update(on_model)
+        self.parameters = dict(parameters or {})
         self._params_cls = params_cls
         self.sim = jps.Simulation(model=model_cls(**kwargs), geometry=geometry, dt=float(time_step))
         self.time_step = float(time_step)
@@ -230,7 +284,7 @@ class JuPedSimAdapter:
             self._fetch_handles()
 
     def _agent_parameters(self, position: tuple[float, float], radius: float, speed: float) -> Any:
-        common = {"position": position, "journey_id": self._journey, "stage_id": self._stage}
+        common = {"position": position, "journey_id": self._journey, "stage_id": self._stage, **self._agent_kwargs}
         if self.model_name == "generalized-centrifugal-force":  # an ellipse: make it a disk of `radius`
             shape = {"a_min": radius, "b_min": radius, "b_max": radius, "a_v": 0.0}
             return self._params_cls(**common, desired_speed=speed, **shape)

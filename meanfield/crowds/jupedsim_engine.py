@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from meanfield.crowds._jupedsim_api import PEDESTRIAN_MODELS, JuPedSimAdapter
+from meanfield.crowds._jupedsim_api import MODEL_PARAMETERS, PEDESTRIAN_MODELS, REPULSION, JuPedSimAdapter
 from meanfield.crowds.agent_crowd import AgentCrowd, initial_positions
 from meanfield.crowds.point_mass import PointMassEngine
 from meanfield.errors import ParameterError, choice, num
@@ -215,6 +215,9 @@ class JuPedSimEngine:
         JuPedSim operational model (``crowd.options.jupedsim.model``).
     seed : int
         Seed for models with randomness.
+    parameters : mapping of str to float, optional
+        The model's parameters that differ from JuPedSim's defaults
+        (:data:`~meanfield.crowds._jupedsim_api.MODEL_PARAMETERS`; :meth:`JuPedSimOptions.parameters`).
 
     Attributes
     ----------
@@ -239,6 +242,7 @@ class JuPedSimEngine:
         time_step: float,
         model: str = "collision-free-speed",
         seed: int = 0,
+        parameters: dict[str, float] | None = None,
     ):
         positions = np.array(positions, dtype=float)
         if positions.ndim != 2 or positions.shape[1] != 2 or len(positions) < 1:
@@ -260,7 +264,7 @@ class JuPedSimEngine:
         walkable, exit_areas = door_areas(area, self.exits, 2.0 * self.radius)
         # a region that is not convex (a plan): steering targets go to Ω shrunk by a radius
         self._inner = area.buffer(-self.radius, join_style="mitre") if self._not_convex(domain) else None
-        self.adapter = JuPedSimAdapter(walkable, model, time_step, seed, exit_areas)
+        self.adapter = JuPedSimAdapter(walkable, model, time_step, seed, exit_areas, parameters)
         self.adapter.add_agents(positions, radius, max_speed)
         self.positions = self.adapter.positions()
         self.active = self.adapter.alive.copy()
@@ -296,6 +300,7 @@ class JuPedSimEngine:
         """
         out: dict[str, Any] = {
             "pedestrian_model": self.model,
+            "pedestrian_parameters": dict(self.adapter.parameters),
             "jupedsim_version": self.adapter.version,
             "body_radius": self.radius,
             "body_overlap_max": self.max_body_overlap,
@@ -410,18 +415,60 @@ class JuPedSimOptions:
     one of :data:`~meanfield.crowds._jupedsim_api.PEDESTRIAN_MODELS`, moving bodies of
     ``radius`` metres.  The table is kept whatever ``crowd.kind`` is, so that
     ``--backend jupedsim`` finds it.
+
+    The model's own parameters, by JuPedSim's names, each unset (``None``, or the string
+    ``"default"``, which ``--set`` can give: JuPedSim's default) unless given: ``time_gap`` (s,
+    how fast a body closes a gap: its speed is the gap to the one ahead over ``time_gap``;
+    JuPedSim accepts 0.1–10 s), the neighbours' and the walls' repulsion
+    ``strength_neighbor_repulsion``, ``range_neighbor_repulsion`` (m),
+    ``strength_geometry_repulsion``, ``range_geometry_repulsion`` (m).  The collision-free speed
+    models (v1, v2, v3) have all five, the anticipation velocity model the first three, the
+    others none (:data:`~meanfield.crowds._jupedsim_api.MODEL_PARAMETERS`): a parameter the
+    model does not have is refused, naming it (unset it to change the model).
+
+    The defaults are the body and the step of JuPedSim's own validation of the bottleneck
+    (jpscore's ``systemtest/Validation/test_13``: the collision-free speed model, bodies of
+    0.15 m, steps of 0.05 s, ``T`` = 1 s); with bodies of 0.2 m (JuPedSim's default) and steps
+    of 0.01 s the bodies clog a 0.8 m bottleneck and stall at rimea-9's doors
+    (``studies/jupedsim_bottleneck_alone.py``).  That validation's neighbour repulsion, 5 where
+    JuPedSim's default is 8, is what the ``bottleneck`` and ``rimea-9`` scenarios set.
     """
 
     model: str = "collision-free-speed"
-    radius: float = 0.2
+    radius: float = 0.15
     max_speed: float = 1.34
-    time_step: float = 0.01
+    time_step: float = 0.05
+    time_gap: float | None = None
+    strength_neighbor_repulsion: float | None = None
+    range_neighbor_repulsion: float | None = None
+    strength_geometry_repulsion: float | None = None
+    range_geometry_repulsion: float | None = None
 
     def __post_init__(self) -> None:
         self.model = choice(f"{_OPTIONS}.model", self.model, PEDESTRIAN_MODELS)
         self.radius = num(f"{_OPTIONS}.radius", self.radius, lo=0.0, lo_open=True)
         self.max_speed = num(f"{_OPTIONS}.max_speed", self.max_speed, lo=0.0, lo_open=True)
         self.time_step = num(f"{_OPTIONS}.time_step", self.time_step, lo=0.0, lo_open=True)
+        for name in ("time_gap", *REPULSION):
+            if isinstance(getattr(self, name), str) and getattr(self, name) == "default":
+                setattr(self, name, None)
+        if self.time_gap is not None:  # JuPedSim's own bounds (CheckModelConstraint)
+            self.time_gap = num(f"{_OPTIONS}.time_gap", self.time_gap, lo=0.1, hi=10.0)
+        for name in REPULSION:
+            if getattr(self, name) is not None:
+                setattr(self, name, num(f"{_OPTIONS}.{name}", getattr(self, name), lo=0.0, lo_open=True))
+        has = MODEL_PARAMETERS[self.model]
+        for name, value in self.parameters().items():
+            if name not in has:
+                raise ParameterError(
+                    f"{_OPTIONS}.{name}",
+                    value,
+                    f'"default" (the model {self.model} has no such parameter; it has: {", ".join(has) or "none"})',
+                )
+
+    def parameters(self) -> dict[str, float]:
+        """The model's parameters that are set (the others keep JuPedSim's defaults), by JuPedSim's names."""
+        return {name: getattr(self, name) for name in ("time_gap", *REPULSION) if getattr(self, name) is not None}
 
     @classmethod
     def of(cls, scenario: Any) -> JuPedSimOptions:
@@ -478,7 +525,9 @@ def jupedsim_crowd(ctx: CrowdContext) -> AgentCrowd:
     sc = ctx.scenario
     ped = JuPedSimOptions.of(sc)
     humans = place_bodies(lambda k: initial_positions(sc, k, ctx.rng), sc.crowd.n, ped.radius, sc.domain)
-    engine = JuPedSimEngine(humans, sc.domain, ped.radius, ped.max_speed, ped.time_step, ped.model, sc.seed)
+    engine = JuPedSimEngine(
+        humans, sc.domain, ped.radius, ped.max_speed, ped.time_step, ped.model, sc.seed, ped.parameters()
+    )
     return AgentCrowd.from_context(engine, ctx)
 
 

@@ -40,6 +40,7 @@ not give are chosen and justified in ``docs/scenarios.md``.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import functools
 import math
@@ -606,7 +607,7 @@ class Scenario:
                 if isinstance(v, dict):
                     if not v:
                         continue
-                    v = dict(v)
+                    v = copy.deepcopy(v)  # crowd.options holds tables: a copy must not share them
                 sec[f.name] = list(v) if isinstance(v, tuple) else v
             out[key] = sec
         return out

@@ -7,7 +7,7 @@ import math
 import pytest
 
 from meanfield import Domain, ParameterError, Scenario, load_scenario, paper_scenario
-from meanfield.scenarios.scenario import CrowdSpec, KernelSpec, RobotSpec, TargetSpec
+from meanfield.scenarios.scenario import CrowdSpec, KernelSpec, RobotSpec, TargetSpec, builtin_scenarios
 from tests.conftest import PENTAGON
 
 
@@ -339,3 +339,14 @@ def test_a_misspelt_key_is_refused_with_the_field_it_resembles(key, suggestion):
     with pytest.raises(ParameterError) as exc:
         paper_scenario(seed=0).with_values({key: 1})
     assert exc.value.name == key and f"did you mean {suggestion}" in str(exc.value)
+
+
+def test_with_values_leaves_the_original_crowd_options_alone():
+    """Setting ``crowd.options.<kind>.<field>`` on a copy once wrote into the original's table too (the copy
+    shared the inner tables)."""
+    base = builtin_scenarios()["bottleneck"](seed=0)
+    before = base.crowd.options["jupedsim"]["radius"]
+    changed = base.with_values({"crowd.options.jupedsim.radius": 0.25})
+    assert changed.crowd.options["jupedsim"]["radius"] == 0.25
+    assert base.crowd.options["jupedsim"]["radius"] == before == 0.15
+    assert base.to_dict()["crowd"]["options"]["jupedsim"] is not base.crowd.options["jupedsim"]
