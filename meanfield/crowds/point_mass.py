@@ -21,17 +21,10 @@ from meanfield.crowds._point_mass_loops import euler_maruyama
 from meanfield.errors import ParameterError, SigmaLike, SimulationDiverged, check_sigma
 from meanfield.geometry.region import Region
 
-__all__ = ["PointMassEngine", "EXIT_BURST"]
+__all__ = ["PointMassEngine"]
 
 _NOBODY = np.empty(0, dtype=bool)  # euler_maruyama's ``standing`` when nobody stands
 _ZIGGURAT = (ZIG_KI, ZIG_WI, ZIG_FI)  # the noise's ziggurat tables, as euler_maruyama takes them
-
-
-EXIT_BURST = 2.0
-"""s: an exit with a capacity (:meth:`PointMassEngine.cap_exits`) that stood idle lets through at most this many
-seconds of its capacity at once (at least one person).  Measured on ``rimea-9`` (four 1 m doors, the headway
-model): a bucket of one person starves the doors (1.60 persons/s of 1.81), one second of capacity or four pass
-the capacity itself (docs page *Congestion*, "The exits' capacity")."""
 
 
 class PointMassEngine:
@@ -99,34 +92,35 @@ class PointMassEngine:
         self._open: np.ndarray | None = None  # the exits still open, by index (None: all; exits_closed)
         self._capacity: np.ndarray | None = None  # persons/s each exit passes at most (None: any; cap_exits)
         self._credit = np.zeros(0)
-        self._burst = np.zeros(0)
+        self._waiting = np.empty(0, dtype=np.intp)  # who waits in a doorway (sorted), and at which exit
+        self._waiting_at = np.empty(0, dtype=np.intp)
 
-    def cap_exits(self, capacity: np.ndarray, burst: float = EXIT_BURST) -> None:
-        """From now on exit ``k`` passes at most ``capacity[k]`` persons/s (docs page *Congestion*, "The exits'
-        capacity").
+    def cap_exits(self, capacity: np.ndarray) -> None:
+        """From now on exit ``k`` passes at most ``capacity[k]`` persons/s, and at most one person more over any
+        time (docs page *Congestion*, "The exits' capacity").
 
-        A bucket per exit: its credit grows by ``capacity[k] dt`` a step, up to ``burst`` seconds' worth (and at
-        least one person), and each human who leaves through it spends one.  Those whose step reached an exit
-        with no whole credit left stay where they stood at the step's start, the ones nearest the exit's
-        segment leaving first.
+        Each exit is a door with a queue, as a server of fixed rate is: its credit grows by ``capacity[k] dt`` a
+        step and each human who leaves through it spends one.  Those whose step reached it with no whole credit
+        left wait in its doorway, where they stood at the step's start, and are the first it serves (the nearest
+        its segment first); while someone waits, the credit is kept whole.  A door nobody waits at keeps at most
+        one person's credit: after a pause it passes one person at once, never a burst.  Over any ``τ`` it passes
+        at most ``1 + capacity[k] τ`` people, and, while someone waits, ``capacity[k] τ`` within one person: the
+        density's exit face, ``min(demand, q_max b)`` at every instant, up to one person.
 
         Parameters
         ----------
         capacity : ndarray, shape (E,)
             Persons/s, one per exit, each > 0.
-        burst : float
-            Seconds of capacity the bucket holds (:data:`EXIT_BURST`).
         """
         capacity = np.asarray(capacity, float)
         if capacity.shape != (len(self.exits),) or not np.all(capacity > 0) or not np.all(np.isfinite(capacity)):
             raise ParameterError(
                 "exit capacity", capacity, f"one finite capacity > 0 per exit, shape ({len(self.exits)},)"
             )
-        if not burst > 0:
-            raise ParameterError("exit burst", burst, "seconds > 0")
         self._capacity = capacity
-        self._burst = np.maximum(1.0, capacity * float(burst))
-        self._credit = self._burst.copy()
+        self._credit = np.ones(len(capacity))  # the first to come passes at once
+        self._waiting = np.empty(0, dtype=np.intp)
+        self._waiting_at = np.empty(0, dtype=np.intp)
 
     def exits_closed(self, open_exits: np.ndarray) -> None:
         """From now on nobody leaves through the exits ``k`` with ``open_exits[k]`` false: they are walls."""
@@ -230,10 +224,22 @@ class PointMassEngine:
         x[stay] = moved
 
     def _hold_at_capacity(self, gone: np.ndarray, idx: np.ndarray, previous: np.ndarray, dt: float) -> None:
-        """The exits' buckets (:meth:`cap_exits`), in place on ``gone`` (the exit each human of ``idx`` reached,
-        -1: none) and on the positions: those an exit cannot take this step get -1 and their step's start."""
-        credit = np.minimum(self._credit + self._capacity * dt, self._burst)
+        """The exits' queues (:meth:`cap_exits`), in place on ``gone`` (the exit each human of ``idx`` reached,
+        -1: none) and on the positions: those an exit cannot take this step get -1, their step's start, and a
+        place in its doorway."""
+        waits = np.zeros(len(idx), dtype=bool)
+        busy = np.zeros(len(self._capacity), dtype=bool)
+        if len(self._waiting) and len(idx):  # those in a doorway reach it again, whatever their step, while it is open
+            at = np.minimum(np.searchsorted(idx, self._waiting), len(idx) - 1)
+            here = idx[at] == self._waiting
+            if self._open is not None:
+                here &= np.isin(self._waiting_at, self._open)
+            gone[at[here]] = self._waiting_at[here]
+            waits[at[here]] = True
+            busy[self._waiting_at[here]] = True
+        credit = np.where(busy, self._credit, np.minimum(self._credit, 1.0)) + self._capacity * dt
         x = self.positions
+        held_all, held_at = [], []
         for k in np.unique(gone[gone >= 0]):
             reached = np.flatnonzero(gone == k)
             allowed = int(credit[k])
@@ -242,11 +248,20 @@ class PointMassEngine:
                 start = previous[idx[reached]]
                 along = np.clip((start - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0)
                 distance = np.hypot(*(start - (a + along[:, None] * (b - a))).T)
-                held = reached[np.argsort(distance, kind="stable")[allowed:]]
+                order = np.lexsort((distance, ~waits[reached]))  # the waiting first, each the nearest first
+                held = reached[order[allowed:]]
                 gone[held] = -1
                 x[idx[held]] = previous[idx[held]]
+                held_all.append(idx[held])
+                held_at.append(np.full(len(held), k, dtype=np.intp))
             credit[k] -= min(len(reached), allowed)
         self._credit = credit
+        if held_all:
+            who, at = np.concatenate(held_all), np.concatenate(held_at)
+            order = np.argsort(who)
+            self._waiting, self._waiting_at = who[order], at[order]
+        else:
+            self._waiting = self._waiting_at = np.empty(0, dtype=np.intp)
 
     def remaining(self) -> int:
         """How many humans have not left."""
