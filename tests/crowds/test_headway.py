@@ -362,6 +362,23 @@ def test_the_nearest_to_the_exit_leaves_first_and_the_held_wait_where_they_were(
     assert engine.active.tolist() == [False, False, True]
 
 
+def test_those_waiting_at_an_exit_that_closes_do_not_leave_by_it():
+    from meanfield import Domain
+    from meanfield.crowds.point_mass import PointMassEngine
+
+    room = Domain.box(4.0, 2.0, exits=[((4.0, 0.0), (4.0, 2.0)), ((0.0, 0.0), (0.0, 2.0))])
+    x = np.array([[3.9, 1.0], [3.95, 0.5]])
+    engine = PointMassEngine(x.copy(), room, 0.0, np.random.default_rng(0))
+    engine.cap_exits(np.array([0.5, 0.5]))
+    engine.step(np.tile([10.0, 0.0], (2, 1)), 0.0, 0.05)  # one leaves, one waits at exit 0
+    assert engine.remaining() == 1
+    engine.exits_closed(np.array([False, True]))
+    for step in range(1, 81):  # 4 s: exit 0 would have served it twice over
+        engine.step(np.zeros((2, 2)), step * 0.05, 0.05)
+    assert engine.remaining() == 1
+    np.testing.assert_array_equal(engine.positions[0], x[0])
+
+
 def test_an_idle_exit_keeps_one_person_s_credit():
     """Nobody at the door for 10 s, then three at once: one passes, the next two 1/capacity apart."""
     from meanfield import Domain
