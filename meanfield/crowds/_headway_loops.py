@@ -34,9 +34,18 @@ import math
 
 import numpy as np
 
-from meanfield._compiled.core import compiled, inner, prange
+from meanfield._compiled.core import PARALLEL_CHUNK, compiled, inner, prange
 
-__all__ = ["headways", "contact_cone", "cell_list", "CellList"]
+__all__ = [
+    "headways",
+    "lane_headways",
+    "choose_lanes",
+    "contact_cone",
+    "cell_list",
+    "CellList",
+    "LaneWalls",
+    "NO_WALLS",
+]
 
 
 class CellList:
@@ -200,6 +209,394 @@ def headways(x: np.ndarray, e: np.ndarray, active: np.ndarray, lane: float, reac
     """
     _headways_compiled(x, e, active, lane, reach, cells.arrays(), out)
     return out
+
+
+SLACK = 1e-6
+"""m: :func:`lane_headways` skips a cell when its box, this much wider on every side, holds nobody nearer than
+every lane's nearest so far or nobody in a lane (round-off in the cells' edges is far below it)."""
+
+
+class LaneWalls:
+    """The walls :func:`lane_headways` casts the turned lanes' rays at, and the walls near each cell of a lattice.
+
+    Each wall is the segment ``a_w + u v_w``, ``0 <= u <= 1``.  A cell of the lattice (side ``size`` over
+    ``bounds``) lists, in ``starts``/``walls`` (``walls[starts[c]:starts[c + 1]]``, ascending), every wall whose
+    bounding box comes within ``reach`` (and a margin) of the cell: a ray no longer than ``reach`` from a point of
+    the cell meets no other.  A ray from outside the lattice is tested against every wall.
+
+    Parameters
+    ----------
+    a, v : ndarray, shape (W, 2)
+        The walls' starts and vectors (``W = 0``: no walls).
+    bounds : (float, float, float, float)
+        ``(x0, x1, y0, y1)`` that the lattice covers.
+    reach : float
+        The longest ray, m.
+    """
+
+    __slots__ = ("a", "v", "starts", "walls", "box")
+
+    def __init__(self, a: np.ndarray, v: np.ndarray, bounds: tuple[float, ...], reach: float):
+        self.a = np.ascontiguousarray(a, float).reshape(-1, 2)
+        self.v = np.ascontiguousarray(v, float).reshape(-1, 2)
+        x0, x1, y0, y1 = (float(b) for b in bounds)
+        size = max(0.5 * reach, (x1 - x0) / 512, (y1 - y0) / 512, 1e-9)
+        nx, ny = int((x1 - x0) // size) + 1, int((y1 - y0) // size) + 1
+        margin = reach + 1e-6 * (1.0 + reach)  # a ray's end is p + reach·t, |t| = 1 to round-off
+        lo = np.minimum(self.a, self.a + self.v) - margin
+        hi = np.maximum(self.a, self.a + self.v) + margin
+        i0 = np.clip(np.floor((lo[:, 0] - x0) / size), 0, nx - 1).astype(np.int64)
+        i1 = np.clip(np.floor((hi[:, 0] - x0) / size), 0, nx - 1).astype(np.int64)
+        j0 = np.clip(np.floor((lo[:, 1] - y0) / size), 0, ny - 1).astype(np.int64)
+        j1 = np.clip(np.floor((hi[:, 1] - y0) / size), 0, ny - 1).astype(np.int64)
+        cell, wall = [], []
+        for w in range(len(self.a)):  # each wall in the cells its box, widened by the reach, meets
+            gx, gy = np.meshgrid(np.arange(i0[w], i1[w] + 1), np.arange(j0[w], j1[w] + 1), indexing="ij")
+            cell.append((gy * nx + gx).ravel())
+            wall.append(np.full(gx.size, w, np.int64))
+        cell_arr = np.concatenate(cell) if cell else np.empty(0, np.int64)
+        wall_arr = np.concatenate(wall) if wall else np.empty(0, np.int64)
+        order = np.lexsort((wall_arr, cell_arr))
+        self.walls = np.ascontiguousarray(wall_arr[order])
+        self.starts = np.zeros(nx * ny + 1, np.int64)
+        np.cumsum(np.bincount(cell_arr, minlength=nx * ny), out=self.starts[1:])
+        self.box = np.array([x0, y0, size, nx, ny], float)
+
+    def arrays(self) -> tuple:
+        """What :func:`lane_headways` takes: ``(a, v, starts, walls, box)``."""
+        return self.a, self.v, self.starts, self.walls, self.box
+
+
+NO_WALLS = LaneWalls(np.empty((0, 2)), np.empty((0, 2)), (0.0, 1.0, 0.0, 1.0), 1.0)
+"""No walls: :func:`lane_headways` gives the headways alone."""
+
+
+def _wall_hits_numpy(p, d, a, v):
+    """The smallest fraction ``t`` at which each ray ``p + t d`` (``t`` in ``(1e-12, 1]``) meets a wall ``a + u v``
+    (``u`` in [0, 1]; ``inf``: none), every wall tested; the arithmetic of :func:`_ray_wall`."""
+    out = np.full(len(p), np.inf)
+    for w in range(len(a)):
+        cross = d[:, 0] * v[w, 1] - d[:, 1] * v[w, 0]
+        wx, wy = a[w, 0] - p[:, 0], a[w, 1] - p[:, 1]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (wx * v[w, 1] - wy * v[w, 0]) / cross
+            u = (wx * d[:, 1] - wy * d[:, 0]) / cross
+        hit = (cross != 0.0) & (t > 1e-12) & (t <= 1.0) & (u >= 0.0) & (u <= 1.0)
+        np.minimum(out, np.where(hit, t, np.inf), out=out)
+    return out
+
+
+def _lanes_numpy(x, e, active, cos, sin, lane, reach, half, cells, walls, out):
+    """The numpy twin of :func:`lane_headways`: one :func:`headways` per lane (its numpy twin), then every turned
+    ray against every wall (``cells`` and the walls' lattice unused)."""
+    a, v = walls[0], walls[1]
+    col = np.empty(len(x))
+    for q in range(len(cos)):
+        turned = np.empty((len(x), 2))
+        turned[:, 0] = cos[q] * e[:, 0] - sin[q] * e[:, 1]
+        turned[:, 1] = sin[q] * e[:, 0] + cos[q] * e[:, 1]
+        _headways_numpy(x, turned, active, lane, reach, cells, col)
+        if q >= 1 and len(a):
+            with np.errstate(invalid="ignore"):  # (non-finite rows meet nothing)
+                d = (x + reach * turned) - x
+            t = _wall_hits_numpy(x, d, a, v)
+            np.minimum(col, t * reach + half, out=col)
+        out[:, q] = col
+
+
+@inner
+def _ray_wall(px, py, dx, dy, a, v, w):
+    """``t`` of the ray ``p + t d`` at wall ``w``, ``inf`` if it does not meet it in ``(1e-12, 1]`` (the arithmetic
+    of the walls' first hit, :mod:`meanfield.geometry._wall_loops`)."""
+    ex = v[w, 0]
+    ey = v[w, 1]
+    cross = dx * ey - dy * ex
+    if cross == 0.0:
+        return math.inf
+    wx = a[w, 0] - px
+    wy = a[w, 1] - py
+    t = (wx * ey - wy * ex) / cross
+    if not (t > 1e-12 and t <= 1.0):
+        return math.inf
+    u = (wx * dy - wy * dx) / cross
+    if u >= 0.0 and u <= 1.0:
+        return t
+    return math.inf
+
+
+@inner
+def _walls_ahead(j, px, py, tx, ty, reach, half, a, v, starts, walls, box, out):
+    """``out[j, q] = min(out[j, q], t_q reach + half)`` for the turned lanes ``q >= 1``, ``t_q`` the first wall on
+    the ray from ``p`` to ``p + reach (tx_q, ty_q)`` (nothing where none)."""
+    size = box[2]
+    fx = (px - box[0]) / size
+    fy = (py - box[1]) / size
+    nx = int(box[3])
+    inside = fx >= 0.0 and fy >= 0.0 and fx < box[3] and fy < box[4]
+    lo = 0
+    hi = a.shape[0]
+    if inside:
+        c = int(fy) * nx + int(fx)
+        lo = starts[c]
+        hi = starts[c + 1]
+    for q in range(1, tx.shape[0]):
+        dx = (px + reach * tx[q]) - px
+        dy = (py + reach * ty[q]) - py
+        best = math.inf
+        for s in range(lo, hi):
+            w = walls[s] if inside else s
+            t = _ray_wall(px, py, dx, dy, a, v, w)
+            if t < best:
+                best = t
+        if best < math.inf:
+            sw = best * reach + half
+            if sw < out[j, q]:
+                out[j, q] = sw
+
+
+@inner
+def _cell_at(v, origin, h, n):
+    """The cell (0 to ``n − 1``) of the lattice ``origin + h i`` that holds the coordinate ``v``."""
+    return min(max(int(math.floor((v - origin) / h)), 0), n - 1)
+
+
+@inner
+def _visit(c, t, xj, yj, pos, starts, tx, ty, best2, far2, lane):
+    """Cell ``c``'s humans into each lane's nearest ``best2`` of the human in slot ``t``; returns the largest of
+    the lanes' nearest (nothing farther is looked at)."""
+    k = tx.shape[0]
+    for u in range(starts[c], starts[c + 1]):
+        if u == t:
+            continue
+        dx = pos[u, 0] - xj
+        dy = pos[u, 1] - yj
+        r2 = dx * dx + dy * dy
+        if r2 >= far2:
+            continue
+        found = False
+        for q in range(k):
+            if r2 < best2[q] and dx * tx[q] + dy * ty[q] > 0.0 and abs(dx * ty[q] - dy * tx[q]) < lane:
+                best2[q] = r2
+                found = True
+        if found:
+            far2 = -1.0
+            for q in range(k):
+                if best2[q] > far2:
+                    far2 = best2[q]
+    return far2
+
+
+@compiled(fallback=_lanes_numpy, parallel_over="x")
+def _lanes_compiled(x, e, active, cos, sin, lane, reach, half, cells, walls, out):
+    order, starts, pos, origin, h, nx, ny = cells
+    wa, wv, wstarts, wlist, wbox = walls
+    n = x.shape[0]
+    k = cos.shape[0]
+    reach2 = reach * reach
+    rings = int(math.ceil(reach / h)) + 1
+    left = 0  # the turns of largest and smallest angle: every lane lies between their outer edges
+    right = 0
+    for q in range(k):
+        if math.atan2(sin[q], cos[q]) > math.atan2(sin[left], cos[left]):
+            left = q
+        if math.atan2(sin[q], cos[q]) < math.atan2(sin[right], cos[right]):
+            right = q
+    fan = math.atan2(sin[left], cos[left]) - math.atan2(sin[right], cos[right]) <= 0.99 * math.pi
+    chunks = (n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
+    for chunk in prange(chunks):  # everyone: no one ahead; the walls of those the cells do not hold
+        tx = np.empty(k)
+        ty = np.empty(k)
+        for j in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, n)):
+            for q in range(k):
+                out[j, q] = math.inf
+            xj = x[j, 0]
+            yj = x[j, 1]
+            if wa.shape[0] and not (active[j] and math.isfinite(xj) and math.isfinite(yj)):
+                ex = e[j, 0]
+                ey = e[j, 1]
+                for q in range(k):
+                    tx[q] = cos[q] * ex - sin[q] * ey
+                    ty[q] = sin[q] * ex + cos[q] * ey
+                _walls_ahead(j, xj, yj, tx, ty, reach, half, wa, wv, wstarts, wlist, wbox, out)
+    m = order.shape[0]
+    chunks = (m + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
+    for chunk in prange(chunks):  # the humans in cell order: their neighbours are near in memory
+        tx = np.empty(k)
+        ty = np.empty(k)
+        best2 = np.empty(k)
+        for t in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, m)):
+            j = order[t]
+            ex = e[j, 0]
+            ey = e[j, 1]
+            xj = pos[t, 0]
+            yj = pos[t, 1]
+            far2 = -1.0  # the largest of the lanes' nearest so far: the search stops beyond it
+            for q in range(k):
+                tx[q] = cos[q] * ex - sin[q] * ey
+                ty[q] = sin[q] * ex + cos[q] * ey
+                if tx[q] == 0.0 and ty[q] == 0.0:
+                    best2[q] = math.nan  # a standing human: no lane, no headway
+                else:
+                    best2[q] = reach2
+                    far2 = reach2
+            if far2 > 0.0:
+                cx = min(int((xj - origin[0]) // h), nx - 1)
+                cy = min(int((yj - origin[1]) // h), ny - 1)
+                lo_x = 0.0  # the lanes' bounding box, from X_j
+                hi_x = 0.0
+                lo_y = 0.0
+                hi_y = 0.0
+                for q in range(k):
+                    if best2[q] == best2[q]:
+                        lo_x = min(lo_x, reach * tx[q] - lane * abs(ty[q]), -lane * abs(ty[q]))
+                        hi_x = max(hi_x, reach * tx[q] + lane * abs(ty[q]), lane * abs(ty[q]))
+                        lo_y = min(lo_y, reach * ty[q] - lane * abs(tx[q]), -lane * abs(tx[q]))
+                        hi_y = max(hi_y, reach * ty[q] + lane * abs(tx[q]), lane * abs(tx[q]))
+                gx0 = _cell_at(xj + max(lo_x, -reach) - SLACK, origin[0], h, nx)
+                gx1 = _cell_at(xj + min(hi_x, reach) + SLACK, origin[0], h, nx)
+                gy0 = _cell_at(yj + max(lo_y, -reach) - SLACK, origin[1], h, ny)
+                gy1 = _cell_at(yj + min(hi_y, reach) + SLACK, origin[1], h, ny)
+                if fan:  # the lanes lie between their outer edges: p·l < w, l the outer normal of the outer lanes
+                    lx = -ty[left]
+                    ly = tx[left]
+                    rx = ty[right]
+                    ry = -tx[right]
+                last = max(cx - gx0, gx1 - cx, cy - gy0, gy1 - cy)
+                for ring in range(min(rings, last) + 1):
+                    if ring >= 2 and (ring - 1) * h * ((ring - 1) * h) >= far2:
+                        break  # every cell of this ring is farther than every lane's nearest found
+                    for gy in range(max(cy - ring, gy0), min(cy + ring, gy1) + 1):
+                        edge = gy == cy - ring or gy == cy + ring
+                        step = 1 if edge else 2 * ring  # the ring's rows, or its sides
+                        gx = cx - ring
+                        if edge and gx < gx0:
+                            gx = gx0
+                        by0 = origin[1] + gy * h - yj - SLACK  # the cell's box, from X_j, a little wider
+                        by1 = by0 + h + 2.0 * SLACK
+                        dy2 = by0 * by0 if by0 > 0.0 else (by1 * by1 if by1 < 0.0 else 0.0)
+                        while gx <= cx + ring and gx <= gx1:
+                            if gx >= gx0:
+                                bx0 = origin[0] + gx * h - xj - SLACK
+                                bx1 = bx0 + h + 2.0 * SLACK
+                                near2 = dy2 + (bx0 * bx0 if bx0 > 0.0 else (bx1 * bx1 if bx1 < 0.0 else 0.0))
+                                skip = near2 >= far2  # nobody in the cell is nearer than every lane's nearest
+                                if fan and not skip:  # or in a lane
+                                    skip = (min(bx0 * lx, bx1 * lx) + min(by0 * ly, by1 * ly) >= lane + SLACK) or (
+                                        min(bx0 * rx, bx1 * rx) + min(by0 * ry, by1 * ry) >= lane + SLACK)  # fmt: skip
+                                if not skip:
+                                    far2 = _visit(gy * nx + gx, t, xj, yj, pos, starts, tx, ty, best2, far2, lane)
+                            gx += step
+                for q in range(k):
+                    if best2[q] < reach2:
+                        out[j, q] = math.sqrt(best2[q])
+            if wa.shape[0]:
+                _walls_ahead(j, x[j, 0], x[j, 1], tx, ty, reach, half, wa, wv, wstarts, wlist, wbox, out)
+
+
+def lane_headways(
+    x: np.ndarray, e: np.ndarray, active: np.ndarray, cos: np.ndarray, sin: np.ndarray, lane: float, reach: float,
+    cells: CellList, out: np.ndarray, walls: LaneWalls = NO_WALLS, half: float = 0.0,
+) -> np.ndarray:  # fmt: skip
+    """Each human's headway along each of ``K`` turned lanes at once, into ``out`` (N, K) (m; ``inf``: nobody).
+
+    Lane ``q`` of human ``j`` is its direction ``e_j`` turned by the angle whose cosine and sine are ``cos[q]``,
+    ``sin[q]``::
+
+        t_jq = (cos_q e_jx − sin_q e_jy,  sin_q e_jx + cos_q e_jy),   out[j, q] = s_j along t_jq
+
+    with ``s_j`` the headway of :func:`headways` (module docstring, (H1)): the same numbers, to the last bit, as
+    ``K`` calls of :func:`headways` with the turned directions (the same minima over the same candidates).  The
+    compiled loop walks each human's neighbours in the cell list once for all the lanes, widening ring by ring
+    until a ring lies beyond every lane's nearest; each human writes its own row only, so the numbers do not
+    depend on the threads (docs page *Congestion*, "The headway door model").
+
+    With ``walls``, each turned lane ``q >= 1`` (the route's own, ``q = 0``, is never turned off a wall) is also
+    cut at its first wall: ``out[j, q] = min(s, t R + half)``, ``t`` the fraction of the ray from ``X_j`` to
+    ``X_j + R t_jq`` at the first wall it meets (the arithmetic of
+    :meth:`~meanfield.geometry.walls.WallIndex.first_hit`), for every human, active or not.
+
+    Parameters
+    ----------
+    x, e : ndarray, shape (N, 2)
+        Positions and unit walking directions (0: standing, no headway).
+    active : ndarray of bool, shape (N,)
+        Who counts and is counted (non-finite rows are ignored).
+    cos, sin : ndarray, shape (K,)
+        The turns' cosines and sines.
+    lane : float
+        ``w``, the lane's half width (m).
+    reach : float
+        ``R``: nobody farther counts, and no wall (m).
+    cells : CellList
+        The active humans in cells (:func:`cell_list`, any width ``h > 0``).
+    out : ndarray, shape (N, K)
+        C-contiguous.
+    walls : LaneWalls, optional
+        The walls that cut the turned lanes (default :data:`NO_WALLS`).
+    half : float
+        What a wall adds to its distance (m; (H4): ``d/2``).
+    """
+    _lanes_compiled(x, e, active, cos, sin, lane, reach, half, cells.arrays(), walls.arrays(), out)
+    return out
+
+
+def _choose_numpy(f, s, e, cos, sin, best_s, best_f, walk):
+    """The numpy twin of :func:`choose_lanes`."""
+    best = np.argmax(f * cos, axis=1)  # the first of equal gains: the smallest turn
+    pick = np.arange(len(f))
+    best_s[:] = s[pick, best]
+    best_f[:] = f[pick, best]
+    c, sn = cos[best], sin[best]
+    walk[:, 0] = c * e[:, 0] - sn * e[:, 1]
+    walk[:, 1] = sn * e[:, 0] + c * e[:, 1]
+
+
+@compiled(fallback=_choose_numpy, parallel_over="f")
+def _choose_compiled(f, s, e, cos, sin, best_s, best_f, walk):
+    n = f.shape[0]
+    k = f.shape[1]
+    for chunk in prange((n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):
+        for j in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, n)):
+            b = 0
+            top = f[j, 0] * cos[0]
+            if top == top:  # (numpy's argmax: the first nan, if any, else the first of the largest)
+                for q in range(1, k):
+                    g = f[j, q] * cos[q]
+                    if g != g:
+                        b = q
+                        break
+                    if g > top:
+                        top = g
+                        b = q
+            best_s[j] = s[j, b]
+            best_f[j] = f[j, b]
+            walk[j, 0] = cos[b] * e[j, 0] - sin[b] * e[j, 1]
+            walk[j, 1] = sin[b] * e[j, 0] + cos[b] * e[j, 1]
+
+
+def choose_lanes(
+    f: np.ndarray, s: np.ndarray, e: np.ndarray, cos: np.ndarray, sin: np.ndarray, best_s: np.ndarray,
+    best_f: np.ndarray, walk: np.ndarray,
+) -> np.ndarray:  # fmt: skip
+    """(H4)'s choice: each human's lane of largest progress ``f cos θ`` (the first of equal ones, the smallest
+    turn), its headway, its speed factor and its unit direction (docs page *Congestion*, "The headway door
+    model").
+
+    Parameters
+    ----------
+    f, s : ndarray, shape (N, K)
+        Each lane's speed factor and headway.
+    e : ndarray, shape (N, 2)
+        The routes' directions.
+    cos, sin : ndarray, shape (K,)
+        The turns' cosines and sines.
+    best_s, best_f : ndarray, shape (N,)
+        The chosen lane's headway and speed factor (written).
+    walk : ndarray, shape (N, 2)
+        The chosen lane's direction, ``e`` turned (written).
+    """
+    _choose_compiled(f, s, e, cos, sin, best_s, best_f, walk)
+    return walk
 
 
 def _cone_numpy(v, x, active, jam, separation, cells):
