@@ -72,11 +72,21 @@ class CellList:
 
 def cell_list(x: np.ndarray, active: np.ndarray, h: float) -> CellList:
     """Sort the active humans with finite positions into cells of width ``h`` (a stable counting sort; the width
-    doubled while there would be more than ``4 m + 64`` cells for ``m`` humans)."""
+    doubled while there would be more than ``4 m + 64`` cells for ``m`` humans).
+
+    One compiled pass finds them and their bounding box, a second sorts them (the same arrays as its numpy twin's
+    stable ``argsort``, to the last bit; docs page *Congestion*, "The headway door model").
+    """
+    order, starts, sorted_positions, x0, y0, h, nx, ny = _cells_compiled(x, active, float(h))
+    return CellList(order, starts, sorted_positions, (x0, y0), h, int(nx), int(ny))
+
+
+def _cells_numpy(x, active, h):
+    """The numpy twin of :func:`cell_list`'s loop: ``(order, starts, sorted, x0, y0, h, nx, ny)``."""
     ok = active & np.isfinite(x[:, 0]) & np.isfinite(x[:, 1])
     idx = np.flatnonzero(ok)
     if not len(idx):
-        return CellList(idx.astype(np.int64), np.zeros(2, np.int64), np.zeros((0, 2)), (0.0, 0.0), h, 1, 1)
+        return idx.astype(np.int64), np.zeros(2, np.int64), np.zeros((0, 2)), 0.0, 0.0, h, 1, 1
     p = x[idx]
     x0, y0, h, nx, ny = _lattice(p, h)
     cx = np.minimum(((p[:, 0] - x0) // h).astype(np.int64), nx - 1)
@@ -86,7 +96,58 @@ def cell_list(x: np.ndarray, active: np.ndarray, h: float) -> CellList:
     starts = np.zeros(nx * ny + 1, np.int64)
     np.cumsum(np.bincount(key, minlength=nx * ny), out=starts[1:])
     order = idx[sort].astype(np.int64)
-    return CellList(order, starts, np.ascontiguousarray(x[order]), (x0, y0), h, nx, ny)
+    return order, starts, np.ascontiguousarray(x[order]), x0, y0, h, nx, ny
+
+
+@compiled(fallback=_cells_numpy)
+def _cells_compiled(x, active, h):
+    n = x.shape[0]
+    m = 0
+    x0 = math.inf
+    y0 = math.inf
+    x1 = -math.inf
+    y1 = -math.inf
+    for j in range(n):  # who, and their bounding box
+        if active[j] and math.isfinite(x[j, 0]) and math.isfinite(x[j, 1]):
+            m += 1
+            x0 = min(x0, x[j, 0])
+            x1 = max(x1, x[j, 0])
+            y0 = min(y0, x[j, 1])
+            y1 = max(y1, x[j, 1])
+    if m == 0:
+        return np.zeros(0, np.int64), np.zeros(2, np.int64), np.zeros((0, 2)), 0.0, 0.0, h, 1, 1
+    wx = x1 - x0
+    wy = y1 - y0
+    nx = int(wx // h) + 1
+    ny = int(wy // h) + 1
+    while nx * ny > 4 * m + 64:  # (_lattice)
+        h *= 2.0
+        nx = int(wx // h) + 1
+        ny = int(wy // h) + 1
+    key = np.empty(m, np.int64)
+    idx = np.empty(m, np.int64)
+    starts = np.zeros(nx * ny + 1, np.int64)
+    i = 0
+    for j in range(n):
+        if active[j] and math.isfinite(x[j, 0]) and math.isfinite(x[j, 1]):
+            c = min(int((x[j, 1] - y0) // h), ny - 1) * nx + min(int((x[j, 0] - x0) // h), nx - 1)
+            key[i] = c
+            idx[i] = j
+            starts[c + 1] += 1
+            i += 1
+    for c in range(nx * ny):
+        starts[c + 1] += starts[c]
+    cursor = starts[:-1].copy()
+    order = np.empty(m, np.int64)
+    pos = np.empty((m, 2))
+    for i in range(m):  # stable: each cell's humans in their order
+        slot = cursor[key[i]]
+        cursor[key[i]] = slot + 1
+        j = idx[i]
+        order[slot] = j
+        pos[slot, 0] = x[j, 0]
+        pos[slot, 1] = x[j, 1]
+    return order, starts, pos, x0, y0, h, nx, ny
 
 
 def _lattice(p: np.ndarray, h: float) -> tuple[float, float, float, int, int]:
@@ -234,11 +295,12 @@ class LaneWalls:
         The longest ray, m.
     """
 
-    __slots__ = ("a", "v", "starts", "walls", "box")
+    __slots__ = ("a", "v", "norm", "starts", "walls", "box")
 
     def __init__(self, a: np.ndarray, v: np.ndarray, bounds: tuple[float, ...], reach: float):
         self.a = np.ascontiguousarray(a, float).reshape(-1, 2)
         self.v = np.ascontiguousarray(v, float).reshape(-1, 2)
+        self.norm = np.hypot(self.v[:, 0], self.v[:, 1])
         x0, x1, y0, y1 = (float(b) for b in bounds)
         size = max(0.5 * reach, (x1 - x0) / 512, (y1 - y0) / 512, 1e-9)
         nx, ny = int((x1 - x0) // size) + 1, int((y1 - y0) // size) + 1
@@ -263,8 +325,8 @@ class LaneWalls:
         self.box = np.array([x0, y0, size, nx, ny], float)
 
     def arrays(self) -> tuple:
-        """What :func:`lane_headways` takes: ``(a, v, starts, walls, box)``."""
-        return self.a, self.v, self.starts, self.walls, self.box
+        """What :func:`lane_headways` takes: ``(a, v, norm, starts, walls, box)`` (``norm``: each ``|v_w|``)."""
+        return self.a, self.v, self.norm, self.starts, self.walls, self.box
 
 
 NO_WALLS = LaneWalls(np.empty((0, 2)), np.empty((0, 2)), (0.0, 1.0, 0.0, 1.0), 1.0)
@@ -325,9 +387,10 @@ def _ray_wall(px, py, dx, dy, a, v, w):
 
 
 @inner
-def _walls_ahead(j, px, py, tx, ty, reach, half, a, v, starts, walls, box, out):
+def _walls_ahead(j, px, py, tx, ty, reach, half, a, v, norm, starts, walls, box, out):
     """``out[j, q] = min(out[j, q], t_q reach + half)`` for the turned lanes ``q >= 1``, ``t_q`` the first wall on
-    the ray from ``p`` to ``p + reach (tx_q, ty_q)`` (nothing where none)."""
+    the ray from ``p`` to ``p + reach (tx_q, ty_q)`` (nothing where none): :func:`_ray_wall`'s ``t``, without its
+    division where it cannot count (a wall whose line is farther than the reach, a ray that points away)."""
     size = box[2]
     fx = (px - box[0]) / size
     fy = (py - box[1]) / size
@@ -339,19 +402,30 @@ def _walls_ahead(j, px, py, tx, ty, reach, half, a, v, starts, walls, box, out):
         c = int(fy) * nx + int(fx)
         lo = starts[c]
         hi = starts[c + 1]
-    for q in range(1, tx.shape[0]):
-        dx = (px + reach * tx[q]) - px
-        dy = (py + reach * ty[q]) - py
-        best = math.inf
-        for s in range(lo, hi):
-            w = walls[s] if inside else s
-            t = _ray_wall(px, py, dx, dy, a, v, w)
-            if t < best:
-                best = t
-        if best < math.inf:
-            sw = best * reach + half
-            if sw < out[j, q]:
-                out[j, q] = sw
+    far = reach * (1.0 + 1e-9)
+    for s in range(lo, hi):
+        w = walls[s] if inside else s
+        ex = v[w, 0]
+        ey = v[w, 1]
+        wx = a[w, 0] - px
+        wy = a[w, 1] - py
+        num = wx * ey - wy * ex  # |num| / |v_w|: the distance from p to the wall's line
+        if not abs(num) <= far * norm[w]:
+            continue  # no ray as long as the reach gets there (t > 1)
+        for q in range(1, tx.shape[0]):
+            dx = (px + reach * tx[q]) - px
+            dy = (py + reach * ty[q]) - py
+            cross = dx * ey - dy * ex
+            if not ((num > 0.0 and cross > 0.0) or (num < 0.0 and cross < 0.0)):
+                continue  # t <= 0 (or no crossing)
+            t = num / cross
+            if not (t > 1e-12 and t <= 1.0):
+                continue
+            u = (wx * dy - wy * dx) / cross
+            if u >= 0.0 and u <= 1.0:  # the smallest t, times the reach plus half, is the smallest of the cuts
+                sw = t * reach + half
+                if sw < out[j, q]:
+                    out[j, q] = sw
 
 
 @inner
@@ -389,7 +463,7 @@ def _visit(c, t, xj, yj, pos, starts, tx, ty, best2, far2, lane):
 @compiled(fallback=_lanes_numpy, parallel_over="x")
 def _lanes_compiled(x, e, active, cos, sin, lane, reach, half, cells, walls, out):
     order, starts, pos, origin, h, nx, ny = cells
-    wa, wv, wstarts, wlist, wbox = walls
+    wa, wv, wnorm, wstarts, wlist, wbox = walls
     n = x.shape[0]
     k = cos.shape[0]
     reach2 = reach * reach
@@ -417,7 +491,7 @@ def _lanes_compiled(x, e, active, cos, sin, lane, reach, half, cells, walls, out
                 for q in range(k):
                     tx[q] = cos[q] * ex - sin[q] * ey
                     ty[q] = sin[q] * ex + cos[q] * ey
-                _walls_ahead(j, xj, yj, tx, ty, reach, half, wa, wv, wstarts, wlist, wbox, out)
+                _walls_ahead(j, xj, yj, tx, ty, reach, half, wa, wv, wnorm, wstarts, wlist, wbox, out)
     m = order.shape[0]
     chunks = (m + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
     for chunk in prange(chunks):  # the humans in cell order: their neighbours are near in memory
@@ -490,7 +564,7 @@ def _lanes_compiled(x, e, active, cos, sin, lane, reach, half, cells, walls, out
                     if best2[q] < reach2:
                         out[j, q] = math.sqrt(best2[q])
             if wa.shape[0]:
-                _walls_ahead(j, x[j, 0], x[j, 1], tx, ty, reach, half, wa, wv, wstarts, wlist, wbox, out)
+                _walls_ahead(j, x[j, 0], x[j, 1], tx, ty, reach, half, wa, wv, wnorm, wstarts, wlist, wbox, out)
 
 
 def lane_headways(

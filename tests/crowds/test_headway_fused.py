@@ -251,3 +251,21 @@ def test_no_walls_is_no_cut():
     c, s = cos_sin(TURNS)
     a = lane_headways(x, e, active, c, s, JAM, 3.0, cells, np.empty((100, 7)), NO_WALLS, 0.25)
     assert np.array_equal(a, per_turn(x, e, active, TURNS, JAM, 3.0, cells))
+
+
+@pytest.mark.parametrize("seed, n, h", [(0, 300, JAM), (1, 2000, 0.2), (2, 50, 3.0), (3, 1, JAM)])
+def test_the_compiled_cell_list_is_the_stable_counting_sort(seed, n, h):
+    """The cells' arrays, compiled and numpy, to the last bit (the width doubled alike when the box is wide)."""
+    x, _, active = crowd(max(n, 20), np.random.default_rng(seed), 30.0)
+    x, active = x[:n], active[:n]
+    if n == 1:
+        active[:] = True
+    x[: n // 3] *= 40.0  # a few far away: more cells than 4 m + 64 at width h, so it doubles
+    got = cell_list(x, active, h)
+    with compiled.numpy_path():
+        want = cell_list(x, active, h)
+    for a, b in zip(got.arrays(), want.arrays(), strict=True):
+        assert np.array_equal(np.asarray(a), np.asarray(b)) and type(a) is type(b)
+    assert got.nx * got.ny <= 4 * len(got.order) + 64 and len(got.order) == np.sum(active & np.isfinite(x).all(1))
+    empty = cell_list(x, np.zeros(n, bool), h)
+    assert len(empty.order) == 0 and empty.starts.tolist() == [0, 0] and empty.sorted.shape == (0, 2)
