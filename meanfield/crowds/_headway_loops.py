@@ -302,7 +302,7 @@ class LaneWalls:
         self.v = np.ascontiguousarray(v, float).reshape(-1, 2)
         self.norm = np.hypot(self.v[:, 0], self.v[:, 1])
         x0, x1, y0, y1 = (float(b) for b in bounds)
-        size = max(0.5 * reach, (x1 - x0) / 512, (y1 - y0) / 512, 1e-9)
+        size = max(reach / 8, (x1 - x0) / 512, (y1 - y0) / 512, 1e-9)
         nx, ny = int((x1 - x0) // size) + 1, int((y1 - y0) // size) + 1
         margin = reach + 1e-6 * (1.0 + reach)  # a ray's end is p + reach·t, |t| = 1 to round-off
         lo = np.minimum(self.a, self.a + self.v) - margin
@@ -403,6 +403,10 @@ def _walls_ahead(j, px, py, tx, ty, reach, half, a, v, norm, starts, walls, box,
         lo = starts[c]
         hi = starts[c + 1]
     far = reach * (1.0 + 1e-9)
+    k = tx.shape[0]
+    most = 0.0  # the farthest a wall can be and still cut a lane: its headway less half, at most the reach
+    for q in range(1, k):
+        most = max(most, min(far, (out[j, q] - half) * (1.0 + 1e-6) + 1e-9))
     for s in range(lo, hi):
         w = walls[s] if inside else s
         ex = v[w, 0]
@@ -410,9 +414,11 @@ def _walls_ahead(j, px, py, tx, ty, reach, half, a, v, norm, starts, walls, box,
         wx = a[w, 0] - px
         wy = a[w, 1] - py
         num = wx * ey - wy * ex  # |num| / |v_w|: the distance from p to the wall's line
-        if not abs(num) <= far * norm[w]:
-            continue  # no ray as long as the reach gets there (t > 1)
-        for q in range(1, tx.shape[0]):
+        if not abs(num) <= most * norm[w]:
+            continue  # no ray gets there within the reach (t > 1), or it cuts no lane shorter than it is
+        for q in range(1, k):
+            if not abs(num) <= min(far, (out[j, q] - half) * (1.0 + 1e-6) + 1e-9) * norm[w]:
+                continue
             dx = (px + reach * tx[q]) - px
             dy = (py + reach * ty[q]) - py
             cross = dx * ey - dy * ex
@@ -558,7 +564,26 @@ def _lanes_compiled(x, e, active, cos, sin, lane, reach, half, cells, walls, out
                                     skip = (min(bx0 * lx, bx1 * lx) + min(by0 * ly, by1 * ly) >= lane + SLACK) or (
                                         min(bx0 * rx, bx1 * rx) + min(by0 * ry, by1 * ry) >= lane + SLACK)  # fmt: skip
                                 if not skip:
-                                    far2 = _visit(gy * nx + gx, t, xj, yj, pos, starts, tx, ty, best2, far2, lane)
+                                    c = gy * nx + gx
+                                    for u in range(starts[c], starts[c + 1]):
+                                        if u == t:
+                                            continue
+                                        dx = pos[u, 0] - xj
+                                        dy = pos[u, 1] - yj
+                                        r2 = dx * dx + dy * dy
+                                        if r2 >= far2:
+                                            continue
+                                        found = False
+                                        for q in range(k):
+                                            if r2 < best2[q] and dx * tx[q] + dy * ty[q] > 0.0 and \
+                                                    abs(dx * ty[q] - dy * tx[q]) < lane:  # fmt: skip
+                                                best2[q] = r2
+                                                found = True
+                                        if found:
+                                            far2 = -1.0
+                                            for q in range(k):
+                                                if best2[q] > far2:
+                                                    far2 = best2[q]
                             gx += step
                 for q in range(k):
                     if best2[q] < reach2:
