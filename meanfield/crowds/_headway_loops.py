@@ -434,38 +434,6 @@ def _walls_ahead(j, px, py, tx, ty, reach, half, a, v, norm, starts, walls, box,
                     out[j, q] = sw
 
 
-@inner
-def _cell_at(v, origin, h, n):
-    """The cell (0 to ``n − 1``) of the lattice ``origin + h i`` that holds the coordinate ``v``."""
-    return min(max(int(math.floor((v - origin) / h)), 0), n - 1)
-
-
-@inner
-def _visit(c, t, xj, yj, pos, starts, tx, ty, best2, far2, lane):
-    """Cell ``c``'s humans into each lane's nearest ``best2`` of the human in slot ``t``; returns the largest of
-    the lanes' nearest (nothing farther is looked at)."""
-    k = tx.shape[0]
-    for u in range(starts[c], starts[c + 1]):
-        if u == t:
-            continue
-        dx = pos[u, 0] - xj
-        dy = pos[u, 1] - yj
-        r2 = dx * dx + dy * dy
-        if r2 >= far2:
-            continue
-        found = False
-        for q in range(k):
-            if r2 < best2[q] and dx * tx[q] + dy * ty[q] > 0.0 and abs(dx * ty[q] - dy * tx[q]) < lane:
-                best2[q] = r2
-                found = True
-        if found:
-            far2 = -1.0
-            for q in range(k):
-                if best2[q] > far2:
-                    far2 = best2[q]
-    return far2
-
-
 @compiled(fallback=_lanes_numpy, parallel_over="x")
 def _lanes_compiled(x, e, active, cos, sin, lane, reach, half, cells, walls, out):
     order, starts, pos, origin, h, nx, ny = cells
@@ -474,14 +442,6 @@ def _lanes_compiled(x, e, active, cos, sin, lane, reach, half, cells, walls, out
     k = cos.shape[0]
     reach2 = reach * reach
     rings = int(math.ceil(reach / h)) + 1
-    left = 0  # the turns of largest and smallest angle: every lane lies between their outer edges
-    right = 0
-    for q in range(k):
-        if math.atan2(sin[q], cos[q]) > math.atan2(sin[left], cos[left]):
-            left = q
-        if math.atan2(sin[q], cos[q]) < math.atan2(sin[right], cos[right]):
-            right = q
-    fan = math.atan2(sin[left], cos[left]) - math.atan2(sin[right], cos[right]) <= 0.99 * math.pi
     chunks = (n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
     for chunk in prange(chunks):  # everyone: no one ahead; the walls of those the cells do not hold
         tx = np.empty(k)
@@ -532,59 +492,67 @@ def _lanes_compiled(x, e, active, cos, sin, lane, reach, half, cells, walls, out
                         hi_x = max(hi_x, reach * tx[q] + lane * abs(ty[q]), lane * abs(ty[q]))
                         lo_y = min(lo_y, reach * ty[q] - lane * abs(tx[q]), -lane * abs(tx[q]))
                         hi_y = max(hi_y, reach * ty[q] + lane * abs(tx[q]), lane * abs(tx[q]))
-                gx0 = _cell_at(xj + max(lo_x, -reach) - SLACK, origin[0], h, nx)
-                gx1 = _cell_at(xj + min(hi_x, reach) + SLACK, origin[0], h, nx)
-                gy0 = _cell_at(yj + max(lo_y, -reach) - SLACK, origin[1], h, ny)
-                gy1 = _cell_at(yj + min(hi_y, reach) + SLACK, origin[1], h, ny)
-                if fan:  # the lanes lie between their outer edges: p·l < w, l the outer normal of the outer lanes
-                    lx = -ty[left]
-                    ly = tx[left]
-                    rx = ty[right]
-                    ry = -tx[right]
-                last = max(cx - gx0, gx1 - cx, cy - gy0, gy1 - cy)
-                for ring in range(min(rings, last) + 1):
-                    if ring >= 2 and (ring - 1) * h * ((ring - 1) * h) >= far2:
-                        break  # every cell of this ring is farther than every lane's nearest found
-                    for gy in range(max(cy - ring, gy0), min(cy + ring, gy1) + 1):
-                        edge = gy == cy - ring or gy == cy + ring
-                        step = 1 if edge else 2 * ring  # the ring's rows, or its sides
-                        gx = cx - ring
-                        if edge and gx < gx0:
-                            gx = gx0
-                        by0 = origin[1] + gy * h - yj - SLACK  # the cell's box, from X_j, a little wider
-                        by1 = by0 + h + 2.0 * SLACK
-                        dy2 = by0 * by0 if by0 > 0.0 else (by1 * by1 if by1 < 0.0 else 0.0)
-                        while gx <= cx + ring and gx <= gx1:
-                            if gx >= gx0:
-                                bx0 = origin[0] + gx * h - xj - SLACK
-                                bx1 = bx0 + h + 2.0 * SLACK
-                                near2 = dy2 + (bx0 * bx0 if bx0 > 0.0 else (bx1 * bx1 if bx1 < 0.0 else 0.0))
-                                skip = near2 >= far2  # nobody in the cell is nearer than every lane's nearest
-                                if fan and not skip:  # or in a lane
-                                    skip = (min(bx0 * lx, bx1 * lx) + min(by0 * ly, by1 * ly) >= lane + SLACK) or (
-                                        min(bx0 * rx, bx1 * rx) + min(by0 * ry, by1 * ry) >= lane + SLACK)  # fmt: skip
-                                if not skip:
-                                    c = gy * nx + gx
-                                    for u in range(starts[c], starts[c + 1]):
-                                        if u == t:
-                                            continue
-                                        dx = pos[u, 0] - xj
-                                        dy = pos[u, 1] - yj
-                                        r2 = dx * dx + dy * dy
-                                        if r2 >= far2:
-                                            continue
-                                        found = False
+                gx0 = min(max(int(math.floor((xj + max(lo_x, -reach) - SLACK - origin[0]) / h)), 0), nx - 1)
+                gx1 = min(max(int(math.floor((xj + min(hi_x, reach) + SLACK - origin[0]) / h)), 0), nx - 1)
+                gy0 = min(max(int(math.floor((yj + max(lo_y, -reach) - SLACK - origin[1]) / h)), 0), ny - 1)
+                gy1 = min(max(int(math.floor((yj + min(hi_y, reach) + SLACK - origin[1]) / h)), 0), ny - 1)
+                # the 3 × 3 cells round X_j first, then row by row, nearest rows first, in each row the cells within
+                # every lane's nearest so far: a row's humans are contiguous in the cell order (one run, or two
+                # beside the block already seen), so no loop over cells
+                for phase in range(2):
+                    for dr in range(2 if phase == 0 else rings + 1):
+                        if dr >= 2 and (dr - 1) * h * ((dr - 1) * h) >= far2:
+                            break  # every row from here is farther than every lane's nearest found
+                        for side in range(2):
+                            if dr == 0 and side == 1:
+                                continue
+                            gy = cy - dr if side == 0 else cy + dr
+                            if gy < gy0 or gy > gy1:
+                                continue
+                            by0 = origin[1] + gy * h - yj - SLACK  # the row's band, from X_j, a little wider
+                            by1 = by0 + h + 2.0 * SLACK
+                            dy2 = by0 * by0 if by0 > 0.0 else (by1 * by1 if by1 < 0.0 else 0.0)
+                            if dy2 >= far2:
+                                continue
+                            if phase == 0:
+                                ga = max(gx0, cx - 1)
+                                gb = min(gx1, cx + 1)
+                                runs = 1
+                            else:
+                                wide = math.sqrt(far2 - dy2) + SLACK
+                                ga = max(gx0, min(max(int(math.floor((xj - wide - origin[0]) / h)), 0), nx - 1))
+                                gb = min(gx1, min(max(int(math.floor((xj + wide - origin[0]) / h)), 0), nx - 1))
+                                runs = 2 if dr <= 1 else 1  # beside the block, or the whole row
+                            for run in range(runs):
+                                a = ga
+                                b = gb
+                                if phase == 1 and dr <= 1:
+                                    if run == 0:
+                                        b = min(gb, cx - 2)
+                                    else:
+                                        a = max(ga, cx + 2)
+                                if a > b:
+                                    continue
+                                for u in range(starts[gy * nx + a], starts[gy * nx + b + 1]):
+                                    if u == t:
+                                        continue
+                                    dx = pos[u, 0] - xj
+                                    dy = pos[u, 1] - yj
+                                    r2 = dx * dx + dy * dy
+                                    if r2 >= far2:
+                                        continue
+                                    found = False
+                                    for q in range(k):  # (&: no branch per test, one per hit)
+                                        along = dx * tx[q] + dy * ty[q]
+                                        across = dx * ty[q] - dy * tx[q]
+                                        if (r2 < best2[q]) & (along > 0.0) & (abs(across) < lane):
+                                            best2[q] = r2
+                                            found = True
+                                    if found:
+                                        far2 = -1.0
                                         for q in range(k):
-                                            if r2 < best2[q] and dx * tx[q] + dy * ty[q] > 0.0 and \
-                                                    abs(dx * ty[q] - dy * tx[q]) < lane:  # fmt: skip
-                                                best2[q] = r2
-                                                found = True
-                                        if found:
-                                            far2 = -1.0
-                                            for q in range(k):
-                                                if best2[q] > far2:
-                                                    far2 = best2[q]
-                            gx += step
+                                            if best2[q] > far2:
+                                                far2 = best2[q]
                 for q in range(k):
                     if best2[q] < reach2:
                         out[j, q] = math.sqrt(best2[q])

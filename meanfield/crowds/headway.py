@@ -129,6 +129,7 @@ class Headway:
             w.a, w.e, (w.origin[0], w.origin[0] + w.shape[0] * w.size, w.origin[1], w.origin[1] + w.shape[1] * w.size),
             self.reach)  # fmt: skip
         self._headway = np.empty(0)
+        self._density = np.empty(0)
 
     def density(self, headway: np.ndarray) -> np.ndarray:
         """``ρ(s) = ρ_max (d/s)²``, persons/m², of a hexagonal crowd at spacing ``s`` (0 for ``s = inf``)."""
@@ -177,7 +178,14 @@ class Headway:
             self._headway = np.empty((n, k))
         s = lane_headways(positions, e, active, self._cos, self._sin, self.lane, self.reach, cells, self._headway,
                           self._lane_walls, 0.5 * self.jam_spacing)  # fmt: skip
-        f = self.speed_factor(s)
+        rho = self._density
+        if rho.shape != s.shape:
+            rho = self._density = np.empty_like(s)
+        with np.errstate(divide="ignore"):  # (H1)'s density of every lane, in place: density()'s numbers
+            np.divide(self.jam_spacing, s, out=rho)
+        np.square(rho, out=rho)
+        rho *= self.rho_max
+        f = np.asarray(self.diagram.speed_factor(rho), float)
         best_s, best_f, walk = np.empty(n), np.empty(n), np.empty((n, 2))
         choose_lanes(f, s, e, self._cos, self._sin, best_s, best_f, walk)
         return best_s, best_f, walk
