@@ -20,12 +20,19 @@ steps away from those it touches, the more the deeper the overlap (a soft core, 
 
     v_j ← v_j − u Σ_{k : 0 < |X_k − X_j| < d} (1 − |X_k − X_j|/d) n_jk
 
+(H4) needs the headway along ``K`` turned lanes of every human: :func:`lane_headways` finds all of them in one
+walk of each human's neighbours (and cuts the turned lanes at the walls, :class:`LaneWalls`), the numbers of
+``K`` calls of :func:`headways`; :func:`choose_lanes` then picks the lane of most progress (docs page
+*Congestion*, "The headway door model", (H4)).
+
 The compiled loops search a cell list (cells of width ``d`` over the active humans' bounding box, sorted by
-:func:`cell_list`); the headway's search widens ring by ring and stops once a ring lies farther than the
-nearest found.  The numpy twins list every pair closer than the reach (cells as wide as it, each against its
-nine neighbours, vectorised).  Both take the same
+:func:`cell_list`, itself compiled); the headway's search widens ring by ring and stops once a ring lies farther
+than the nearest found, the lanes' search row by row.  The numpy twins list every pair closer than the reach
+(cells as wide as it, each against its nine neighbours, vectorised).  Both take the same
 minima over the same candidates: the headways agree to the last bit, the velocities to round-off (the
-separation is a sum, added in another order).
+separation is a sum, added in another order).  The loops over humans run on numba's threads above
+:data:`~meanfield._compiled.core.PARALLEL_CHUNK` humans, each human writing its own row: the same numbers on
+any number of threads.
 """
 
 from __future__ import annotations
@@ -273,8 +280,9 @@ def headways(x: np.ndarray, e: np.ndarray, active: np.ndarray, lane: float, reac
 
 
 SLACK = 1e-6
-"""m: :func:`lane_headways` skips a cell when its box, this much wider on every side, holds nobody nearer than
-every lane's nearest so far or nobody in a lane (round-off in the cells' edges is far below it)."""
+"""m: :func:`lane_headways` leaves out a row or a cell only when its box, this much wider on every side, holds
+nobody nearer than every lane's nearest so far, or lies outside the lanes' bounding box (round-off in the cells'
+edges is far below it)."""
 
 
 class LaneWalls:
@@ -335,7 +343,8 @@ NO_WALLS = LaneWalls(np.empty((0, 2)), np.empty((0, 2)), (0.0, 1.0, 0.0, 1.0), 1
 
 def _wall_hits_numpy(p, d, a, v):
     """The smallest fraction ``t`` at which each ray ``p + t d`` (``t`` in ``(1e-12, 1]``) meets a wall ``a + u v``
-    (``u`` in [0, 1]; ``inf``: none), every wall tested; the arithmetic of :func:`_ray_wall`."""
+    (``u`` in [0, 1]; ``inf``: none), every wall tested; the arithmetic of the walls' first hit
+    (:mod:`meanfield.geometry._wall_loops`)."""
     out = np.full(len(p), np.inf)
     for w in range(len(a)):
         cross = d[:, 0] * v[w, 1] - d[:, 1] * v[w, 0]
@@ -367,30 +376,11 @@ def _lanes_numpy(x, e, active, cos, sin, lane, reach, half, cells, walls, out):
 
 
 @inner
-def _ray_wall(px, py, dx, dy, a, v, w):
-    """``t`` of the ray ``p + t d`` at wall ``w``, ``inf`` if it does not meet it in ``(1e-12, 1]`` (the arithmetic
-    of the walls' first hit, :mod:`meanfield.geometry._wall_loops`)."""
-    ex = v[w, 0]
-    ey = v[w, 1]
-    cross = dx * ey - dy * ex
-    if cross == 0.0:
-        return math.inf
-    wx = a[w, 0] - px
-    wy = a[w, 1] - py
-    t = (wx * ey - wy * ex) / cross
-    if not (t > 1e-12 and t <= 1.0):
-        return math.inf
-    u = (wx * dy - wy * dx) / cross
-    if u >= 0.0 and u <= 1.0:
-        return t
-    return math.inf
-
-
-@inner
 def _walls_ahead(j, px, py, tx, ty, reach, half, a, v, norm, starts, walls, box, out):
     """``out[j, q] = min(out[j, q], t_q reach + half)`` for the turned lanes ``q >= 1``, ``t_q`` the first wall on
-    the ray from ``p`` to ``p + reach (tx_q, ty_q)`` (nothing where none): :func:`_ray_wall`'s ``t``, without its
-    division where it cannot count (a wall whose line is farther than the reach, a ray that points away)."""
+    the ray from ``p`` to ``p + reach (tx_q, ty_q)`` (nothing where none): the walls' first hit's ``t``, without its
+    division where it cannot count (a wall whose line is farther than the reach, or than the lane's headway less
+    ``half`` with a margin of 1e-6 for round-off, or a ray that points away from it)."""
     size = box[2]
     fx = (px - box[0]) / size
     fy = (py - box[1]) / size
@@ -573,14 +563,19 @@ def lane_headways(
 
     with ``s_j`` the headway of :func:`headways` (module docstring, (H1)): the same numbers, to the last bit, as
     ``K`` calls of :func:`headways` with the turned directions (the same minima over the same candidates).  The
-    compiled loop walks each human's neighbours in the cell list once for all the lanes, widening ring by ring
-    until a ring lies beyond every lane's nearest; each human writes its own row only, so the numbers do not
-    depend on the threads (docs page *Congestion*, "The headway door model").
+    compiled loop walks each human's neighbours in the cell list once for all the lanes: the rows of cells
+    nearest first, in each row one contiguous run of the cell order over the cells within every lane's nearest so
+    far and within the lanes' bounding box, until a row lies beyond every lane's nearest.  Each human writes its
+    own row of ``out`` only, so the numbers do not depend on numba's threads (docs page *Congestion*, "The
+    headway door model"; its section *Cost* for what it costs).  The numpy twin is ``K`` calls of
+    :func:`headways`' twin and every ray against every wall.
 
     With ``walls``, each turned lane ``q >= 1`` (the route's own, ``q = 0``, is never turned off a wall) is also
     cut at its first wall: ``out[j, q] = min(s, t R + half)``, ``t`` the fraction of the ray from ``X_j`` to
     ``X_j + R t_jq`` at the first wall it meets (the arithmetic of
-    :meth:`~meanfield.geometry.walls.WallIndex.first_hit`), for every human, active or not.
+    :meth:`~meanfield.geometry.walls.WallIndex.first_hit`), for every human, active or not.  Only the walls
+    near enough to cut a lane shorter than its headway are tested; ``min`` of the cuts is the cut of the first
+    wall (rounding is monotone), so nothing else changes.
 
     Parameters
     ----------
