@@ -20,12 +20,19 @@ steps away from those it touches, the more the deeper the overlap (a soft core, 
 
     v_j ← v_j − u Σ_{k : 0 < |X_k − X_j| < d} (1 − |X_k − X_j|/d) n_jk
 
+(H4) needs the headway along ``K`` turned lanes of every human: :func:`lane_headways` finds all of them in one
+walk of each human's neighbours (and cuts the turned lanes at the walls, :class:`LaneWalls`), the numbers of
+``K`` calls of :func:`headways`; :func:`choose_lanes` then picks the lane of most progress (docs page
+*Congestion*, "The headway door model", (H4)).
+
 The compiled loops search a cell list (cells of width ``d`` over the active humans' bounding box, sorted by
-:func:`cell_list`); the headway's search widens ring by ring and stops once a ring lies farther than the
-nearest found.  The numpy twins list every pair closer than the reach (cells as wide as it, each against its
-nine neighbours, vectorised).  Both take the same
+:func:`cell_list`, itself compiled); the headway's search widens ring by ring and stops once a ring lies farther
+than the nearest found, the lanes' search row by row.  The numpy twins list every pair closer than the reach
+(cells as wide as it, each against its nine neighbours, vectorised).  Both take the same
 minima over the same candidates: the headways agree to the last bit, the velocities to round-off (the
-separation is a sum, added in another order).
+separation is a sum, added in another order).  The loops over humans run on numba's threads above
+:data:`~meanfield._compiled.core.PARALLEL_CHUNK` humans, each human writing its own row: the same numbers on
+any number of threads.
 """
 
 from __future__ import annotations
@@ -34,9 +41,18 @@ import math
 
 import numpy as np
 
-from meanfield._compiled.core import compiled, inner, prange
+from meanfield._compiled.core import PARALLEL_CHUNK, compiled, inner, prange
 
-__all__ = ["headways", "contact_cone", "cell_list", "CellList"]
+__all__ = [
+    "headways",
+    "lane_headways",
+    "choose_lanes",
+    "contact_cone",
+    "cell_list",
+    "CellList",
+    "LaneWalls",
+    "NO_WALLS",
+]
 
 
 class CellList:
@@ -63,11 +79,21 @@ class CellList:
 
 def cell_list(x: np.ndarray, active: np.ndarray, h: float) -> CellList:
     """Sort the active humans with finite positions into cells of width ``h`` (a stable counting sort; the width
-    doubled while there would be more than ``4 m + 64`` cells for ``m`` humans)."""
+    doubled while there would be more than ``4 m + 64`` cells for ``m`` humans).
+
+    One compiled pass finds them and their bounding box, a second sorts them (the same arrays as its numpy twin's
+    stable ``argsort``, to the last bit; docs page *Congestion*, "The headway door model").
+    """
+    order, starts, sorted_positions, x0, y0, h, nx, ny = _cells_compiled(x, active, float(h))
+    return CellList(order, starts, sorted_positions, (x0, y0), h, int(nx), int(ny))
+
+
+def _cells_numpy(x, active, h):
+    """The numpy twin of :func:`cell_list`'s loop: ``(order, starts, sorted, x0, y0, h, nx, ny)``."""
     ok = active & np.isfinite(x[:, 0]) & np.isfinite(x[:, 1])
     idx = np.flatnonzero(ok)
     if not len(idx):
-        return CellList(idx.astype(np.int64), np.zeros(2, np.int64), np.zeros((0, 2)), (0.0, 0.0), h, 1, 1)
+        return idx.astype(np.int64), np.zeros(2, np.int64), np.zeros((0, 2)), 0.0, 0.0, h, 1, 1
     p = x[idx]
     x0, y0, h, nx, ny = _lattice(p, h)
     cx = np.minimum(((p[:, 0] - x0) // h).astype(np.int64), nx - 1)
@@ -77,7 +103,58 @@ def cell_list(x: np.ndarray, active: np.ndarray, h: float) -> CellList:
     starts = np.zeros(nx * ny + 1, np.int64)
     np.cumsum(np.bincount(key, minlength=nx * ny), out=starts[1:])
     order = idx[sort].astype(np.int64)
-    return CellList(order, starts, np.ascontiguousarray(x[order]), (x0, y0), h, nx, ny)
+    return order, starts, np.ascontiguousarray(x[order]), x0, y0, h, nx, ny
+
+
+@compiled(fallback=_cells_numpy)
+def _cells_compiled(x, active, h):
+    n = x.shape[0]
+    m = 0
+    x0 = math.inf
+    y0 = math.inf
+    x1 = -math.inf
+    y1 = -math.inf
+    for j in range(n):  # who, and their bounding box
+        if active[j] and math.isfinite(x[j, 0]) and math.isfinite(x[j, 1]):
+            m += 1
+            x0 = min(x0, x[j, 0])
+            x1 = max(x1, x[j, 0])
+            y0 = min(y0, x[j, 1])
+            y1 = max(y1, x[j, 1])
+    if m == 0:
+        return np.zeros(0, np.int64), np.zeros(2, np.int64), np.zeros((0, 2)), 0.0, 0.0, h, 1, 1
+    wx = x1 - x0
+    wy = y1 - y0
+    nx = int(wx // h) + 1
+    ny = int(wy // h) + 1
+    while nx * ny > 4 * m + 64:  # (_lattice)
+        h *= 2.0
+        nx = int(wx // h) + 1
+        ny = int(wy // h) + 1
+    key = np.empty(m, np.int64)
+    idx = np.empty(m, np.int64)
+    starts = np.zeros(nx * ny + 1, np.int64)
+    i = 0
+    for j in range(n):
+        if active[j] and math.isfinite(x[j, 0]) and math.isfinite(x[j, 1]):
+            c = min(int((x[j, 1] - y0) // h), ny - 1) * nx + min(int((x[j, 0] - x0) // h), nx - 1)
+            key[i] = c
+            idx[i] = j
+            starts[c + 1] += 1
+            i += 1
+    for c in range(nx * ny):
+        starts[c + 1] += starts[c]
+    cursor = starts[:-1].copy()
+    order = np.empty(m, np.int64)
+    pos = np.empty((m, 2))
+    for i in range(m):  # stable: each cell's humans in their order
+        slot = cursor[key[i]]
+        cursor[key[i]] = slot + 1
+        j = idx[i]
+        order[slot] = j
+        pos[slot, 0] = x[j, 0]
+        pos[slot, 1] = x[j, 1]
+    return order, starts, pos, x0, y0, h, nx, ny
 
 
 def _lattice(p: np.ndarray, h: float) -> tuple[float, float, float, int, int]:
@@ -200,6 +277,388 @@ def headways(x: np.ndarray, e: np.ndarray, active: np.ndarray, lane: float, reac
     """
     _headways_compiled(x, e, active, lane, reach, cells.arrays(), out)
     return out
+
+
+SLACK = 1e-6
+"""m: :func:`lane_headways` leaves out a row or a cell only when its box, this much wider on every side, holds
+nobody nearer than every lane's nearest so far, or lies outside the lanes' bounding box (round-off in the cells'
+edges is far below it)."""
+
+
+class LaneWalls:
+    """The walls :func:`lane_headways` casts the turned lanes' rays at, and the walls near each cell of a lattice.
+
+    Each wall is the segment ``a_w + u v_w``, ``0 <= u <= 1``.  A cell of the lattice (side ``size`` over
+    ``bounds``) lists, in ``starts``/``walls`` (``walls[starts[c]:starts[c + 1]]``, ascending), every wall whose
+    bounding box comes within ``reach`` (and a margin) of the cell: a ray no longer than ``reach`` from a point of
+    the cell meets no other.  A ray from outside the lattice is tested against every wall.
+
+    Parameters
+    ----------
+    a, v : ndarray, shape (W, 2)
+        The walls' starts and vectors (``W = 0``: no walls).
+    bounds : (float, float, float, float)
+        ``(x0, x1, y0, y1)`` that the lattice covers.
+    reach : float
+        The longest ray, m.
+    """
+
+    __slots__ = ("a", "v", "norm", "starts", "walls", "box")
+
+    def __init__(self, a: np.ndarray, v: np.ndarray, bounds: tuple[float, ...], reach: float):
+        self.a = np.ascontiguousarray(a, float).reshape(-1, 2)
+        self.v = np.ascontiguousarray(v, float).reshape(-1, 2)
+        self.norm = np.hypot(self.v[:, 0], self.v[:, 1])
+        x0, x1, y0, y1 = (float(b) for b in bounds)
+        size = max(reach / 8, (x1 - x0) / 512, (y1 - y0) / 512, 1e-9)
+        nx, ny = int((x1 - x0) // size) + 1, int((y1 - y0) // size) + 1
+        margin = reach + 1e-6 * (1.0 + reach)  # a ray's end is p + reach·t, |t| = 1 to round-off
+        lo = np.minimum(self.a, self.a + self.v) - margin
+        hi = np.maximum(self.a, self.a + self.v) + margin
+        i0 = np.clip(np.floor((lo[:, 0] - x0) / size), 0, nx - 1).astype(np.int64)
+        i1 = np.clip(np.floor((hi[:, 0] - x0) / size), 0, nx - 1).astype(np.int64)
+        j0 = np.clip(np.floor((lo[:, 1] - y0) / size), 0, ny - 1).astype(np.int64)
+        j1 = np.clip(np.floor((hi[:, 1] - y0) / size), 0, ny - 1).astype(np.int64)
+        cell, wall = [], []
+        for w in range(len(self.a)):  # each wall in the cells its box, widened by the reach, meets
+            gx, gy = np.meshgrid(np.arange(i0[w], i1[w] + 1), np.arange(j0[w], j1[w] + 1), indexing="ij")
+            cell.append((gy * nx + gx).ravel())
+            wall.append(np.full(gx.size, w, np.int64))
+        cell_arr = np.concatenate(cell) if cell else np.empty(0, np.int64)
+        wall_arr = np.concatenate(wall) if wall else np.empty(0, np.int64)
+        order = np.lexsort((wall_arr, cell_arr))
+        self.walls = np.ascontiguousarray(wall_arr[order])
+        self.starts = np.zeros(nx * ny + 1, np.int64)
+        np.cumsum(np.bincount(cell_arr, minlength=nx * ny), out=self.starts[1:])
+        self.box = np.array([x0, y0, size, nx, ny], float)
+
+    def arrays(self) -> tuple:
+        """What :func:`lane_headways` takes: ``(a, v, norm, starts, walls, box)`` (``norm``: each ``|v_w|``)."""
+        return self.a, self.v, self.norm, self.starts, self.walls, self.box
+
+
+NO_WALLS = LaneWalls(np.empty((0, 2)), np.empty((0, 2)), (0.0, 1.0, 0.0, 1.0), 1.0)
+"""No walls: :func:`lane_headways` gives the headways alone."""
+
+
+def _wall_hits_numpy(p, d, a, v):
+    """The smallest fraction ``t`` at which each ray ``p + t d`` (``t`` in ``(1e-12, 1]``) meets a wall ``a + u v``
+    (``u`` in [0, 1]; ``inf``: none), every wall tested; the arithmetic of the walls' first hit
+    (:mod:`meanfield.geometry._wall_loops`)."""
+    out = np.full(len(p), np.inf)
+    for w in range(len(a)):
+        cross = d[:, 0] * v[w, 1] - d[:, 1] * v[w, 0]
+        wx, wy = a[w, 0] - p[:, 0], a[w, 1] - p[:, 1]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (wx * v[w, 1] - wy * v[w, 0]) / cross
+            u = (wx * d[:, 1] - wy * d[:, 0]) / cross
+        hit = (cross != 0.0) & (t > 1e-12) & (t <= 1.0) & (u >= 0.0) & (u <= 1.0)
+        np.minimum(out, np.where(hit, t, np.inf), out=out)
+    return out
+
+
+def _lanes_numpy(x, e, active, cos, sin, lane, reach, half, cells, walls, out):
+    """The numpy twin of :func:`lane_headways`: one :func:`headways` per lane (its numpy twin), then every turned
+    ray against every wall (``cells`` and the walls' lattice unused)."""
+    a, v = walls[0], walls[1]
+    col = np.empty(len(x))
+    for q in range(len(cos)):
+        turned = np.empty((len(x), 2))
+        turned[:, 0] = cos[q] * e[:, 0] - sin[q] * e[:, 1]
+        turned[:, 1] = sin[q] * e[:, 0] + cos[q] * e[:, 1]
+        _headways_numpy(x, turned, active, lane, reach, cells, col)
+        if q >= 1 and len(a):
+            with np.errstate(invalid="ignore"):  # (non-finite rows meet nothing)
+                d = (x + reach * turned) - x
+            t = _wall_hits_numpy(x, d, a, v)
+            np.minimum(col, t * reach + half, out=col)
+        out[:, q] = col
+
+
+@inner
+def _walls_ahead(j, px, py, tx, ty, reach, half, a, v, norm, starts, walls, box, out):
+    """``out[j, q] = min(out[j, q], t_q reach + half)`` for the turned lanes ``q >= 1``, ``t_q`` the first wall on
+    the ray from ``p`` to ``p + reach (tx_q, ty_q)`` (nothing where none): the walls' first hit's ``t``, without its
+    division where it cannot count (a wall whose line is farther than the reach, or than the lane's headway less
+    ``half`` with a margin of 1e-6 for round-off, or a ray that points away from it)."""
+    size = box[2]
+    fx = (px - box[0]) / size
+    fy = (py - box[1]) / size
+    nx = int(box[3])
+    inside = fx >= 0.0 and fy >= 0.0 and fx < box[3] and fy < box[4]
+    lo = 0
+    hi = a.shape[0]
+    if inside:
+        c = int(fy) * nx + int(fx)
+        lo = starts[c]
+        hi = starts[c + 1]
+    far = reach * (1.0 + 1e-9)
+    k = tx.shape[0]
+    most = 0.0  # the farthest a wall can be and still cut a lane: its headway less half, at most the reach
+    for q in range(1, k):
+        most = max(most, min(far, (out[j, q] - half) * (1.0 + 1e-6) + 1e-9))
+    for s in range(lo, hi):
+        w = walls[s] if inside else s
+        ex = v[w, 0]
+        ey = v[w, 1]
+        wx = a[w, 0] - px
+        wy = a[w, 1] - py
+        num = wx * ey - wy * ex  # |num| / |v_w|: the distance from p to the wall's line
+        if not abs(num) <= most * norm[w]:
+            continue  # no ray gets there within the reach (t > 1), or it cuts no lane shorter than it is
+        for q in range(1, k):
+            if not abs(num) <= min(far, (out[j, q] - half) * (1.0 + 1e-6) + 1e-9) * norm[w]:
+                continue
+            dx = (px + reach * tx[q]) - px
+            dy = (py + reach * ty[q]) - py
+            cross = dx * ey - dy * ex
+            if not ((num > 0.0 and cross > 0.0) or (num < 0.0 and cross < 0.0)):
+                continue  # t <= 0 (or no crossing)
+            t = num / cross
+            if not (t > 1e-12 and t <= 1.0):
+                continue
+            u = (wx * dy - wy * dx) / cross
+            if u >= 0.0 and u <= 1.0:  # the smallest t, times the reach plus half, is the smallest of the cuts
+                sw = t * reach + half
+                if sw < out[j, q]:
+                    out[j, q] = sw
+
+
+@compiled(fallback=_lanes_numpy, parallel_over="x")
+def _lanes_compiled(x, e, active, cos, sin, lane, reach, half, cells, walls, out):
+    order, starts, pos, origin, h, nx, ny = cells
+    wa, wv, wnorm, wstarts, wlist, wbox = walls
+    n = x.shape[0]
+    k = cos.shape[0]
+    reach2 = reach * reach
+    rings = int(math.ceil(reach / h)) + 1
+    chunks = (n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
+    for chunk in prange(chunks):  # everyone: no one ahead; the walls of those the cells do not hold
+        tx = np.empty(k)
+        ty = np.empty(k)
+        for j in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, n)):
+            for q in range(k):
+                out[j, q] = math.inf
+            xj = x[j, 0]
+            yj = x[j, 1]
+            if wa.shape[0] and not (active[j] and math.isfinite(xj) and math.isfinite(yj)):
+                ex = e[j, 0]
+                ey = e[j, 1]
+                for q in range(k):
+                    tx[q] = cos[q] * ex - sin[q] * ey
+                    ty[q] = sin[q] * ex + cos[q] * ey
+                _walls_ahead(j, xj, yj, tx, ty, reach, half, wa, wv, wnorm, wstarts, wlist, wbox, out)
+    m = order.shape[0]
+    chunks = (m + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
+    for chunk in prange(chunks):  # the humans in cell order: their neighbours are near in memory
+        tx = np.empty(k)
+        ty = np.empty(k)
+        best2 = np.empty(k)
+        for t in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, m)):
+            j = order[t]
+            ex = e[j, 0]
+            ey = e[j, 1]
+            xj = pos[t, 0]
+            yj = pos[t, 1]
+            far2 = -1.0  # the largest of the lanes' nearest so far: the search stops beyond it
+            for q in range(k):
+                tx[q] = cos[q] * ex - sin[q] * ey
+                ty[q] = sin[q] * ex + cos[q] * ey
+                if tx[q] == 0.0 and ty[q] == 0.0:
+                    best2[q] = math.nan  # a standing human: no lane, no headway
+                else:
+                    best2[q] = reach2
+                    far2 = reach2
+            if far2 > 0.0:
+                cx = min(int((xj - origin[0]) // h), nx - 1)
+                cy = min(int((yj - origin[1]) // h), ny - 1)
+                lo_x = 0.0  # the lanes' bounding box, from X_j
+                hi_x = 0.0
+                lo_y = 0.0
+                hi_y = 0.0
+                for q in range(k):
+                    if best2[q] == best2[q]:
+                        lo_x = min(lo_x, reach * tx[q] - lane * abs(ty[q]), -lane * abs(ty[q]))
+                        hi_x = max(hi_x, reach * tx[q] + lane * abs(ty[q]), lane * abs(ty[q]))
+                        lo_y = min(lo_y, reach * ty[q] - lane * abs(tx[q]), -lane * abs(tx[q]))
+                        hi_y = max(hi_y, reach * ty[q] + lane * abs(tx[q]), lane * abs(tx[q]))
+                gx0 = min(max(int(math.floor((xj + max(lo_x, -reach) - SLACK - origin[0]) / h)), 0), nx - 1)
+                gx1 = min(max(int(math.floor((xj + min(hi_x, reach) + SLACK - origin[0]) / h)), 0), nx - 1)
+                gy0 = min(max(int(math.floor((yj + max(lo_y, -reach) - SLACK - origin[1]) / h)), 0), ny - 1)
+                gy1 = min(max(int(math.floor((yj + min(hi_y, reach) + SLACK - origin[1]) / h)), 0), ny - 1)
+                # the 3 × 3 cells round X_j first, then row by row, nearest rows first, in each row the cells within
+                # every lane's nearest so far: a row's humans are contiguous in the cell order (one run, or two
+                # beside the block already seen), so no loop over cells
+                for phase in range(2):
+                    for dr in range(2 if phase == 0 else rings + 1):
+                        if dr >= 2 and (dr - 1) * h * ((dr - 1) * h) >= far2:
+                            break  # every row from here is farther than every lane's nearest found
+                        for side in range(2):
+                            if dr == 0 and side == 1:
+                                continue
+                            gy = cy - dr if side == 0 else cy + dr
+                            if gy < gy0 or gy > gy1:
+                                continue
+                            by0 = origin[1] + gy * h - yj - SLACK  # the row's band, from X_j, a little wider
+                            by1 = by0 + h + 2.0 * SLACK
+                            dy2 = by0 * by0 if by0 > 0.0 else (by1 * by1 if by1 < 0.0 else 0.0)
+                            if dy2 >= far2:
+                                continue
+                            if phase == 0:
+                                ga = max(gx0, cx - 1)
+                                gb = min(gx1, cx + 1)
+                                runs = 1
+                            else:
+                                wide = math.sqrt(far2 - dy2) + SLACK
+                                ga = max(gx0, min(max(int(math.floor((xj - wide - origin[0]) / h)), 0), nx - 1))
+                                gb = min(gx1, min(max(int(math.floor((xj + wide - origin[0]) / h)), 0), nx - 1))
+                                runs = 2 if dr <= 1 else 1  # beside the block, or the whole row
+                            for run in range(runs):
+                                a = ga
+                                b = gb
+                                if phase == 1 and dr <= 1:
+                                    if run == 0:
+                                        b = min(gb, cx - 2)
+                                    else:
+                                        a = max(ga, cx + 2)
+                                if a > b:
+                                    continue
+                                for u in range(starts[gy * nx + a], starts[gy * nx + b + 1]):
+                                    if u == t:
+                                        continue
+                                    dx = pos[u, 0] - xj
+                                    dy = pos[u, 1] - yj
+                                    r2 = dx * dx + dy * dy
+                                    if r2 >= far2:
+                                        continue
+                                    found = False
+                                    for q in range(k):  # (&: no branch per test, one per hit)
+                                        along = dx * tx[q] + dy * ty[q]
+                                        across = dx * ty[q] - dy * tx[q]
+                                        if (r2 < best2[q]) & (along > 0.0) & (abs(across) < lane):
+                                            best2[q] = r2
+                                            found = True
+                                    if found:
+                                        far2 = -1.0
+                                        for q in range(k):
+                                            if best2[q] > far2:
+                                                far2 = best2[q]
+                for q in range(k):
+                    if best2[q] < reach2:
+                        out[j, q] = math.sqrt(best2[q])
+            if wa.shape[0]:
+                _walls_ahead(j, x[j, 0], x[j, 1], tx, ty, reach, half, wa, wv, wnorm, wstarts, wlist, wbox, out)
+
+
+def lane_headways(
+    x: np.ndarray, e: np.ndarray, active: np.ndarray, cos: np.ndarray, sin: np.ndarray, lane: float, reach: float,
+    cells: CellList, out: np.ndarray, walls: LaneWalls = NO_WALLS, half: float = 0.0,
+) -> np.ndarray:  # fmt: skip
+    """Each human's headway along each of ``K`` turned lanes at once, into ``out`` (N, K) (m; ``inf``: nobody).
+
+    Lane ``q`` of human ``j`` is its direction ``e_j`` turned by the angle whose cosine and sine are ``cos[q]``,
+    ``sin[q]``::
+
+        t_jq = (cos_q e_jx − sin_q e_jy,  sin_q e_jx + cos_q e_jy),   out[j, q] = s_j along t_jq
+
+    with ``s_j`` the headway of :func:`headways` (module docstring, (H1)): the same numbers, to the last bit, as
+    ``K`` calls of :func:`headways` with the turned directions (the same minima over the same candidates).  The
+    compiled loop walks each human's neighbours in the cell list once for all the lanes: the rows of cells
+    nearest first, in each row one contiguous run of the cell order over the cells within every lane's nearest so
+    far and within the lanes' bounding box, until a row lies beyond every lane's nearest.  Each human writes its
+    own row of ``out`` only, so the numbers do not depend on numba's threads (docs page *Congestion*, "The
+    headway door model"; its section *Cost* for what it costs).  The numpy twin is ``K`` calls of
+    :func:`headways`' twin and every ray against every wall.
+
+    With ``walls``, each turned lane ``q >= 1`` (the route's own, ``q = 0``, is never turned off a wall) is also
+    cut at its first wall: ``out[j, q] = min(s, t R + half)``, ``t`` the fraction of the ray from ``X_j`` to
+    ``X_j + R t_jq`` at the first wall it meets (the arithmetic of
+    :meth:`~meanfield.geometry.walls.WallIndex.first_hit`), for every human, active or not.  Only the walls
+    near enough to cut a lane shorter than its headway are tested; ``min`` of the cuts is the cut of the first
+    wall (rounding is monotone), so nothing else changes.
+
+    Parameters
+    ----------
+    x, e : ndarray, shape (N, 2)
+        Positions and unit walking directions (0: standing, no headway).
+    active : ndarray of bool, shape (N,)
+        Who counts and is counted (non-finite rows are ignored).
+    cos, sin : ndarray, shape (K,)
+        The turns' cosines and sines.
+    lane : float
+        ``w``, the lane's half width (m).
+    reach : float
+        ``R``: nobody farther counts, and no wall (m).
+    cells : CellList
+        The active humans in cells (:func:`cell_list`, any width ``h > 0``).
+    out : ndarray, shape (N, K)
+        C-contiguous.
+    walls : LaneWalls, optional
+        The walls that cut the turned lanes (default :data:`NO_WALLS`).
+    half : float
+        What a wall adds to its distance (m; (H4): ``d/2``).
+    """
+    _lanes_compiled(x, e, active, cos, sin, lane, reach, half, cells.arrays(), walls.arrays(), out)
+    return out
+
+
+def _choose_numpy(f, s, e, cos, sin, best_s, best_f, walk):
+    """The numpy twin of :func:`choose_lanes`."""
+    best = np.argmax(f * cos, axis=1)  # the first of equal gains: the smallest turn
+    pick = np.arange(len(f))
+    best_s[:] = s[pick, best]
+    best_f[:] = f[pick, best]
+    c, sn = cos[best], sin[best]
+    walk[:, 0] = c * e[:, 0] - sn * e[:, 1]
+    walk[:, 1] = sn * e[:, 0] + c * e[:, 1]
+
+
+@compiled(fallback=_choose_numpy, parallel_over="f")
+def _choose_compiled(f, s, e, cos, sin, best_s, best_f, walk):
+    n = f.shape[0]
+    k = f.shape[1]
+    for chunk in prange((n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):
+        for j in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, n)):
+            b = 0
+            top = f[j, 0] * cos[0]
+            if top == top:  # (numpy's argmax: the first nan, if any, else the first of the largest)
+                for q in range(1, k):
+                    g = f[j, q] * cos[q]
+                    if g != g:
+                        b = q
+                        break
+                    if g > top:
+                        top = g
+                        b = q
+            best_s[j] = s[j, b]
+            best_f[j] = f[j, b]
+            walk[j, 0] = cos[b] * e[j, 0] - sin[b] * e[j, 1]
+            walk[j, 1] = sin[b] * e[j, 0] + cos[b] * e[j, 1]
+
+
+def choose_lanes(
+    f: np.ndarray, s: np.ndarray, e: np.ndarray, cos: np.ndarray, sin: np.ndarray, best_s: np.ndarray,
+    best_f: np.ndarray, walk: np.ndarray,
+) -> np.ndarray:  # fmt: skip
+    """(H4)'s choice: each human's lane of largest progress ``f cos θ`` (the first of equal ones, the smallest
+    turn), its headway, its speed factor and its unit direction (docs page *Congestion*, "The headway door
+    model").
+
+    Parameters
+    ----------
+    f, s : ndarray, shape (N, K)
+        Each lane's speed factor and headway.
+    e : ndarray, shape (N, 2)
+        The routes' directions.
+    cos, sin : ndarray, shape (K,)
+        The turns' cosines and sines.
+    best_s, best_f : ndarray, shape (N,)
+        The chosen lane's headway and speed factor (written).
+    walk : ndarray, shape (N, 2)
+        The chosen lane's direction, ``e`` turned (written).
+    """
+    _choose_compiled(f, s, e, cos, sin, best_s, best_f, walk)
+    return walk
 
 
 def _cone_numpy(v, x, active, jam, separation, cells):

@@ -56,7 +56,7 @@ from typing import Any
 
 import numpy as np
 
-from meanfield.crowds._headway_loops import cell_list, contact_cone, headways
+from meanfield.crowds._headway_loops import NO_WALLS, LaneWalls, cell_list, choose_lanes, contact_cone, lane_headways
 from meanfield.crowds.congestion import FundamentalDiagram
 
 __all__ = ["Headway", "HEADWAY_REACH", "TURNS", "boundary_walls"]
@@ -122,7 +122,14 @@ class Headway:
         if not self.turns or self.turns[0] != 0.0:
             raise ValueError(f"turns must start with the route's own direction 0.0, got {turns!r}")
         self.walls = boundary_walls(region) if len(self.turns) > 1 else None
+        self._cos = np.array([math.cos(a) for a in self.turns])
+        self._sin = np.array([math.sin(a) for a in self.turns])
+        w = self.walls
+        self._lane_walls = NO_WALLS if w is None else LaneWalls(
+            w.a, w.e, (w.origin[0], w.origin[0] + w.shape[0] * w.size, w.origin[1], w.origin[1] + w.shape[1] * w.size),
+            self.reach)  # fmt: skip
         self._headway = np.empty(0)
+        self._density = np.empty(0)
 
     def density(self, headway: np.ndarray) -> np.ndarray:
         """``ρ(s) = ρ_max (d/s)²``, persons/m², of a hexagonal crowd at spacing ``s`` (0 for ``s = inf``)."""
@@ -143,26 +150,45 @@ class Headway:
         A wall along a turned direction ``θ`` less than :attr:`reach` away, at ``w``, makes the headway there
         ``min(s_θ, w + d/2)``; every edge of Ω's outline is a wall here, its exits too (the route's own direction,
         which is never turned off a wall, is the one that leads through them).
+
+        One compiled pass finds every human's headway along all the turns at once and casts the turned lanes' rays
+        at the walls (:func:`~meanfield.crowds._headway_loops.lane_headways`, each human's neighbours walked once),
+        and a second picks the turn (:func:`~meanfield.crowds._headway_loops.choose_lanes`); between them the
+        diagram's ``g`` of every lane, in numpy.  The numbers are those of one
+        :func:`~meanfield.crowds._headway_loops.headways` per turn and one
+        :meth:`~meanfield.geometry.walls.WallIndex.first_hit` for all the turned rays, to the last bit, on any
+        number of threads (docs page *Congestion*, "The headway door model").
+
+        Parameters
+        ----------
+        positions, e : ndarray, shape (N, 2)
+        active : ndarray of bool, shape (N,)
+        cells : CellList
+            The active humans in cells (:func:`~meanfield.crowds._headway_loops.cell_list`).
+
+        Returns
+        -------
+        s, f : ndarray, shape (N,)
+            The chosen turn's headway (m) and speed factor.
+        walk : ndarray, shape (N, 2)
+            The chosen turn's unit direction (0 for one standing).
         """
         n, k = len(positions), len(self.turns)
-        if self._headway.shape != (k, n):
-            self._headway = np.empty((k, n))
-        c = np.array([math.cos(a) for a in self.turns])[:, None]
-        sn = np.array([math.sin(a) for a in self.turns])[:, None]
-        turned = np.empty((k, n, 2))  # each turn of every route direction
-        turned[:, :, 0] = c * e[:, 0] - sn * e[:, 1]
-        turned[:, :, 1] = sn * e[:, 0] + c * e[:, 1]
-        s = self._headway
-        for i in range(k):
-            headways(positions, turned[i], active, self.lane, self.reach, cells, s[i])
-        if self.walls is not None and k > 1:  # the turned directions' walls, one pass for all of them
-            start = np.broadcast_to(positions, (k - 1, n, 2)).reshape(-1, 2)
-            t, _ = self.walls.first_hit(start, start + self.reach * turned[1:].reshape(-1, 2))
-            np.minimum(s[1:], (t * self.reach + 0.5 * self.jam_spacing).reshape(k - 1, n), out=s[1:])
-        f = self.speed_factor(s)
-        best = np.argmax(f * c, axis=0)  # the first of equal gains: the smallest turn
-        pick = np.arange(n)
-        return s[best, pick].copy(), f[best, pick], turned[best, pick]
+        if self._headway.shape != (n, k):
+            self._headway = np.empty((n, k))
+        s = lane_headways(positions, e, active, self._cos, self._sin, self.lane, self.reach, cells, self._headway,
+                          self._lane_walls, 0.5 * self.jam_spacing)  # fmt: skip
+        rho = self._density
+        if rho.shape != s.shape:
+            rho = self._density = np.empty_like(s)
+        with np.errstate(divide="ignore"):  # (H1)'s density of every lane, in place: density()'s numbers
+            np.divide(self.jam_spacing, s, out=rho)
+        np.square(rho, out=rho)
+        rho *= self.rho_max
+        f = np.asarray(self.diagram.speed_factor(rho), float)
+        best_s, best_f, walk = np.empty(n), np.empty(n), np.empty((n, 2))
+        choose_lanes(f, s, e, self._cos, self._sin, best_s, best_f, walk)
+        return best_s, best_f, walk
 
     def slow_down(self, velocity: np.ndarray, positions: np.ndarray, active: np.ndarray | None, dt: float = 0.0,
                   density: Any = None) -> np.ndarray:  # fmt: skip
