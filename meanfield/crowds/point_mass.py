@@ -227,15 +227,15 @@ class PointMassEngine:
         """The exits' queues (:meth:`cap_exits`), in place on ``gone`` (the exit each human of ``idx`` reached,
         -1: none) and on the positions: those an exit cannot take this step get -1, their step's start, and a
         place in its doorway."""
-        waits = np.zeros(len(idx), dtype=bool)
+        waiting = np.empty(0, dtype=np.intp)  # those in a doorway, by their place in idx (sorted)
         busy = np.zeros(len(self._capacity), dtype=bool)
         if len(self._waiting) and len(idx):  # those in a doorway reach it again, whatever their step, while it is open
             at = np.minimum(np.searchsorted(idx, self._waiting), len(idx) - 1)
             here = idx[at] == self._waiting
             if self._open is not None:
                 here &= np.isin(self._waiting_at, self._open)
-            gone[at[here]] = self._waiting_at[here]
-            waits[at[here]] = True
+            waiting = at[here]
+            gone[waiting] = self._waiting_at[here]
             busy[self._waiting_at[here]] = True
         credit = np.where(busy, self._credit, np.minimum(self._credit, 1.0)) + self._capacity * dt
         x = self.positions
@@ -248,7 +248,8 @@ class PointMassEngine:
                 start = previous[idx[reached]]
                 along = np.clip((start - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0)
                 distance = np.hypot(*(start - (a + along[:, None] * (b - a))).T)
-                order = np.lexsort((distance, ~waits[reached]))  # the waiting first, each the nearest first
+                waits = np.isin(reached, waiting, assume_unique=True)
+                order = np.lexsort((distance, ~waits))  # the waiting first, each the nearest first
                 held = reached[order[allowed:]]
                 gone[held] = -1
                 x[idx[held]] = previous[idx[held]]
