@@ -31,8 +31,8 @@ plan            a closed-loop step on the ``office`` plan against the same loop 
                 the same grid and crowd; goal: at most 1.5× (``bench_plan.py``)
 controllers     each installed controller's ``act`` per control step against the paper's law,
                 with its real-time factor in ``paper-unity``'s units (``bench_controllers.py``)
-congestion      a congested closed-loop step (``crowd.congestion = "linear"``) against the same
-                step without congestion, at N = 200 (``bottleneck``) and 10⁶; goal: at most
+congestion      a congested closed-loop step (``crowd.congestion = "linear"``, by the headway and by the
+                count) against the same step without congestion, at N = 200 (``bottleneck``) and 10⁶; goal: at most
                 1.3× (``bench_congestion.py``)
 hughes2d        the density on Hughes' route (5 m × 4 m room, a 1 m door, 18 people, the linear
                 diagram): the times at which 10/50/90 % are out and the wall time, against the

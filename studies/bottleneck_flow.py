@@ -23,7 +23,9 @@ For each bottleneck width ``b`` (:data:`WIDTHS`), seed and crowd model it runs t
   KDE peak (``summary.json``'s ``peak_density``).
 
 The models: point masses without congestion (``none``), with Weidmann's diagram (``weidmann``)
-or the linear one (``linear``), each with the local-density radius ``--radii`` (m), JuPedSim's
+or the linear one (``linear``), each walking by the count (``crowd.door_model = "count"``, the door model
+this study calibrated; the default door model, the headway, has its rows in ``studies/door_models.py``) with
+the local-density radius ``--radii`` (m), JuPedSim's
 bodies (``jupedsim``, no diagram: the bodies make their own congestion), and the density itself,
 the congested mean-field equation ``∂ₜρ + ∇·(ρ g(Nρ) v) = σΔρ`` with the informed crowd's route
 ``v = v₀ (−∇φ/|∇φ|)`` (``pde-linear``, ``pde-weidmann``: ``crowd.kind = "fokker-planck"``; docs page
@@ -109,8 +111,9 @@ def scenario(b: float, model: str, seed: int, cells_per_metre: int | None = None
         values["crowd.congestion"], values["crowd.guidance"] = PDE_MODELS[model]
         if cells_per_metre is not None:
             values["grid.cells"] = [12 * cells_per_metre, 8 * cells_per_metre]
-    else:
+    else:  # the count, as this study measured it (the headway's rows: studies/door_models.py)
         values["crowd.congestion"] = model
+        values["crowd.door_model"] = "count"
     return builtin_scenarios()["bottleneck"](seed=seed).with_values(values)
 
 

@@ -38,9 +38,11 @@ For each built-in plan (``l-room``, ``office``, ``hall``, ``hall-crowded-west``)
 and keeps each run's evacuation figures in ``studies/results/buildings.jsonl`` (one line per
 run, appended as each finishes, so that an interrupted study resumes where it stopped).  The
 crowds walk by the plans' own ``crowd.congestion = "auto"``: point masses by the linear diagram
-(docs page *Congestion*), JuPedSim's bodies by their own model; each row records the model
-(``congestion``, ``"none"`` for rows written before congestion), and the table reads the rows of
-the models given by ``--congestion`` (``auto``: the plans' defaults).  The table counts the runs
+and their default door model, the headway (docs page *Congestion*), JuPedSim's bodies by their own
+model; each row records the models (``congestion``, ``"none"`` for rows written before congestion;
+``door_model``, ``"count"`` for rows written before the headway became the default), and the table
+reads the rows of the models given by ``--congestion`` (``auto``: the plans' defaults) and today's
+door models.  The table counts the runs
 whose RSET is below the flow bound (``lower_bound_flow``: the crowd over the exits' width at the
 largest specific flow measured, 2.5 persons/(m·s)), which no crowd that queues as people do beats.
 Then it prints the table of the docs page (``--table``: only the table, from the file) and
@@ -172,6 +174,7 @@ def one_run(plan: str, setting: str, seed: int, backend: str, congestion: str = 
         "seed": seed,
         "backend": backend,
         "congestion": sc.congestion_model,
+        "door_model": sc.door_model,
         **{k: s.get(k) for k in KEYS},
         "curve_t": curve["time"].values.tolist(),
         "curve": curve.values.tolist(),
@@ -185,22 +188,34 @@ def _exits(plan: str) -> int:
     return len(builtin_scenarios()[plan]().domain.exits)
 
 
-def _model(plan: str, backend: str, congestion: str) -> str:
-    """The congestion model a run of ``plan`` with ``backend`` walks by (``auto``: the plan's default)."""
+def _model(plan: str, backend: str, congestion: str) -> tuple[str, str]:
+    """The congestion model and door model a run of ``plan`` with ``backend`` walks by (``auto``: the plan's
+    defaults; the door model is ``"count"`` for a crowd kind that has none of its own, which ignores it)."""
     from meanfield.scenarios.scenario import builtin_scenarios
 
     sc = builtin_scenarios()[plan]().with_values({"crowd.kind": backend})
-    return sc.congestion_model if congestion == "auto" else congestion
+    return (sc.congestion_model if congestion == "auto" else congestion), sc.door_model
 
 
 def _rows(congestion: str) -> list[dict]:
-    """The results of the runs by ``congestion`` (rows without the key ran before congestion: ``none``)."""
+    """The results of the runs by ``congestion`` and today's door model (rows without the keys ran before
+    congestion, ``none``, or before the door models, ``count``)."""
     if not RESULTS.exists():
         return []
     rows = [json.loads(line) for line in RESULTS.read_text().splitlines() if line.strip()]
     for r in rows:
         r.setdefault("congestion", "none")
-    return [r for r in rows if r["congestion"] == _model(r["plan"], r["backend"], congestion)]
+        r.setdefault("door_model", "count")
+    models = {(p, b): _model(p, b, congestion) for p, b in {(r["plan"], r["backend"]) for r in rows}}
+    return [r for r in rows if (r["congestion"], r["door_model"]) == models[r["plan"], r["backend"]]]
+
+
+def _walk(row: dict) -> str:
+    """How the row's crowd walks: its congestion model, and its door model where its kind has door models."""
+    from meanfield.plugins import declared
+
+    has_doors = declared("crowd", row["backend"], "door_models", None) is not None
+    return f"{row['congestion']}, {row['door_model']}" if has_doors else row["congestion"]
 
 
 def _done(congestion: str) -> set[tuple]:
@@ -292,7 +307,7 @@ def table(backends: list[str], congestion: str = "auto") -> str:
                 peak = np.array([r["peak_density"] for r in rs])
                 below = sum(1 for r, t in zip(rs, t100, strict=True) if t < r["lower_bound_flow"])
                 lines.append(
-                    f"| {p} | {b} ({rs[0]['congestion']}) | {s} ({len(rs)} seeds) | {np.median(out):.3f}"
+                    f"| {p} | {b} ({_walk(rs[0])}) | {s} ({len(rs)} seeds) | {np.median(out):.3f}"
                     f" ({out.min():.3f}) | {fmt(med95, horizon)} ({fmt(t95.max(), horizon)}) | {fmt(med100, horizon)}"
                     f" ({fmt(t100.max(), horizon)}) | {ratio(med100, informed, horizon)} |"
                     f" {ratio(med100, bound, horizon)} | {below} of {len(rs)} |"
@@ -322,7 +337,7 @@ def figure(backends: list[str], congestion: str = "auto", path: str = "docs/figu
                 wide = s.startswith(("evacuation", "coverage"))
                 style = "--" if "16" in s else ":" if s.startswith("nearest") else "-." if "remember" in s else "-"
                 ax.plot(t, np.median(curves, axis=0), label=s, color=colour[s], lw=1.6 if wide else 1.1, ls=style)
-            model = rs[0]["congestion"] if rs else "?"
+            model = _walk(rs[0]) if rs else "?"
             ax.set(title=f"{p} — {b} ({model})", xlabel="time (s)", ylabel="fraction evacuated (median of seeds)")
             ax.set_ylim(0, 1.02)
             ax.grid(alpha=0.3)

@@ -2,12 +2,14 @@
 
 Run from the repository's root::
 
-    python studies/corridor_speed_density.py            # weidmann, linear (10 seeds), jupedsim (3 seeds): ~7 min CPU
+    python studies/corridor_speed_density.py            # the point masses' models (10 seeds), jupedsim (3 seeds)
     python studies/corridor_speed_density.py --models linear --radii 0.4 0.8 [--seeds 10] [--densities 1 3 5]
     python studies/corridor_speed_density.py --report   # only the tables, JSON and figures
 
-What an experimenter measures, not the diagram itself: a point mass walks at ``g(ρ_j) v₀`` by
-construction (``ρ_j`` its own count of neighbours within 0.5 m), so plotting that is circular.
+What an experimenter measures, not the diagram itself: a point mass that walks by the count walks at
+``g(ρ_j) v₀`` by construction (``ρ_j`` its own count of neighbours within 0.5 m), so plotting that is
+circular; one that walks by the headway (the default door model, ``-headway`` in the models' names,
+:data:`POINT_MASS_MODELS`) walks at the diagram's speed at its spacing to the person ahead.
 Here the crowd walks one way along a corridor and we measure, in a *measurement area* across the
 corridor, the density (persons in the area over its area, PedPy's *classic* method, and PedPy's
 *Voronoi* method) and the mean speed of the people in it, over time windows, at several initial
@@ -197,6 +199,19 @@ def _register() -> None:
             plugins.register("crowd", name, factory)
 
 
+POINT_MASS_MODELS = {
+    "weidmann": ("weidmann", "count"),
+    "linear": ("linear", "count"),
+    "weidmann-headway": ("weidmann", "headway"),
+    "linear-headway": ("linear", "headway"),
+}
+"""The point masses' models: ``(crowd.congestion, crowd.door_model)``.  The bare diagrams walk by the count, as
+they were measured before the headway became the default door model (docs page *Congestion*, "The agents' door
+model"); the count's speed is ``g`` of the count within the radius, so those are run at each ``--radii``."""
+COUNT_MODELS = tuple(m for m, (_, door) in POINT_MASS_MODELS.items() if door == "count")
+"""The models whose speed is the count's: their local-density radius is a parameter of the walk."""
+
+
 def scenario(model: str, rho0: float, seed: int) -> Any:
     """The corridor with ``ρ₀ · WIDTH · FILL`` informed people and the crowd ``model``, from the
     built-in ``bottleneck`` (SI units, dt = 0.05 s, σ = 0.05 m²/s, free speed 1.34 m/s)."""
@@ -220,7 +235,7 @@ def scenario(model: str, rho0: float, seed: int) -> Any:
         values["crowd.options.jupedsim.time_step"] = 0.01
         values["crowd.options.jupedsim.strength_neighbor_repulsion"] = "default"
     else:
-        values["crowd.congestion"] = model
+        values["crowd.congestion"], values["crowd.door_model"] = POINT_MASS_MODELS[model]
     return builtin_scenarios()["bottleneck"](seed=seed).with_values(values)
 
 
@@ -256,7 +271,7 @@ def measure(frames: np.ndarray, model: str = "none", radius: float = DENSITY_RAD
     from meanfield.crowds.congestion import Linear, Weidmann
     from meanfield.crowds.local_density import LocalDensity
 
-    diagram = {"weidmann": Weidmann(), "linear": Linear()}.get(model)
+    diagram = {"weidmann": Weidmann(), "linear": Linear()}.get(model)  # the count's: v₀ g(ρ_j) is its speed
 
     first = int(round((T_START - FRAME_STEP / FPS) * FPS))
     last = int(round((T_END + FRAME_STEP / FPS) * FPS))
@@ -350,7 +365,7 @@ def one_run(model: str, radius: float, rho0: float, seed: int) -> dict[str, Any]
     windows = measure(frames, model, radius)
     return {
         "model": model,
-        "radius": radius if model in ("weidmann", "linear") else None,
+        "radius": radius if model in COUNT_MODELS else None,
         "rho0": rho0,
         "seed": seed,
         "n": int(frames.shape[1]),
@@ -380,7 +395,7 @@ def run_all(
         for model in models:
             if seed >= (body_seeds if model == "jupedsim" else seeds):
                 continue
-            for radius in radii if model in ("weidmann", "linear") else [None]:
+            for radius in radii if model in COUNT_MODELS else [None]:
                 for rho0 in densities:
                     if (model, radius, rho0, seed) not in done:
                         jobs.append((model, radius if radius is not None else DENSITY_RADIUS, rho0, seed))
@@ -411,8 +426,10 @@ def _label(model: str, radius: float | None) -> str:
 
 
 def _order(label: str) -> tuple[int, str]:
-    """Weidmann's diagram, the linear one, then JuPedSim's bodies (the tables' and the figures' order)."""
-    return {"weidmann": 0, "linear": 1, "jupedsim": 2}.get(label.split()[0], 9), label
+    """Weidmann's diagram, the linear one (the count, then the headway), then JuPedSim's bodies (the tables' and
+    the figures' order)."""
+    order = {"weidmann": 0, "linear": 1, "weidmann-headway": 2, "linear-headway": 3, "jupedsim": 4}
+    return order.get(label.split()[0], 9), label
 
 
 def _bins(rows: list[dict[str, Any]], method: str) -> dict[int, dict[int, tuple[float, float, int]]]:
@@ -710,7 +727,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=10, help="seeds of the point masses")
     parser.add_argument("--body-seeds", type=int, default=3, help="seeds of JuPedSim's bodies")
-    parser.add_argument("--models", nargs="+", default=["weidmann", "linear", "jupedsim"])
+    parser.add_argument(
+        "--models", nargs="+", default=[*POINT_MASS_MODELS, "jupedsim"], choices=[*POINT_MASS_MODELS, "jupedsim"]
+    )
     parser.add_argument("--radii", nargs="+", type=float, default=[DENSITY_RADIUS])
     parser.add_argument("--densities", nargs="+", type=float, default=list(DENSITIES))
     parser.add_argument("--workers", type=int, default=1)

@@ -374,10 +374,10 @@ class AgentCrowd:
     memory : RouteMemory, optional
         People who remember the way once a sign has reached them (``view.memory = "route"`` or ``"sign"``,
         :mod:`meanfield.crowds.memory`); None: the paper's humans.
-    door_model : {"count", "godunov-twin", "headway"}
+    door_model : {"headway", "count", "godunov-twin"}
         How a congested human's speed follows the crowd round it (``crowd.door_model``, :data:`DOOR_MODELS`):
-        ``g(ρ_j)`` of the count in its disk, the Godunov twin (:class:`~meanfield.crowds.congestion.GodunovTwin`)
-        or the spacing to the person ahead (:class:`~meanfield.crowds.headway.Headway`).
+        the spacing to the person ahead (:class:`~meanfield.crowds.headway.Headway`, the default), ``g(ρ_j)`` of
+        the count in its disk, or the Godunov twin (:class:`~meanfield.crowds.congestion.GodunovTwin`).
     """
 
     def __init__(
@@ -397,7 +397,7 @@ class AgentCrowd:
         density_radius: float = DENSITY_RADIUS,
         individuals: Individuals | None = None,
         memory: RouteMemory | None = None,
-        door_model: str = "count",
+        door_model: str = "headway",
     ):
         self.engine = engine
         self.memory = memory
@@ -716,7 +716,7 @@ class AgentCrowd:
             sc.crowd.congestion_radius,
             people,
             memory,
-            sc.crowd.door_model,
+            sc.door_model,
         )
         crowd.congestion_name = sc.congestion_model
         return crowd
@@ -737,9 +737,9 @@ point_mass_crowd.places_groups = True  # type: ignore[attr-defined]
 :mod:`meanfield.crowds.groups`)."""
 point_mass_crowd.group_exits = True  # type: ignore[attr-defined]
 """A group may walk to an exit of its own (``[[crowd.groups]] exit = k``): each person keeps its group's."""
-point_mass_crowd.door_models = tuple(DOOR_MODELS)  # type: ignore[attr-defined]
-"""A congested human's speed from the count round it (``"count"``), the Godunov twin or the headway
-(``crowd.door_model``, :data:`DOOR_MODELS`)."""
+point_mass_crowd.door_models = ("headway", "count", "godunov-twin")  # type: ignore[attr-defined]
+"""A congested human's speed from the spacing to the person ahead (``"headway"``, the first: the default), the
+count round it or the Godunov twin (``crowd.door_model``, :data:`DOOR_MODELS`)."""
 point_mass_crowd.changes_walls = True  # type: ignore[attr-defined]
 """A region can become wall during a run (``[[events]] block``, :meth:`AgentCrowd.walls_changed`): the people in it
 step out, and the signs, routes and walks go round it."""

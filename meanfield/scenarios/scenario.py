@@ -328,17 +328,17 @@ class Scenario:
                 )
 
     def _check_door_model(self) -> None:
-        """``crowd.door_model`` against the crowd kind (the models it declares in ``door_models``; the default
-        ``"count"`` is taken by every kind, which ignores it without congestion)."""
+        """``crowd.door_model`` against the crowd kind (the models it declares in ``door_models``; ``"auto"``, the
+        default, is taken by every kind: its own)."""
         c = self.crowd
-        if c.door_model == "count":
+        if c.door_model == "auto":
             return
-        takes = registry.declared("crowd", c.kind, "door_models", ("count",))
+        takes = registry.declared("crowd", c.kind, "door_models", ())
         if c.door_model not in takes:
             raise ParameterError(
                 "crowd.door_model", c.door_model,
-                f"one of {', '.join(map(repr, takes))} with the {c.kind!r} crowd (it declares the door models it "
-                "takes, door_models): the density's flux is Godunov's already, JuPedSim's bodies queue by their own",
+                f"{' or '.join(map(repr, ('auto', *takes)))} with the {c.kind!r} crowd (it declares the door models "
+                "it takes, door_models): the density's flux is Godunov's already, JuPedSim's bodies queue by their own",
             )  # fmt: skip
 
     def _check_groups(self) -> None:
@@ -488,6 +488,17 @@ class Scenario:
             return self.crowd.congestion
         defaults = registry.declared("crowd", self.crowd.kind, "default_congestion", None) or {}
         return defaults.get(self.units, "none")
+
+    @property
+    def door_model(self) -> str:
+        """How a congested agent's speed follows the crowd round it: ``crowd.door_model``, or for ``"auto"`` the
+        crowd kind's own, the first of the models it declares in ``door_models`` (the point masses: ``"headway"``,
+        docs page *Congestion*, "The headway door model").  A kind that declares none (the density, whose flux is
+        Godunov's; JuPedSim's bodies, which queue by their own model) reads ``"count"``, which it ignores.
+        """
+        if self.crowd.door_model != "auto":
+            return self.crowd.door_model
+        return registry.declared("crowd", self.crowd.kind, "door_models", ("count",))[0]
 
     def _congestion(self) -> Any:
         """The crowd's fundamental diagram (:mod:`meanfield.crowds.congestion`), from the registry."""

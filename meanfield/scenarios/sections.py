@@ -88,13 +88,16 @@ class CrowdSpec:
     A congested agent's density is the others within ``congestion_radius`` (m, 0.5) over the
     disk's area inside Ω (:mod:`meanfield.crowds.local_density`).  ``door_model`` is
     how a congested agent turns the density round it into a speed (docs page *Congestion*, "The
-    agents' door model"): ``"count"`` (the default: ``g`` of the count in the whole disk),
+    agents' door model"): ``"auto"`` (the default: the crowd kind's own, the first it declares in
+    ``door_models``; :attr:`~meanfield.scenarios.scenario.Scenario.door_model`), ``"count"`` (``g`` of
+    the count in the whole disk),
     ``"godunov-twin"`` (the density's Godunov flux between the half disks behind and ahead of it,
     with the excluded volume's push, :class:`~meanfield.crowds.congestion.GodunovTwin`) or
     ``"headway"`` (the diagram's speed at the spacing to the person ahead in one's lane, and a walk
     that approaches nobody it touches, :class:`~meanfield.crowds.headway.Headway`); a crowd kind
-    takes the models it declares (``door_models``: the point masses all three; the density's flux is
-    Godunov's and JuPedSim's bodies queue by their own model, so they take the default only).
+    takes the models it declares (``door_models``: the point masses all three, the headway first; the
+    density's flux is Godunov's and JuPedSim's bodies queue by their own model, so they take ``"auto"``
+    only).
 
     People are not all alike (docs pages *Scenarios*, "People who wait, people who do not
     follow", and *Buildings*; :class:`~meanfield.crowds.agent_crowd.Individuals`).
@@ -126,7 +129,7 @@ class CrowdSpec:
     congestion: str = "auto"
     rho_max: float = 5.4
     congestion_radius: float = DENSITY_RADIUS
-    door_model: str = "count"
+    door_model: str = "auto"
     premovement: str | dict[str, Any] = "none"
     compliance: float = 1.0
     groups: list[dict[str, Any]] = field(default_factory=list)
@@ -185,7 +188,7 @@ MIN_CONGESTION_RADIUS = 0.05
 RHO_MAX_RANGE = (1.0, 20.0)
 """persons/m²: the ``crowd.rho_max`` a fundamental diagram takes (a jam below 1 person/m² freezes everyone; above
 20 persons/m² people would overlap: bodies of 0.2 m radius cannot stand closer than about 8 per m²)."""
-DOOR_MODELS = ("count", "godunov-twin", "headway")
+DOOR_MODELS = ("auto", "count", "godunov-twin", "headway")
 """``crowd.door_model``: how a congested agent's speed follows the density round it (docs page *Congestion*)."""
 
 

@@ -5,8 +5,8 @@
 * (H2) the walk projected on the cone of the velocities that approach nobody one touches: feasible, and no
   feasible velocity is nearer (a fine polar grid of the plane as the reference);
 * (H3) two people closer than ``d`` step apart at ``u (1 − r/d)`` each;
-* the compiled loops equal their numpy twins; the point masses take the model, the density and the bodies
-  refuse it naming ``crowd.door_model``.
+* the compiled loops equal their numpy twins; the point masses take the model, by default (``"auto"``), the
+  density and the bodies refuse it naming ``crowd.door_model``.
 """
 
 from __future__ import annotations
@@ -301,6 +301,20 @@ def test_the_density_and_the_bodies_refuse_the_headway_naming_the_door_model(kin
     with pytest.raises(ParameterError) as exc:
         bottleneck(congestion, **{"crowd.kind": kind, "crowd.door_model": "headway"})
     assert exc.value.name == "crowd.door_model"
+
+
+def test_the_headway_is_the_point_masses_default_and_auto_each_kind_s_own():
+    """``crowd.door_model = "auto"`` (the default) is the first model a crowd kind declares: the headway for the point
+    masses, whose crowd then walks it; the density and the bodies declare none and take ``"auto"`` only."""
+    sc = bottleneck("linear", t_final=1.0)
+    assert sc.crowd.door_model == "auto" and sc.door_model == "headway"
+    assert ClosedLoop(sc).crowd.door_model == "headway"
+    assert sc.with_values({"crowd.door_model": "count"}).door_model == "count"
+    for kind, congestion in (("fokker-planck", "linear"), ("jupedsim", "none")):
+        assert bottleneck(congestion, **{"crowd.kind": kind}).crowd.door_model == "auto"
+        with pytest.raises(ParameterError) as exc:
+            bottleneck(congestion, **{"crowd.kind": kind, "crowd.door_model": "count"})
+        assert exc.value.name == "crowd.door_model"
 
 
 def exit_queue(capacity, n=60, sigma=0.0):
