@@ -60,13 +60,17 @@ def _same(a: object, b: object) -> bool:
 
 
 def _scenario(d: dict) -> dict:
-    """The scenario a summary records, as today's code reads it, JuPedSim's options filled in."""
+    """The scenario a summary records, as today's code reads it, JuPedSim's options filled in, and the door model
+    as the crowd walks by it (``"none"`` for a crowd without congestion, which ignores it: the default was
+    ``"count"`` before ``"auto"``)."""
     from meanfield.crowds.jupedsim_engine import JuPedSimOptions
     from meanfield.scenarios.scenario import Scenario
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # an earlier release's fields, read on purpose
-        out = Scenario.from_dict(d).to_dict()
+        scenario = Scenario.from_dict(d)
+    out = scenario.to_dict()
+    out["crowd"]["door_model"] = scenario.door_model if scenario.congestion_model != "none" else "none"
     options = out["crowd"].setdefault("options", {})
     options["jupedsim"] = dataclasses.asdict(JuPedSimOptions(**options.get("jupedsim", {})))
     return out

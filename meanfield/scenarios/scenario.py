@@ -329,11 +329,12 @@ class Scenario:
 
     def _check_door_model(self) -> None:
         """``crowd.door_model`` against the crowd kind (the models it declares in ``door_models``; ``"auto"``, the
-        default, is taken by every kind: its own)."""
+        default, is taken by every kind: its own).  A kind that declares none also takes ``"count"``, which it
+        ignores: the default before ``"auto"``, written in the scenarios that runs of that time recorded."""
         c = self.crowd
         if c.door_model == "auto":
             return
-        takes = registry.declared("crowd", c.kind, "door_models", ())
+        takes = registry.declared("crowd", c.kind, "door_models", None) or ("count",)
         if c.door_model not in takes:
             raise ParameterError(
                 "crowd.door_model", c.door_model,

@@ -394,7 +394,7 @@ def test_the_density_and_the_bodies_refuse_the_twin_naming_the_door_model(kind):
     with pytest.raises(ParameterError) as exc:
         congestion = "none" if kind == "jupedsim" else "linear"
         bottleneck(congestion, **{"crowd.kind": kind, "crowd.door_model": "godunov-twin"})
-    assert exc.value.name == "crowd.door_model" and "'auto'" in str(exc.value) and "'count'" not in str(exc.value)
+    assert exc.value.name == "crowd.door_model" and "'auto' or 'count'" in str(exc.value)
     with pytest.raises(ParameterError) as exc:
         bottleneck("linear", **{"crowd.door_model": "push"})
     assert exc.value.name == "crowd.door_model"
