@@ -96,8 +96,8 @@ class CrowdSpec:
     ``"headway"`` (the diagram's speed at the spacing to the person ahead in one's lane, and a walk
     that approaches nobody it touches, :class:`~meanfield.crowds.headway.Headway`); a crowd kind
     takes the models it declares (``door_models``: the point masses all three, the headway first; the
-    density's flux is Godunov's and JuPedSim's bodies queue by their own model, so they take ``"auto"``
-    only).
+    density's flux is Godunov's and JuPedSim's bodies queue by their own model, so they take ``"auto"``,
+    and ``"count"``, the default before ``"auto"``, which they ignore).
 
     People are not all alike (docs pages *Scenarios*, "People who wait, people who do not
     follow", and *Buildings*; :class:`~meanfield.crowds.agent_crowd.Individuals`).
