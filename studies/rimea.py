@@ -2,7 +2,7 @@
 
 Run from the repository's root (JuPedSim needs the ``pedestrians`` extra)::
 
-    python studies/rimea.py 9 0 1 2 3 4                    # point masses, seeds 0-4 (a few minutes a run)
+    python studies/rimea.py 9 0 1 2 3 4                    # point masses, seeds 0-4 (about 15 s a run)
     python studies/rimea.py 9 --backend jupedsim 0 1       # JuPedSim's bodies
     python studies/rimea.py 12 0 1 2 3 4                   # test 12, seconds a run
 
