@@ -208,11 +208,15 @@ class Command:
     state : ControlState or None
         The backstepping quantities at this instant (``ṽ``, ``ρ̃``, ``b_i``, ``g_i``, ``A``,
         ...), which observers record; None for a controller that computes none.
+    shows : ndarray of int, shape (n,), or None
+        The exit each robot's sign names from now on (``-1``: its arrow alone; :attr:`RobotTeam.shows
+        <meanfield.signs.robots.RobotTeam.shows>`); None: unchanged.
     """
 
     u: np.ndarray
     omega: np.ndarray
     state: ControlState | None = None
+    shows: np.ndarray | None = None
 
 
 @runtime_checkable
@@ -323,6 +327,9 @@ class ControllerParts:
         hand.  A diagram that does not slow (``"none"``) is the paper's crowd.
     people : int or None
         ``N`` = ``crowd.n``: a unit-mass density ``ρ`` has ``Nρ`` persons/m², the diagram's argument.
+    free_speed : float or None
+        The crowd's free walking speed (``crowd.free_speed``), for a controller that plans the crowd's walk; None:
+        parts built by hand.
     """
 
     grid: Grid
@@ -345,3 +352,4 @@ class ControllerParts:
     sight: SightLines | None = None
     congestion: Any = None  # a meanfield.crowds.congestion.FundamentalDiagram (the crowds sit above this module)
     people: int | None = None
+    free_speed: float | None = None

@@ -105,6 +105,7 @@ BUILTIN: dict[str, dict[str, str]] = {
         "evacuation": "meanfield.controllers.evacuation:EvacuationController.from_parts",
         "static-signs": "meanfield.controllers.static_signs:StaticSigns.from_parts",
         "coverage": "meanfield.controllers.coverage:CoverageController.from_parts",
+        "guide": "meanfield.controllers.guide:GuideController.from_parts",
     },
     "guidance": {
         "signs": "meanfield.crowds.guidance:signs",

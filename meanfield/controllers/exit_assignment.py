@@ -111,13 +111,18 @@ class ExitAssignment:
         Free walking speed, > 0.
     specific_flow : float
         ``J``, persons per unit width and time, > 0 (:data:`SPECIFIC_FLOW`).
+    min_gain : float
+        The share of the nearest exits' makespan the offsets must save to be kept, in [0, 1) (:data:`MIN_GAIN`).
     """
 
     def __init__(self, distances: np.ndarray, widths: np.ndarray, volume: np.ndarray, people: int,
-                 v_free: float, specific_flow: float = SPECIFIC_FLOW):  # fmt: skip
+                 v_free: float, specific_flow: float = SPECIFIC_FLOW, min_gain: float = MIN_GAIN):  # fmt: skip
         if not (isinstance(specific_flow, (int, float)) and math.isfinite(specific_flow) and specific_flow > 0):
             raise ParameterError("controller.options.specific_flow", specific_flow, "a flow > 0, persons/(m·s)")
         self.capacity = np.asarray(widths, float) * float(specific_flow)
+        if not 0.0 <= min_gain < 1.0:
+            raise ParameterError("min_gain", min_gain, "a share of the makespan in [0, 1)")
+        self.min_gain = float(min_gain)
         self.people = int(people)
         self.v_free = float(v_free)
         self.walls_changed(distances, volume)  # distances, arrivals and the active cells' areas
@@ -182,7 +187,7 @@ class ExitAssignment:
             step = 0.5 / (1.0 + i / 10.0)
             tau = tau + step * np.where(self.open, T - T[self.open].mean(), 0.0)
             tau = np.where(self.open, tau - tau[self.open].min(), 0.0)
-        if best >= (1.0 - MIN_GAIN) * nearest:  # balancing does not pay
+        if best >= (1.0 - self.min_gain) * nearest:  # balancing does not pay
             best, best_tau = nearest, zero
         self.offsets = best_tau
         self.makespan = best

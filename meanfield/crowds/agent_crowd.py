@@ -516,7 +516,15 @@ class AgentCrowd:
                 if self.reached is not None:
                     self.reached[people.walkers] = False
         if self.memory is not None and self.reached is not None:  # who a sign reached knows the way from then on
-            self.memory.walk(drift, positions, self.reached)
+            named = None
+            if robots.shows is not None and self.memory.shown:  # signs that name an exit: each is read on its own
+                named, read = self._named_exits(robots, positions)
+                if self.view.gated:
+                    read &= self.view.seen
+                if people is not None and len(people.walkers):
+                    read[people.walkers] = False
+                self.reached[:] = read
+            self.memory.walk(drift, positions, self.reached, named)
         if self.congestion is not None:  # (without congestion not one operation more: every number as before)
             self._slow_down(drift, positions, t, dt)
         if self.interaction is not None:
@@ -549,6 +557,26 @@ class AgentCrowd:
         peak = float(rho.max()) if len(rho) else 0.0
         if peak > self.peak_local_density:
             self.peak_local_density, self.peak_local_density_time = peak, t
+
+    def _named_exits(self, robots: RobotTeam, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Signs that name an exit (:attr:`~meanfield.signs.robots.RobotTeam.shows`): who reads one, and the exit the
+        one each reads names (``-1``: an arrow alone, or nobody's sign).
+
+        A human reads the sign whose kernel is strongest among the robots it sees, where that kernel is at least
+        :data:`~meanfield.signs.kernels.REACH_FRACTION` of its peak: a sign is read on its own, so two arrows that
+        point apart do not hide each other as they do in the field ``v_r`` they sum to.
+        """
+        r = np.real(np.asarray(robots.positions, float)).reshape(-1, 2)
+        strength = np.abs(self.kernel.magnitude(positions[None, :, 0] - r[:, None, 0],
+                                                positions[None, :, 1] - r[:, None, 1]))  # fmt: skip
+        if self.sight is not None:
+            seen = self.sight.mask(r, positions, self.kde.grid)
+            if seen is not None:
+                strength = np.where(seen, strength, 0.0)
+        strongest = np.argmax(strength, axis=0)
+        read = strength[strongest, np.arange(len(positions))] >= self._reach_speed
+        named = np.where(read, np.asarray(robots.shows, dtype=np.intp)[strongest], -1)
+        return named, read
 
     def _work(self, n: int) -> tuple[np.ndarray, np.ndarray]:
         """The drift (n, 2) and reached (n,) arrays, kept between steps of the same crowd size."""

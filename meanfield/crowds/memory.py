@@ -76,12 +76,24 @@ class RouteMemory:
         self.knows = np.zeros(int(n), dtype=bool)
         self.exit = np.full(int(n), -1, dtype=np.intp)  # the exit each walks to; -1: the nearest open one
 
-    def walk(self, velocity: np.ndarray, positions: np.ndarray, reached: np.ndarray) -> None:
+    def walk(self, velocity: np.ndarray, positions: np.ndarray, reached: np.ndarray,
+             named: np.ndarray | None = None) -> None:  # fmt: skip
         """In place: who was ``reached`` now knows the way (with ``shown``, the one the sign showed, the latest sign
-        deciding: ``velocity`` holds the field felt); everyone who knows it walks the route to its exit at the free
-        speed."""
+        deciding: ``velocity`` holds the field felt, ``named`` the exit the sign names, ``-1`` for an arrow alone);
+        everyone who knows it walks the route to its exit at the free speed."""
         new = np.flatnonzero(reached if self.shown else reached & ~self.knows)
         self.knows[new] = True  # (without shown: all walk to the nearest open exit, self.exit = -1)
+        if len(new) and self.shown and named is not None:  # a sign that names an open exit: that one
+            k = named[new]
+            said = (k >= 0) & self.plan.open[np.maximum(k, 0)]
+            if said.any():
+                far = np.full(len(new), np.inf)
+                for e in np.unique(k[said]):
+                    rows = np.flatnonzero(said & (k == e))
+                    far[rows] = self.plan.to(int(e)).distance(positions[new[rows]])
+                said &= np.isfinite(far)  # (a plan in pieces: an exit of another piece is no way)
+                self.exit[new[said]] = k[said]
+                new = new[~said]
         if len(new) and self.shown:
             open_k = np.flatnonzero(self.plan.open)
             p, v = positions[new], velocity[new]

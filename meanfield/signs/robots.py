@@ -58,12 +58,17 @@ class RobotTeam:
         Linear speed limit ``‖u_i‖ <= u_max`` (None: unlimited).
     omega_max : float or None
         Turning-rate limit ``|ω_i| <= ω_max`` (None: unlimited).
+    shows : ndarray of int, shape (n,), or None
+        The exit each sign names beside its arrow ("EXIT 2, THIS WAY"), ``-1`` for an arrow alone; None: arrows
+        alone (set by a controller that names exits, :attr:`meanfield.interfaces.Command.shows`; read by people who
+        remember the sign's exit, :mod:`meanfield.crowds.memory`).
     """
 
     positions: np.ndarray
     headings: np.ndarray
     u_max: float | None = None
     omega_max: float | None = None
+    shows: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.positions = np.array(self.positions, dtype=float).reshape(-1, 2)

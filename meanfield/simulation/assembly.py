@@ -249,6 +249,7 @@ def assemble(
         sight=sight,
         congestion=plant_congestion(sc),
         people=sc.crowd.n,
+        free_speed=sc.crowd.free_speed,
     )
     kind = c.kind if controller is None else controller
     factory = plugins.load("controller", kind)

@@ -192,6 +192,8 @@ class ClosedLoop:
             raise SimulationDiverged(
                 f"non-finite robot inputs at t = {self.t:.4g} (step {k}); the state is kept at the last good step", k
             )
+        if command.shows is not None:  # the exits the signs name from now on
+            self.robots.shows = np.asarray(command.shows, dtype=np.intp).copy()
         try:
             self.crowd.advance(self.robots, self.t, dt)
         except SimulationDiverged as exc:
