@@ -107,8 +107,6 @@ class WalkingDistances:
         from scipy.sparse.csgraph import dijkstra
 
         n, m = len(starts), len(self.cells)
-        if len(self._trees) + n > self.keep:
-            self._trees.clear()
         D, pred = dijkstra(self.graph, directed=False, indices=starts, return_predecessors=True)
         D, pred = D.reshape(n, m), pred.reshape(n, m)
         seen = self.sight.cell_rows(self.grid, points).reshape(n, -1)[:, self.cells]
@@ -139,6 +137,9 @@ class WalkingDistances:
         cells, first = np.unique(start, return_index=True)
         new = np.array([int(k) not in self._trees for k in cells], dtype=bool)
         if new.any():
+            if len(self._trees) + int(new.sum()) > self.keep:  # full: start again, planting every cell needed now
+                self._trees.clear()
+                new[:] = True
             self._plant(cells[new], p[first[new]])
         D = np.stack([self._trees[int(k)][0] for k in start])
         anchor = np.stack([self._trees[int(k)][1] for k in start])

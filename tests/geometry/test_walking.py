@@ -82,6 +82,19 @@ def test_a_point_s_trees_are_kept_per_cell_and_equal_a_fresh_computation():
     np.testing.assert_array_equal(fresh.anchor, f.anchor[::-1])
 
 
+def test_a_full_store_of_trees_keeps_every_cell_a_call_needs():
+    grid = Grid(TWO_ROOMS, (40, 20))
+    walk = WalkingDistances(grid)
+    walk.keep = 2
+    walk.from_points(np.array([[1.0, 1.0], [6.0, 0.5]]))
+    R = np.array([[6.0, 0.5], [3.0, 1.5]])  # one cell kept, one new: the store is full
+    f = walk.from_points(R)  # (it once dropped the kept cell's tree and failed to find it)
+    assert len(walk._trees) == 2
+    fresh = WalkingDistances(grid).from_points(R)
+    np.testing.assert_array_equal(fresh.distance, f.distance)
+    np.testing.assert_array_equal(fresh.anchor, f.anchor)
+
+
 def _coverage(region, cells, metric):
     grid = Grid(region, cells)
     return CoverageController(None, grid, SightLines(region), metric=metric), grid
