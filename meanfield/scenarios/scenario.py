@@ -585,7 +585,7 @@ class Scenario:
                 keep = region_keys(value)
                 for k in [k for k in node if k != "kind" and keep is not None and k not in keep]:
                     del node[k]
-            node[parts[-1]] = value
+            node[parts[-1]] = copy.deepcopy(value)  # (a later key under it must not write into the caller's table)
         # this scenario's own modules are imported already; a module it did not list needs the permission
         mods = d.get("plugins")
         kept = isinstance(mods, list | tuple) and all(m in listed for m in mods)

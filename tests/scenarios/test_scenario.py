@@ -341,6 +341,14 @@ def test_a_misspelt_key_is_refused_with_the_field_it_resembles(key, suggestion):
     assert exc.value.name == key and f"did you mean {suggestion}" in str(exc.value)
 
 
+def test_with_values_leaves_the_caller_s_tables_alone():
+    """A table given as a value (``{"controller.options": {}}``) and a key under it in the same call once wrote the
+    key into the caller's table, so that the next scenario built from it carried the option too."""
+    empty: dict = {}
+    sc = builtin_scenarios()["hall"](seed=0).with_values({"controller.options": empty, "controller.options.k_u": 2})
+    assert sc.controller.options == {"k_u": 2} and empty == {}
+
+
 def test_with_values_leaves_the_original_crowd_options_alone():
     """Setting ``crowd.options.<kind>.<field>`` on a copy once wrote into the original's table too (the copy
     shared the inner tables)."""
