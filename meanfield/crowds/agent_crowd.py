@@ -721,13 +721,13 @@ class AgentCrowd:
             n, c.premovement, c.compliance, ctx.rng, v.walk_speed, v.turning_rate, sc.domain, engine.body_radius
         )
         memory = None
-        if v.memory != "none" and guidance is None:  # (a baseline follows no sign, and learns nothing from one)
+        if sc.memory != "none" and guidance is None:  # (a baseline follows no sign, and learns nothing from one)
             from meanfield.geometry.exits import exit_segments
 
             segs = exit_segments(sc.domain)
             if not len(segs):
                 raise ParameterError("view.memory", v.memory, '"none" on a plan without exits: the way is to an exit')
-            memory = RouteMemory(n, ctx.grid, segs, c.free_speed, ctx.sight, shown=v.memory == "sign")
+            memory = RouteMemory(n, ctx.grid, segs, c.free_speed, ctx.sight, shown=sc.memory == "sign")
         crowd = cls(
             engine,
             ctx.kernel,

@@ -292,7 +292,7 @@ class Scenario:
         for key, value, default in (
             ("crowd.premovement", c.premovement, "none"),
             ("crowd.compliance", c.compliance, 1.0),
-            ("view.memory", self.view.memory, "none"),
+            ("view.memory", self.memory, "none"),
         ):
             if value != default and not registry.declared("crowd", c.kind, "models_individuals", False):
                 raise ParameterError(
@@ -489,6 +489,17 @@ class Scenario:
             return self.crowd.congestion
         defaults = registry.declared("crowd", self.crowd.kind, "default_congestion", None) or {}
         return defaults.get(self.units, "none")
+
+    @property
+    def memory(self) -> str:
+        """What people remember of a sign: ``view.memory``, or for ``"auto"`` ``"sign"`` for agents (a crowd kind
+        that declares ``models_individuals``) in a plan with exits in SI units, and ``"none"`` otherwise (the paper's
+        dimensionless room, the density)."""
+        if self.view.memory != "auto":
+            return self.view.memory
+        if self.units != "SI" or not registry.declared("crowd", self.crowd.kind, "models_individuals", False):
+            return "none"
+        return "sign" if len(getattr(self.domain, "exits", None) or ()) else "none"
 
     @property
     def door_model(self) -> str:

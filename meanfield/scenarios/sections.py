@@ -366,19 +366,23 @@ class ViewSpec:
     ``exp(-turning_rate t)``; see :mod:`meanfield.crowds.local_view`).  ``radius = "none"`` (the
     default) is the paper's model (eq. (1)): every human feels every robot.  ``memory = "route"``:
     a person a sign has reached knows the way out from then on (:mod:`meanfield.crowds.memory`);
-    ``"none"`` (the default): the paper's humans, who follow a sign only while they feel it.
+    ``"sign"``: the way to the exit the latest sign that reached the person showed; ``"none"``: the paper's
+    humans, who follow a sign only while they feel it.  ``"auto"`` (the default) is ``"sign"`` for people in a plan
+    with exits in SI units (a "THIS WAY" sign is followed: 95 % of 112 subjects followed the robot out in Nayyar et
+    al., SSRR 2023) and ``"none"`` otherwise, the paper's dimensionless room among them
+    (:attr:`meanfield.scenarios.scenario.Scenario.memory`).
     """
 
     radius: float | None = None
     walk_speed: float = 0.0
     turning_rate: float = 0.0
-    memory: str = "none"
+    memory: str = "auto"
 
     def __post_init__(self) -> None:
         self.radius = optional_limit("view.radius", self.radius, what='a view radius > 0, or "none" (no gating)')
         self.walk_speed = num("view.walk_speed", self.walk_speed, lo=0.0)
         self.turning_rate = num("view.turning_rate", self.turning_rate, lo=0.0)
-        self.memory = choice("view.memory", self.memory, MEMORIES)
+        self.memory = choice("view.memory", self.memory, ("auto", *MEMORIES))
 
 
 @dataclass

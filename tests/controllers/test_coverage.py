@@ -97,7 +97,8 @@ def test_coverage_passes_the_potential_to_the_field_its_signs_follow_and_its_met
     from meanfield.controllers.evacuation import EvacuationController
 
     sc = load_scenario("hall").with_values(
-        {"controller.options.potential": "hughes", "controller.options.metric": "walking", "t_final": 0.2}
+        {"controller.kind": "coverage", "controller.options.potential": "hughes",
+         "controller.options.metric": "walking", "t_final": 0.2}  # fmt: skip
     )
     loop = ClosedLoop(sc)
     assert isinstance(loop.controller.law, EvacuationController) and loop.controller.law.potential == "hughes"

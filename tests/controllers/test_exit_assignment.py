@@ -76,7 +76,8 @@ def test_a_closed_exit_takes_no_one():
 
 
 def _hall(**values):
-    return builtin_scenarios()["hall-crowded-west"](seed=0).with_values({"t_final": 0.2, **values})
+    coverage = {"controller.kind": "coverage", "view.memory": "none", "controller.options.potential": "balanced"}
+    return builtin_scenarios()["hall-crowded-west"](seed=0).with_values({"t_final": 0.2, **coverage, **values})
 
 
 def test_on_the_crowded_hall_the_signs_field_sends_the_east_of_the_crowd_east():
@@ -161,7 +162,8 @@ def test_the_balanced_signs_send_part_of_the_crowded_hall_to_the_idle_door():
     out = {}
     for potential in ("balanced", "distance"):
         sc = builtin_scenarios()["hall-crowded-west"](seed=1).with_values(
-            {"controller.options.potential": potential, "t_final": 60.0}
+            {"controller.kind": "coverage", "view.memory": "none", "controller.options.potential": potential,
+             "t_final": 60.0}  # fmt: skip
         )
         out[potential] = ClosedLoop(sc).run(progress=False).summary["evacuated_per_exit"]
     assert out["balanced"][1] >= 40 and out["distance"][1] <= 5, out

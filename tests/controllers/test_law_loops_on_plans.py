@@ -58,6 +58,9 @@ PILLAR = Plan(Plan.from_wkt(PILLAR_WKT).polygon, [((4.0, 1.0), (4.0, 2.0))])
 AROUND = np.array([[0.5, 1.5], [3.5, 1.5], [2.0, 0.4], [2.0, 2.6], [0.3, 0.3], [3.7, 2.8]])
 TWO_ROOMS = "POLYGON ((0 0, 0.45 0, 0.45 0.8, 0.55 0.8, 0.55 0, 1 0, 1 1, 0 1, 0 0))"
 
+COVERAGE = {"controller.kind": "coverage", "view.memory": "none"}
+"""The office as it shipped before the guide: the coverage controller, whose law these tests compile."""
+
 
 def _same_state(fast: ControlState, ref: ControlState) -> None:
     """Every field of the two states: arrays to 1e-12 of the reference's largest entry, numbers to 1e-12."""
@@ -108,7 +111,7 @@ def _compare_over_calls(make_law, densities, fields, dt=0.1):
 @pytest.fixture(scope="module")
 def office():
     """The built-in office after a few steps: its law (Hughes' Step I), density and robots."""
-    loop = ClosedLoop(builtin_scenarios()["office"](seed=1))
+    loop = ClosedLoop(builtin_scenarios()["office"](seed=1).with_values(COVERAGE))
     for _ in range(3):
         loop.step()
     return loop
@@ -425,7 +428,7 @@ def test_the_gate_hides_robots_behind_walls_and_a_walker_turns_at_a_thin_wall():
 def test_the_office_s_closed_loop_is_deterministic_on_the_compiled_path():
     runs = []
     for _ in range(2):
-        loop = ClosedLoop(builtin_scenarios()["office"](seed=2))
+        loop = ClosedLoop(builtin_scenarios()["office"](seed=2).with_values(COVERAGE))
         for _ in range(15):
             loop.step()
         runs.append((loop.robots.positions.copy(), loop.robots.headings.copy(), loop.crowd.positions.copy()))

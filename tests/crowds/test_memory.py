@@ -20,7 +20,8 @@ from meanfield.scenarios.scenario import builtin_scenarios
 
 
 def _hall(**values):
-    return builtin_scenarios()["hall"](seed=0).with_values(values)
+    before_the_guide = {"controller.kind": "coverage", "view.memory": "none"}  # the hall as these tests measured it
+    return builtin_scenarios()["hall"](seed=0).with_values({**before_the_guide, **values})
 
 
 def test_who_a_sign_reached_walks_the_route_the_sign_showed_and_the_others_keep_their_velocity():
