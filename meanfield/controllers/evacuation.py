@@ -178,8 +178,9 @@ class EvacuationController(BacksteppingController):
 
     @classmethod
     def from_parts(cls, parts: ControllerParts) -> EvacuationController:
-        """Registry factory (kind ``controller``, name ``evacuation``): options ``v_free``, ``rho_max``,
-        ``potential`` (refused, naming ``controller.options.potential``, unless one of :data:`POTENTIALS`)."""
+        """Registry factory (kind ``controller``, name ``evacuation``): options ``v_free`` (default: the crowd's
+        ``crowd.free_speed``), ``rho_max``, ``potential`` (refused, naming ``controller.options.potential``, unless one
+        of :data:`POTENTIALS`)."""
         from meanfield.geometry.exits import exit_segments
 
         allowed = {"v_free", "rho_max", "potential", "specific_flow", "rebalance_period"}
@@ -197,6 +198,8 @@ class EvacuationController(BacksteppingController):
         if potential not in POTENTIALS:
             raise ParameterError("controller.options.potential", potential, " or ".join(map(repr, POTENTIALS)))
         flow = opts.pop("specific_flow", None)
+        if "v_free" not in opts and parts.free_speed is not None:  # the crowd's own free speed (crowd.free_speed)
+            opts["v_free"] = float(parts.free_speed)
         segs = exit_segments(parts.region)
         eikonal = ExitEikonal(parts.grid, segs, parts.sight)
         if potential == "balanced":

@@ -176,3 +176,14 @@ def test_the_evacuation_controller_runs_from_a_scenario():
     with pytest.raises(ParameterError) as exc:
         ClosedLoop(paper_scenario(seed=0).with_values({"controller.kind": "evacuation"}))  # no exits
     assert exc.value.name == "domain.exits"
+
+
+def test_the_walking_speed_of_the_law_is_the_crowd_s_unless_set():
+    from meanfield import ClosedLoop
+    from meanfield.scenarios.scenario import builtin_scenarios
+
+    sc = builtin_scenarios()["hall"](seed=0).with_values(
+        {"controller.kind": "evacuation", "controller.options": {}, "crowd.free_speed": 1.1}
+    )
+    assert ClosedLoop(sc).controller.v_free == 1.1
+    assert ClosedLoop(sc.with_values({"controller.options.v_free": 1.5})).controller.v_free == 1.5
