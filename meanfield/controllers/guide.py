@@ -1,37 +1,34 @@
-"""The guide: each robot guides one exit's share of the crowd, and its sign shows that share's exit.
+"""The guide: each robot guides one exit's share of the crowd, and its sign names the exit its readers should take.
 
-The building plans' people follow the exit of the latest sign that reached them (``view.memory = "sign"``,
-:mod:`meanfield.crowds.memory`): once a sign has told a person which way is out, the person walks there.  The
-robots' job is then to reach everyone once, each person with the exit that empties the building soonest.  The
-guide (registered as controller ``guide``, the plans' default; docs page *Buildings*, "The guide") splits that
-job in three, each re-solved as the crowd moves:
+The building plans' people walk to the exit the latest sign that reached them named (``view.memory = "sign"``,
+the default in SI plans, :mod:`meanfield.crowds.memory`).  The robots' job is then to reach everyone once, each
+person with the exit that empties the building soonest.  The guide (controller ``guide``, the plans' default;
+docs page *Buildings*, "The guide", where each choice below is measured against its alternatives) re-solves four
+things as the crowd moves:
 
 **Step I: the shares** (:class:`~meanfield.controllers.exit_assignment.ExitAssignment`).  Every
 ``rebalance_period`` the observed density is assigned to the open exits by their capacities (eq. (B1) of
 :mod:`meanfield.controllers.exit_assignment`): cell ``c`` belongs to the share of exit
-``k(c) = argmin_k (d_k(c)/v_free + τ_k)``, the nearest exit unless queues make another pay.  A closed exit or a
-new wall is re-solved at once.
+``k(c) = argmin_k (a_k(c) + τ_k)``, ``a_k = d_k / v_free``, the nearest exit unless queues make another pay by
+:data:`MIN_GAIN`.  A closed exit or a new wall is solved again at once.
 
 **The team: robots per share.**  The weight of a cell is the crowd's density where no sign has reached for
-``revisit_after`` seconds (the people still to be told), or, where every cell of the plan has been reached
-lately, the density itself.  Share ``k`` gets ``n_k`` robots in proportion to its weight ``W_k`` (every share
-with weight at least one robot while robots last, the rest by largest remainders).  A robot keeps its share
-while the counts allow; the robots a share no longer needs are the farthest from its people, and those a share
-gains are the nearest free ones.
+``revisit_after`` seconds (the people still to be told), or, where every cell has been reached lately, the
+density itself.  Share ``k`` gets ``n_k`` robots in proportion to its weight (:func:`allocate`).  The robots are
+matched to the shares at the least total distance to the shares' people (a robot keeps its share unless another's
+people are :data:`STAY` nearer).
 
 **Positions: coverage of the share.**  Within its share, robot ``i`` drives to the weighted centroid ``C_i`` of
 the share's cells nearest to it among those it sees (Lloyd's iteration restricted to the share,
-``u_i = k_position (C_i − R_i)``), and where a wall hides ``C_i`` along the first leg of its walk there, by the
-walk's length (:mod:`meanfield.geometry.walking`), as coverage's ``routed`` metric
-(:mod:`meanfield.controllers.coverage`).
+``u_i = k_position (C_i − R_i)``), and where a wall hides ``C_i``, along the first leg of its walk there by the
+walk's length (:mod:`meanfield.geometry.walking`), as coverage's ``routed`` metric.
 
-**Headings: the share's exit.**  Robot ``i`` turns its sign along the route from where it stands to its
-share's exit (:class:`~meanfield.geometry.geodesic.ExitRoutes` of that exit alone),
-``ω_i = k_heading · wrap(θ*_i − θ_i)``.  People who read it take the exit whose route it points along
-(:data:`meanfield.crowds.memory.SHOWN_COS`), and the robot stands among its share's people, so that is its
-share's exit.  No sign shows an exit no share is assigned to.  This replaces Step II's feedback on ``½‖ṽ‖²``
-(:mod:`meanfield.controllers.coverage`), whose arrow averages ``v_d`` over the kernel's reach and, between two
-exits' basins, points at neither (docs page *Buildings*, "The guide", measures both).
+**Labels and headings.**  Each sign names an exit (:attr:`~meanfield.interfaces.Command.shows`): the labels that,
+with the people each sign reaches now walking to its label and everyone else to Step I's exit, clear the building
+soonest by (B1), found robot by robot from the labels of least regret and kept where they save :data:`MIN_GAIN`
+of those labels' makespan (:meth:`GuideController.exit_here`).  A robot turns its arrow along the route from where
+it stands to the exit it names, ``ω_i = k_heading · wrap(θ*_i − θ_i)``.  Nothing is claimed of ``½‖ṽ‖²``: the
+guide is judged against the informed crowd, on every plan (``studies/guide.py``).
 """
 
 from __future__ import annotations
@@ -120,7 +117,10 @@ class GuideController:
         How often the shares and the team are solved again, s, > 0.
     """
 
-    OPTIONS = ("k_position", "k_heading", "revisit_after", "rebalance_period", "specific_flow")
+    OPTIONS = ("revisit_after", "rebalance_period", "specific_flow")
+    """``controller.options`` a scenario may set: when a reached cell weighs again, how often the shares are solved,
+    and the exits' specific flow (persons/(m·s)).  The gains are the constructor's: the drive saturates at the
+    robots' ``u_max`` beyond ``u_max / k_position`` metres, and no study has found a setting of them that wins."""
 
     accepts_sensing = False
     changes_walls = True

@@ -136,7 +136,8 @@ def test_a_region_that_becomes_wall_is_planned_round():
 @pytest.mark.parametrize(
     ("values", "field"),
     [
-        ({"controller.options.k_position": -1.0}, "controller.options.k_position"),
+        ({"controller.options.rebalance_period": -1.0}, "controller.options.rebalance_period"),
+        ({"controller.options.k_position": 2.0}, "controller.options"),
         ({"controller.options.revisit_after": "5"}, "controller.options.revisit_after"),
         ({"controller.options.weight": "unswept"}, "controller.options"),
     ],
