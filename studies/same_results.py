@@ -60,9 +60,10 @@ def _same(a: object, b: object) -> bool:
 
 
 def _scenario(d: dict) -> dict:
-    """The scenario a summary records, as today's code reads it, JuPedSim's options filled in, and the door model
+    """The scenario a summary records, as today's code reads it, JuPedSim's options filled in, the door model
     as the crowd walks by it (``"none"`` for a crowd without congestion, which ignores it: the default was
-    ``"count"`` before ``"auto"``)."""
+    ``"count"`` before ``"auto"``), and what people remember of a sign as they do (``view.memory = "auto"``
+    resolved: the default was ``"none"`` before it)."""
     from meanfield.crowds.jupedsim_engine import JuPedSimOptions
     from meanfield.scenarios.scenario import Scenario
 
@@ -71,6 +72,7 @@ def _scenario(d: dict) -> dict:
         scenario = Scenario.from_dict(d)
     out = scenario.to_dict()
     out["crowd"]["door_model"] = scenario.door_model if scenario.congestion_model != "none" else "none"
+    out.setdefault("view", {})["memory"] = scenario.memory  # ("auto" resolved: "none" was the default before it)
     options = out["crowd"].setdefault("options", {})
     options["jupedsim"] = dataclasses.asdict(JuPedSimOptions(**options.get("jupedsim", {})))
     return out
