@@ -14,7 +14,8 @@ a region that becomes wall at 5 s (``, a region blocked at 5 s``) and compliance
 
 People read the signs as the plans' default says (``view.memory = "auto"``: who a sign reaches walks to the exit
 it names).  Each run's figures are appended to ``studies/results/guide.jsonl`` as it finishes, so an interrupted
-study resumes.  The table gives, per plan and setting, RSET (everyone out) as the median and worst seed, and the
+study resumes.  The table gives, per plan and setting, the share out at the end and RSET (everyone out) as the
+median and worst seed, and the
 ratio to the informed crowd's RSET on the same seed, median and worst; the last column of the guide's rows is the
 smallest team of 4, 8 and 16 whose median ratio is at most 1.1 (the robots a building needs).
 """
@@ -130,12 +131,17 @@ def _rset(r: dict) -> float:
     return np.inf if r["evacuation_time_100"] is None else float(r["evacuation_time_100"])
 
 
+def _fmt(x: float, bound: float, digits: int) -> str:
+    """``x``, or ``> bound`` for a run that did not end by the horizon (infinite)."""
+    return f"{x:.{digits}f}" if np.isfinite(x) else f"> {bound:.{digits - 1}f}"
+
+
 def table(seeds: int) -> str:
     """Per plan and setting: RSET (median, worst) and RSET over the informed crowd's on the same seed (median,
     worst); for the guide, the smallest team of 4, 8, 16 whose median ratio is at most 1.1."""
     by = {(r["plan"], r["setting"], r["seed"]): r for r in rows() if r["seed"] < seeds}
-    lines = ["| plan | setting | seeds | RSET, s: median (worst) | ÷ informed, same seed: median (worst) |",
-             "|---|---|---|---|---|"]  # fmt: skip
+    lines = ["| plan | setting | seeds | out at the end: median (worst) | RSET, s: median (worst) |"
+             " ÷ informed, same seed: median (worst) |", "|---|---|---|---|---|---|"]  # fmt: skip
     needs = []
     for p in PLANS:
         ratios_of: dict[str, np.ndarray] = {}
@@ -149,13 +155,14 @@ def table(seeds: int) -> str:
             inf = [by.get((p, base, r["seed"])) for r in got]
             ratio = "—"
             if s != base and all(i is not None for i in inf):
-                q = t / np.array([_rset(i) for i in inf])
+                over = np.array([_rset(i) for i in inf])
+                q = t / over
                 ratios_of[s] = q
-                ratio = (f"{np.median(q):.2f} ({q.max():.2f})" if np.isfinite(q).all()
-                         else f"{np.median(q):.2f} (> {horizon / max(_rset(i) for i in inf):.1f})")  # fmt: skip
-            worst = f"{t.max():.1f}" if np.isfinite(t).all() else f"> {horizon:.0f}"
-            rset = f"{np.median(t):.1f} ({worst})"
-            lines.append(f"| {p} | {s} | {len(got)} | {rset} | {ratio} |")
+                bound = horizon / over.max()  # a run not out by the horizon: its ratio is at least this
+                ratio = f"{_fmt(np.median(q), bound, 2)} ({_fmt(q.max(), bound, 2)})"
+            rset = f"{_fmt(np.median(t), horizon, 1)} ({_fmt(t.max(), horizon, 1)})"
+            out = np.array([r["fraction_evacuated"] for r in got])
+            lines.append(f"| {p} | {s} | {len(got)} | {np.median(out):.3f} ({out.min():.3f}) | {rset} | {ratio} |")
         teams = [n for n in (4, 8, 16) if f"guide {n}" in ratios_of and np.median(ratios_of[f"guide {n}"]) <= 1.1]
         needs.append(f"| {p} | {min(teams) if teams else '> 16'} |")
     head = ["", "| plan | robots the guide needs (median ÷ informed at most 1.1) |", "|---|---|"]
