@@ -13,9 +13,12 @@ the robot out).  ``view.memory = "route"`` or ``"sign"`` models that:
 * with ``"route"`` the way is the informed crowd's route to the nearest open exit
   (:class:`meanfield.geometry.geodesic.ExitRoutes`): a sign tells a person to leave and which way
   is out, as a crowd that knows the building;
-* with ``"sign"`` it is the way the latest sign that reached the person showed: of the routes to each
-  exit, the shortest among those whose first leg at the person lies within 45° of the field ``v_r`` it
-  feels (:data:`SHOWN_COS`), or, if none does, the one whose first leg is most nearly along it; so a
+* with ``"sign"`` it is the way the latest sign that reached the person showed.  A sign that names an exit
+  (``EXIT 2, THIS WAY``: :attr:`meanfield.signs.robots.RobotTeam.shows`, set by the guide,
+  :mod:`meanfield.controllers.guide`) sends its reader to that exit; a person then reads the strongest sign
+  it sees on its own (:meth:`meanfield.crowds.agent_crowd.AgentCrowd.drift`).  An arrow alone shows, of the
+  routes to each exit, the shortest among those whose first leg at the person lies within 45° of the field
+  ``v_r`` it feels (:data:`SHOWN_COS`), or, if none does, the one whose first leg is most nearly along it; so a
   sign pointing roughly towards the nearest exit sends people there, signs that send part of a crowd
   to a farther exit (``controller.options.potential = "balanced"``) are followed as such, and a
   person a later sign reaches takes the exit that one shows (people follow the sign before them: the
@@ -24,8 +27,9 @@ the robot out).  ``view.memory = "route"`` or ``"sign"`` models that:
   longer follows the signs; nobody forgets.  When an exit closes, those who were walking to it take
   the route to the nearest exit still open (``[[events]]``).
 
-So the robots' task becomes reaching everyone once, not carrying everyone out.  The default,
-``"none"``, is the paper's model, every number unchanged.
+So the robots' task becomes reaching everyone once, not carrying everyone out.  The default, ``"auto"``
+(:attr:`meanfield.scenarios.scenario.Scenario.memory`), is ``"sign"`` for agents in a plan with exits in SI units
+and ``"none"``, the paper's model with every number unchanged, otherwise.
 """
 
 from __future__ import annotations
