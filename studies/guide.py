@@ -62,7 +62,7 @@ SETTINGS.update({s + BODIES: {**SETTINGS[s], "crowd.kind": "jupedsim"} for s in 
 SETTINGS.update({"informed" + COMPLIANCE: dict(SETTINGS["informed"]),
                  "guide 8" + COMPLIANCE: {**SETTINGS["guide 8"], "crowd.compliance": 0.95}})  # fmt: skip
 RESULTS = Path("studies/results/guide.jsonl")
-KEYS = ("fraction_evacuated", "evacuation_time_95", "evacuation_time_100", "lower_bound_flow", "time_final",
+KEYS = ("status", "fraction_evacuated", "evacuation_time_95", "evacuation_time_100", "lower_bound_flow", "time_final",
         "wall_seconds", "evacuated_per_exit")  # fmt: skip
 
 
@@ -118,6 +118,9 @@ def run_all(seeds: int, workers: int | None, plans: list[str], settings: list[st
         def keep(k: int, row: dict) -> None:
             nonlocal finished
             finished += 1
+            if row["status"] == "interrupted":  # (a worker stopped by a signal ends its run early: not a result)
+                print(f"[{finished}/{len(todo)}] {todo[k]}: interrupted, not kept", flush=True)
+                return
             out.write(json.dumps(row) + "\n")
             out.flush()
             os.fsync(out.fileno())
