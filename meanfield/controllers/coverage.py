@@ -90,6 +90,22 @@ V_D = ("auto", "safe-zone", "exits")
 _NOTHING_HIDDEN = np.ones((0, 0), dtype=bool)
 
 
+def walk_towards(walking: Any, robots: np.ndarray, owner: np.ndarray, centroid: np.ndarray,
+                 rows: np.ndarray) -> np.ndarray:  # fmt: skip
+    """The pull of each robot of ``rows`` whose centroid a wall hides: the first leg of its walk to the cell, of those
+    it owns, nearest its centroid, times that walk's length (``routed``); 0 for a robot that owns no cell it can walk
+    to (a block cut the plan).  ``owner``: each covered cell's robot (``-1``: none), in ``walking``'s cell order."""
+    field = walking.from_points(robots)
+    xy = walking.xy
+    pull = np.zeros((len(rows), 2))
+    for j, i in enumerate(rows):
+        mine = np.flatnonzero((owner == i) & np.isfinite(field.distance[i]))  # (not another piece's cells)
+        if len(mine):
+            target = mine[np.argmin(np.hypot(xy[mine, 0] - centroid[i, 0], xy[mine, 1] - centroid[i, 1]))]
+            pull[j] = field.distance[i, target] * field.leg[i, target]
+    return pull
+
+
 class CoverageController:
     """Lloyd coverage for the positions, the law's ω-part for the headings (module docstring).
 
@@ -269,16 +285,8 @@ class CoverageController:
         if hidden.any():
             hidden[hidden] = ~np.asarray(self.sight.visible(robots[hidden], c[hidden]), bool)
         if hidden.any():
-            field = self.walking.from_points(robots)
-            owner = self.owners(robots)
-            xy = self.walking.xy
-            for i in np.flatnonzero(hidden):
-                mine = np.flatnonzero((owner == i) & np.isfinite(field.distance[i]))  # (not another piece's cells)
-                if not len(mine):  # its people are where it cannot walk (a block cut the plan): it holds
-                    pull[i] = 0.0
-                    continue
-                target = mine[np.argmin(np.hypot(xy[mine, 0] - c[i, 0], xy[mine, 1] - c[i, 1]))]
-                pull[i] = field.distance[i, target] * field.leg[i, target]
+            rows = np.flatnonzero(hidden)
+            pull[rows] = walk_towards(self.walking, robots, self.owners(robots), c, rows)
         return pull, idle
 
     def _weight(self, rho: np.ndarray, state: ControlState, field: Any = None, t: float = 0.0) -> np.ndarray:
@@ -297,20 +305,11 @@ class CoverageController:
     def sweep(self, field: Any, t: float) -> np.ndarray:
         """Mark the cells the signs reach now as reached at ``t`` (a robot sees the cell and its kernel there is at
         least :data:`~meanfield.signs.kernels.REACH_FRACTION` of its peak); returns :attr:`last_reached`."""
-        from meanfield.signs.kernels import REACH_FRACTION
+        from meanfield.signs.kernels import reached_cells
 
-        g = self.grid
         if self.last_reached is None:
-            self.last_reached = np.full(g.shape, -np.inf)
-        X, Y = g.centers
-        robots = np.real(np.asarray(field.positions, float)).reshape(-1, 2)
-        seen = self.sight.cell_rows(g, robots) if self.sight is not None else None
-        peak = float(np.max(np.abs(field.kernel.magnitude(np.zeros(1), np.zeros(1)))))
-        for i, (rx, ry) in enumerate(robots):
-            reach = np.abs(field.kernel.magnitude(X - rx, Y - ry)) >= REACH_FRACTION * peak
-            if seen is not None:
-                reach &= seen[i]
-            self.last_reached[reach & g.active] = t
+            self.last_reached = np.full(self.grid.shape, -np.inf)
+        self.last_reached[reached_cells(field.kernel, field.positions, self.grid, self.sight).any(axis=0)] = t
         return self.last_reached
 
     # ------------------------------------------------------------------ the controller

@@ -209,16 +209,18 @@ class EvacuationController(BacksteppingController):
 
     @staticmethod
     def balance(parts: ControllerParts, segs: np.ndarray, eikonal: ExitEikonal, v_free: float,
-                specific_flow: float | None) -> ExitAssignment:  # fmt: skip
-        """The exits' :class:`ExitAssignment`: one fast march per exit alone, the exits' widths, ``N`` of the crowd."""
-        from meanfield.controllers.exit_assignment import SPECIFIC_FLOW
+                specific_flow: float | None, min_gain: float | None = None) -> ExitAssignment:  # fmt: skip
+        """The exits' :class:`ExitAssignment`: one fast march per exit alone, the exits' widths, ``N`` of the crowd
+        (``min_gain``: :class:`ExitAssignment`'s, default :data:`~meanfield.controllers.exit_assignment.MIN_GAIN`)."""
+        from meanfield.controllers.exit_assignment import MIN_GAIN, SPECIFIC_FLOW
 
         if parts.people is None:
             raise ParameterError("crowd.n", None, "the crowd's size, for the balanced potential (persons per exit)")
         distances = eikonal.distance[None] if len(segs) == 1 else _distance_to_each_exit(parts.grid, segs, parts.sight)
         widths = np.hypot(*(segs[:, 1] - segs[:, 0]).T)
         flow = SPECIFIC_FLOW if specific_flow is None else specific_flow
-        return ExitAssignment(distances, widths, parts.grid.volume, parts.people, v_free, flow)
+        gain = MIN_GAIN if min_gain is None else min_gain
+        return ExitAssignment(distances, widths, parts.grid.volume, parts.people, v_free, flow, gain)
 
     def exits_closed(self, open_exits: np.ndarray) -> None:
         """The robots learn that only the exits with ``open_exits[k]`` are open (a scenario's ``[[events]]``):

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from meanfield.controllers._coverage_loops import owners as nearest_owners
+from meanfield.controllers.coverage import _NOTHING_HIDDEN, walk_towards
 from meanfield.errors import ParameterError
 from meanfield.interfaces import Command, ControllerParts, Observation
 
@@ -56,7 +57,6 @@ SEARCH_SWEEPS = 3
 """Passes over the robots of the labels' search (:meth:`GuideController.exit_here`)."""
 STAY = 2.0
 """m: a robot keeps its share unless another share's people are this much nearer (the team's matching)."""
-_NOTHING_HIDDEN = np.ones((0, 0), dtype=bool)
 
 
 def allocate(weights: np.ndarray, robots: int) -> np.ndarray:
@@ -161,8 +161,8 @@ class GuideController:
         flow = opts.pop("specific_flow", None)
         sight = parts.sight if parts.sight is not None else SightLines(parts.region)
         v_free = 1.34 if parts.free_speed is None else float(parts.free_speed)
-        assignment = EvacuationController.balance(parts, segs, ExitEikonal(parts.grid, segs, sight), v_free, flow)
-        assignment.min_gain = MIN_GAIN
+        eikonal = ExitEikonal(parts.grid, segs, sight)
+        assignment = EvacuationController.balance(parts, segs, eikonal, v_free, flow, MIN_GAIN)
         return cls(parts.grid, sight, assignment, AssignedRoutes(parts.grid, segs, sight), **opts)
 
     def _cover(self, grid: Any, sight: Any) -> None:
@@ -198,22 +198,13 @@ class GuideController:
         return share.ravel()[self._cells]
 
     def sweep(self, field: Any, t: float) -> np.ndarray:
-        """Mark the cells the signs reach now as reached at ``t`` (coverage's ``unswept`` rule,
-        :meth:`meanfield.controllers.coverage.CoverageController.sweep`)."""
-        from meanfield.signs.kernels import REACH_FRACTION
+        """Mark the cells the signs reach now as reached at ``t`` (:func:`~meanfield.signs.kernels.reached_cells`, as
+        coverage's ``unswept`` rule), keeping each robot's reach over the covered cells for the labels."""
+        from meanfield.signs.kernels import reached_cells
 
-        g = self.grid
-        X, Y = g.centers
-        robots = np.real(np.asarray(field.positions, float)).reshape(-1, 2)
-        seen = self.sight.cell_rows(g, robots) if self.sight is not None else None
-        peak = float(np.max(np.abs(field.kernel.magnitude(np.zeros(1), np.zeros(1)))))
-        self._reach = np.zeros((len(robots), len(self._cells)), dtype=bool)
-        for i, (rx, ry) in enumerate(robots):
-            reach = np.abs(field.kernel.magnitude(X - rx, Y - ry)) >= REACH_FRACTION * peak
-            if seen is not None:
-                reach &= seen[i]
-            self._reach[i] = reach.ravel()[self._cells]
-        self.last_reached.reshape(-1)[self._cells[self._reach.any(axis=0)]] = t
+        reach = reached_cells(field.kernel, field.positions, self.grid, self.sight)
+        self._reach = reach.reshape(len(reach), -1)[:, self._cells]
+        self.last_reached[reach.any(axis=0)] = t
         return self.last_reached
 
     def weight(self, rho: np.ndarray, t: float) -> np.ndarray:
@@ -284,15 +275,8 @@ class GuideController:
         if self.sight is not None and behind.any():
             behind[behind] = ~np.asarray(self.sight.visible(robots[behind], centroid[behind]), bool)
         if behind.any():  # a wall hides the centroid: the first leg of the walk to the robot's cell nearest it
-            field = self.walking.from_points(robots)
-            xy = self.walking.xy
-            for i in np.flatnonzero(behind):
-                mine = np.flatnonzero((cell_owner == i) & np.isfinite(field.distance[i]))
-                if not len(mine):
-                    pull[i] = 0.0
-                    continue
-                target = mine[np.argmin(np.hypot(xy[mine, 0] - centroid[i, 0], xy[mine, 1] - centroid[i, 1]))]
-                pull[i] = field.distance[i, target] * field.leg[i, target]
+            rows = np.flatnonzero(behind)
+            pull[rows] = walk_towards(self.walking, robots, cell_owner, centroid, rows)
         return pull
 
     def exit_here(self, robots: np.ndarray, rho: np.ndarray) -> np.ndarray:
@@ -322,8 +306,9 @@ class GuideController:
             exit_of = np.where(reader >= 0, labels[np.maximum(reader, 0)], plan)
             makespan = max(clearing_time(arrival[k, exit_of == k], persons[exit_of == k], a.capacity[k], last)
                            for k in open_k)  # fmt: skip
-            detour = (persons * (arrival[exit_of, np.arange(len(exit_of))] - best_walk)).sum() / total
-            return makespan + detour
+            with np.errstate(invalid="ignore"):  # (a reader sent where no route reaches: inf − inf)
+                detour = (persons * (arrival[exit_of, np.arange(len(exit_of))] - best_walk)).sum() / total
+            return makespan + detour if np.isfinite(detour) else math.inf
 
         # the labels of least regret: each robot's readers' exits under Step I, weighted by their persons
         regret = np.where(np.isfinite(self._regret[:, live]), self._regret[:, live], 1e9)

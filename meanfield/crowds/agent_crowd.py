@@ -482,6 +482,7 @@ class AgentCrowd:
         (:attr:`standing`).
         """
         positions = self.positions
+        visible = None  # which robot each human sees (the exact field's; None: all, or not computed)
         if self.guidance is not None:  # a baseline: the humans ignore the robots
             if self._guidance_observes:  # a guidance that plans from where the crowd is (routes round it)
                 self.guidance.observe(positions, self._here(), t)
@@ -518,7 +519,7 @@ class AgentCrowd:
         if self.memory is not None and self.reached is not None:  # who a sign reached knows the way from then on
             named = None
             if robots.shows is not None and self.memory.shown:  # signs that name an exit: each is read on its own
-                named, read = self._named_exits(robots, positions)
+                named, read = self._named_exits(robots, positions, visible)
                 if self.view.gated:
                     read &= self.view.seen
                 if people is not None and len(people.walkers):
@@ -558,21 +559,23 @@ class AgentCrowd:
         if peak > self.peak_local_density:
             self.peak_local_density, self.peak_local_density_time = peak, t
 
-    def _named_exits(self, robots: RobotTeam, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _named_exits(self, robots: RobotTeam, positions: np.ndarray,
+                     visible: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
         """Signs that name an exit (:attr:`~meanfield.signs.robots.RobotTeam.shows`): who reads one, and the exit the
         one each reads names (``-1``: an arrow alone, or nobody's sign).
 
         A human reads the sign whose kernel is strongest among the robots it sees, where that kernel is at least
         :data:`~meanfield.signs.kernels.REACH_FRACTION` of its peak: a sign is read on its own, so two arrows that
-        point apart do not hide each other as they do in the field ``v_r`` they sum to.
+        point apart do not hide each other as they do in the field ``v_r`` they sum to.  ``visible``: the sight mask
+        the field was computed with, if any (computed here otherwise).
         """
         r = np.real(np.asarray(robots.positions, float)).reshape(-1, 2)
         strength = np.abs(self.kernel.magnitude(positions[None, :, 0] - r[:, None, 0],
                                                 positions[None, :, 1] - r[:, None, 1]))  # fmt: skip
-        if self.sight is not None:
-            seen = self.sight.mask(r, positions, self.kde.grid)
-            if seen is not None:
-                strength = np.where(seen, strength, 0.0)
+        if visible is None and self.sight is not None:
+            visible = self.sight.mask(r, positions, self.kde.grid)
+        if visible is not None:
+            strength = np.where(visible, strength, 0.0)
         strongest = np.argmax(strength, axis=0)
         read = strength[strongest, np.arange(len(positions))] >= self._reach_speed
         named = np.where(read, np.asarray(robots.shows, dtype=np.intp)[strongest], -1)

@@ -150,6 +150,29 @@ def kernel_jacobian_theta(kernel: NavigationKernel, xi_x: Any, xi_y: Any, theta:
 
 
 # ---------------------------------------------------------------------- interaction W
+def reached_cells(kernel: NavigationKernel, robots: np.ndarray, grid: Any, sight: Any = None) -> np.ndarray:
+    """Which cells each robot's sign reaches: ``(n, nx, ny)``, True in a cell of Ω whose centre the robot sees and
+    where its kernel is at least :data:`REACH_FRACTION` of its peak (the controllers' record of where signs have
+    been, docs page *Buildings*).
+
+    Parameters
+    ----------
+    kernel : NavigationKernel
+    robots : ndarray, shape (n, 2)
+    grid : Grid
+    sight : SightLines, optional
+        The walls that hide a cell from a robot (None: every cell is seen).
+    """
+    robots = np.real(np.asarray(robots, float)).reshape(-1, 2)
+    X, Y = grid.centers
+    peak = float(np.max(np.abs(kernel.magnitude(np.zeros(1), np.zeros(1)))))
+    reach = np.abs(kernel.magnitude(X[None] - robots[:, 0, None, None], Y[None] - robots[:, 1, None, None]))
+    reach = (reach >= REACH_FRACTION * peak) & grid.active
+    if sight is not None:
+        reach &= np.asarray(sight.cell_rows(grid, robots), bool).reshape(reach.shape)
+    return reach
+
+
 @runtime_checkable
 class InteractionPotential(Protocol):
     """Pairwise potential W between humans; the SDE drift is ``(1/N) Σ_k ∇W(X_k - X_j)``."""
