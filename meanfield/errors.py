@@ -31,6 +31,7 @@ __all__ = [
     "SimulationDiverged",
     "SigmaLike",
     "check_sigma",
+    "options_table",
     "positive_number",
     "limit_or_inf",
 ]
@@ -256,6 +257,50 @@ def choice(name: str, value: Any, options: tuple[str, ...]) -> str:
     if value not in options:
         raise ParameterError(name, value, "one of " + ", ".join(repr(o) for o in options))
     return value
+
+
+def options_table(name: str, options: Any, table: Any, none: str = "no options (this part takes none)") -> Any:
+    """A part's options from a scenario's table: ``options(**table)``, its keys and values checked.
+
+    Parameters
+    ----------
+    name : str
+        The table, as named in the error (``"controller.options.guide"``, ``"crowd.options.jupedsim"``).
+    options : type or None
+        The part's options, a dataclass that checks its own fields (naming ``<name>.<field>``); None: the part
+        takes none.
+    table : Any
+        The scenario's table (a mapping of field names to values).
+    none : str
+        What the error says a part that takes no options expects.
+
+    Returns
+    -------
+    Any
+        The options (``options()`` for an empty table); None when the part takes none.
+
+    Raises
+    ------
+    ParameterError
+        Naming ``name`` for a table that is not one, a key the part does not take (listing those it does), or any
+        key for a part that takes none.
+    """
+    import dataclasses
+
+    if not isinstance(table, dict):
+        raise ParameterError(name, table, "a table of options")
+    if options is None:
+        if table:
+            raise ParameterError(name, table, none)
+        return None
+    known = [f.name for f in dataclasses.fields(options)] if dataclasses.is_dataclass(options) else None
+    unknown = sorted(set(table) - set(known)) if known is not None else []
+    if unknown:
+        raise ParameterError(f"{name}.{unknown[0]}", table[unknown[0]], f"a key among {known}")
+    try:
+        return options(**table)
+    except TypeError:
+        raise ParameterError(name, table, f"keys among {known or 'its options'}") from None
 
 
 def point(name: str, value: Any) -> tuple[float, float]:

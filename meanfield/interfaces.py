@@ -311,7 +311,8 @@ class ControllerParts:
     dvd_dt : str
         How ``∂_t v_d`` is obtained.
     options : dict
-        ``controller.options`` of the scenario, for the controller to validate.
+        The scenario's table ``controller.options.<kind>`` for the controller's kind (checked by the kind's
+        declared options when the scenario was read; the factory reads it with the same dataclass).
     dt : float
         The control period.
     scales : (float, float) or None

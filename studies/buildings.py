@@ -16,14 +16,14 @@ For each built-in plan (``l-room``, ``office``, ``hall``, ``hall-crowded-west``)
 * the informed crowd (``crowd.guidance = "geodesic"``) and the uninformed crowd
   (``crowd.guidance = "random-walk"``), which have no use for robots;
 * coverage with either metric (``walking coverage n``, ``straight coverage n``: the option
-  ``controller.options.metric``), and with its signs turned to the nearest exits or to the exits
+  ``controller.options.coverage.metric``), and with its signs turned to the nearest exits or to the exits
   balanced by their capacities (``nearest coverage 8``, ``balanced coverage 8``: the option
-  ``controller.options.potential``, ``"distance"`` or ``"balanced"``);
+  ``controller.options.coverage.potential``, ``"distance"`` or ``"balanced"``);
 * coverage 8 and 16, static 8 and evacuation 8 with people who remember the way once a sign has
   reached them (the label's ending ``, people remember``: ``view.memory = "route"``, the nearest
   exit; ``, people remember the sign's exit``: ``"sign"``), and coverage whose robots go where no
-  sign has reached lately (``sweeping coverage n``: ``controller.options.weight = "unswept"``), its
-  robots walking to a centroid they do not see (``routed ...``: ``controller.options.metric = "routed"``);
+  sign has reached lately (``sweeping coverage n``: ``controller.options.coverage.weight = "unswept"``), its
+  robots walking to a centroid they do not see (``routed ...``: ``controller.options.coverage.metric = "routed"``);
 * the closed-exit variant of the informed crowd, static 8, coverage 8 and 16 and evacuation 8
   (the label's ending ``, exit 0 shut at 10 s``: ``[[events]]`` closes exit 0 at t = 10 s, the
   informed crowd re-plans), on the plans with two exits or more; its ratios are to the
@@ -64,7 +64,7 @@ SETTINGS = {  # label: overrides
     **{f"static {n}": {"robots.n": n, "controller.kind": "static-signs", "controller.options": {}} for n in (4, 8, 16)},
     **{f"coverage {n}": {"robots.n": n, "controller.kind": "coverage"} for n in (4, 8, 16)},
     **{
-        f"{m} coverage {n}": {"robots.n": n, "controller.kind": "coverage", "controller.options.metric": m}
+        f"{m} coverage {n}": {"robots.n": n, "controller.kind": "coverage", "controller.options.coverage.metric": m}
         for m in ("walking", "straight")
         for n in (8, 16)
     },
@@ -77,7 +77,9 @@ SETTINGS = {  # label: overrides
 }
 SETTINGS.update(
     {
-        f"{name} coverage 8": {"robots.n": 8, "controller.kind": "coverage", "controller.options.potential": p}
+        f"{name} coverage 8": {
+            "robots.n": 8, "controller.kind": "coverage", "controller.options.coverage.potential": p
+        }
         for name, p in (("nearest", "distance"), ("balanced", "balanced"))
     }
 )
@@ -91,7 +93,8 @@ SETTINGS.update(
 SETTINGS.update(
     {
         f"sweeping coverage {n}, people remember{what}": {
-            "robots.n": n, "controller.kind": "coverage", "controller.options.weight": "unswept", "view.memory": memory
+            "robots.n": n, "controller.kind": "coverage", "controller.options.coverage.weight": "unswept",
+            "view.memory": memory,
         }
         for n in (8, 16)
         for what, memory in (("", "route"), (" the sign's exit", "sign"))
@@ -99,11 +102,13 @@ SETTINGS.update(
 )
 SETTINGS.update(
     {
-        "routed coverage 8": {"robots.n": 8, "controller.kind": "coverage", "controller.options.metric": "routed"},
+        "routed coverage 8": {
+            "robots.n": 8, "controller.kind": "coverage", "controller.options.coverage.metric": "routed"
+        },
         **{
             f"routed sweeping coverage 8, people remember{what}": {
-                "robots.n": 8, "controller.kind": "coverage", "controller.options.metric": "routed",
-                "controller.options.weight": "unswept", "view.memory": memory,
+                "robots.n": 8, "controller.kind": "coverage", "controller.options.coverage.metric": "routed",
+                "controller.options.coverage.weight": "unswept", "view.memory": memory,
             }
             for what, memory in (("", "route"), (" the sign's exit", "sign"))
         },

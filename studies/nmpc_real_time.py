@@ -3,7 +3,7 @@
 Usage:  python studies/nmpc_real_time.py --seeds 0-2 --t-final 10 --out FILE.json \\
             --setting NAME 'KEY=VALUE;KEY=VALUE' [--setting ...]
 
-Each setting is a set of ``controller.options`` of the ``nmpc`` controller (e.g.
+Each setting is a set of ``controller.options.nmpc`` of the ``nmpc`` controller (e.g.
 ``'solver="ipopt"'`` or ``'max_iter=2;blocks=[1,1,3]'``; ``NAME`` labels it).  For every seed
 the settings run one after the other in this one process (one core: BLAS threads pinned to
 one), so their timings see the same machine load; per run the script records the outcome
@@ -53,7 +53,7 @@ def parse_seeds(text: str) -> list[int]:
 
 def one_run(seed: int, t_final: float, options: dict[str, Any]) -> dict[str, Any]:
     """A closed loop on ``paper`` (seed, t_final) with NMPC ``options``; outcome and ``act`` times."""
-    sets = {"controller.kind": "nmpc", **{f"controller.options.{k}": v for k, v in options.items()}}
+    sets = {"controller.kind": "nmpc", **{f"controller.options.nmpc.{k}": v for k, v in options.items()}}
     sc = paper_scenario(seed=seed).replace(t_final=t_final).with_values(sets)
     t0 = time.perf_counter()
     loop = ClosedLoop(sc)

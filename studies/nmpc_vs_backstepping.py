@@ -6,7 +6,7 @@ Usage:  python studies/nmpc_vs_backstepping.py [--seeds 0-4] [--set KEY=VALUE ..
 
 For every seed, runs the paper scenario twice — the paper's backstepping law and the NMPC
 baseline of :mod:`analysis.nmpc` (``controller.kind = "nmpc"``; ``--set`` applies to the
-NMPC run only, e.g. ``--set controller.options.horizon=3``) — in parallel processes, and
+NMPC run only, e.g. ``--set controller.options.nmpc.horizon=3``) — in parallel processes, and
 writes under ``--out``:
 
 * ``nmpc_comparison.json``: per run the summary figures (fraction_in_target, l2 ratio,
@@ -268,7 +268,7 @@ def _medians(rows: list[dict], kind: str) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="0-4")
-    ap.add_argument("--set", action="append", default=[], help="NMPC run only, e.g. controller.options.horizon=3")
+    ap.add_argument("--set", action="append", default=[], help="NMPC run only, e.g. controller.options.nmpc.horizon=3")
     ap.add_argument("--out", default="docs/figures", type=Path)
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--t-final", type=float, default=None, help="shorter runs (default: the scenario's 40)")

@@ -38,10 +38,9 @@ def test_parked_robots_come_from_the_toml_and_park_with_signs_on_the_target():
 
 def test_parked_robots_refuse_an_unknown_option():
     sc = load_scenario(EXAMPLES / "parked_robots.toml", allow_plugins=True)
-    sc = sc.with_values({"controller.options.k_speed": 1.0})
-    with pytest.raises(ParameterError) as exc:
-        ClosedLoop(sc)
-    assert exc.value.name == "controller.options" and "k_position" in str(exc.value)
+    with pytest.raises(ParameterError) as exc:  # refused as the scenario is read
+        sc.with_values({"controller.options.parked.k_speed": 1.0})
+    assert exc.value.name == "controller.options.parked.k_speed" and "k_position" in str(exc.value)
 
 
 def test_obedient_walkers_come_from_the_toml_and_walk_only_where_a_sign_is_strong():

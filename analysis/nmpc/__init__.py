@@ -3,7 +3,7 @@
 - :mod:`~analysis.nmpc.controller`: :class:`NMPCController`, the receding-horizon controller,
   and :func:`nmpc_controller_for`, its plugin factory (entry point ``nmpc`` of
   ``meanfield.controllers``);
-- :mod:`~analysis.nmpc.options`: :class:`NMPCOptions`, the ``[controller.options]`` table, and
+- :mod:`~analysis.nmpc.options`: :class:`NMPCOptions`, the ``[controller.options.nmpc]`` table, and
   the allowed values :data:`FLUXES`, :data:`HESSIANS`, :data:`SOLVERS`;
 - :mod:`~analysis.nmpc.prediction_model`: :class:`CoarseFokkerPlanck`, the coarse Fokker–Planck
   model the controller predicts with;

@@ -65,7 +65,7 @@ class CondensedProblem:
     def __init__(self, model: CoarseFokkerPlanck, blocks: tuple[int, ...], r_u: float, r_omega: float, terminal: float):
         blocks = tuple(int(b) for b in blocks)
         if not blocks or min(blocks) < 1:
-            raise ParameterError("controller.options.blocks", blocks, "positive integers")
+            raise ParameterError("controller.options.nmpc.blocks", blocks, "positive integers")
         self.model, self.blocks = model, blocks
         self.B, self.H, self.n = len(blocks), sum(blocks), model.n_robots
         self.beta = np.repeat(np.arange(self.B), blocks)

@@ -455,14 +455,14 @@ class NMPCController:
 def nmpc_controller_for(parts: ControllerParts) -> NMPCController:
     """Plugin factory (entry point ``nmpc`` of ``meanfield.controllers``): an NMPC from the loop's parts.
 
-    The options come from ``parts.options`` (``controller.options`` of the scenario; see
+    The options come from ``parts.options`` (``controller.options.nmpc`` of the scenario; see
     :class:`NMPCOptions`); the backstepping law it reports beside its plan is built from the
     same parts (:meth:`~meanfield.controllers.backstepping.BacksteppingController.from_parts`).
 
     Raises
     ------
     ParameterError
-        For a bad option (naming ``controller.options.<key>``), a non-box domain, a
+        For a bad option (naming ``controller.options.nmpc.<key>``), a non-box domain, a
         non-Gaussian kernel, a non-constant σ or an interaction potential (not in the model).
     """
     options = NMPCOptions.from_mapping(parts.options)
@@ -481,3 +481,6 @@ def nmpc_controller_for(parts: ControllerParts) -> NMPCController:
         options,
         region=parts.robot_region.bounds,
     )
+
+
+nmpc_controller_for.options = NMPCOptions  # type: ignore[attr-defined]  # what the core reads (plugins.declared)

@@ -1,8 +1,8 @@
-"""Options of the NMPC baseline: the ``[controller.options]`` table of the ``nmpc`` controller.
+"""Options of the NMPC baseline: the ``[controller.options.nmpc]`` table of the ``nmpc`` controller.
 
 :class:`NMPCOptions` parses and validates the options of
 :class:`~analysis.nmpc.controller.NMPCController` (docs/nmpc.md, "Options"); a bad key or value
-raises :class:`~meanfield.errors.ParameterError` naming ``controller.options.<key>``.
+raises :class:`~meanfield.errors.ParameterError` naming ``controller.options.nmpc.<key>``.
 :data:`FLUXES`, :data:`HESSIANS` and :data:`SOLVERS` are the allowed values of ``flux`` (the
 advective fluxes of :class:`~analysis.nmpc.prediction_model.CoarseFokkerPlanck`), ``hessian`` and ``solver``.
 Everything here is re-exported by :mod:`analysis.nmpc`.
@@ -36,8 +36,8 @@ DEFAULT_ITERATIONS = {"sqp": 3, "ipopt": 50}
 
 
 def _opt_name(key: str) -> str:
-    """The name of option ``key`` in error messages: ``controller.options.<key>``."""
-    return f"controller.options.{key}"
+    """The name of option ``key`` in error messages: ``controller.options.nmpc.<key>``."""
+    return f"controller.options.nmpc.{key}"
 
 
 def _int_option(key: str, value: Any, lo: int) -> int:
@@ -67,7 +67,7 @@ def _float_option(key: str, value: Any, *, positive: bool) -> float:
 
 @dataclass(frozen=True)
 class NMPCOptions:
-    """Options of :class:`~analysis.nmpc.controller.NMPCController` (``[controller.options]`` of a scenario).
+    """Options of :class:`~analysis.nmpc.controller.NMPCController` (``[controller.options.nmpc]`` of a scenario).
 
     Parameters
     ----------
@@ -190,17 +190,17 @@ class NMPCOptions:
 
     @classmethod
     def from_mapping(cls, options: Mapping[str, Any] | None) -> NMPCOptions:
-        """Options from a scenario's ``controller.options`` table.
+        """Options from a scenario's ``controller.options.nmpc`` table.
 
         Raises
         ------
         ParameterError
-            Naming ``controller.options.<key>`` for an unknown key or a bad value.
+            Naming ``controller.options.nmpc.<key>`` for an unknown key or a bad value.
         """
         if options is None:
             return cls()
         if not isinstance(options, Mapping):
-            raise ParameterError("controller.options", options, "a table of NMPC options")
+            raise ParameterError("controller.options.nmpc", options, "a table of NMPC options")
         known = [f.name for f in dataclasses.fields(cls)]
         for key in options:
             if key not in known:

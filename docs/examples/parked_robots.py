@@ -12,7 +12,9 @@ selects it by name once the module is imported, e.g. from TOML::
     plugins = ["parked_robots.py"]     # relative to the TOML file
     [controller]
     kind = "parked"
-    options = { k_position = 1.0, k_heading = 2.0 }
+    [controller.options.parked]
+    k_position = 1.0
+    k_heading = 2.0
 
 read with ``meanfield run FILE.toml --allow-plugins`` or ``load_scenario(path, allow_plugins=True)``
 (a scenario file imports no module unless the user allows it).
@@ -24,13 +26,27 @@ Run the comparison with the paper's law (a few seconds)::
 
 from __future__ import annotations
 
-import math
 import sys
+from dataclasses import dataclass
 
 import numpy as np
 
-from meanfield import ParameterError, plugins
+from meanfield import plugins
+from meanfield.errors import num, options_table
 from meanfield.interfaces import Command, ControllerParts, Observation
+
+
+@dataclass
+class ParkedOptions:
+    """``[controller.options.parked]``: the gains of the drive to the station and of the turn, 1/s, > 0 (checked
+    when the scenario is read, naming ``controller.options.parked.<field>``)."""
+
+    k_position: float = 1.0
+    k_heading: float = 2.0
+
+    def __post_init__(self) -> None:
+        for name in ("k_position", "k_heading"):
+            setattr(self, name, num(f"controller.options.parked.{name}", getattr(self, name), lo=0.0, lo_open=True))
 
 
 class ParkedRobots:
@@ -48,12 +64,10 @@ class ParkedRobots:
         Gain of the turn, 1/s: ``ω_i = k_heading · wrap(bearing_i − θ_i)``.
     """
 
-    OPTIONS = ("k_position", "k_heading")
+    options = ParkedOptions
+    """What a scenario may set (the core reads it, and checks the table when the scenario is read)."""
 
     def __init__(self, stations: np.ndarray, aim: tuple[float, float], k_position: float = 1.0, k_heading: float = 2.0):
-        for name, k in (("k_position", k_position), ("k_heading", k_heading)):
-            if not (isinstance(k, (int, float)) and math.isfinite(k) and k > 0):
-                raise ParameterError(f"controller.options.{name}", k, "a finite number > 0 (1/s)")
         self.stations = np.asarray(stations, float)
         self.aim = np.asarray(aim, float)
         self.k_position = float(k_position)
@@ -62,11 +76,9 @@ class ParkedRobots:
     @classmethod
     def from_parts(cls, parts: ControllerParts) -> ParkedRobots:
         """The registry's factory: stations on the robots' region, aim at the target's centre."""
-        unknown = sorted(set(parts.options) - set(cls.OPTIONS))
-        if unknown:
-            raise ParameterError("controller.options", unknown, f"options among {list(cls.OPTIONS)}")
+        o = options_table("controller.options.parked", ParkedOptions, dict(parts.options))
         stations = parts.robot_region.lattice(parts.robots.n)
-        return cls(stations, parts.target_center, **parts.options)
+        return cls(stations, parts.target_center, k_position=o.k_position, k_heading=o.k_heading)
 
     def bearings(self, positions: np.ndarray) -> np.ndarray:
         """The direction from each robot to the aim point (rad)."""

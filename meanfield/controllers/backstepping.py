@@ -461,6 +461,10 @@ class BacksteppingController:
             why=f"(h = {h:.3g}, α₀ = {alpha:g}): where the robots realise v_d, the held feedback overshoots",
         )
 
+    options: Any = None
+    """What a scenario may set under ``[controller.options.backstepping]``: nothing (the core reads it:
+    ``plugins.declared``); a law that takes options declares their dataclass here."""
+
     @classmethod
     def from_parts(cls, parts: ControllerParts) -> BacksteppingController:
         """Registry factory (kind ``controller``, name ``backstepping``): the paper's law from parts.
@@ -475,7 +479,7 @@ class BacksteppingController:
         """
         if parts.options:
             raise ParameterError(
-                "controller.options",
+                "controller.options.backstepping",
                 sorted(parts.options),
                 "no options: the backstepping law's gains are fields of [controller] (alpha, k_u, k_omega, ...)",
             )

@@ -63,22 +63,23 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from meanfield.controllers._coverage_loops import owners as nearest_owners
-from meanfield.errors import ParameterError
+from meanfield.controllers.evacuation import EvacuationOptions
+from meanfield.errors import ParameterError, choice, num, options_table
 from meanfield.interfaces import Command, ControllerParts, ControlState, Observation
 
-__all__ = ["CoverageController", "METRICS", "WEIGHTS", "V_D"]
+__all__ = ["CoverageController", "CoverageOptions", "METRICS", "WEIGHTS", "V_D"]
 
 WEIGHTS = ("tracking-error", "density", "excess", "unswept")
 """The coverage weights: ``ρ|ṽ|``, ``ρ``, ``max(ρ − ρ_*, 0)``, or ``ρ|ṽ|`` where no sign has reached lately."""
 REVISIT_AFTER = 20.0
-"""Default ``controller.options.revisit_after`` (s in SI): the ``unswept`` weight counts a cell again this long after a
-sign last reached it (measured on the office with people who remember the way, 4 seeds: RSET 33.6, 28.7, 28.0, 37.2 s
-at 20 s; 44.0, 35.7, 28.0, 49.2 at 10 s; 67.9, 28.7, 28.0, 59.4 never)."""
+"""Default ``controller.options.coverage.revisit_after`` (s in SI): the ``unswept`` weight counts a cell again this long
+after a sign last reached it (measured on the office with people who remember the way, 4 seeds: RSET 33.6, 28.7,
+28.0, 37.2 s at 20 s; 44.0, 35.7, 28.0, 49.2 at 10 s; 67.9, 28.7, 28.0, 59.4 never)."""
 METRICS = ("straight", "routed", "walking")
 """Coverage's metrics: straight lines (``straight``, the default), straight cells reached by walking (``routed``), or
 walking round walls (``walking``)."""
@@ -88,6 +89,50 @@ seed's fraction in target was 0.845, 0.93, 0.94, 0.935 for 1, 2, 3, 5 times)."""
 V_D = ("auto", "safe-zone", "exits")
 """Which Step I the headings track: the exits' when the region has exits (``auto``)."""
 _NOTHING_HIDDEN = np.ones((0, 0), dtype=bool)
+
+
+@dataclasses.dataclass
+class CoverageOptions(EvacuationOptions):
+    """``[controller.options.coverage]``: the coverage's own options, and those of the evacuation law it runs when
+    its headings track the exits (:class:`~meanfield.controllers.evacuation.EvacuationOptions`: ``potential``,
+    ``specific_flow``, ``rebalance_period``; the deprecated ``v_free`` and ``rho_max``).
+
+    Parameters
+    ----------
+    k_position : float
+        Gain of the drive to the centroid, 1/s, > 0.
+    k_heading : float, optional
+        Gain of the heading feedback, > 0 (default: :data:`HEADING_GAIN_FACTOR` × ``controller.k_omega``).
+    weight : {"tracking-error", "density", "excess", "unswept"}
+        The coverage weight (:data:`WEIGHTS`).
+    revisit_after : float
+        With ``weight = "unswept"``: how long after a sign last reached a cell it weighs again, > 0 (s in SI).
+    metric : {"straight", "routed", "walking"}
+        The distance of the coverage (:data:`METRICS`).
+    v_d : {"auto", "safe-zone", "exits"}
+        Which Step I the headings track (:data:`V_D`).
+    """
+
+    KIND: ClassVar[str] = "coverage"
+
+    k_position: float = 1.0
+    k_heading: float | None = None
+    weight: str = "tracking-error"
+    revisit_after: float = REVISIT_AFTER
+    metric: str = "straight"
+    v_d: str = "auto"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        name = f"controller.options.{self.KIND}."
+        self.k_position = num(name + "k_position", self.k_position, lo=0.0, lo_open=True)
+        if self.k_heading is not None:
+            self.k_heading = num(name + "k_heading", self.k_heading, lo=0.0, lo_open=True)
+        self.weight = choice(name + "weight", self.weight, WEIGHTS)
+        self.revisit_after = num(name + "revisit_after", self.revisit_after, lo=0.0, lo_open=True,
+                                 allowed="a time > 0 (s in SI)")  # fmt: skip
+        self.metric = choice(name + "metric", self.metric, METRICS)
+        self.v_d = choice(name + "v_d", self.v_d, V_D)
 
 
 def walk_towards(walking: Any, robots: np.ndarray, owner: np.ndarray, centroid: np.ndarray,
@@ -129,8 +174,8 @@ class CoverageController:
         With ``weight = "unswept"``: how long after a sign last reached a cell it weighs again, > 0 (s in SI).
     """
 
-    OPTIONS = ("k_position", "k_heading", "weight", "revisit_after", "metric", "v_d", "potential", "v_free", "rho_max",
-               "specific_flow", "rebalance_period")
+    options = CoverageOptions
+    """What a scenario may set, ``[controller.options.coverage]`` (the core reads it: ``plugins.declared``)."""
 
     def __init__(
         self,
@@ -145,15 +190,15 @@ class CoverageController:
     ):
         for name, k in (("k_position", k_position), ("k_heading", k_heading)):
             if not (isinstance(k, (int, float)) and math.isfinite(k) and k > 0):
-                raise ParameterError(f"controller.options.{name}", k, "a finite number > 0")
+                raise ParameterError(f"controller.options.coverage.{name}", k, "a finite number > 0")
         if weight not in WEIGHTS:
-            raise ParameterError("controller.options.weight", weight, " or ".join(map(repr, WEIGHTS)))
+            raise ParameterError("controller.options.coverage.weight", weight, " or ".join(map(repr, WEIGHTS)))
         if not (isinstance(revisit_after, (int, float)) and not isinstance(revisit_after, bool) and revisit_after > 0):
-            raise ParameterError("controller.options.revisit_after", revisit_after, "a time > 0 (s in SI)")
+            raise ParameterError("controller.options.coverage.revisit_after", revisit_after, "a time > 0 (s in SI)")
         self.revisit_after = float(revisit_after)
         self.last_reached: np.ndarray | None = None  # with "unswept": when a sign last reached each cell
         if metric not in METRICS:
-            raise ParameterError("controller.options.metric", metric, " or ".join(map(repr, METRICS)))
+            raise ParameterError("controller.options.coverage.metric", metric, " or ".join(map(repr, METRICS)))
         self.law = law
         self.metric = metric
         self._cover(grid, sight)
@@ -195,29 +240,23 @@ class CoverageController:
 
     @classmethod
     def from_parts(cls, parts: ControllerParts) -> CoverageController:
-        """Registry factory (kind ``controller``, name ``coverage``); options as in :attr:`OPTIONS`."""
+        """Registry factory (kind ``controller``, name ``coverage``): the options of :class:`CoverageOptions`
+        (``parts.options``, refused naming ``controller.options.coverage.<field>``)."""
         from meanfield.controllers.backstepping import BacksteppingController
         from meanfield.controllers.evacuation import EvacuationController
         from meanfield.geometry.exits import exit_segments
         from meanfield.geometry.sight import SightLines
 
-        opts = dict(parts.options)
-        unknown = sorted(set(opts) - set(cls.OPTIONS))
-        if unknown:
-            raise ParameterError("controller.options", unknown, f"options among {list(cls.OPTIONS)}")
-        v_d = opts.pop("v_d", "auto")
-        if v_d not in V_D:
-            raise ParameterError("controller.options.v_d", v_d, " or ".join(map(repr, V_D)))
-        passed = ("potential", "v_free", "rho_max", "specific_flow", "rebalance_period")  # the law's options
-        law_options = {k: opts.pop(k) for k in passed if k in opts}
+        o = options_table("controller.options.coverage", CoverageOptions, dict(parts.options))
         exits = len(exit_segments(parts.region)) > 0
-        if v_d == "exits" or (v_d == "auto" and exits):
-            law = EvacuationController.from_parts(dataclasses.replace(parts, options=law_options))
+        if o.v_d == "exits" or (o.v_d == "auto" and exits):
+            law = EvacuationController.with_options(parts, o)
         else:
             law = BacksteppingController.from_parts(dataclasses.replace(parts, options={}))
-        opts.setdefault("k_heading", HEADING_GAIN_FACTOR * float(np.max(parts.k_omega)))
+        k_heading = o.k_heading if o.k_heading is not None else HEADING_GAIN_FACTOR * float(np.max(parts.k_omega))
         sight = parts.sight if parts.sight is not None else SightLines(parts.region)
-        return cls(law, parts.grid, sight, **opts)
+        return cls(law, parts.grid, sight, k_position=o.k_position, k_heading=k_heading, weight=o.weight,
+                   metric=o.metric, revisit_after=o.revisit_after)  # fmt: skip
 
     # ------------------------------------------------------------------ positions
     def owners(self, robots: np.ndarray) -> np.ndarray:

@@ -1,6 +1,7 @@
 """Step I towards the exits: Hughes' desired field and the controller that tracks it (docs page *Buildings*).
 
-* ``φ``, the potential that leads to the exits, one of ``controller.options.potential``:
+* ``φ``, the potential that leads to the exits, one of ``controller.options.evacuation.potential``
+  (:class:`EvacuationOptions`):
 
   - ``"distance"`` (the default): the geodesic distance to the nearest exit inside Ω, the
     eikonal solution ``|∇φ| = 1`` by fast marching
@@ -19,8 +20,8 @@
 
 * :class:`EvacuationController` — the paper's Step II (eq. (8)) tracking the desired field
   of Hughes' model instead of the paper's Step I.  With the walking speed
-  ``f(ρ) = v_free (1 − ρ/ρ_max)`` (0 beyond ``ρ_max``; ``ρ`` the toolkit's unit-mass density,
-  as the option ``rho_max`` says):
+  ``f(ρ) = v_free (1 − ρ/ρ_max)`` (0 beyond ``ρ_max``; ``ρ`` the toolkit's unit-mass density;
+  ``v_free`` the crowd's ``crowd.free_speed``, ``ρ_max`` the option ``rho_max``, ``inf`` by default):
 
   - ``"distance"`` and ``"balanced"``: ``v_d = −f(ρ) ∇φ − u_W[ρ]``, ``|∇φ| = 1`` (the balanced ``φ`` is
     constant between two solutions, and ``∂_t v_d`` below is the distance's between them);
@@ -66,30 +67,95 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from meanfield.controllers._law_loops import HUGHES_STEP_ONE
 from meanfield.controllers.backstepping import BacksteppingController, _Prepared
 from meanfield.controllers.exit_assignment import ExitAssignment
-from meanfield.errors import ParameterError
+from meanfield.errors import ParameterError, choice, num, options_table
 from meanfield.geometry.geodesic import ExitEikonal, exit_distance
 from meanfield.geometry.grid import FaceField
 from meanfield.interfaces import ControllerParts
 
-__all__ = ["exit_distance", "EvacuationController", "POTENTIALS", "REBALANCE_PERIOD", "SPEED_FLOOR", "RATE_STEP"]
+__all__ = [
+    "exit_distance",
+    "EvacuationController",
+    "EvacuationOptions",
+    "POTENTIALS",
+    "REBALANCE_PERIOD",
+    "SPEED_FLOOR",
+    "RATE_STEP",
+]
 
 POTENTIALS = ("distance", "hughes", "balanced")
-"""``controller.options.potential``: the static distance to the exits, Hughes' travel time at the density, or the
-distance to the exits balanced by their capacities (:mod:`meanfield.controllers.exit_assignment`)."""
+"""``controller.options.evacuation.potential``: the static distance to the exits, Hughes' travel time at the density,
+or the distance to the exits balanced by their capacities (:mod:`meanfield.controllers.exit_assignment`)."""
 REBALANCE_PERIOD = 1.0
-"""Default ``controller.options.rebalance_period``: the balanced potential is solved again this often (s in SI)."""
+"""Default ``controller.options.evacuation.rebalance_period``: the balanced potential is solved again this often (s in
+SI)."""
 SPEED_FLOOR = 0.05
 """``f_min / v_free``: the floor of the walking speed in Hughes' eikonal equation (module docstring)."""
 RATE_STEP = 1e-6
 """The step of the forward difference ``φ̇ = (φ(ρ + s ρ̇) − φ(ρ))/s``: ``s max|ρ̇| = RATE_STEP · ρ_max`` (module
 docstring)."""
+
+
+@dataclass
+class EvacuationOptions:
+    """``[controller.options.evacuation]``: what a scenario may set of the evacuation law (module docstring).
+
+    Parameters
+    ----------
+    potential : {"distance", "hughes", "balanced"}
+        ``φ``, the potential that leads to the exits (:data:`POTENTIALS`).
+    specific_flow : float, optional
+        With ``"balanced"``: each exit's flow per metre of its width, persons/(m·s) (default:
+        :data:`~meanfield.controllers.exit_assignment.SPECIFIC_FLOW`).
+    rebalance_period : float
+        With ``"balanced"``: how often the exits' shares are solved again, > 0 (s in SI).
+    rho_max : float
+        ``ρ_max`` of the law's walking speed ``f(ρ)`` (module docstring), in the unit-mass density's units (the
+        crowd's jam density over ``crowd.n``), > 0; ``inf`` (the default): ``f = v_free``, the law asks for the free
+        speed everywhere and the crowd's own diagram slows it.  Measured (docs page *Buildings*, "The evacuation
+        law's jam density"): the crowd's jam density here made the coverage slower.
+    v_free : float, optional
+        Deprecated (removed in 0.3.0): the law walks at the crowd's ``crowd.free_speed``.  Given here, with a
+        warning, as before.
+    """
+
+    KIND: ClassVar[str] = "evacuation"
+    """The controller whose table these are (the errors name ``controller.options.<KIND>.<field>``)."""
+
+    potential: str = "distance"
+    specific_flow: float | None = None
+    rebalance_period: float = REBALANCE_PERIOD
+    rho_max: float = math.inf
+    v_free: float | None = None
+
+    def __post_init__(self) -> None:
+        name = f"controller.options.{self.KIND}."
+        self.potential = choice(name + "potential", self.potential, POTENTIALS)
+        if self.specific_flow is not None:
+            self.specific_flow = num(name + "specific_flow", self.specific_flow, lo=0.0, lo_open=True,
+                                     allowed="a flow > 0, persons/(m·s)")  # fmt: skip
+        self.rebalance_period = num(name + "rebalance_period", self.rebalance_period, lo=0.0, lo_open=True)
+        if self.v_free is not None:
+            self.v_free = num(name + "v_free", self.v_free, lo=0.0, lo_open=True)
+            _deprecated_option(name + "v_free", "crowd.free_speed")
+        if self.rho_max != math.inf:
+            self.rho_max = num(name + "rho_max", self.rho_max, lo=0.0, lo_open=True,
+                               allowed="a density > 0 (unit mass), or inf for no congestion in the law")  # fmt: skip
+
+
+def _deprecated_option(name: str, instead: str) -> None:
+    import warnings
+
+    from meanfield.errors import MeanfieldDeprecationWarning
+
+    warnings.warn(f"{name} is deprecated and removed in 0.3.0: the controller takes the crowd's {instead}",
+                  MeanfieldDeprecationWarning, stacklevel=4)  # fmt: skip
 
 
 @dataclass
@@ -154,11 +220,13 @@ class EvacuationController(BacksteppingController):
     ):
         super().__init__(*args, **kwargs)
         if not (math.isfinite(v_free) and v_free > 0):
-            raise ParameterError("controller.options.v_free", v_free, "a walking speed > 0")
+            raise ParameterError("controller.options.evacuation.v_free", v_free, "a walking speed > 0")
         if not rho_max > 0:
-            raise ParameterError("controller.options.rho_max", rho_max, "a density > 0, or inf for no congestion")
+            raise ParameterError("controller.options.evacuation.rho_max", rho_max,
+                                 "a density > 0, or inf for no congestion")  # fmt: skip
         if potential not in POTENTIALS:
-            raise ParameterError("controller.options.potential", potential, " or ".join(map(repr, POTENTIALS)))
+            raise ParameterError("controller.options.evacuation.potential", potential,
+                                 " or ".join(map(repr, POTENTIALS)))  # fmt: skip
         if not 0 < speed_floor <= 1:
             raise ParameterError("speed_floor", speed_floor, "a share of v_free in (0, 1]")
         if potential == "hughes" and eikonal is None:
@@ -166,7 +234,7 @@ class EvacuationController(BacksteppingController):
         if potential == "balanced" and assignment is None:
             raise ParameterError("assignment", None, "the exits' ExitAssignment, for the balanced potential")
         if not (math.isfinite(rebalance_period) and rebalance_period > 0):
-            raise ParameterError("controller.options.rebalance_period", rebalance_period, "a period > 0")
+            raise ParameterError("controller.options.evacuation.rebalance_period", rebalance_period, "a period > 0")
         self.assignment = assignment if potential == "balanced" else None
         self.rebalance_period = float(rebalance_period)
         self._next_balance = -math.inf
@@ -176,36 +244,33 @@ class EvacuationController(BacksteppingController):
         self._open: np.ndarray | None = None  # the exits open, by exits_closed (None: all)
         self.grad_phi = self._face_gradient(phi)
 
+    options = EvacuationOptions
+    """What a scenario may set, ``[controller.options.evacuation]`` (the core reads it: ``plugins.declared``)."""
+
     @classmethod
     def from_parts(cls, parts: ControllerParts) -> EvacuationController:
-        """Registry factory (kind ``controller``, name ``evacuation``): options ``v_free`` (default: the crowd's
-        ``crowd.free_speed``), ``rho_max``, ``potential`` (refused, naming ``controller.options.potential``, unless one
-        of :data:`POTENTIALS`)."""
+        """Registry factory (kind ``controller``, name ``evacuation``): the options of :class:`EvacuationOptions`
+        (``parts.options``, refused naming ``controller.options.evacuation.<field>``)."""
+        return cls.with_options(parts, options_table("controller.options.evacuation", EvacuationOptions,
+                                                     dict(parts.options)))  # fmt: skip
+
+    @classmethod
+    def with_options(cls, parts: ControllerParts, options: EvacuationOptions) -> EvacuationController:
+        """The law on ``parts`` with ``options`` (those of another controller's table, for one that runs it): the
+        walking speed ``v_free`` is the crowd's (``parts.free_speed``, 1.34 m/s for parts built by hand) unless the
+        deprecated option gives it."""
         from meanfield.geometry.exits import exit_segments
 
-        allowed = {"v_free", "rho_max", "potential", "specific_flow", "rebalance_period"}
-        unknown = sorted(set(parts.options) - allowed)
-        if unknown:
-            raise ParameterError("controller.options", unknown, f"options among {sorted(allowed)}")
-        opts: dict[str, Any] = {}
-        for k, v in parts.options.items():
-            if k == "potential":
-                continue
-            if isinstance(v, bool) or not isinstance(v, (int, float)):
-                raise ParameterError(f"controller.options.{k}", v, "a number")
-            opts[k] = float(v)
-        potential = parts.options.get("potential", "distance")
-        if potential not in POTENTIALS:
-            raise ParameterError("controller.options.potential", potential, " or ".join(map(repr, POTENTIALS)))
-        flow = opts.pop("specific_flow", None)
-        if "v_free" not in opts and parts.free_speed is not None:  # the crowd's own free speed (crowd.free_speed)
-            opts["v_free"] = float(parts.free_speed)
+        o = options
+        v_free = o.v_free if o.v_free is not None else 1.34 if parts.free_speed is None else float(parts.free_speed)
         segs = exit_segments(parts.region)
         eikonal = ExitEikonal(parts.grid, segs, parts.sight)
-        if potential == "balanced":
-            opts["assignment"] = cls.balance(parts, segs, eikonal, opts.get("v_free", 1.34), flow)
-        return cls(*cls.law_arguments(parts), phi=eikonal.distance, scales=parts.scales, potential=potential,
-                   eikonal=eikonal, **opts)  # fmt: skip
+        extra: dict[str, Any] = {}
+        if o.potential == "balanced":
+            extra["assignment"] = cls.balance(parts, segs, eikonal, v_free, o.specific_flow)
+        return cls(*cls.law_arguments(parts), phi=eikonal.distance, scales=parts.scales, potential=o.potential,
+                   eikonal=eikonal, v_free=v_free, rho_max=o.rho_max, rebalance_period=o.rebalance_period,
+                   **extra)  # fmt: skip
 
     @staticmethod
     def balance(parts: ControllerParts, segs: np.ndarray, eikonal: ExitEikonal, v_free: float,

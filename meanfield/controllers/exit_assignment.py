@@ -2,7 +2,7 @@
 
 The informed crowd takes its nearest exit and queues there while another stands idle.  This
 module assigns the observed crowd to the exits by their capacities, and gives the potential
-whose field sends each part to its exit (``controller.options.potential = "balanced"`` of
+whose field sends each part to its exit (``controller.options.evacuation.potential = "balanced"`` of
 :mod:`meanfield.controllers.evacuation`).
 
 **The model** (a fluid crowd and a point queue at each exit).  People in cell ``c`` reach
@@ -118,7 +118,7 @@ class ExitAssignment:
     def __init__(self, distances: np.ndarray, widths: np.ndarray, volume: np.ndarray, people: int,
                  v_free: float, specific_flow: float = SPECIFIC_FLOW, min_gain: float = MIN_GAIN):  # fmt: skip
         if not (isinstance(specific_flow, (int, float)) and math.isfinite(specific_flow) and specific_flow > 0):
-            raise ParameterError("controller.options.specific_flow", specific_flow, "a flow > 0, persons/(m·s)")
+            raise ParameterError("specific_flow", specific_flow, "a flow > 0, persons/(m·s)")
         self.capacity = np.asarray(widths, float) * float(specific_flow)
         if not 0.0 <= min_gain < 1.0:
             raise ParameterError("min_gain", min_gain, "a share of the makespan in [0, 1)")

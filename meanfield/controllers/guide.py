@@ -34,16 +34,17 @@ guide is judged against the informed crowd, on every plan (``studies/guide.py``)
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from meanfield.controllers._coverage_loops import owners as nearest_owners
 from meanfield.controllers.coverage import _NOTHING_HIDDEN, walk_towards
-from meanfield.errors import ParameterError
+from meanfield.errors import ParameterError, num, options_table
 from meanfield.interfaces import Command, ControllerParts, Observation
 
-__all__ = ["GuideController", "allocate"]
+__all__ = ["GuideController", "GuideOptions", "allocate"]
 
 REVISIT_AFTER = 20.0
 """Default ``revisit_after`` (s): a cell weighs again this long after a sign last reached it."""
@@ -94,6 +95,34 @@ def allocate(weights: np.ndarray, robots: int) -> np.ndarray:
     return out
 
 
+@dataclass
+class GuideOptions:
+    """``[controller.options.guide]``: what a scenario may set of the guide.
+
+    Parameters
+    ----------
+    revisit_after : float
+        How long after a sign last reached a cell it weighs again, s, > 0.
+    rebalance_period : float
+        How often the shares and the team are solved again, s, > 0.
+    specific_flow : float, optional
+        Each exit's flow per metre of its width, persons/(m·s), > 0 (default:
+        :data:`~meanfield.controllers.exit_assignment.SPECIFIC_FLOW`).
+    """
+
+    revisit_after: float = REVISIT_AFTER
+    rebalance_period: float = REBALANCE_PERIOD
+    specific_flow: float | None = None
+
+    def __post_init__(self) -> None:
+        name = "controller.options.guide."
+        self.revisit_after = num(name + "revisit_after", self.revisit_after, lo=0.0, lo_open=True)
+        self.rebalance_period = num(name + "rebalance_period", self.rebalance_period, lo=0.0, lo_open=True)
+        if self.specific_flow is not None:
+            self.specific_flow = num(name + "specific_flow", self.specific_flow, lo=0.0, lo_open=True,
+                                     allowed="a flow > 0, persons/(m·s)")  # fmt: skip
+
+
 class GuideController:
     """Each robot guides one exit's share of the crowd (module docstring).
 
@@ -117,10 +146,10 @@ class GuideController:
         How often the shares and the team are solved again, s, > 0.
     """
 
-    OPTIONS = ("revisit_after", "rebalance_period", "specific_flow")
-    """``controller.options`` a scenario may set: when a reached cell weighs again, how often the shares are solved,
-    and the exits' specific flow (persons/(m·s)).  The gains are the constructor's: the drive saturates at the
-    robots' ``u_max`` beyond ``u_max / k_position`` metres, and no study has found a setting of them that wins."""
+    options = GuideOptions
+    """What a scenario may set, ``[controller.options.guide]``: :class:`GuideOptions` (the core reads it:
+    ``plugins.declared``).  The gains are the constructor's: the drive saturates at the robots' ``u_max`` beyond
+    ``u_max / k_position`` metres, and no study has found a setting of them that wins."""
 
     accepts_sensing = False
     changes_walls = True
@@ -132,7 +161,7 @@ class GuideController:
         for name, k in (("k_position", k_position), ("k_heading", k_heading), ("revisit_after", revisit_after),
                         ("rebalance_period", rebalance_period)):  # fmt: skip
             if isinstance(k, bool) or not isinstance(k, (int, float)) or not (math.isfinite(k) and k > 0):
-                raise ParameterError(f"controller.options.{name}", k, "a finite number > 0")
+                raise ParameterError(f"controller.options.guide.{name}", k, "a finite number > 0")
         self.assignment = assignment
         self.routes = routes
         self.k_position = float(k_position)
@@ -151,19 +180,16 @@ class GuideController:
         from meanfield.geometry.geodesic import AssignedRoutes, ExitEikonal
         from meanfield.geometry.sight import SightLines
 
-        opts = dict(parts.options)
-        unknown = sorted(set(opts) - set(cls.OPTIONS))
-        if unknown:
-            raise ParameterError("controller.options", unknown, f"options among {list(cls.OPTIONS)}")
+        o = options_table("controller.options.guide", GuideOptions, dict(parts.options))
         segs = exit_segments(parts.region)
         if not len(segs):
             raise ParameterError("controller.kind", "guide", "a plan with exits (domain.exits): it guides to them")
-        flow = opts.pop("specific_flow", None)
         sight = parts.sight if parts.sight is not None else SightLines(parts.region)
         v_free = 1.34 if parts.free_speed is None else float(parts.free_speed)
         eikonal = ExitEikonal(parts.grid, segs, sight)
-        assignment = EvacuationController.balance(parts, segs, eikonal, v_free, flow, MIN_GAIN)
-        return cls(parts.grid, sight, assignment, AssignedRoutes(parts.grid, segs, sight), **opts)
+        assignment = EvacuationController.balance(parts, segs, eikonal, v_free, o.specific_flow, MIN_GAIN)
+        return cls(parts.grid, sight, assignment, AssignedRoutes(parts.grid, segs, sight),
+                   revisit_after=o.revisit_after, rebalance_period=o.rebalance_period)  # fmt: skip
 
     def _cover(self, grid: Any, sight: Any) -> None:
         """The cells to cover on ``grid``, the walls that hide them and the walking distances between them."""

@@ -13,13 +13,28 @@ room without exits, towards the target's centre.  It is what a building does wit
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-from meanfield.errors import ParameterError
+from meanfield.errors import ParameterError, num, options_table
 from meanfield.interfaces import Command, ControllerParts, Observation
 
-__all__ = ["StaticSigns"]
+__all__ = ["StaticSigns", "StaticSignsOptions"]
+
+
+@dataclass
+class StaticSignsOptions:
+    """``[controller.options.static-signs]``: the gains of the robots' walk to their stations and turn to their
+    bearings, 1/s, > 0."""
+
+    k_position: float = 1.0
+    k_heading: float = 2.0
+
+    def __post_init__(self) -> None:
+        for name in ("k_position", "k_heading"):
+            setattr(self, name, num(f"controller.options.static-signs.{name}", getattr(self, name), lo=0.0,
+                                    lo_open=True, allowed="a finite number > 0 (1/s)"))  # fmt: skip
 
 
 class StaticSigns:
@@ -37,7 +52,8 @@ class StaticSigns:
         Gain of the turn, 1/s: ``ω_i = k_heading · wrap(bearing_i − θ_i)``.
     """
 
-    OPTIONS = ("k_position", "k_heading")
+    options = StaticSignsOptions
+    """What a scenario may set, ``[controller.options.static-signs]`` (the core reads it: ``plugins.declared``)."""
     changes_walls = True
     """A region can become wall during a run (``[[events]] block``): the signs keep their stations and bearings
     (a station in the block is held at its edge by the robots' region)."""
@@ -45,7 +61,7 @@ class StaticSigns:
     def __init__(self, stations: np.ndarray, bearings: np.ndarray, k_position: float = 1.0, k_heading: float = 2.0):
         for name, k in (("k_position", k_position), ("k_heading", k_heading)):
             if not (isinstance(k, (int, float)) and math.isfinite(k) and k > 0):
-                raise ParameterError(f"controller.options.{name}", k, "a finite number > 0 (1/s)")
+                raise ParameterError(f"controller.options.static-signs.{name}", k, "a finite number > 0 (1/s)")
         self.stations = np.asarray(stations, float)
         self.bearings = np.asarray(bearings, float)
         self.k_position = float(k_position)
@@ -57,9 +73,7 @@ class StaticSigns:
         from meanfield.geometry.exits import exit_segments
         from meanfield.geometry.geodesic import ExitRoutes
 
-        unknown = sorted(set(parts.options) - set(cls.OPTIONS))
-        if unknown:
-            raise ParameterError("controller.options", unknown, f"options among {list(cls.OPTIONS)}")
+        o = options_table("controller.options.static-signs", StaticSignsOptions, dict(parts.options))
         stations = parts.robot_region.lattice(parts.robots.n)
         segs = exit_segments(parts.region)
         if len(segs):
@@ -67,7 +81,7 @@ class StaticSigns:
         else:
             e = np.asarray(parts.target_center, float) - stations
         bearings = np.arctan2(e[:, 1], e[:, 0])
-        return cls(stations, bearings, **{k: float(v) for k, v in parts.options.items()})
+        return cls(stations, bearings, k_position=o.k_position, k_heading=o.k_heading)
 
     def act(self, observation: Observation) -> Command:
         """Drive to the stations and turn the signs to their bearings (the density is not used)."""

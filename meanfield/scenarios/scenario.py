@@ -17,7 +17,7 @@ A :class:`Scenario` is a tree of small dataclasses, one per TOML table
     [target]      center, std                  (Gaussian ρ_* restricted to Ω)
     [density]     bandwidth, boundary, method
     [controller]  alpha, alpha_schedule, rho_floor, k_u, k_omega, beta_gamma, dvd_dt, kind
-    [controller.options]  options of a controller plugin (e.g. the NMPC horizon)
+    [controller.options.<kind>]  the options of each controller kind (e.g. the NMPC horizon)
     [view]        radius ("none" | > 0), walk_speed, turning_rate   (local view, Unity study)
 
 Every field is checked when the scenario is built (or read); a bad value raises
@@ -560,8 +560,8 @@ class Scenario:
         """A copy with dotted fields set, e.g. ``{"kernel.eta": 0.02, "robots.n": 9}``.
 
         Short names are read by :func:`resolve_key` (``{"eta": 0.02, "robots": 9}`` is the
-        same).  Keys under ``controller.options.`` may be new (the controller plugin checks
-        them).
+        same).  Keys under ``controller.options.<kind>.`` and ``crowd.options.<kind>.`` may be new
+        (the kind's declared options check them).
         """
         d = self.to_dict()
         d.setdefault("plugins", [])  # omitted from to_dict when empty, settable all the same
@@ -582,7 +582,7 @@ class Scenario:
             node = d
             for depth, p in enumerate(parts[:-1]):
                 if parts[: depth + 1] in (["controller", "options"], ["crowd", "options"]) or (
-                    parts[:2] == ["crowd", "options"] and depth == 2
+                    parts[:2] in (["crowd", "options"], ["controller", "options"]) and depth == 2
                 ):
                     node = node.setdefault(p, {})  # free-form: the part checks its own options
                     continue

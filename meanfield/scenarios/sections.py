@@ -11,7 +11,7 @@ assembles the sections and runs the cross-field checks; import the classes from
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields, is_dataclass
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -21,7 +21,7 @@ from meanfield.controllers.backstepping import CONGESTION_OPTIONS, DVD_DT_OPTION
 from meanfield.crowds.groups import crowd_groups
 from meanfield.crowds.local_density import DENSITY_RADIUS
 from meanfield.crowds.memory import MEMORIES
-from meanfield.errors import ParameterError, all_numbers, choice, integer, num, optional_limit, point
+from meanfield.errors import ParameterError, all_numbers, choice, integer, num, optional_limit, options_table, point
 from meanfield.geometry.region import region_keywords, wkt_polygon
 
 __all__ = [
@@ -38,6 +38,7 @@ __all__ = [
     "TargetSpec",
     "DensitySpec",
     "ControllerSpec",
+    "controller_options",
     "ViewSpec",
     "SensingSpec",
     "EventSpec",
@@ -169,17 +170,8 @@ class CrowdSpec:
         for kind, table in self.options.items():
             if kind not in kinds:
                 raise ParameterError(f"crowd.options.{kind}", table, f"a table named after a registered crowd {kinds}")
-            if not isinstance(table, dict):
-                raise ParameterError(f"crowd.options.{kind}", table, "a table of that crowd's options")
-            options = plugins.declared("crowd", kind, "options")
-            if options is None and table:
-                raise ParameterError(f"crowd.options.{kind}", table, f"no options (the {kind!r} crowd takes none)")
-            if options is not None:
-                try:
-                    options(**table)  # the crowd checks its own options, naming crowd.options.<kind>.<field>
-                except TypeError:
-                    known = sorted(f.name for f in fields(options)) if is_dataclass(options) else "its options"
-                    raise ParameterError(f"crowd.options.{kind}", table, f"keys among {known}") from None
+            # the crowd checks its own options, naming crowd.options.<kind>.<field>
+            options_table(f"crowd.options.{kind}", plugins.declared("crowd", kind, "options"), table)
         self.options = {k: dict(v) for k, v in self.options.items()}
 
 
@@ -351,9 +343,69 @@ class ControllerSpec:
         self.scaling = choice("controller.scaling", self.scaling, ("paper", "kernel"))
         self.congestion = choice("controller.congestion", self.congestion, CONGESTION_OPTIONS)
         self.kind = choice("controller.kind", self.kind, plugins.available("controller"))
-        if not isinstance(self.options, dict):
-            raise ParameterError("controller.options", self.options, "a table of options for the controller kind")
-        self.options = dict(self.options)
+        self.options = controller_options(self.options, self.kind)
+
+
+def controller_options(options: Any, kind: str) -> dict[str, dict[str, Any]]:
+    """``controller.options``, one table per controller kind, each checked by its controller's options.
+
+    A controller declares its options as a dataclass (``options`` on its factory or class, as a crowd does; None:
+    it takes none); a table ``[controller.options.<kind>]`` is read by it, naming ``controller.options.<kind>.<field>``
+    in errors.  A plugin that declares nothing is given its table as it is, to check when it is built.
+    Keys directly under ``[controller.options]`` (before 2026-12-05 the options of ``controller.kind``) are read as
+    that kind's, with a warning: they are removed in 0.3.0 (:data:`FLAT_CONTROLLER_OPTIONS_REMOVED_IN`).
+
+    Parameters
+    ----------
+    options : dict
+        The scenario's ``controller.options``.
+    kind : str
+        ``controller.kind``: the kind whose table the flat keys are.
+
+    Returns
+    -------
+    dict
+        ``{kind: table}``, every table a copy.
+    """
+    if not isinstance(options, dict):
+        raise ParameterError("controller.options", options, "a table of tables, one per controller kind")
+    kinds = plugins.available("controller")
+    nested = {k: dict(v) for k, v in options.items() if k in kinds and isinstance(v, dict)}
+    flat = {k: v for k, v in options.items() if not (k in kinds and isinstance(v, dict))}
+    if flat:
+        import warnings
+
+        from meanfield.errors import MeanfieldDeprecationWarning
+
+        table = nested.setdefault(kind, {})
+        for key, value in flat.items():
+            if key in table:
+                raise ParameterError(f"controller.options.{key}", value,
+                                     f"one of controller.options.{key} (deprecated) and "
+                                     f"controller.options.{kind}.{key}, not both")  # fmt: skip
+            table[key] = value
+        old = ", ".join(f"controller.options.{k}" for k in sorted(flat))
+        new = ", ".join(f"controller.options.{kind}.{k}" for k in sorted(flat))
+        warnings.warn(
+            f"{old} is deprecated and removed in {FLAT_CONTROLLER_OPTIONS_REMOVED_IN}: use {new} "
+            f"(the table [controller.options.{kind}])",
+            MeanfieldDeprecationWarning,
+            stacklevel=4,
+        )
+    for k, table in nested.items():
+        declared = plugins.declared("controller", k, "options", _UNDECLARED)
+        if declared is _UNDECLARED:  # a plugin that declares nothing checks its table itself, when it is built
+            continue
+        options_table(f"controller.options.{k}", declared, table,
+                      f"no options: the {k!r} controller takes none (the law's gains are fields of [controller]: "
+                      "alpha, k_u, k_omega, ...)")  # fmt: skip
+    return nested
+
+
+_UNDECLARED = object()
+
+FLAT_CONTROLLER_OPTIONS_REMOVED_IN = "0.3.0"
+"""The release that no longer reads options directly under ``[controller.options]`` (they go under the kind's table)."""
 
 
 @dataclass
@@ -492,9 +544,11 @@ def settable(parts: list[str], node: dict[str, Any]) -> bool:
 
     A field left empty today (``view.radius = "none"`` is omitted, so is ``robots.positions``
     until a layout uses it), a key of the region's kind (``domain.radius`` after
-    ``domain.kind = "disk"``), a controller option or a crowd's option (``crowd.options.<kind>.<field>``).
+    ``domain.kind = "disk"``), a controller's or a crowd's option (``controller.options.<kind>.<field>``,
+    ``crowd.options.<kind>.<field>``; ``controller.options.<field>``, deprecated, is the kind's).
     """
-    if parts[:-1] == ["controller", "options"] or (parts[:2] == ["crowd", "options"] and len(parts) == 4):
+    if parts[:-1] == ["controller", "options"] or (parts[:2] in (["crowd", "options"], ["controller", "options"])
+                                                   and len(parts) == 4):  # fmt: skip
         return True
     if len(parts) != 2:
         return False

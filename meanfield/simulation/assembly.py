@@ -243,7 +243,7 @@ def assemble(
         k_omega=c.k_omega,
         beta_gamma=strategy,
         dvd_dt=c.dvd_dt,
-        options=dict(c.options),
+        options=dict(c.options.get(c.kind if controller is None else controller, {})),
         dt=sc.dt,
         scales=law_scales(sc, region, kern),
         sight=sight,

@@ -275,10 +275,10 @@ def test_the_law_and_the_scenario_agree_on_every_default():
 def test_the_paper_law_refuses_options_it_does_not_take():
     """``[controller.options] alpah = 5`` ran unnoticed with the default controller (issue "Nothing
     lost", item 7): every controller now refuses an option it does not know."""
-    from meanfield import ClosedLoop, ParameterError, paper_scenario
+    from meanfield import ParameterError, paper_scenario
 
     for options in ({"alpah": 5}, {"k_u": "banana"}):
-        sc = paper_scenario(seed=0).with_values({f"controller.options.{k}": v for k, v in options.items()})
-        with pytest.raises(ParameterError) as exc:
-            ClosedLoop(sc)
-        assert exc.value.name == "controller.options" and "[controller]" in str(exc.value)
+        with pytest.raises(ParameterError) as exc:  # refused as the scenario is read
+            paper_scenario(seed=0).with_values({f"controller.options.backstepping.{k}": v for k, v in options.items()})
+        assert exc.value.name == "controller.options.backstepping" and "[controller]" in str(exc.value)
+

@@ -85,11 +85,11 @@ def test_a_paper_run_with_coverage_reports_its_idle_robots_and_bad_options_are_r
     assert s["controller"] == "coverage" and 0.0 <= s["coverage_idle_fraction"] <= 1.0
     for option, value in (("weight", "mass"), ("k_position", 0.0), ("v_d", "north"), ("k_heading", -1.0)):
         with pytest.raises(ParameterError) as exc:
-            ClosedLoop(sc.with_values({f"controller.options.{option}": value}))
-        assert exc.value.name == f"controller.options.{option}"
+            sc.with_values({f"controller.options.coverage.{option}": value})
+        assert exc.value.name == f"controller.options.coverage.{option}"
     with pytest.raises(ParameterError) as exc:
-        ClosedLoop(sc.with_values({"controller.options.gain": 1.0}))
-    assert exc.value.name == "controller.options"
+        sc.with_values({"controller.options.coverage.gain": 1.0})
+    assert exc.value.name == "controller.options.coverage.gain"
 
 
 def test_coverage_passes_the_potential_to_the_field_its_signs_follow_and_its_metric_to_the_positions():
@@ -97,15 +97,15 @@ def test_coverage_passes_the_potential_to_the_field_its_signs_follow_and_its_met
     from meanfield.controllers.evacuation import EvacuationController
 
     sc = load_scenario("hall").with_values(
-        {"controller.kind": "coverage", "controller.options.potential": "hughes",
-         "controller.options.metric": "walking", "t_final": 0.2}  # fmt: skip
+        {"controller.kind": "coverage", "controller.options.coverage.potential": "hughes",
+         "controller.options.coverage.metric": "walking", "t_final": 0.2}  # fmt: skip
     )
     loop = ClosedLoop(sc)
     assert isinstance(loop.controller.law, EvacuationController) and loop.controller.law.potential == "hughes"
     assert loop.controller.metric == "walking" and loop.controller.walking is not None
     loop.run(progress=False)
-    with pytest.raises(ParameterError, match="controller.options.potential"):
-        ClosedLoop(sc.with_values({"controller.options.potential": "travel"}))
+    with pytest.raises(ParameterError, match=r"controller\.options\.coverage\.potential"):
+        sc.with_values({"controller.options.coverage.potential": "travel"})
 
 
 def test_the_unswept_weight_leaves_out_where_a_sign_reached_lately_and_counts_it_again_later():
@@ -136,5 +136,5 @@ def test_the_unswept_weight_leaves_out_where_a_sign_reached_lately_and_counts_it
     assert (w[near & grid.active] == 0).all() and (w[far & grid.active] > 0).all()
     w = cov._weight(rho, State, NavigationField(kernel, grid, np.array([[0.8, 0.8]]), np.zeros(1)), 3.5)
     assert (w[near & grid.active] > 0).all()  # 2.5 s later: counted again
-    with pytest.raises(ParameterError, match="controller.options.revisit_after"):
+    with pytest.raises(ParameterError, match=r"controller\.options\.coverage\.revisit_after"):
         CoverageController(None, grid, SightLines(plan), weight="unswept", revisit_after=0.0)

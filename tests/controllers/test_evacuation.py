@@ -11,6 +11,7 @@ import pytest
 from meanfield import ClosedLoop, Domain, GaussianKernel, Grid, NavigationField, ParameterError, paper_scenario
 from meanfield.controllers.backstepping import MinimumNormBetaGamma, SaturatingAlpha
 from meanfield.controllers.evacuation import SPEED_FLOOR, EvacuationController, exit_distance
+from meanfield.errors import MeanfieldDeprecationWarning
 from meanfield.geometry.exits import exit_segments
 from meanfield.geometry.geodesic import ExitEikonal
 from meanfield.geometry.plan import Plan
@@ -140,11 +141,11 @@ def test_hughes_field_goes_round_a_jam_to_the_other_exit():
 def test_an_unknown_potential_is_refused_naming_it():
     room = Domain.box(1.0, 1.0, exits=[((1.0, 0.8), (1.0, 1.0))])
     sc = paper_scenario(seed=0).replace(domain=room, t_final=1.0).with_values(
-        {"controller.kind": "evacuation", "controller.options.potential": "geodesic"}
+        {"controller.kind": "evacuation"}
     )
-    with pytest.raises(ParameterError) as exc:
-        ClosedLoop(sc)
-    assert exc.value.name == "controller.options.potential" and "'hughes'" in str(exc.value)
+    with pytest.raises(ParameterError) as exc:  # refused as the scenario is read
+        sc.with_values({"controller.options.evacuation.potential": "geodesic"})
+    assert exc.value.name == "controller.options.evacuation.potential" and "'hughes'" in str(exc.value)
     grid = Grid(room, (10, 10))
     args = (grid, np.full(grid.shape, 1.0), 0.003, SaturatingAlpha(0.1, 0.2))
     with pytest.raises(ParameterError) as exc:
@@ -155,10 +156,12 @@ def test_an_unknown_potential_is_refused_naming_it():
 def test_a_closed_loop_with_hughes_potential_runs_on_the_l_room():
     from meanfield.scenarios.scenario import builtin_scenarios
 
-    values = {"crowd.n": 30, "t_final": 3.0, "controller.kind": "evacuation", "controller.options.potential": "hughes",
-              "controller.options.rho_max": 0.01}  # fmt: skip
+    values = {"crowd.n": 30, "t_final": 3.0, "controller.kind": "evacuation",
+              "controller.options.evacuation.potential": "hughes",
+              "controller.options.evacuation.rho_max": 0.01}  # fmt: skip
     loop = ClosedLoop(builtin_scenarios()["l-room"](seed=0).with_values(values))
     assert loop.controller.potential == "hughes" and loop.controller._compiled_step_one() is None
+    assert loop.controller.rho_max == 0.01
     s = loop.run(progress=False).summary
     assert s["status"] == "completed" and s["controller"] == "evacuation" and s["time_final"] == pytest.approx(3.0)
     assert 0 <= s["fraction_evacuated"] <= 1
@@ -167,7 +170,7 @@ def test_a_closed_loop_with_hughes_potential_runs_on_the_l_room():
 def test_the_evacuation_controller_runs_from_a_scenario():
     room = Domain.box(1.0, 1.0, exits=[((1.0, 0.8), (1.0, 1.0))])
     sc = paper_scenario(seed=0).replace(domain=room, t_final=3.0).with_values(
-        {"controller.kind": "evacuation", "controller.options.v_free": 0.2}
+        {"controller.kind": "evacuation", "crowd.free_speed": 0.2}
     )
     loop = ClosedLoop(sc)
     assert isinstance(loop.controller, EvacuationController)
@@ -186,4 +189,8 @@ def test_the_walking_speed_of_the_law_is_the_crowd_s_unless_set():
         {"controller.kind": "evacuation", "controller.options": {}, "crowd.free_speed": 1.1}
     )
     assert ClosedLoop(sc).controller.v_free == 1.1
-    assert ClosedLoop(sc.with_values({"controller.options.v_free": 1.5})).controller.v_free == 1.5
+    with pytest.warns(MeanfieldDeprecationWarning, match="controller.options.evacuation.v_free"):
+        old = sc.with_values(
+            {"controller.options.evacuation.v_free": 1.5, "controller.options.evacuation.rho_max": 0.1}
+        )
+    assert ClosedLoop(old).controller.v_free == 1.5 and ClosedLoop(old).controller.rho_max == 0.1

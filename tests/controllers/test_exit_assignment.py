@@ -76,7 +76,8 @@ def test_a_closed_exit_takes_no_one():
 
 
 def _hall(**values):
-    coverage = {"controller.kind": "coverage", "view.memory": "none", "controller.options.potential": "balanced"}
+    coverage = {"controller.kind": "coverage", "view.memory": "none",
+                "controller.options.coverage.potential": "balanced"}  # fmt: skip
     return builtin_scenarios()["hall-crowded-west"](seed=0).with_values({"t_final": 0.2, **coverage, **values})
 
 
@@ -142,12 +143,12 @@ def test_step_two_identity_holds_for_the_balanced_potential_between_two_solution
 )
 def test_bad_balance_options_are_refused_naming_them(key, value):
     with pytest.raises(ParameterError) as exc:
-        ClosedLoop(_hall(**{f"controller.options.{key}": value}))
-    assert exc.value.name == f"controller.options.{key}"
+        ClosedLoop(_hall(**{f"controller.options.coverage.{key}": value}))
+    assert exc.value.name == f"controller.options.coverage.{key}"
 
 
 def test_the_rebalance_period_sets_how_often_the_offsets_are_solved():
-    loop = ClosedLoop(_hall(**{"controller.options.rebalance_period": 0.25, "t_final": 1.0}))
+    loop = ClosedLoop(_hall(**{"controller.options.coverage.rebalance_period": 0.25, "t_final": 1.0}))
     law = loop.controller.law
     calls = []
     solve = law.assignment.solve
@@ -162,7 +163,7 @@ def test_the_balanced_signs_send_part_of_the_crowded_hall_to_the_idle_door():
     out = {}
     for potential in ("balanced", "distance"):
         sc = builtin_scenarios()["hall-crowded-west"](seed=1).with_values(
-            {"controller.kind": "coverage", "view.memory": "none", "controller.options.potential": potential,
+            {"controller.kind": "coverage", "view.memory": "none", "controller.options.coverage.potential": potential,
              "t_final": 60.0}  # fmt: skip
         )
         out[potential] = ClosedLoop(sc).run(progress=False).summary["evacuated_per_exit"]

@@ -136,16 +136,16 @@ def test_a_region_that_becomes_wall_is_planned_round():
 @pytest.mark.parametrize(
     ("values", "field"),
     [
-        ({"controller.options.rebalance_period": -1.0}, "controller.options.rebalance_period"),
-        ({"controller.options.k_position": 2.0}, "controller.options"),
-        ({"controller.options.revisit_after": "5"}, "controller.options.revisit_after"),
-        ({"controller.options.weight": "unswept"}, "controller.options"),
+        ({"controller.options.guide.rebalance_period": -1.0}, "controller.options.guide.rebalance_period"),
+        ({"controller.options.guide.k_position": 2.0}, "controller.options.guide.k_position"),
+        ({"controller.options.guide.revisit_after": "5"}, "controller.options.guide.revisit_after"),
+        ({"controller.options.guide.weight": "unswept"}, "controller.options.guide.weight"),
     ],
 )
 def test_bad_options_are_refused_naming_the_field(values, field):
-    sc = builtin_scenarios()["hall"](seed=0).with_values({**GUIDE, **values})
-    with pytest.raises(ParameterError, match=field.replace(".", r"\.")):
-        ClosedLoop(sc)
+    with pytest.raises(ParameterError) as exc:  # refused as the scenario is read
+        builtin_scenarios()["hall"](seed=0).with_values({**GUIDE, **values})
+    assert exc.value.name == field
 
 
 def test_a_plan_without_exits_is_refused_naming_controller_kind():

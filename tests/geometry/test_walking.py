@@ -175,5 +175,5 @@ def test_a_robot_walks_round_the_wall_to_the_people_of_the_next_room():
 
 
 def test_an_unknown_metric_is_refused_naming_the_option():
-    with pytest.raises(ParameterError, match="controller.options.metric"):
+    with pytest.raises(ParameterError, match=r"controller\.options\.coverage\.metric"):
         _coverage(TWO_ROOMS, (8, 4), "manhattan")

@@ -248,7 +248,7 @@ def test_plugin_module_registers_a_controller_the_scenario_names(tmp_path):
         ('[controller]\ndvd_dt = "guess"\n', "controller.dvd_dt"),
         ('[crowd]\nkind = "no-such-crowd"\n', "crowd.kind"),
         ('[crowd.options.jupedsim]\nmodel = "no-such-model"\n', "crowd.options.jupedsim.model"),
-        ('[crowd.options.jupedsim]\nwings = 2\n', "crowd.options.jupedsim"),
+        ('[crowd.options.jupedsim]\nwings = 2\n', "crowd.options.jupedsim.wings"),
         ('[crowd.options.no-such-crowd]\nradius = 2\n', "crowd.options.no-such-crowd"),
         ('[crowd.options.point-mass]\nradius = 2\n', "crowd.options.point-mass"),
         ('[pedestrians]\nbackend = "no-such-crowd"\n', "crowd.kind"),
@@ -345,8 +345,10 @@ def test_with_values_leaves_the_caller_s_tables_alone():
     """A table given as a value (``{"controller.options": {}}``) and a key under it in the same call once wrote the
     key into the caller's table, so that the next scenario built from it carried the option too."""
     empty: dict = {}
-    sc = builtin_scenarios()["hall"](seed=0).with_values({"controller.options": empty, "controller.options.k_u": 2})
-    assert sc.controller.options == {"k_u": 2} and empty == {}
+    sc = builtin_scenarios()["hall"](seed=0).with_values(
+        {"controller.options": empty, "controller.options.guide.revisit_after": 5.0}
+    )
+    assert sc.controller.options == {"guide": {"revisit_after": 5.0}} and empty == {}
 
 
 def test_with_values_leaves_the_original_crowd_options_alone():

@@ -97,8 +97,8 @@ def test_the_informed_crowd_the_evacuation_controller_and_coverage_plan_round_it
     assert before == pytest.approx(9.5, abs=0.5) and after == pytest.approx(9.5, abs=0.5)  # the west door
     cells = loop.grid.volume_fraction == 0
     assert np.isinf(law.eikonal.distance[cells]).all() and law.grid is loop.grid
-    coverage = ClosedLoop(hall(**{"controller.kind": "coverage", "controller.options.metric": "routed",
-                                  "controller.options.weight": "unswept"}))  # fmt: skip
+    coverage = ClosedLoop(hall(**{"controller.kind": "coverage", "controller.options.coverage.metric": "routed",
+                                  "controller.options.coverage.weight": "unswept"}))  # fmt: skip
     run_to(coverage, BLOCK_AT + coverage.dt)
     c = coverage.controller
     assert c.grid is coverage.grid and c.law.grid is coverage.grid
@@ -109,8 +109,8 @@ def test_the_informed_crowd_the_evacuation_controller_and_coverage_plan_round_it
     "values",
     [
         {"crowd.guidance": "random-walk"},
-        {"view.memory": "sign", "controller.kind": "coverage", "controller.options.metric": "walking",
-         "controller.options.potential": "balanced"},  # fmt: skip
+        {"view.memory": "sign", "controller.kind": "coverage", "controller.options.coverage.metric": "walking",
+         "controller.options.coverage.potential": "balanced"},  # fmt: skip
         {"controller.kind": "guide"},
         {"controller.kind": "evacuation", "sensing.radius": 8.0, "sensing.comm_radius": 8.0},
         {"crowd.compliance": 0.8, "crowd.premovement": {"law": "uniform", "low": 0.0, "high": 4.0}},
@@ -237,8 +237,9 @@ def test_people_assigned_to_an_exit_of_another_piece_walk_to_their_own():
 
 def test_every_declared_part_runs_through_a_split_plan():
     office = builtin_scenarios()["office"](seed=0).with_values(
-        {"t_final": 20.0, "view.memory": "sign", "controller.kind": "coverage", "controller.options.metric": "routed",
-         "controller.options.weight": "unswept", "controller.options.potential": "balanced",
+        {"t_final": 20.0, "view.memory": "sign", "controller.kind": "coverage",
+         "controller.options.coverage.metric": "routed", "controller.options.coverage.weight": "unswept",
+         "controller.options.coverage.potential": "balanced",
          "events": [{"time": 3.0, "block": "POLYGON ((14.5 5.9, 15.5 5.9, 15.5 8.1, 14.5 8.1, 14.5 5.9))"}]}
     )  # fmt: skip  (the corridor blocked across between its two exits)
     loop = ClosedLoop(office)

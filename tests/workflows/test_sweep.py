@@ -175,25 +175,26 @@ def test_cli_sweep_against_a_separately_started_scheduler(tiny_toml, tmp_path, s
 
 
 def test_a_run_that_fails_is_recorded_and_the_sweep_goes_on(tiny_toml, tmp_path, scheduler_address, capsys):
-    """NMPC refuses an option it does not know (static signs' k_position) when its controller is built,
-    inside the worker, after validation; the static signs, which take it, complete."""
+    """NMPC refuses a crowd that interacts (``interaction.kind = "gaussian"``, not in its model) when its controller
+    is built, inside the worker, after validation; the static signs, which do not model the crowd, complete."""
     if "nmpc" not in plugins.available("controller"):
         pytest.skip("the nmpc controller plugin (analysis package) is not installed")
     out = tmp_path / "sweep"
     argv = ["sweep", str(tiny_toml), "--set", "controller.kind=static-signs,nmpc",
-            "--set", "controller.options.k_position=1.0", "--scheduler", scheduler_address, "--out", str(out),
+            "--set", "interaction.strength=0.001", "--set", "interaction.kind=gaussian",
+            "--scheduler", scheduler_address, "--out", str(out),
             "--quiet"]
     assert main(argv) == 1
-    assert "k_position" in capsys.readouterr().err
+    assert "interaction.kind" in capsys.readouterr().err
     with xr.open_dataset(out / "sweep.nc", engine="h5netcdf") as ds:
-        run = ds.isel({"controller.options.k_position": 0, "seed": 0})
+        run = ds.isel({"interaction.strength": 0, "interaction.kind": 0, "seed": 0})
         assert list(run["status"].values) == ["completed", "error"]
-        assert "k_position" in str(run["message"].values[1])
+        assert "interaction.kind" in str(run["message"].values[1])
         assert ds.attrs["status"] == "incomplete"
     errors = [json.loads(p.read_text()) for p in (out / "runs").glob("*.json")]
     assert sorted(r["summary"]["status"] for r in errors) == ["completed", "error"]
     # on resume the completed run is reused, the failed one is run again
-    ds2 = run_sweep(tiny_toml, parse_values(argv[3:6:2]), 1, out, scheduler=scheduler_address, progress=False)
+    ds2 = run_sweep(tiny_toml, parse_values(argv[3:8:2]), 1, out, scheduler=scheduler_address, progress=False)
     assert ds2.attrs["runs_reused"] == 1 and ds2.attrs["runs_executed"] == 1
 
 

@@ -117,7 +117,8 @@ def test_a_spread_solve_gives_the_plan_of_the_whole_solve_applied_from_its_start
 
 def test_paper_scenario_runs_with_nmpc():
     sc = paper_scenario().with_values(
-        {"controller.kind": "nmpc", "t_final": 0.2, "controller.options.horizon": 2, "controller.options.cells": 6}
+        {"controller.kind": "nmpc", "t_final": 0.2, "controller.options.nmpc.horizon": 2,
+         "controller.options.nmpc.cells": 6}  # fmt: skip
     )
     loop = ClosedLoop(sc)
     result = loop.run(progress=False)

@@ -5,31 +5,31 @@ from __future__ import annotations
 import pytest
 
 from analysis.nmpc import NMPCOptions
-from meanfield import ClosedLoop, ParameterError, paper_scenario
+from meanfield import ParameterError, paper_scenario
 
 
 @pytest.mark.parametrize(
     ("options", "key"),
     [
-        ({"horizon_steps": 4}, "controller.options.horizon_steps"),
-        ({"horizon": -1}, "controller.options.horizon"),
-        ({"horizon": 2.5}, "controller.options.horizon"),
-        ({"period": 0}, "controller.options.period"),
-        ({"r_u": -1.0}, "controller.options.r_u"),
-        ({"cells": 2}, "controller.options.cells"),
-        ({"flux": "donor"}, "controller.options.flux"),
-        ({"hessian": "bfgs"}, "controller.options.hessian"),
-        ({"warm_start": "yes"}, "controller.options.warm_start"),
-        ({"solver": "snopt"}, "controller.options.solver"),
-        ({"max_iter": 0}, "controller.options.max_iter"),
-        ({"blocks": [1, 2]}, "controller.options.blocks"),  # does not sum to the horizon (5)
-        ({"blocks": [0, 5]}, "controller.options.blocks"),
-        ({"blocks": 5}, "controller.options.blocks"),
-        ({"solver": "ipopt", "blocks": [2, 3]}, "controller.options.blocks"),  # SQP only
-        ({"solver": "ipopt", "hessian": "gauss-newton"}, "controller.options.hessian"),
-        ({"hessian": "limited-memory"}, "controller.options.hessian"),  # IPOPT only
-        ({"spread": 1}, "controller.options.spread"),
-        ({"solver": "ipopt", "spread": True}, "controller.options.spread"),  # SQP only
+        ({"horizon_steps": 4}, "controller.options.nmpc.horizon_steps"),
+        ({"horizon": -1}, "controller.options.nmpc.horizon"),
+        ({"horizon": 2.5}, "controller.options.nmpc.horizon"),
+        ({"period": 0}, "controller.options.nmpc.period"),
+        ({"r_u": -1.0}, "controller.options.nmpc.r_u"),
+        ({"cells": 2}, "controller.options.nmpc.cells"),
+        ({"flux": "donor"}, "controller.options.nmpc.flux"),
+        ({"hessian": "bfgs"}, "controller.options.nmpc.hessian"),
+        ({"warm_start": "yes"}, "controller.options.nmpc.warm_start"),
+        ({"solver": "snopt"}, "controller.options.nmpc.solver"),
+        ({"max_iter": 0}, "controller.options.nmpc.max_iter"),
+        ({"blocks": [1, 2]}, "controller.options.nmpc.blocks"),  # does not sum to the horizon (5)
+        ({"blocks": [0, 5]}, "controller.options.nmpc.blocks"),
+        ({"blocks": 5}, "controller.options.nmpc.blocks"),
+        ({"solver": "ipopt", "blocks": [2, 3]}, "controller.options.nmpc.blocks"),  # SQP only
+        ({"solver": "ipopt", "hessian": "gauss-newton"}, "controller.options.nmpc.hessian"),
+        ({"hessian": "limited-memory"}, "controller.options.nmpc.hessian"),  # IPOPT only
+        ({"spread": 1}, "controller.options.nmpc.spread"),
+        ({"solver": "ipopt", "spread": True}, "controller.options.nmpc.spread"),  # SQP only
     ],
 )
 def test_bad_options_name_the_key(options, key):
@@ -39,10 +39,9 @@ def test_bad_options_name_the_key(options, key):
 
 
 def test_bad_option_through_the_closed_loop():
-    sc = paper_scenario().with_values({"controller.kind": "nmpc", "controller.options.horizon": -3})
-    with pytest.raises(ParameterError) as exc:
-        ClosedLoop(sc)
-    assert exc.value.name == "controller.options.horizon"
+    with pytest.raises(ParameterError) as exc:  # refused as the scenario is read
+        paper_scenario().with_values({"controller.kind": "nmpc", "controller.options.nmpc.horizon": -3})
+    assert exc.value.name == "controller.options.nmpc.horizon"
 
 
 def test_options_defaults_and_prediction_step():
