@@ -7,7 +7,7 @@ follow-up work (Zheng et al., 2023) splits the robots' job, and so does this con
 (registered as ``coverage``):
 
 **Positions: density-weighted coverage** (Lloyd's iteration on the grid), in one of three
-metrics (``options.metric``):
+metrics (``controller.options.coverage.metric``; ``"routed"`` the default, ``"straight"`` deprecated):
 
 * ``"straight"``: each cell of Ω belongs to the nearest robot that sees it
   (:mod:`meanfield.geometry.sight`; the nearest robot when none does), and robot ``i`` drives
@@ -31,12 +31,14 @@ metrics (``options.metric``):
   Bhattacharya, Ghrist & Kumar, *IJRR* 33, 2014), so a robot heads through the door
   towards the people of the next room instead of at the wall between them, and where every
   cell is in sight (``e_i(c) = (x_c − R_i)/|x_c − R_i|``, ``d_i(c) = |x_c − R_i|``) it is the
-  straight metric's law exactly.  Measured on the shipped plans (docs page *Buildings*, "What
-  we measured"), walking coverage is no faster than straight coverage in the median, and the
-  default is ``"straight"``.
+  straight metric's law exactly.
 
-with the weight ``w`` (``options.weight``) the crowd's density ``ρ`` (``"density"``) or the
-tracking error ``ρ |ṽ|`` (``"tracking-error"``, the default): people already where the
+Which wins where is measured on the shipped plans (docs page *Buildings*, "Coverage's options"): ``"routed"`` is
+never slower than ``"straight"`` (the same law wherever a robot sees its centroid, so in a convex room exactly),
+and the default; ``"walking"`` stays for where it wins.
+
+with the weight ``w`` (``controller.options.coverage.weight``) the tracking error ``ρ |ṽ|`` (``"tracking-error"``,
+the default; ``"density"``, ``ρ``, and ``"excess"``, ``max(ρ − ρ_*, 0)``, are deprecated): people already where the
 law wants them (``ṽ ≈ 0``) stop attracting robots, and the robots go where people are not
 yet guided.  ``"unswept"`` is the tracking error where no sign has reached lately: the robots
 keep, for each cell, when a sign last reached it (some robot sees it and its kernel there is at
@@ -52,8 +54,8 @@ whose cells hold no weight holds its position (counted in ``summary.json`` as
 **Headings: density feedback.**  The ω-part of the law, ``ω_i = −k_heading g_i`` with
 ``g_i = ∫ ṽᵀ K_θ^i`` (eq. (8)), where ``ṽ = v_r − v_d`` and ``v_d`` is the paper's Step I
 (a safe zone) or Hughes' field towards the exits (:mod:`meanfield.controllers.evacuation`) when the
-region has exits (``options.v_d`` overrides).  **What is guaranteed.**  For fixed positions
-and a frozen ``v_d``, ``V(θ) = ½∫|ṽ|²`` obeys ``dV/dt = Σ_i g_i ω_i = −k_heading Σ_i g_i² <= 0``:
+region has exits (``controller.options.coverage.v_d``, deprecated, overrides).  **What is guaranteed.**  For fixed
+positions and a frozen ``v_d``, ``V(θ) = ½∫|ṽ|²`` obeys ``dV/dt = Σ_i g_i ω_i = −k_heading Σ_i g_i² <= 0``:
 the headings descend the tracking error, and ``V`` stops decreasing only where every
 ``g_i = 0``.  Nothing is claimed for the density (the positions are not the law's), and the
 check of this statement along a PDE-plant run is in the test suite.
@@ -72,7 +74,7 @@ from meanfield.controllers.evacuation import EvacuationOptions
 from meanfield.errors import ParameterError, choice, num, options_table
 from meanfield.interfaces import Command, ControllerParts, ControlState, Observation
 
-__all__ = ["CoverageController", "CoverageOptions", "METRICS", "WEIGHTS", "V_D"]
+__all__ = ["CoverageController", "CoverageOptions", "DEPRECATED", "METRICS", "WEIGHTS", "V_D"]
 
 WEIGHTS = ("tracking-error", "density", "excess", "unswept")
 """The coverage weights: ``ρ|ṽ|``, ``ρ``, ``max(ρ − ρ_*, 0)``, or ``ρ|ṽ|`` where no sign has reached lately."""
@@ -81,8 +83,15 @@ REVISIT_AFTER = 20.0
 after a sign last reached it (measured on the office with people who remember the way, 4 seeds: RSET 33.6, 28.7,
 28.0, 37.2 s at 20 s; 44.0, 35.7, 28.0, 49.2 at 10 s; 67.9, 28.7, 28.0, 59.4 never)."""
 METRICS = ("straight", "routed", "walking")
-"""Coverage's metrics: straight lines (``straight``, the default), straight cells reached by walking (``routed``), or
-walking round walls (``walking``)."""
+"""Coverage's metrics: straight lines (``straight``, deprecated), straight cells reached by walking (``routed``, the
+default), or walking round walls (``walking``)."""
+DEPRECATED = {
+    "metric": ({"straight": "routed"}, "the same law wherever a robot sees its centroid, never slower on the plans"),
+    "weight": ({"density": "tracking-error", "excess": "tracking-error"}, "never measured to win"),
+    "v_d": ({"safe-zone": "auto", "exits": "auto"}, "auto tracks the exits where the plan has them"),
+}
+"""Option values removed in 0.3.0: each option's old value and its replacement, and why (docs page *Buildings*,
+"Coverage's options")."""
 HEADING_GAIN_FACTOR = 3.0
 """Default ``k_heading``: this many times the law's ``k_ω`` (on ``paper``, seeds 0–9, the worst
 seed's fraction in target was 0.845, 0.93, 0.94, 0.935 for 1, 2, 3, 5 times)."""
@@ -107,10 +116,12 @@ class CoverageOptions(EvacuationOptions):
         The coverage weight (:data:`WEIGHTS`).
     revisit_after : float
         With ``weight = "unswept"``: how long after a sign last reached a cell it weighs again, > 0 (s in SI).
-    metric : {"straight", "routed", "walking"}
-        The distance of the coverage (:data:`METRICS`).
-    v_d : {"auto", "safe-zone", "exits"}
-        Which Step I the headings track (:data:`V_D`).
+    metric : {"routed", "walking"}
+        The distance of the coverage (:data:`METRICS`; ``"straight"`` deprecated).
+    v_d : {"auto"}
+        Which Step I the headings track (:data:`V_D`; ``"safe-zone"`` and ``"exits"`` deprecated).
+
+    A value of :data:`DEPRECATED` is read with a warning naming its replacement; it is removed in 0.3.0.
     """
 
     KIND: ClassVar[str] = "coverage"
@@ -119,7 +130,7 @@ class CoverageOptions(EvacuationOptions):
     k_heading: float | None = None
     weight: str = "tracking-error"
     revisit_after: float = REVISIT_AFTER
-    metric: str = "straight"
+    metric: str = "routed"
     v_d: str = "auto"
 
     def __post_init__(self) -> None:
@@ -133,6 +144,15 @@ class CoverageOptions(EvacuationOptions):
                                  allowed="a time > 0 (s in SI)")  # fmt: skip
         self.metric = choice(name + "metric", self.metric, METRICS)
         self.v_d = choice(name + "v_d", self.v_d, V_D)
+        import warnings
+
+        from meanfield.errors import MeanfieldDeprecationWarning
+
+        for option, (old, why) in DEPRECATED.items():
+            value = getattr(self, option)
+            if value in old:
+                warnings.warn(f"{name}{option} = {value!r} is deprecated and removed in 0.3.0: use {old[value]!r} "
+                              f"({why})", MeanfieldDeprecationWarning, stacklevel=4)  # fmt: skip
 
 
 def walk_towards(walking: Any, robots: np.ndarray, owner: np.ndarray, centroid: np.ndarray,
@@ -168,7 +188,7 @@ class CoverageController:
         Gain of the heading feedback, > 0 (from a scenario: :data:`HEADING_GAIN_FACTOR` × ``controller.k_omega``).
     weight : {"tracking-error", "density", "excess", "unswept"}
         The coverage weight (module docstring).
-    metric : {"straight", "routed", "walking"}
+    metric : {"routed", "walking", "straight"}
         The distance of the coverage (module docstring).
     revisit_after : float
         With ``weight = "unswept"``: how long after a sign last reached a cell it weighs again, > 0 (s in SI).
@@ -185,7 +205,7 @@ class CoverageController:
         k_position: float = 1.0,
         k_heading: float = 10.0,
         weight: str = "tracking-error",
-        metric: str = "straight",
+        metric: str = "routed",
         revisit_after: float = REVISIT_AFTER,
     ):
         for name, k in (("k_position", k_position), ("k_heading", k_heading)):
@@ -215,12 +235,12 @@ class CoverageController:
     """A region can become wall during a run (``[[events]] block``, :meth:`walls_changed`)."""
 
     def _cover(self, grid: Any, sight: Any) -> None:
-        """The cells to cover on ``grid``, the walls that hide them and, unless ``metric`` is straight, the walking
-        distances between them."""
+        """The cells to cover on ``grid``, the walls that hide them and the walking distances between them: for the
+        walking metric, and for the routed one where a wall hides something (without, it is the straight law)."""
         self.grid = grid
         self.sight = None if sight is None or sight.trivial else sight
         self.walking = None
-        if self.metric != "straight":
+        if self.metric == "walking" or (self.metric == "routed" and self.sight is not None):
             from meanfield.geometry.walking import WalkingDistances
 
             self.walking = WalkingDistances(grid, sight)

@@ -103,3 +103,23 @@ def test_a_plugin_that_declares_no_options_checks_its_table_itself():
 def test_the_evacuation_law_deprecates_its_walking_speed():
     with pytest.warns(MeanfieldDeprecationWarning, match=r"controller\.options\.coverage\.v_free.*crowd\.free_speed"):
         builtin_scenarios()["hall"](seed=0).with_values({"controller.options.coverage.v_free": 1.2})
+
+
+@pytest.mark.parametrize(
+    ("option", "old", "new"),
+    [("metric", "straight", "routed"), ("weight", "density", "tracking-error"), ("weight", "excess", "tracking-error"),
+     ("v_d", "safe-zone", "auto"), ("v_d", "exits", "auto")],  # fmt: skip
+)
+def test_coverage_values_no_study_found_winning_are_read_with_a_warning_naming_the_replacement(option, old, new):
+    with pytest.warns(MeanfieldDeprecationWarning, match=rf"coverage\.{option} = '{old}'.*use '{new}'"):
+        sc = builtin_scenarios()["hall"](seed=0).with_values({f"controller.options.coverage.{option}": old})
+    assert sc.controller.options["coverage"][option] == old  # still read, until 0.3.0
+
+
+def test_coverage_routes_its_robots_by_default_and_builds_no_walking_distances_in_a_convex_room():
+    from meanfield import ClosedLoop, paper_scenario
+
+    paper = ClosedLoop(paper_scenario(seed=0).with_values({"controller.kind": "coverage", "t_final": 0.1})).controller
+    assert paper.metric == "routed" and paper.walking is None  # nothing hides a centroid: the straight law
+    hall = ClosedLoop(builtin_scenarios()["hall"](seed=0).with_values({"controller.kind": "coverage"})).controller
+    assert hall.metric == "routed" and hall.walking is not None
