@@ -120,7 +120,7 @@ BUILTIN: dict[str, dict[str, str]] = {
         "linear": "meanfield.crowds.congestion:Linear.from_scenario",
     },
     "beta_gamma": {
-        "min-norm": "meanfield.controllers.backstepping:MinimumNormBetaGamma.from_scenario",
+        "min-norm": "meanfield.controllers.beta_gamma:MinimumNormBetaGamma.from_scenario",
     },
     "command": {
         "run": "meanfield.cli.run:register",

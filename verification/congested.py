@@ -52,7 +52,8 @@ from typing import Any
 
 import numpy as np
 
-from meanfield.controllers.backstepping import G_MIN, BacksteppingController, CongestedPlant
+from meanfield.controllers.backstepping import BacksteppingController
+from meanfield.controllers.congested_plant import G_MIN, CongestedPlant
 from meanfield.errors import SimulationDiverged
 from meanfield.io.atomic import save_figure, subplots
 from meanfield.scenarios.scenario import Scenario, paper_unity_scenario

@@ -65,7 +65,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     Mutation(
         "beta-gamma-sum-2",
         "min-norm β/γ: extra inputs doubled (Σβ + Σγ = 2), shortfall still reported as 0",
-        "meanfield/controllers/backstepping.py",
+        "meanfield/controllers/beta_gamma.py",
         "        s = A / Z\n",
         "        s = 2 * A / Z\n",
         "eq. (9): Σ_i (Σ_l β_il + γ_i) = 1",
@@ -73,7 +73,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     Mutation(
         "beta-gamma-sum-half",
         "min-norm β/γ: extra inputs halved (Σβ + Σγ = 1/2), shortfall still reported as 0",
-        "meanfield/controllers/backstepping.py",
+        "meanfield/controllers/beta_gamma.py",
         "        s = A / Z\n",
         "        s = 0.5 * A / Z\n",
         "eq. (9): Σ_i (Σ_l β_il + γ_i) = 1",
@@ -105,7 +105,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     Mutation(
         "saturating-alpha-derivative",
         "SaturatingAlpha: d(α/ρ)/dρ = -α₀/(ρ+ρ_f)²  ->  -α₀/(ρ+ρ_f) (wrong chain rule in ∂_t v_d)",
-        "meanfield/controllers/backstepping.py",
+        "meanfield/controllers/alpha_schedules.py",
         "        return -self.alpha0 / (d * d)\n",
         "        return -self.alpha0 / d\n",
         "Theorem 3 (model-based ∂_t v_d)",

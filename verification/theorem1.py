@@ -28,9 +28,10 @@ import numpy as np
 
 from analysis.poincare import neumann_eigenvalue
 from analysis.rates import decay_rate
-from meanfield.controllers.backstepping import AlphaSchedule, ConstantAlpha
+from meanfield.controllers.alpha_schedules import ConstantAlpha
 from meanfield.crowds.density_crowd import initial_density
 from meanfield.fokker_planck.solver import FokkerPlanck
+from meanfield.interfaces import AlphaSchedule
 from meanfield.io.atomic import save_figure, subplots
 from meanfield.scenarios.scenario import Scenario
 from meanfield.simulation.assembly import assemble

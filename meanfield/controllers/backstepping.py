@@ -38,7 +38,6 @@ paper's, number for number.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -46,7 +45,16 @@ import numpy as np
 
 from meanfield._compiled.core import UNAVAILABLE
 from meanfield.controllers._law_loops import PAPER_STEP_ONE, face_law, paper_law
-from meanfield.errors import ParameterError, SigmaLike, check_sigma, positive_number
+from meanfield.controllers.alpha_schedules import ConstantAlpha, SaturatingAlpha
+from meanfield.controllers.beta_gamma import MinimumNormBetaGamma, UserBetaGamma
+from meanfield.controllers.congested_plant import (
+    G_MIN,
+    CongestedPlant,
+    CongestionFaces,
+    CongestionReport,
+    congested_plant,
+)
+from meanfield.errors import ParameterError, SigmaLike, check_sigma
 from meanfield.fokker_planck.solver import FokkerPlanck
 from meanfield.geometry.grid import FaceField, Grid
 from meanfield.interfaces import (
@@ -67,14 +75,7 @@ DVD_DT_OPTIONS = ("model", "fokker-planck", "finite-difference")
 """The ways :class:`BacksteppingController` obtains ``∂_t v_d``."""
 CONGESTION_OPTIONS = ("compensate", "ignore")
 """``controller.congestion``: track ``v_d / g`` on a congested plant (:class:`CongestedPlant`), or ``v_d``."""
-G_MIN = 0.1
-"""The default floor ``g_min`` of the speed factor the law divides by: at most 10× the walking velocity
-asked of the robots' field; the linear diagram reaches it at 0.9 ρ_max (4.86 persons/m²), Weidmann's at
-4.16 persons/m² (docs page *Verification*, "Steps I and II on the congested plant")."""
-_SLOPE_STEP = 6e-6
-"""Central-difference step of ``g'``, as a fraction of the diagram's ``ρ_max`` (about ε^(1/3))."""
-
-__all__ = [
+__all__ = [  # the α schedules, β/γ rules and congested plant live in their own modules; the law's names them too
     "DVD_DT_OPTIONS",
     "CONGESTION_OPTIONS",
     "G_MIN",
@@ -91,243 +92,6 @@ __all__ = [
     "ControlState",
     "BacksteppingController",
 ]
-
-
-# ---------------------------------------------------------------------- α schedules
-@dataclass(frozen=True)
-class ConstantAlpha:
-    """``α(x, t) = α₀``: the paper's plain gain.  ``|v_d|`` grows like ``1/ρ`` where the crowd is thin."""
-
-    alpha0: float
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "alpha0", positive_number("controller.alpha", self.alpha0))
-
-    def over_rho(self, rho_f):
-        return self.alpha0 / rho_f
-
-    def over_rho_derivative(self, rho_f):
-        return -self.alpha0 / (rho_f * rho_f)
-
-    def alpha(self, rho_f):
-        return self.alpha0 + 0.0 * rho_f
-
-
-@dataclass(frozen=True)
-class SaturatingAlpha:
-    """Density-scheduled gain ``α = α₀ ρ / (ρ + ρ_floor)``.
-
-    The Step-I term becomes ``α∇ρ̃/ρ = α₀ ∇ρ̃ / (ρ + ρ_floor)``: bounded by
-    ``α₀ |∇ρ̃| / ρ_floor`` where the crowd is thin, equal to the plain gain ``α₀`` where
-    ``ρ ≫ ρ_floor``.  The price: ``α_inf = α₀ ρ_min / (ρ_min + ρ_floor)`` in Theorems 1–2,
-    which is small where the density is small (slower guaranteed decay there).
-    """
-
-    alpha0: float
-    rho_floor: float
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "alpha0", positive_number("controller.alpha", self.alpha0))
-        object.__setattr__(self, "rho_floor", positive_number("controller.rho_floor", self.rho_floor))
-
-    def over_rho(self, rho_f):
-        return self.alpha0 / (rho_f + self.rho_floor)
-
-    def over_rho_derivative(self, rho_f):
-        d = rho_f + self.rho_floor
-        return -self.alpha0 / (d * d)
-
-    def alpha(self, rho_f):
-        return self.alpha0 * rho_f / (rho_f + self.rho_floor)
-
-
-# ---------------------------------------------------------------------- β/γ strategies
-class MinimumNormBetaGamma:
-    """Minimum-norm solution: ``δu_i = A b_i / Z``, ``δω_i = -A g_i / Z``.
-
-    Derived on the docs page *The controller* (``docs/controller.md#choosing-beta-and-gamma``).
-
-    Equivalent to ``β_il = (b_i^(l))²/Z`` and ``γ_i = g_i²/Z`` in the paper's eq. (8):
-    non-negative, summing to 1, zero where the integral is zero, and with no division by
-    a small integral.  When ``Z = 0`` (ṽ orthogonal to every kernel column) nothing can
-    cancel ``A``: the inputs are zero and the shortfall is ``A``.
-    """
-
-    name = "min-norm"
-    accepts_kernel_scaling = True
-    """Its inputs follow the law's own units (``controller.scaling = "kernel"``): it has no limits of its own."""
-
-    @classmethod
-    def from_scenario(cls, scenario: Any) -> MinimumNormBetaGamma:
-        """Registry factory (kind ``beta_gamma``, name ``min-norm``): needs nothing of the scenario."""
-        return cls()
-
-    def __call__(self, b: np.ndarray, g: np.ndarray, A: float) -> ExtraInputs:
-        Z = (b * b).sum() + (g * g).sum()
-        if Z == 0:
-            return ExtraInputs(np.zeros_like(b), np.zeros_like(g), A)
-        s = A / Z
-        return ExtraInputs(s * b, -s * g, 0.0 * A)
-
-
-class UserBetaGamma:
-    """Wraps a user rule ``(b, g, A) -> (β (n, 2), γ (n,))`` into extra inputs.
-
-    The rule may return None when no admissible weights exist (e.g. every integral is
-    zero); the inputs are then zero and the whole ``A`` is reported as the shortfall.
-
-    The rule's output is checked against the paper's constraints (eq. (9)):
-    ``Σ β + Σ γ = 1`` and ``β_il = 0`` where ``b_i^(l) = 0`` (``γ_i`` likewise).  Then
-    ``δu_i^(l) = β_il A / b_i^(l)`` and ``δω_i = -γ_i A / g_i`` (paper, eq. (8)).
-    """
-
-    name = "user"
-
-    def __init__(self, rule: Callable[[np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]):
-        if not callable(rule):
-            raise ParameterError("beta_gamma", rule, "a callable (b, g, A) -> (beta, gamma)")
-        self.rule = rule
-
-    def __call__(self, b: np.ndarray, g: np.ndarray, A: float) -> ExtraInputs:
-        weights = self.rule(b, g, A)
-        if weights is None:  # the rule found no admissible weights: nothing cancels A
-            return ExtraInputs(np.zeros_like(b), np.zeros_like(g), A)
-        beta, gamma = weights
-        beta = np.asarray(beta, float).reshape(b.shape)
-        gamma = np.asarray(gamma, float).reshape(g.shape)
-        total = beta.sum() + gamma.sum()
-        if not np.isfinite(total) or abs(total - 1.0) > 1e-9:
-            raise ParameterError("beta_gamma", f"sum {total}", "β and γ summing to 1 (eq. (9))")
-        if np.any((b == 0) & (beta != 0)) or np.any((g == 0) & (gamma != 0)):
-            raise ParameterError(
-                "beta_gamma", "non-zero weight on a zero integral", "β_il = 0 where b_il = 0, γ_i = 0 where g_i = 0"
-            )
-        with np.errstate(divide="ignore", invalid="ignore"):
-            du = np.where(b != 0, beta * A / np.where(b != 0, b, 1.0), 0.0)
-            dw = np.where(g != 0, -gamma * A / np.where(g != 0, g, 1.0), 0.0)
-        done = (b * du).sum() - (g * dw).sum()
-        return ExtraInputs(du, dw, A - done)
-
-
-# ---------------------------------------------------------------------- the congested plant
-@dataclass(frozen=True)
-class CongestionFaces:
-    """The speed factor of a congested plant on the faces, as the law uses it (:meth:`CongestedPlant.on_faces`).
-
-    Attributes
-    ----------
-    g : FaceField
-        ``g(Nρ_f)``: the plant's speed factor at the face densities.
-    gain : FaceField
-        ``1/ĝ``, ``ĝ = max(g, g_min)``: the tracked field is ``v_d · gain``.
-    gain_slope : FaceField
-        ``d(1/ĝ)/dρ_f = -N g'(Nρ_f)/g²`` where ``g >= g_min``, 0 where capped (``1/ĝ`` is constant there).
-    capped : tuple of bool arrays
-        The faces where ``g < g_min``: the law cannot ask the robots for ``v_d/g`` there.
-    excess : FaceField
-        ``g/ĝ - 1``: 0 where ``g >= g_min`` (exactly), ``g/g_min - 1 ∈ [-1, 0)`` where capped.
-    """
-
-    g: FaceField
-    gain: FaceField
-    gain_slope: FaceField
-    capped: tuple[np.ndarray, np.ndarray]
-    excess: FaceField
-
-
-@dataclass(frozen=True)
-class CongestedPlant:
-    """What the law knows of a congested crowd: its fundamental diagram and its number of people.
-
-    The plant (docs page *Congestion*) is ``∂_t ρ = -∇·(ρ g(Nρ) v_r + ρ u_W) + Δ(σρ)``, ``ρ`` of unit
-    mass, ``Nρ`` persons/m².  The law tracks ``v_d/ĝ`` with ``ĝ = max(g(Nρ_f), g_min)`` (the module
-    docstring; docs page *Verification*, "Steps I and II on the congested plant").
-
-    Parameters
-    ----------
-    diagram : FundamentalDiagram
-        Duck-typed (:mod:`meanfield.crowds.congestion`): ``speed_factor(persons/m²)`` in ``[0, 1]``, a
-        finite ``rho_max`` (persons/m²) and ``slows`` true.  ``g'`` is a central difference of
-        ``speed_factor`` with step ``h = 6e-6 ρ_max`` (:meth:`slope`): exact but for round-off of about
-        1e-11 relative for the linear diagram, whose ``g`` is linear; a truncation error of order
-        ``h² g‴/6`` otherwise.
-    people : float
-        ``N`` (> 0), the number of people.
-    g_min : float
-        The floor of the speed factor the law divides by, in ``(0, 1]`` (:data:`G_MIN`).
-    """
-
-    diagram: Any
-    people: float
-    g_min: float = G_MIN
-
-    def __post_init__(self) -> None:
-        for attr in ("speed_factor", "rho_max"):
-            if not hasattr(self.diagram, attr):
-                raise ParameterError(
-                    "crowd.congestion", type(self.diagram).__name__, "a fundamental diagram (speed_factor, rho_max)"
-                )
-        if not getattr(self.diagram, "slows", True):
-            raise ParameterError("crowd.congestion", "none", "a diagram that slows the crowd")
-        rho_max = float(self.diagram.rho_max)
-        if not (math.isfinite(rho_max) and rho_max > 0):
-            raise ParameterError("crowd.rho_max", rho_max, "a finite jam density > 0 (persons/m²)")
-        object.__setattr__(self, "people", positive_number("crowd.n", self.people))
-        g_min = float(self.g_min)
-        if not (0.0 < g_min <= 1.0):
-            raise ParameterError("g_min", self.g_min, "a speed factor in (0, 1]")
-        object.__setattr__(self, "g_min", g_min)
-
-    def speed_factor(self, rho_f: np.ndarray) -> np.ndarray:
-        """``g(Nρ)`` at unit-mass densities ``rho_f``."""
-        return np.asarray(self.diagram.speed_factor(self.people * np.asarray(rho_f, float)), float)
-
-    def slope(self, rho_f: np.ndarray) -> np.ndarray:
-        """``g'(r)`` at ``r = Nρ_f`` persons/m²: ``(g(r + h) - g(max(r - h, 0))) / (their distance)``."""
-        r = self.people * np.asarray(rho_f, float)
-        h = _SLOPE_STEP * float(self.diagram.rho_max)
-        lo = np.maximum(r - h, 0.0)
-        hi = r + h
-        f = self.diagram.speed_factor
-        return (np.asarray(f(hi), float) - np.asarray(f(lo), float)) / (hi - lo)
-
-    def on_faces(self, rf: FaceField) -> CongestionFaces:
-        """:class:`CongestionFaces` at the face densities ``rf``."""
-        out: dict[str, list[np.ndarray]] = {"g": [], "gain": [], "slope": [], "capped": [], "excess": []}
-        for r in rf:
-            g = self.speed_factor(r)
-            capped = g < self.g_min
-            gain = 1.0 / np.where(capped, self.g_min, g)
-            out["g"].append(g)
-            out["gain"].append(gain)
-            out["slope"].append(np.where(capped, 0.0, -self.people * self.slope(r) * gain * gain))
-            out["capped"].append(capped)
-            out["excess"].append(np.where(capped, g / self.g_min - 1.0, 0.0))
-        pair = {k: (v[0], v[1]) for k, v in out.items()}
-        return CongestionFaces(pair["g"], pair["gain"], pair["slope"], pair["capped"], pair["excess"])
-
-
-@dataclass(frozen=True)
-class CongestionReport:
-    """What one evaluation of the congestion-aware law found (``BacksteppingController.congestion_report``).
-
-    Attributes
-    ----------
-    capped_mass : float
-        The share of the crowd's mass on the faces where ``g < g_min`` (``ρ_f`` weighted as in the face
-        inner product, over both families of faces): where the guarantee does not hold.
-    capped_faces : float
-        The share of the open faces where ``g < g_min``.
-    residual : float
-        ``J = ⟨∇ρ̃, ρ_f (g/ĝ - 1) v_d⟩``: what the capped faces add to ``dV₂/dt`` (0 when none is capped).
-    g_least : float
-        The smallest ``g(Nρ_f)`` over the open faces.
-    """
-
-    capped_mass: float
-    capped_faces: float
-    residual: float
-    g_least: float
 
 
 # ---------------------------------------------------------------------- the controller
@@ -837,15 +601,6 @@ class BacksteppingController:
         self._previous_vd = None
         self.congestion_report = None
         self._congestion_stats = [0, 0.0, 0.0, 0.0]
-
-
-def congested_plant(parts: ControllerParts, g_min: float = G_MIN) -> CongestedPlant | None:
-    """The plant's congestion from the assembled parts (``parts.congestion``, ``parts.people``), or None
-    when there is none to compensate (no diagram, or one that does not slow: ``"none"``)."""
-    diagram = parts.congestion
-    if diagram is None or not getattr(diagram, "slows", False):
-        return None
-    return CongestedPlant(diagram, parts.people, g_min)
 
 
 # ---------------------------------------------------------------------- the law in one compiled call

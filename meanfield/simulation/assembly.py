@@ -20,12 +20,13 @@ from typing import Any
 import numpy as np
 
 from meanfield import plugins
-from meanfield.controllers.backstepping import BetaGammaStrategy, ConstantAlpha, SaturatingAlpha
+from meanfield.controllers.alpha_schedules import ConstantAlpha, SaturatingAlpha
 from meanfield.errors import ParameterError
 from meanfield.geometry.grid import Grid
 from meanfield.geometry.sight import SightLines
 from meanfield.geometry.target import gaussian_target, target_region_radius
 from meanfield.interfaces import (
+    BetaGammaStrategy,
     Controller,
     ControllerParts,
     Crowd,
