@@ -123,3 +123,18 @@ def test_coverage_routes_its_robots_by_default_and_builds_no_walking_distances_i
     assert paper.metric == "routed" and paper.walking is None  # nothing hides a centroid: the straight law
     hall = ClosedLoop(builtin_scenarios()["hall"](seed=0).with_values({"controller.kind": "coverage"})).controller
     assert hall.metric == "routed" and hall.walking is not None
+
+
+def test_the_deprecated_options_are_removed_by_the_release_their_warnings_name():
+    """The warnings say "removed in 0.3.0": this fails once the package reaches that version with them still read."""
+    import meanfield
+    from meanfield.controllers.coverage import DEPRECATED
+    from meanfield.scenarios.sections import FLAT_CONTROLLER_OPTIONS_REMOVED_IN
+
+    assert FLAT_CONTROLLER_OPTIONS_REMOVED_IN == "0.3.0" and DEPRECATED
+    def version(v: str) -> tuple[int, ...]:
+        return tuple(int(part) for part in v.split(".")[:3])
+
+    assert version(meanfield.__version__) < version(FLAT_CONTROLLER_OPTIONS_REMOVED_IN), (
+        "remove the flat [controller.options] keys, coverage's DEPRECATED values and the evacuation law's v_free"
+    )
