@@ -6,8 +6,8 @@ Run:  python benchmarks/bench_nmpc.py [--t-final 4] [--repeats 3] [--set KEY=VAL
 Each repeat runs the paper scenario (200 humans, 16 robots, 30×30 grid, dt = 0.01, seed =
 repeat) for ``--t-final`` seconds twice, one core, one run after the other: with the NMPC
 controller as configured (``controller.kind = "nmpc"``, its default options — the real-time
-SQP — or ``--set controller.options.KEY=VALUE``), and with the anchor, the same problem solved
-by IPOPT to convergence (``controller.options.solver = "ipopt"``, or ``--anchor-set``).  The
+SQP — or ``--set controller.options.nmpc.KEY=VALUE``), and with the anchor, the same problem solved
+by IPOPT to convergence (``controller.options.nmpc.solver = "ipopt"``, or ``--anchor-set``).  The
 first seconds are the busiest (the signs turn, the crowd is gathered), so they are the ones timed.
 
 In each run every call of the controller's ``act`` is timed: the plan (a solve once per control
@@ -50,7 +50,7 @@ from meanfield.scenarios.overrides import parse_set  # noqa: E402
 
 CONTROL_PERIOD = 0.01  # s: dt of the paper scenario, its time unit taken as a second
 GOAL_FACTOR = 0.5  # mean compute per control step <= half the control period
-ANCHOR = {"controller.options.solver": "ipopt"}
+ANCHOR = {"controller.options.nmpc.solver": "ipopt"}
 
 
 def one_run(seed: int, t_final: float, sets: dict) -> dict:
@@ -178,8 +178,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--t-final", type=float, default=4.0, help="simulated seconds per repeat (default 4)")
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--set", action="append", default=[], help="e.g. controller.options.blocks=[1,2,2]")
-    ap.add_argument("--anchor-set", action="append", default=[], help='default controller.options.solver="ipopt"')
+    ap.add_argument("--set", action="append", default=[], help="e.g. controller.options.nmpc.blocks=[1,2,2]")
+    ap.add_argument("--anchor-set", action="append", default=[], help='default controller.options.nmpc.solver="ipopt"')
     ap.add_argument("--json", default=None, help="write the figures as JSON")
     ap.add_argument("--out", default=None, help="write the printed report as text")
     a = ap.parse_args()
