@@ -73,7 +73,7 @@ import numpy as np
 
 from meanfield.controllers._law_loops import HUGHES_STEP_ONE
 from meanfield.controllers.backstepping import BacksteppingController, _Prepared
-from meanfield.controllers.exit_assignment import ExitAssignment
+from meanfield.controllers.exit_assignment import ExitAssignment, distance_to_each_exit
 from meanfield.errors import ParameterError, choice, num, options_table
 from meanfield.geometry.geodesic import ExitEikonal, exit_distance
 from meanfield.geometry.grid import FaceField
@@ -87,6 +87,7 @@ __all__ = [
     "REBALANCE_PERIOD",
     "SPEED_FLOOR",
     "RATE_STEP",
+    "V_FREE",
 ]
 
 POTENTIALS = ("distance", "hughes", "balanced")
@@ -95,6 +96,9 @@ or the distance to the exits balanced by their capacities (:mod:`meanfield.contr
 REBALANCE_PERIOD = 1.0
 """Default ``controller.options.evacuation.rebalance_period``: the balanced potential is solved again this often (s in
 SI)."""
+V_FREE = 1.34
+"""m/s: the walking speed of parts built by hand, which carry no crowd (Weidmann's free speed, the crowd's default
+``crowd.free_speed``); from a scenario the law walks at the crowd's own."""
 SPEED_FLOOR = 0.05
 """``f_min / v_free``: the floor of the walking speed in Hughes' eikonal equation (module docstring)."""
 RATE_STEP = 1e-6
@@ -166,11 +170,6 @@ class _HughesPrepared(_Prepared):
     grad_phi: FaceField | None = None
 
 
-def _distance_to_each_exit(grid: Any, segs: np.ndarray, sight: Any) -> np.ndarray:
-    """``d_k``, the walking distance to each exit alone, ``(K, nx, ny)`` (one fast march per exit)."""
-    return np.stack([ExitEikonal(grid, segs[k : k + 1], sight).distance for k in range(len(segs))])
-
-
 class EvacuationController(BacksteppingController):
     """The paper's Step II tracking Hughes' desired field towards the exits (see the module docstring).
 
@@ -209,7 +208,7 @@ class EvacuationController(BacksteppingController):
         self,
         *args: Any,
         phi: np.ndarray,
-        v_free: float = 1.34,
+        v_free: float = V_FREE,
         rho_max: float = math.inf,
         potential: str = "distance",
         eikonal: ExitEikonal | None = None,
@@ -257,12 +256,12 @@ class EvacuationController(BacksteppingController):
     @classmethod
     def with_options(cls, parts: ControllerParts, options: EvacuationOptions) -> EvacuationController:
         """The law on ``parts`` with ``options`` (those of another controller's table, for one that runs it): the
-        walking speed ``v_free`` is the crowd's (``parts.free_speed``, 1.34 m/s for parts built by hand) unless the
-        deprecated option gives it."""
+        walking speed ``v_free`` is the crowd's (``parts.free_speed``, :data:`V_FREE` for parts built by hand)
+        unless the deprecated option gives it."""
         from meanfield.geometry.exits import exit_segments
 
         o = options
-        v_free = o.v_free if o.v_free is not None else 1.34 if parts.free_speed is None else float(parts.free_speed)
+        v_free = o.v_free if o.v_free is not None else V_FREE if parts.free_speed is None else float(parts.free_speed)
         segs = exit_segments(parts.region)
         eikonal = ExitEikonal(parts.grid, segs, parts.sight)
         extra: dict[str, Any] = {}
@@ -281,7 +280,7 @@ class EvacuationController(BacksteppingController):
 
         if parts.people is None:
             raise ParameterError("crowd.n", None, "the crowd's size, for the balanced potential (persons per exit)")
-        distances = eikonal.distance[None] if len(segs) == 1 else _distance_to_each_exit(parts.grid, segs, parts.sight)
+        distances = eikonal.distance[None] if len(segs) == 1 else distance_to_each_exit(parts.grid, segs, parts.sight)
         widths = np.hypot(*(segs[:, 1] - segs[:, 0]).T)
         flow = SPECIFIC_FLOW if specific_flow is None else specific_flow
         gain = MIN_GAIN if min_gain is None else min_gain
@@ -311,7 +310,7 @@ class EvacuationController(BacksteppingController):
         open_exits = np.ones(len(segs), dtype=bool) if self._open is None else self._open
         self.eikonal = ExitEikonal(change.grid, segs[open_exits], change.sight)
         if self.assignment is not None:
-            self.assignment.walls_changed(_distance_to_each_exit(change.grid, segs, change.sight), change.grid.volume)
+            self.assignment.walls_changed(distance_to_each_exit(change.grid, segs, change.sight), change.grid.volume)
             self._next_balance = -math.inf
         self.grad_phi = self._face_gradient(self.eikonal.distance)
 

@@ -45,12 +45,13 @@ join the queue, so a crowd gathered by one door is split before any queue has fo
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
 from meanfield.errors import ParameterError
 
-__all__ = ["ExitAssignment", "clearing_time", "ITERATIONS", "SPECIFIC_FLOW"]
+__all__ = ["ExitAssignment", "clearing_time", "distance_to_each_exit", "ITERATIONS", "SPECIFIC_FLOW"]
 
 SPECIFIC_FLOW = 1.8
 """Default ``J``, persons/(m·s): the congested point masses' measured door flow, 1.6–1.9 at widths of
@@ -198,3 +199,11 @@ class ExitAssignment:
         tau = self.offsets if offsets is None else offsets
         shifted = self.distances[self.open] + self.v_free * tau[self.open][:, None, None]
         return shifted.min(axis=0)
+
+
+def distance_to_each_exit(grid: Any, segs: np.ndarray, sight: Any) -> np.ndarray:
+    """``d_k`` of :class:`ExitAssignment`: the walking distance to each exit alone, ``(K, nx, ny)`` (one fast march
+    per exit, :class:`~meanfield.geometry.geodesic.ExitEikonal`, round the walls of ``sight``)."""
+    from meanfield.geometry.geodesic import ExitEikonal
+
+    return np.stack([ExitEikonal(grid, segs[k : k + 1], sight).distance for k in range(len(segs))])

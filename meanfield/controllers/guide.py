@@ -175,7 +175,7 @@ class GuideController:
     def from_parts(cls, parts: ControllerParts) -> GuideController:
         """Registry factory (kind ``controller``, name ``guide``): options as in :attr:`OPTIONS`; the walking speed
         is the crowd's (``crowd.free_speed``)."""
-        from meanfield.controllers.evacuation import EvacuationController
+        from meanfield.controllers.evacuation import V_FREE, EvacuationController
         from meanfield.geometry.exits import exit_segments
         from meanfield.geometry.geodesic import AssignedRoutes, ExitEikonal
         from meanfield.geometry.sight import SightLines
@@ -185,7 +185,7 @@ class GuideController:
         if not len(segs):
             raise ParameterError("controller.kind", "guide", "a plan with exits (domain.exits): it guides to them")
         sight = parts.sight if parts.sight is not None else SightLines(parts.region)
-        v_free = 1.34 if parts.free_speed is None else float(parts.free_speed)
+        v_free = V_FREE if parts.free_speed is None else float(parts.free_speed)
         eikonal = ExitEikonal(parts.grid, segs, sight)
         assignment = EvacuationController.balance(parts, segs, eikonal, v_free, o.specific_flow, MIN_GAIN)
         return cls(parts.grid, sight, assignment, AssignedRoutes(parts.grid, segs, sight),
@@ -408,10 +408,10 @@ class GuideController:
         """A region became wall (a ``block`` event): the walking distances to each exit, the routes, the cells and
         the sight are those of the new grid, and the shares are solved again at once (when a sign last reached
         each cell is kept: the cells are the same)."""
-        from meanfield.controllers.evacuation import _distance_to_each_exit
+        from meanfield.controllers.exit_assignment import distance_to_each_exit
 
         segs = self.routes.segs
-        self.assignment.walls_changed(_distance_to_each_exit(change.grid, segs, change.sight), change.grid.volume)
+        self.assignment.walls_changed(distance_to_each_exit(change.grid, segs, change.sight), change.grid.volume)
         self.routes.walls_changed(change)
         reached = self.last_reached
         self._cover(change.grid, change.sight)
