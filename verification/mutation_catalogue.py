@@ -81,7 +81,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     Mutation(
         "v_d-sign",
         "Step I: v_d = -(α∇ρ̃ - ∇(σρ))/ρ  ->  +α∇ρ̃/ρ + ∇(σρ)/ρ (anti-diffusion of ρ̃)",
-        "meanfield/controllers/backstepping.py",
+        "meanfield/controllers/step_one.py",
         "out = [-p.q[k] * p.grt[k] + p.gs[k] / p.rf[k] for k in range(2)]",
         "out = [+p.q[k] * p.grt[k] + p.gs[k] / p.rf[k] for k in range(2)]",
         "Theorem 1: dV1/dt = -2∫α|∇ρ̃|² <= -2 α_inf μ₂ V1",
@@ -89,7 +89,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     Mutation(
         "v_d-interaction-sign",
         "Step I: v_d = ... - u_W[ρ]  ->  ... + u_W[ρ] (the paper's ∇W * ρ sign slip)",
-        "meanfield/controllers/backstepping.py",
+        "meanfield/controllers/step_one.py",
         "out = [out[k] - p.uw[k] for k in range(2)]",
         "out = [out[k] + p.uw[k] for k in range(2)]",
         "Theorem 1 with W != 0 (u_W cancelled by v_d)",
@@ -113,7 +113,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     Mutation(
         "dissipation-factor-2",
         "reported dissipation ∫α|∇ρ̃|² doubled (the V1 = ∫ρ̃² vs ½∫ρ̃² factor-2 slip)",
-        "meanfield/controllers/backstepping.py",
+        "meanfield/controllers/step_one.py",
         "a = (p.q[0] * p.rf[0], p.q[1] * p.rf[1])  # α = (α/ρ)·ρ, as used in v_d",
         "a = (2 * p.q[0] * p.rf[0], 2 * p.q[1] * p.rf[1])",
         "Theorems 1 and 3 (the dissipation term)",

@@ -37,8 +37,6 @@ paper's, number for number.
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
@@ -54,6 +52,7 @@ from meanfield.controllers.congested_plant import (
     CongestionReport,
     congested_plant,
 )
+from meanfield.controllers.step_one import PaperStepOne, Prepared, StepOne
 from meanfield.errors import ParameterError, SigmaLike, check_sigma
 from meanfield.fokker_planck.solver import FokkerPlanck
 from meanfield.geometry.grid import FaceField, Grid
@@ -95,20 +94,6 @@ __all__ = [  # the α schedules, β/γ rules and congested plant live in their o
 
 
 # ---------------------------------------------------------------------- the controller
-@dataclass
-class _Prepared:
-    """Quantities of one density shared by the terms of the law."""
-
-    rho: np.ndarray
-    rho_t: np.ndarray
-    rf: FaceField
-    grt: FaceField
-    sigma: Any
-    gs: FaceField
-    q: FaceField
-    uw: FaceField | None
-
-
 class BacksteppingController:
     """Density-feedback backstepping controller of the paper (eqs. (6) and (9)).
 
@@ -141,6 +126,9 @@ class BacksteppingController:
         The plant's congestion: Step II then tracks ``v_d/ĝ`` (the module docstring; docs page
         *Verification*, "Steps I and II on the congested plant"), on the numpy path.  None: the
         paper's law (the crowd walks at ``v_r``).
+    step_one : StepOne, optional
+        Step I (:mod:`meanfield.controllers.step_one`): ``v_d``, its rate, the dissipation term and its compiled
+        form.  None: the paper's, eq. (6) (:class:`~meanfield.controllers.step_one.PaperStepOne`).
     """
 
     def __init__(
@@ -156,8 +144,10 @@ class BacksteppingController:
         dvd_dt: Literal["model", "fokker-planck", "finite-difference"] = "finite-difference",
         scales: tuple[float, float] | None = None,
         congestion: CongestedPlant | None = None,
+        step_one: StepOne | None = None,
     ):
         self.grid = grid
+        self.step_one = PaperStepOne() if step_one is None else step_one
         if congestion is not None and not isinstance(congestion, CongestedPlant):
             raise ParameterError("congestion", type(congestion).__name__, "a CongestedPlant or None")
         self.congestion = congestion
@@ -273,7 +263,7 @@ class BacksteppingController:
         """``u_W[ρ]`` on the faces, or None when ``W = 0``."""
         return None if self.interaction is None else self.interaction.on_faces(rho)
 
-    def _prepare(self, rho: np.ndarray, t: float) -> _Prepared:
+    def _prepare(self, rho: np.ndarray, t: float) -> Prepared:
         """Face quantities of ``ρ`` shared by every term of the law (computed once per step)."""
         g = self.grid
         rho_t = rho - self.target
@@ -288,7 +278,7 @@ class BacksteppingController:
             gt = self._target_gradient
             gs = (sig * (grt[0] + gt[0]), sig * (grt[1] + gt[1]))
         q = (self.alpha.over_rho(rf[0]), self.alpha.over_rho(rf[1]))
-        return _Prepared(rho, rho_t, rf, grt, sig, gs, q, self.interaction_on_faces(rho))
+        return self.step_one.prepare(self, Prepared(rho, rho_t, rf, grt, sig, gs, q, self.interaction_on_faces(rho)))
 
     def virtual_velocity(self, rho: np.ndarray, t: float = 0.0) -> FaceField:
         """Step I: ``v_d = -(α∇ρ̃ - ∇(σρ))/ρ - u_W[ρ]`` on the faces (paper, eq. (6)).
@@ -298,11 +288,8 @@ class BacksteppingController:
         """
         return self._virtual_velocity(self._prepare(rho, t))
 
-    def _virtual_velocity(self, p: _Prepared) -> FaceField:
-        out = [-p.q[k] * p.grt[k] + p.gs[k] / p.rf[k] for k in range(2)]
-        if p.uw is not None:
-            out = [out[k] - p.uw[k] for k in range(2)]
-        return out[0], out[1]
+    def _virtual_velocity(self, p: Prepared) -> FaceField:
+        return self.step_one.virtual_velocity(self, p)
 
     def density_rate(self, rho: np.ndarray, v_r: FaceField, t: float = 0.0) -> np.ndarray:
         """Fokker–Planck right-hand side ``-∇·((v_r + u_W)ρ - ∇(σρ))`` with ``v_a = 0`` (eq. (4)).
@@ -312,7 +299,7 @@ class BacksteppingController:
         """
         return self._density_rate(self._prepare(rho, t), v_r)
 
-    def _density_rate(self, p: _Prepared, v_r: FaceField) -> np.ndarray:
+    def _density_rate(self, p: Prepared, v_r: FaceField) -> np.ndarray:
         flux = [v_r[k] * p.rf[k] - p.gs[k] for k in range(2)]
         if p.uw is not None:
             flux = [flux[k] + p.uw[k] * p.rf[k] for k in range(2)]
@@ -326,28 +313,15 @@ class BacksteppingController:
         """
         return self._virtual_velocity_rate(self._prepare(rho, t), rho_dot)
 
-    def _virtual_velocity_rate(self, p: _Prepared, rho_dot: np.ndarray) -> FaceField:
-        g = self.grid
-        df = g.face_average(rho_dot)
-        grd = g.gradient(rho_dot)
-        gsd = g.gradient(p.sigma * rho_dot) if callable(self.sigma) else (p.sigma * grd[0], p.sigma * grd[1])
-        out = []
-        for k in range(2):
-            dq = self.alpha.over_rho_derivative(p.rf[k])
-            inv = 1.0 / p.rf[k]
-            out.append(-(dq * df[k] * p.grt[k] + p.q[k] * grd[k]) + (gsd[k] - p.gs[k] * df[k] * inv) * inv)
-        uw = self.interaction_on_faces(rho_dot)
-        if uw is not None:
-            out = [out[0] - uw[0], out[1] - uw[1]]
-        return out[0], out[1]
+    def _virtual_velocity_rate(self, p: Prepared, rho_dot: np.ndarray) -> FaceField:
+        return self.step_one.virtual_velocity_rate(self, p, rho_dot)
 
     def dissipation(self, rho: np.ndarray) -> float:
         """``∫ α |∇ρ̃|² dx`` on the faces (the first term of dV₂/dt; dV₁/dt = -2× this)."""
         return self._dissipation(self._prepare(rho, 0.0))
 
-    def _dissipation(self, p: _Prepared) -> float:
-        a = (p.q[0] * p.rf[0], p.q[1] * p.rf[1])  # α = (α/ρ)·ρ, as used in v_d
-        return self.grid.face_inner((a[0] * p.grt[0], a[1] * p.grt[1]), p.grt)
+    def _dissipation(self, p: Prepared) -> float:
+        return self.step_one.dissipation(self, p)
 
     # ------------------------------------------------------------------ the congested plant
     def tracked_velocity(self, rho: np.ndarray, t: float = 0.0) -> FaceField:
@@ -375,10 +349,10 @@ class BacksteppingController:
             return self._density_rate(p, v_r)
         return self._congested_rate(p, v_r, self.congestion.on_faces(p.rf))
 
-    def _congested_rate(self, p: _Prepared, v_r: FaceField, cf: CongestionFaces) -> np.ndarray:
+    def _congested_rate(self, p: Prepared, v_r: FaceField, cf: CongestionFaces) -> np.ndarray:
         return self._density_rate(p, (cf.g[0] * v_r[0], cf.g[1] * v_r[1]))
 
-    def _tracked_rate(self, p: _Prepared, v_d: FaceField, cf: CongestionFaces, rho_dot: np.ndarray) -> FaceField:
+    def _tracked_rate(self, p: Prepared, v_d: FaceField, cf: CongestionFaces, rho_dot: np.ndarray) -> FaceField:
         dvd = self._virtual_velocity_rate(p, rho_dot)
         df = self.grid.face_average(rho_dot)
         return tuple(cf.gain[k] * dvd[k] + cf.gain_slope[k] * df[k] * v_d[k] for k in range(2))  # type: ignore[return-value]
@@ -391,7 +365,7 @@ class BacksteppingController:
         p = self._prepare(rho, t)
         return self._report(p, self._virtual_velocity(p), self.congestion.on_faces(p.rf), count=False)
 
-    def _report(self, p: _Prepared, v_d: FaceField, cf: CongestionFaces, count: bool = True) -> CongestionReport:
+    def _report(self, p: Prepared, v_d: FaceField, cf: CongestionFaces, count: bool = True) -> CongestionReport:
         """The share of the mass where ``g < g_min``, and ``J = ⟨∇ρ̃, ρ_f (g/ĝ - 1) v_d⟩`` (kept and counted)."""
         gr = self.grid
         open_ = (gr.weight_x > 0, gr.weight_y > 0)
@@ -484,7 +458,7 @@ class BacksteppingController:
         )  # fmt: skip
 
     def _congested_inputs(
-        self, p: _Prepared, v_d: FaceField, v_r: FaceField, field: NavigationField, t: float
+        self, p: Prepared, v_d: FaceField, v_r: FaceField, field: NavigationField, t: float
     ) -> ControlState:
         """Step II on the congested plant: track ``w = v_d/ĝ`` (the module docstring).
 
@@ -552,19 +526,16 @@ class BacksteppingController:
 
     def _compiled_step_one(self) -> tuple[int, float, float, FaceField | None] | None:
         """Step I as :func:`~meanfield.controllers._law_loops.face_law` computes it, ``(step, v_free, ρ_max, ∇φ)``,
-        or None.
-
-        The paper's (eq. (6)) for this class itself with the constant or saturating α.  A subclass
-        that changes Step I, its rate or the dissipation gets None (the numpy path) unless it says
-        here which compiled Step I it is (:class:`~meanfield.controllers.evacuation.EvacuationController`: Hughes').
-        """
-        if type(self) is BacksteppingController and type(self.alpha) in (ConstantAlpha, SaturatingAlpha):
-            return PAPER_STEP_ONE, 0.0, math.inf, None
-        return None
+        or None: what the law's Step I says (:meth:`~meanfield.controllers.step_one.StepOne.compiled`), unless a
+        subclass changed how the law computes Step I (then the numpy path, which follows it)."""
+        law = BacksteppingController
+        if any(getattr(type(self), m) is not getattr(law, m) for m in _STEP_ONE_METHODS):
+            return None
+        return self.step_one.compiled(self)
 
     def _scaled_inputs(
         self,
-        p: _Prepared,
+        p: Prepared,
         v_d: FaceField,
         vt: FaceField,
         b,
@@ -601,6 +572,10 @@ class BacksteppingController:
         self._previous_vd = None
         self.congestion_report = None
         self._congestion_stats = [0, 0.0, 0.0, 0.0]
+
+
+_STEP_ONE_METHODS = ("_prepare", "_virtual_velocity", "_virtual_velocity_rate", "_dissipation")
+"""The law's own calls of its Step I: a subclass that overrides one takes the numpy path."""
 
 
 # ---------------------------------------------------------------------- the law in one compiled call

@@ -60,7 +60,8 @@
 
   The compiled law (:func:`~meanfield.controllers._law_loops.face_law`) computes the
   ``"distance"`` field; ``"hughes"`` takes the numpy path.  Registered as controller
-  ``evacuation``.
+  ``evacuation``.  It is the backstepping law composed with this Step I, :class:`ExitsStepOne`
+  (:mod:`meanfield.controllers.step_one`), plus the exits' events and the balance's schedule.
 """
 
 from __future__ import annotations
@@ -72,8 +73,9 @@ from typing import Any, ClassVar
 import numpy as np
 
 from meanfield.controllers._law_loops import HUGHES_STEP_ONE
-from meanfield.controllers.backstepping import BacksteppingController, _Prepared
+from meanfield.controllers.backstepping import BacksteppingController
 from meanfield.controllers.exit_assignment import ExitAssignment, distance_to_each_exit
+from meanfield.controllers.step_one import Prepared
 from meanfield.errors import ParameterError, choice, num, options_table
 from meanfield.geometry.geodesic import ExitEikonal, exit_distance
 from meanfield.geometry.grid import FaceField
@@ -82,6 +84,7 @@ from meanfield.interfaces import ControllerParts
 __all__ = [
     "exit_distance",
     "EvacuationController",
+    "ExitsStepOne",
     "EvacuationOptions",
     "POTENTIALS",
     "REBALANCE_PERIOD",
@@ -163,15 +166,149 @@ def _deprecated_option(name: str, instead: str) -> None:
 
 
 @dataclass
-class _HughesPrepared(_Prepared):
-    """:class:`~meanfield.controllers.backstepping._Prepared` and Hughes' potential at that density."""
+class _HughesPrepared(Prepared):
+    """:class:`~meanfield.controllers.step_one.Prepared` and Hughes' potential at that density."""
 
     phi: np.ndarray | None = None
     grad_phi: FaceField | None = None
 
 
+def _face_gradient(grid: Any, phi: np.ndarray) -> FaceField:
+    """``∇φ`` on the faces of ``grid`` (0 where ``φ`` is not finite)."""
+    return grid.gradient(np.where(np.isfinite(phi), phi, 0.0))
+
+
+class ExitsStepOne:
+    """Step I towards the exits (module docstring): ``v_d = −f(ρ) ∇φ − u_W[ρ]``, or Hughes' ``−f(ρ) f̂(ρ) ∇φ``;
+    a :class:`~meanfield.controllers.step_one.StepOne` of the law.
+
+    Parameters
+    ----------
+    potential : {"distance", "hughes", "balanced"}
+        ``φ`` (:data:`POTENTIALS`).
+    v_free, rho_max, speed_floor : float
+        ``f(ρ) = v_free (1 − ρ/ρ_max)`` and ``f_min = speed_floor · v_free``.
+    eikonal : ExitEikonal or None
+        The exits' fast-marching solver (Hughes' potential needs it).
+    grad_phi : FaceField or None
+        ``∇φ`` of the static or balanced potential on the faces (set again as the exits or walls change).
+    """
+
+    name = "exits"
+
+    def __init__(self, potential: str, v_free: float, rho_max: float, eikonal: ExitEikonal | None,
+                 speed_floor: float, grad_phi: FaceField | None = None) -> None:  # fmt: skip
+        self.potential, self.v_free, self.rho_max = potential, float(v_free), float(rho_max)
+        self.eikonal, self.speed_floor, self.grad_phi = eikonal, float(speed_floor), grad_phi
+
+    # ------------------------------------------------------------------ the walking speed
+    def speed(self, rf: Any) -> tuple[Any, Any]:
+        """``f(ρ)`` and ``f'(ρ)`` on the faces (0 beyond ``ρ_max``; complex ρ allowed for derivative checks)."""
+        if math.isinf(self.rho_max):
+            return self.v_free + 0 * rf, 0 * rf
+        moving = np.real(rf) < self.rho_max
+        f = np.where(moving, self.v_free * (1 - rf / self.rho_max), 0 * rf)
+        return f, np.where(moving, -self.v_free / self.rho_max + 0 * rf, 0 * rf)
+
+    def floored(self, rf: Any) -> tuple[Any, Any, Any, Any]:
+        """``f``, ``f'``, ``f̂ = max(f, f_min)`` and ``f̂'`` (``f'`` above the floor, 0 on it)."""
+        f, df = self.speed(rf)
+        floor = self.speed_floor * self.v_free
+        above = np.real(f) > floor
+        return f, df, np.where(above, f, floor + 0 * f), np.where(above, df, 0 * df)
+
+    # ------------------------------------------------------------------ Hughes' potential
+    def hughes_potential(self, grid: Any, rho: np.ndarray) -> np.ndarray:
+        """Hughes' ``φ`` on the cells of ``grid`` for the density ``rho``: ``|∇φ| = 1/f̂(ρ)``, ``φ = 0`` on the exits.
+
+        One fast march (:meth:`~meanfield.geometry.geodesic.ExitEikonal.travel_time`) with the speed
+        ``f̂(ρ)`` on the cells; ``inf`` on inactive cells.  A complex ``ρ = a + i b`` gives
+        ``φ(a) + i (φ(a + s b) − φ(a))/s`` (module docstring, :data:`RATE_STEP`).
+        """
+        if self.eikonal is None:
+            raise ParameterError("eikonal", None, "the exits' ExitEikonal on this grid, for Hughes' potential")
+        rho = np.asarray(rho)
+        if np.iscomplexobj(rho):
+            a = np.ascontiguousarray(rho.real)
+            phi = self._march(grid, a)
+            return phi + 1j * self._potential_rate(grid, a, phi, np.ascontiguousarray(rho.imag))
+        return self._march(grid, rho)
+
+    def _march(self, grid: Any, rho: np.ndarray) -> np.ndarray:
+        if math.isinf(self.rho_max):  # f = v_free everywhere: the march of a constant speed, distance / v_free exactly
+            return self.eikonal.distance / self.v_free
+        speed = np.real(self.floored(np.asarray(rho, float))[2])
+        return self.eikonal.travel_time(np.where(grid.active, speed, self.v_free))
+
+    def _potential_rate(self, grid: Any, rho: np.ndarray, phi: np.ndarray, rho_dot: np.ndarray) -> np.ndarray:
+        """``φ̇ = (φ(ρ + s ρ̇) − φ(ρ))/s`` on the cells (0 on inactive ones), ``s ρ̇`` at most :data:`RATE_STEP`
+        ``· ρ_max`` on any cell (the speed moves by at most ``RATE_STEP · v_free``): one more fast march."""
+        act = grid.active
+        top = float(np.abs(rho_dot[act]).max()) if act.any() else 0.0
+        if top == 0.0 or math.isinf(self.rho_max):  # (no congestion: φ = distance / v_free whatever ρ)
+            return np.zeros(grid.shape)
+        s = RATE_STEP * self.rho_max / top
+        out = np.zeros(grid.shape)
+        out[act] = (self._march(grid, rho + s * rho_dot)[act] - phi[act]) / s
+        return out
+
+    # ------------------------------------------------------------------ Step I (StepOne)
+    def prepare(self, law: Any, p: Prepared) -> Prepared:
+        """``p``, with Hughes' potential at the density for ``potential = "hughes"``."""
+        if self.potential != "hughes":
+            return p
+        phi = self.hughes_potential(law.grid, p.rho)
+        shared = {f.name: getattr(p, f.name) for f in fields(p)}
+        return _HughesPrepared(**shared, phi=phi, grad_phi=_face_gradient(law.grid, phi))
+
+    def compiled(self, law: Any) -> tuple[int, float, float, Any] | None:
+        """Hughes' Step I for :func:`~meanfield.controllers._law_loops.face_law` with the static or balanced
+        distance; Hughes' potential takes the numpy path."""
+        if self.potential == "hughes":
+            return None
+        return HUGHES_STEP_ONE, self.v_free, self.rho_max, self.grad_phi
+
+    def virtual_velocity(self, law: Any, p: Prepared) -> FaceField:
+        if isinstance(p, _HughesPrepared):
+            out = []
+            for k in range(2):
+                f, _, fh, _ = self.floored(p.rf[k])
+                out.append(-f * fh * p.grad_phi[k])
+        else:
+            out = [-self.speed(p.rf[k])[0] * self.grad_phi[k] for k in range(2)]
+        if p.uw is not None:
+            out = [out[k] - p.uw[k] for k in range(2)]
+        return out[0], out[1]
+
+    def virtual_velocity_rate(self, law: Any, p: Prepared, rho_dot: np.ndarray) -> FaceField:
+        df = law.grid.face_average(rho_dot)
+        if isinstance(p, _HughesPrepared):
+            if np.iscomplexobj(p.rho) or np.iscomplexobj(rho_dot):
+                raise TypeError("∂_t v_d of Hughes' potential needs a real density and rate (fast marching is real)")
+            dphi = _face_gradient(law.grid, self._potential_rate(law.grid, p.rho, p.phi, rho_dot))
+            out = []
+            for k in range(2):
+                f, fd, fh, fhd = self.floored(p.rf[k])
+                out.append(-(fd * fh + f * fhd) * df[k] * p.grad_phi[k] - f * fh * dphi[k])
+        else:
+            out = [-self.speed(p.rf[k])[1] * df[k] * self.grad_phi[k] for k in range(2)]
+        uw = law.interaction_on_faces(rho_dot)
+        if uw is not None:
+            out = [out[0] - uw[0], out[1] - uw[1]]
+        return out[0], out[1]
+
+    def dissipation(self, law: Any, p: Prepared) -> float:
+        """``−S = ⟨∇ρ̃, ∇(σρ) − (v_d + u_W)ρ⟩``: what Step I's own flux does to ``½∫ρ̃²``, negated."""
+        v = self.virtual_velocity(law, p)
+        if p.uw is not None:
+            v = (v[0] + p.uw[0], v[1] + p.uw[1])
+        return law.grid.face_inner(p.grt, (p.gs[0] - v[0] * p.rf[0], p.gs[1] - v[1] * p.rf[1]))
+
+
 class EvacuationController(BacksteppingController):
-    """The paper's Step II tracking Hughes' desired field towards the exits (see the module docstring).
+    """The paper's Step II tracking Hughes' desired field towards the exits (see the module docstring): the
+    backstepping law with :class:`ExitsStepOne` as its Step I (``self.step_one``), whose figures it names
+    (``potential``, ``v_free``, ``rho_max``, ``grad_phi``, ``eikonal``).
 
     Parameters
     ----------
@@ -217,7 +354,6 @@ class EvacuationController(BacksteppingController):
         rebalance_period: float = REBALANCE_PERIOD,
         **kwargs: Any,
     ):
-        super().__init__(*args, **kwargs)
         if not (math.isfinite(v_free) and v_free > 0):
             raise ParameterError("controller.options.evacuation.v_free", v_free, "a walking speed > 0")
         if not rho_max > 0:
@@ -234,14 +370,43 @@ class EvacuationController(BacksteppingController):
             raise ParameterError("assignment", None, "the exits' ExitAssignment, for the balanced potential")
         if not (math.isfinite(rebalance_period) and rebalance_period > 0):
             raise ParameterError("controller.options.evacuation.rebalance_period", rebalance_period, "a period > 0")
+        step_one = ExitsStepOne(potential, v_free, rho_max, eikonal, speed_floor)
+        super().__init__(*args, step_one=step_one, **kwargs)
+        self.step_one: ExitsStepOne = step_one
         self.assignment = assignment if potential == "balanced" else None
         self.rebalance_period = float(rebalance_period)
         self._next_balance = -math.inf
-        self.v_free, self.rho_max = float(v_free), float(rho_max)
-        self.potential, self.eikonal, self.speed_floor = potential, eikonal, float(speed_floor)
         self._all_exits = None if eikonal is None else eikonal.segs  # (exits_closed solves to a subset of these)
         self._open: np.ndarray | None = None  # the exits open, by exits_closed (None: all)
-        self.grad_phi = self._face_gradient(phi)
+        self.grad_phi = _face_gradient(self.grid, phi)
+
+    # ------------------------------------------------------------------ its Step I's figures, by name
+    potential = property(lambda self: self.step_one.potential, doc="``φ``: one of :data:`POTENTIALS`.")
+    v_free = property(lambda self: self.step_one.v_free, doc="The walking speed in free flow.")
+    rho_max = property(lambda self: self.step_one.rho_max, doc="``ρ_max`` of ``f(ρ)`` (unit-mass density).")
+    speed_floor = property(lambda self: self.step_one.speed_floor, doc="``f_min / v_free``.")
+
+    @property
+    def eikonal(self) -> ExitEikonal | None:
+        """The exits' fast-marching solver, to the exits open."""
+        return self.step_one.eikonal
+
+    @eikonal.setter
+    def eikonal(self, value: ExitEikonal | None) -> None:
+        self.step_one.eikonal = value
+
+    @property
+    def grad_phi(self) -> FaceField:
+        """``∇φ`` of the static or balanced potential on the faces."""
+        return self.step_one.grad_phi
+
+    @grad_phi.setter
+    def grad_phi(self, value: FaceField) -> None:
+        self.step_one.grad_phi = value
+
+    def hughes_potential(self, rho: np.ndarray) -> np.ndarray:
+        """Hughes' ``φ`` on the law's cells for the density ``rho`` (:meth:`ExitsStepOne.hughes_potential`)."""
+        return self.step_one.hughes_potential(self.grid, rho)
 
     options = EvacuationOptions
     """What a scenario may set, ``[controller.options.evacuation]`` (the core reads it: ``plugins.declared``)."""
@@ -298,7 +463,7 @@ class EvacuationController(BacksteppingController):
             self._next_balance = -math.inf
         e = self.eikonal
         self.eikonal = ExitEikonal(e.grid, self._all_exits[open_exits], e.sight)
-        self.grad_phi = self._face_gradient(self.eikonal.distance)
+        self.grad_phi = _face_gradient(self.grid, self.eikonal.distance)
 
     def walls_changed(self, change: Any) -> None:
         """A region became wall (a ``block`` event): the law moves to the new grid and the potential is solved
@@ -312,14 +477,14 @@ class EvacuationController(BacksteppingController):
         if self.assignment is not None:
             self.assignment.walls_changed(distance_to_each_exit(change.grid, segs, change.sight), change.grid.volume)
             self._next_balance = -math.inf
-        self.grad_phi = self._face_gradient(self.eikonal.distance)
+        self.grad_phi = _face_gradient(self.grid, self.eikonal.distance)
 
     # ------------------------------------------------------------------ the exits' balance
     def robot_inputs(self, rho: np.ndarray, field: Any, t: float = 0.0, dt: float | None = None) -> Any:
         """Step II (:meth:`BacksteppingController.robot_inputs`), the balanced potential solved again first when due."""
         if self.assignment is not None and t >= self._next_balance:
             self.assignment.solve(rho)
-            self.grad_phi = self._face_gradient(self.assignment.potential())
+            self.grad_phi = _face_gradient(self.grid, self.assignment.potential())
             self._next_balance = t + self.rebalance_period * (1 - 1e-9)
         return super().robot_inputs(rho, field, t, dt)
 
@@ -335,110 +500,3 @@ class EvacuationController(BacksteppingController):
         """Forget the previous ``v_d``, and solve the balanced potential again at the next evaluation."""
         super().reset()
         self._next_balance = -math.inf
-
-    # ------------------------------------------------------------------ the walking speed
-    def _face_gradient(self, phi: np.ndarray) -> FaceField:
-        return self.grid.gradient(np.where(np.isfinite(phi), phi, 0.0))
-
-    def _speed(self, rf: Any) -> tuple[Any, Any]:
-        """``f(ρ)`` and ``f'(ρ)`` on the faces (0 beyond ``ρ_max``; complex ρ allowed for derivative checks)."""
-        if math.isinf(self.rho_max):
-            return self.v_free + 0 * rf, 0 * rf
-        moving = np.real(rf) < self.rho_max
-        f = np.where(moving, self.v_free * (1 - rf / self.rho_max), 0 * rf)
-        return f, np.where(moving, -self.v_free / self.rho_max + 0 * rf, 0 * rf)
-
-    def _floored(self, rf: Any) -> tuple[Any, Any, Any, Any]:
-        """``f``, ``f'``, ``f̂ = max(f, f_min)`` and ``f̂'`` (``f'`` above the floor, 0 on it)."""
-        f, df = self._speed(rf)
-        floor = self.speed_floor * self.v_free
-        above = np.real(f) > floor
-        return f, df, np.where(above, f, floor + 0 * f), np.where(above, df, 0 * df)
-
-    # ------------------------------------------------------------------ Hughes' potential
-    def hughes_potential(self, rho: np.ndarray) -> np.ndarray:
-        """Hughes' ``φ`` on the cells for the density ``rho``: ``|∇φ| = 1/f̂(ρ)``, ``φ = 0`` on the exits.
-
-        One fast march (:meth:`~meanfield.geometry.geodesic.ExitEikonal.travel_time`) with the speed
-        ``f̂(ρ)`` on the cells; ``inf`` on inactive cells.  A complex ``ρ = a + i b`` gives
-        ``φ(a) + i (φ(a + s b) − φ(a))/s`` (module docstring, :data:`RATE_STEP`).
-        """
-        if self.eikonal is None:
-            raise ParameterError("eikonal", None, "the exits' ExitEikonal on this grid, for Hughes' potential")
-        rho = np.asarray(rho)
-        if np.iscomplexobj(rho):
-            a = np.ascontiguousarray(rho.real)
-            phi = self._march(a)
-            return phi + 1j * self._potential_rate(a, phi, np.ascontiguousarray(rho.imag))
-        return self._march(rho)
-
-    def _march(self, rho: np.ndarray) -> np.ndarray:
-        if math.isinf(self.rho_max):  # f = v_free everywhere: the march of a constant speed, distance / v_free exactly
-            return self.eikonal.distance / self.v_free
-        speed = np.real(self._floored(np.asarray(rho, float))[2])
-        return self.eikonal.travel_time(np.where(self.grid.active, speed, self.v_free))
-
-    def _potential_rate(self, rho: np.ndarray, phi: np.ndarray, rho_dot: np.ndarray) -> np.ndarray:
-        """``φ̇ = (φ(ρ + s ρ̇) − φ(ρ))/s`` on the cells (0 on inactive ones), ``s ρ̇`` at most :data:`RATE_STEP`
-        ``· ρ_max`` on any cell (the speed moves by at most ``RATE_STEP · v_free``): one more fast march."""
-        act = self.grid.active
-        top = float(np.abs(rho_dot[act]).max()) if act.any() else 0.0
-        if top == 0.0 or math.isinf(self.rho_max):  # (no congestion: φ = distance / v_free whatever ρ)
-            return np.zeros(self.grid.shape)
-        s = RATE_STEP * self.rho_max / top
-        out = np.zeros(self.grid.shape)
-        out[act] = (self._march(rho + s * rho_dot)[act] - phi[act]) / s
-        return out
-
-    def _prepare(self, rho: np.ndarray, t: float) -> _Prepared:
-        p = super()._prepare(rho, t)
-        if self.potential != "hughes":
-            return p
-        phi = self.hughes_potential(rho)
-        shared = {f.name: getattr(p, f.name) for f in fields(p)}
-        return _HughesPrepared(**shared, phi=phi, grad_phi=self._face_gradient(phi))
-
-    # ------------------------------------------------------------------ Step I
-    def _compiled_step_one(self) -> tuple[int, float, float, Any] | None:
-        """Hughes' Step I for :func:`~meanfield.controllers._law_loops.face_law` with the static distance (this class
-        exactly: a subclass may change Step I again, and then takes the numpy path); Hughes' potential takes the
-        numpy path."""
-        if type(self) is not EvacuationController or self.potential == "hughes":
-            return None
-        return HUGHES_STEP_ONE, self.v_free, self.rho_max, self.grad_phi
-
-    def _virtual_velocity(self, p: _Prepared) -> FaceField:
-        if isinstance(p, _HughesPrepared):
-            out = []
-            for k in range(2):
-                f, _, fh, _ = self._floored(p.rf[k])
-                out.append(-f * fh * p.grad_phi[k])
-        else:
-            out = [-self._speed(p.rf[k])[0] * self.grad_phi[k] for k in range(2)]
-        if p.uw is not None:
-            out = [out[k] - p.uw[k] for k in range(2)]
-        return out[0], out[1]
-
-    def _virtual_velocity_rate(self, p: _Prepared, rho_dot: np.ndarray) -> FaceField:
-        df = self.grid.face_average(rho_dot)
-        if isinstance(p, _HughesPrepared):
-            if np.iscomplexobj(p.rho) or np.iscomplexobj(rho_dot):
-                raise TypeError("∂_t v_d of Hughes' potential needs a real density and rate (fast marching is real)")
-            dphi = self._face_gradient(self._potential_rate(p.rho, p.phi, rho_dot))
-            out = []
-            for k in range(2):
-                f, fd, fh, fhd = self._floored(p.rf[k])
-                out.append(-(fd * fh + f * fhd) * df[k] * p.grad_phi[k] - f * fh * dphi[k])
-        else:
-            out = [-self._speed(p.rf[k])[1] * df[k] * self.grad_phi[k] for k in range(2)]
-        uw = self.interaction_on_faces(rho_dot)
-        if uw is not None:
-            out = [out[0] - uw[0], out[1] - uw[1]]
-        return out[0], out[1]
-
-    def _dissipation(self, p: _Prepared) -> float:
-        """``−S = ⟨∇ρ̃, ∇(σρ) − (v_d + u_W)ρ⟩``: what Step I's own flux does to ``½∫ρ̃²``, negated."""
-        v = self._virtual_velocity(p)
-        if p.uw is not None:
-            v = (v[0] + p.uw[0], v[1] + p.uw[1])
-        return self.grid.face_inner(p.grt, (p.gs[0] - v[0] * p.rf[0], p.gs[1] - v[1] * p.rf[1]))

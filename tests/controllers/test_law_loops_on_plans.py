@@ -37,6 +37,7 @@ from meanfield.controllers.backstepping import (
 )
 from meanfield.controllers.coverage import CoverageController
 from meanfield.controllers.evacuation import EvacuationController, exit_distance
+from meanfield.controllers.step_one import PaperStepOne
 from meanfield.crowds._view_loops import in_view, turn_walkers
 from meanfield.crowds.local_view import LocalView, robots_in_view
 from meanfield.geometry._sight_loops import cell_index
@@ -238,20 +239,30 @@ def test_the_fused_law_applies_exactly_where_it_computes_the_same_law():
     kernel = GaussianKernel(0.5, 0.1)
     rho = np.ones((8, 8))
 
-    class Mine(BacksteppingController):  # a subclass may change Step I: never fused
+    class Mine(BacksteppingController):  # a subclass that changes how the law computes Step I: never fused
+        def _virtual_velocity(self, p):
+            return super()._virtual_velocity(p)
+
+    class Same(BacksteppingController):  # a subclass that changes nothing of Step I computes the same law
         pass
+
+    class NoCompiledForm(PaperStepOne):  # a Step I with no compiled form
+        def compiled(self, law):
+            return None
 
     def law(grid=box, cls=BacksteppingController, **kw):
         return cls(grid, np.ones(grid.shape) / grid.area, 0.01, SaturatingAlpha(0.2, 0.3), **kw)
 
     field = NavigationField(kernel, box, [[0.5, 0.5]], [0.0])
     assert law()._fused_law(rho, field) == ("paper", None)
+    assert law(cls=Same)._fused_law(rho, field) == ("paper", None)
     sight = SightLines(PILLAR)
     on_plan = NavigationField(kernel, plan, AROUND, np.zeros(len(AROUND)), sight)
     assert law(plan)._fused_law(np.ones(plan.shape), on_plan)[0] == "faces"
     assert law(plan)._fused_law(np.ones(plan.shape), NavigationField(kernel, plan, AROUND, np.zeros(6)))[0] == "faces"
     refused = [
         (law(cls=Mine), field),
+        (law(step_one=NoCompiledForm()), field),
         (law(dvd_dt="model"), field),
         (law(strategy=UserBetaGamma(lambda b, g, A: None)), field),
         (law(scales=(2.0, 1.0)), field),
