@@ -173,8 +173,8 @@ class GuideController:
 
     @classmethod
     def from_parts(cls, parts: ControllerParts) -> GuideController:
-        """Registry factory (kind ``controller``, name ``guide``): options as in :attr:`OPTIONS`; the walking speed
-        is the crowd's (``crowd.free_speed``)."""
+        """Registry factory (kind ``controller``, name ``guide``): the options of :class:`GuideOptions`; the walking
+        speed is the crowd's (``crowd.free_speed``)."""
         from meanfield.controllers.evacuation import V_FREE, EvacuationController
         from meanfield.geometry.exits import exit_segments
         from meanfield.geometry.geodesic import AssignedRoutes, ExitEikonal
