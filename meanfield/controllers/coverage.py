@@ -104,7 +104,9 @@ _NOTHING_HIDDEN = np.ones((0, 0), dtype=bool)
 class CoverageOptions(EvacuationOptions):
     """``[controller.options.coverage]``: the coverage's own options, and those of the evacuation law it runs when
     its headings track the exits (:class:`~meanfield.controllers.evacuation.EvacuationOptions`: ``potential``,
-    ``specific_flow``, ``rebalance_period``; the deprecated ``v_free`` and ``rho_max``).
+    ``specific_flow``, ``rebalance_period``, ``rho_max``; the deprecated ``v_free``).
+
+    A value of :data:`DEPRECATED` is read with a warning naming its replacement; it is removed in 0.3.0.
 
     Parameters
     ----------
@@ -120,8 +122,6 @@ class CoverageOptions(EvacuationOptions):
         The distance of the coverage (:data:`METRICS`; ``"straight"`` deprecated).
     v_d : {"auto"}
         Which Step I the headings track (:data:`V_D`; ``"safe-zone"`` and ``"exits"`` deprecated).
-
-    A value of :data:`DEPRECATED` is read with a warning naming its replacement; it is removed in 0.3.0.
     """
 
     KIND: ClassVar[str] = "coverage"
