@@ -31,6 +31,8 @@ __all__ = [
     "SimulationDiverged",
     "SigmaLike",
     "check_sigma",
+    "deprecated",
+    "REMOVED_IN",
     "options_table",
     "positive_number",
     "limit_or_inf",
@@ -70,6 +72,28 @@ class MeanfieldDeprecationWarning(FutureWarning):
     A :class:`FutureWarning`, so that it is shown by default, to users of scripts as well as of
     the library's own tests; it can be filtered by this class alone.
     """
+
+
+REMOVED_IN = "0.3.0"
+"""The release that no longer reads what is deprecated today (the messages of :func:`deprecated` name it)."""
+
+
+def deprecated(what: str, instead: str, stacklevel: int = 2) -> None:
+    """Warn that ``what`` is deprecated and removed in :data:`REMOVED_IN`, saying what to do ``instead``.
+
+    Parameters
+    ----------
+    what : str
+        The old name, field or value, as the user wrote it.
+    instead : str
+        The replacement, as a sentence (``"use controller.options.guide.revisit_after"``).
+    stacklevel : int
+        Of the caller of this function, as :func:`warnings.warn` counts.
+    """
+    import warnings
+
+    warnings.warn(f"{what} is deprecated and removed in {REMOVED_IN}: {instead}", MeanfieldDeprecationWarning,
+                  stacklevel=stacklevel + 1)  # fmt: skip
 
 
 class SimulationDiverged(RuntimeError):

@@ -71,7 +71,7 @@ import numpy as np
 
 from meanfield.controllers._coverage_loops import owners as nearest_owners
 from meanfield.controllers.evacuation import EvacuationOptions
-from meanfield.errors import ParameterError, choice, num, options_table
+from meanfield.errors import ParameterError, choice, deprecated, num, options_table
 from meanfield.interfaces import Command, ControllerParts, ControlState, Observation
 
 __all__ = ["CoverageController", "CoverageOptions", "DEPRECATED", "METRICS", "WEIGHTS", "V_D"]
@@ -144,15 +144,10 @@ class CoverageOptions(EvacuationOptions):
                                  allowed="a time > 0 (s in SI)")  # fmt: skip
         self.metric = choice(name + "metric", self.metric, METRICS)
         self.v_d = choice(name + "v_d", self.v_d, V_D)
-        import warnings
-
-        from meanfield.errors import MeanfieldDeprecationWarning
-
         for option, (old, why) in DEPRECATED.items():
             value = getattr(self, option)
             if value in old:
-                warnings.warn(f"{name}{option} = {value!r} is deprecated and removed in 0.3.0: use {old[value]!r} "
-                              f"({why})", MeanfieldDeprecationWarning, stacklevel=4)  # fmt: skip
+                deprecated(f"{name}{option} = {value!r}", f"use {old[value]!r} ({why})", stacklevel=3)
 
 
 def walk_towards(walking: Any, robots: np.ndarray, owner: np.ndarray, centroid: np.ndarray,

@@ -76,7 +76,7 @@ from meanfield.controllers._law_loops import HUGHES_STEP_ONE
 from meanfield.controllers.backstepping import BacksteppingController
 from meanfield.controllers.exit_assignment import ExitAssignment, distance_to_each_exit
 from meanfield.controllers.step_one import Prepared
-from meanfield.errors import ParameterError, choice, num, options_table
+from meanfield.errors import ParameterError, choice, deprecated, num, options_table
 from meanfield.geometry.geodesic import ExitEikonal, exit_distance
 from meanfield.geometry.grid import FaceField
 from meanfield.interfaces import ControllerParts
@@ -150,19 +150,10 @@ class EvacuationOptions:
         self.rebalance_period = num(name + "rebalance_period", self.rebalance_period, lo=0.0, lo_open=True)
         if self.v_free is not None:
             self.v_free = num(name + "v_free", self.v_free, lo=0.0, lo_open=True)
-            _deprecated_option(name + "v_free", "crowd.free_speed")
+            deprecated(name + "v_free", "the controller takes the crowd's crowd.free_speed", stacklevel=3)
         if self.rho_max != math.inf:
             self.rho_max = num(name + "rho_max", self.rho_max, lo=0.0, lo_open=True,
                                allowed="a density > 0 (unit mass), or inf for no congestion in the law")  # fmt: skip
-
-
-def _deprecated_option(name: str, instead: str) -> None:
-    import warnings
-
-    from meanfield.errors import MeanfieldDeprecationWarning
-
-    warnings.warn(f"{name} is deprecated and removed in 0.3.0: the controller takes the crowd's {instead}",
-                  MeanfieldDeprecationWarning, stacklevel=4)  # fmt: skip
 
 
 @dataclass
@@ -193,8 +184,6 @@ class ExitsStepOne:
     grad_phi : FaceField or None
         ``∇φ`` of the static or balanced potential on the faces (set again as the exits or walls change).
     """
-
-    name = "exits"
 
     def __init__(self, potential: str, v_free: float, rho_max: float, eikonal: ExitEikonal | None,
                  speed_floor: float, grad_phi: FaceField | None = None) -> None:  # fmt: skip

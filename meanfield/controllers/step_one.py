@@ -91,8 +91,6 @@ class StepOne(Protocol):
 class PaperStepOne:
     """The paper's Step I, eq. (6): ``v_d = −(α ∇ρ̃ − ∇(σρ))/ρ − u_W[ρ]`` on the faces."""
 
-    name = "paper"
-
     def prepare(self, law: Any, p: Prepared) -> Prepared:
         return p
 

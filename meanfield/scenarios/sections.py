@@ -21,7 +21,18 @@ from meanfield.controllers.backstepping import CONGESTION_OPTIONS, DVD_DT_OPTION
 from meanfield.crowds.groups import crowd_groups
 from meanfield.crowds.local_density import DENSITY_RADIUS
 from meanfield.crowds.memory import MEMORIES
-from meanfield.errors import ParameterError, all_numbers, choice, integer, num, optional_limit, options_table, point
+from meanfield.errors import (
+    REMOVED_IN,
+    ParameterError,
+    all_numbers,
+    choice,
+    deprecated,
+    integer,
+    num,
+    optional_limit,
+    options_table,
+    point,
+)
 from meanfield.geometry.region import region_keywords, wkt_polygon
 
 __all__ = [
@@ -373,10 +384,6 @@ def controller_options(options: Any, kind: str) -> dict[str, dict[str, Any]]:
     nested = {k: dict(v) for k, v in options.items() if k in kinds and isinstance(v, dict)}
     flat = {k: v for k, v in options.items() if not (k in kinds and isinstance(v, dict))}
     if flat:
-        import warnings
-
-        from meanfield.errors import MeanfieldDeprecationWarning
-
         table = nested.setdefault(kind, {})
         for key, value in flat.items():
             if key in table:
@@ -386,12 +393,7 @@ def controller_options(options: Any, kind: str) -> dict[str, dict[str, Any]]:
             table[key] = value
         old = ", ".join(f"controller.options.{k}" for k in sorted(flat))
         new = ", ".join(f"controller.options.{kind}.{k}" for k in sorted(flat))
-        warnings.warn(
-            f"{old} is deprecated and removed in {FLAT_CONTROLLER_OPTIONS_REMOVED_IN}: use {new} "
-            f"(the table [controller.options.{kind}])",
-            MeanfieldDeprecationWarning,
-            stacklevel=4,
-        )
+        deprecated(old, f"use {new} (the table [controller.options.{kind}])", stacklevel=3)
     for k, table in nested.items():
         declared = plugins.declared("controller", k, "options", _UNDECLARED)
         if declared is _UNDECLARED:  # a plugin that declares nothing checks its table itself, when it is built
@@ -404,7 +406,7 @@ def controller_options(options: Any, kind: str) -> dict[str, dict[str, Any]]:
 
 _UNDECLARED = object()
 
-FLAT_CONTROLLER_OPTIONS_REMOVED_IN = "0.3.0"
+FLAT_CONTROLLER_OPTIONS_REMOVED_IN = REMOVED_IN
 """The release that no longer reads options directly under ``[controller.options]`` (they go under the kind's table)."""
 
 
