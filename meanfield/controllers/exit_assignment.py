@@ -49,9 +49,10 @@ from typing import Any
 
 import numpy as np
 
+from meanfield.controllers import _queue_loops
 from meanfield.errors import ParameterError
 
-__all__ = ["ExitAssignment", "clearing_time", "distance_to_each_exit", "ITERATIONS", "SPECIFIC_FLOW"]
+__all__ = ["ArrivalOrder", "ExitAssignment", "clearing_time", "distance_to_each_exit", "ITERATIONS", "SPECIFIC_FLOW"]
 
 SPECIFIC_FLOW = 1.8
 """Default ``J``, persons/(m·s): the congested point masses' measured door flow, 1.6–1.9 at widths of
@@ -138,6 +139,7 @@ class ExitAssignment:
         self.active = np.isfinite(self.distances).any(axis=0) & (np.asarray(volume) > 0)  # (some exit: a piece's)
         self.arrival = self.distances[:, self.active] / self.v_free  # (K, M)
         self.volume = np.asarray(volume, float)[self.active]
+        self._order = ArrivalOrder(self.arrival)
 
     def assign(self, offsets: np.ndarray) -> np.ndarray:
         """Each active cell's exit, ``argmin_k (a_k(c) + τ_k)`` over the open exits: ``(M,)``."""
@@ -157,17 +159,8 @@ class ExitAssignment:
         return np.maximum(clear - walk, 0.0) * self.capacity
 
     def _times(self, persons: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        exit_of = self.assign(offsets)
-        clear, walk = np.zeros(len(self.capacity)), np.zeros(len(self.capacity))
         last = LAST_PERSON / max(int(self.open.sum()), 1)  # half a person in all: not half a person per exit
-        for k in np.flatnonzero(self.open):
-            mine = exit_of == k
-            a, p = self.arrival[k, mine], persons[mine]
-            clear[k] = clearing_time(a, p, self.capacity[k], last)
-            order = np.argsort(a, kind="stable")
-            due = np.cumsum(p[order][::-1])[::-1] >= last
-            walk[k] = float(a[order][due].max()) if due.any() else 0.0
-        return clear, walk
+        return self._order.times(self.assign(offsets), persons, self.capacity, np.flatnonzero(self.open), last)
 
     def solve(self, rho: np.ndarray) -> np.ndarray:
         """The offsets ``τ`` for the unit-mass density ``rho`` on the cells (price iteration, module docstring)."""
@@ -175,7 +168,7 @@ class ExitAssignment:
         zero = np.zeros(len(self.capacity))
         T, walk = self._times(persons, zero)  # the nearest exits (once: their clearing times and their queues)
         nearest = float(T[self.open].max())
-        if self._queue_sizes(T, walk).max() < MIN_QUEUE:  # no queue at the nearest exits: nothing to balance
+        if self._queue_sizes(T, walk).max() < MIN_QUEUE or self.open.sum() < 2:  # no queue, or one exit: no choice
             self.offsets, self.makespan = zero, nearest
             return zero
         tau = np.where(self.open, self.offsets, 0.0)
@@ -199,6 +192,51 @@ class ExitAssignment:
         tau = self.offsets if offsets is None else offsets
         shifted = self.distances[self.open] + self.v_free * tau[self.open][:, None, None]
         return shifted.min(axis=0)
+
+
+class ArrivalOrder:
+    """Each exit's cells in the order of their arrival there, sorted once: eq. (B1) for any assignment of the cells
+    to the exits without sorting again.
+
+    (B1) reads an exit's queue in the order of arrival of the cells assigned to it.  Every cell of the sorted row
+    is kept, those assigned elsewhere holding nobody: a cell with nobody adds ``0`` to the persons still to come
+    (the same sums, to the bit) and its term ``a_j + rest_j / C_k`` is at most that of the next cell with someone
+    (the same ``rest``, a later arrival), so the maximum is :func:`clearing_time`'s of the assigned cells alone,
+    the same number.  A stable sort keeps the cells of equal arrival in their order, as :func:`clearing_time`'s.
+    One compiled pass per exit (:func:`~meanfield.controllers._queue_loops.clearing_times`).
+
+    Parameters
+    ----------
+    arrival : ndarray, shape (K, M)
+        ``a_k(c)``, each exit's arrival time from each cell (``inf``: no route).
+    """
+
+    def __init__(self, arrival: np.ndarray) -> None:
+        self.order = np.ascontiguousarray(np.argsort(arrival, axis=1, kind="stable"), dtype=np.intp)
+        self.arrival = np.take_along_axis(np.asarray(arrival, float), self.order, axis=1)
+
+    def times(self, exit_of: np.ndarray, persons: np.ndarray, capacity: np.ndarray, exits: np.ndarray,
+              last: float = LAST_PERSON) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """``T_k`` of eq. (B1) and the last arrival (B1) counts, ``a_last,k``, of each exit of ``exits`` (0 for the
+        others and for an exit nobody takes).
+
+        Parameters
+        ----------
+        exit_of : ndarray of int, shape (M,)
+            Each cell's exit.
+        persons : ndarray, shape (M,)
+            The persons in each cell (>= 0).
+        capacity : ndarray, shape (K,)
+            ``C_k`` > 0, persons/s.
+        exits : ndarray of int
+            The exits to compute (the open ones).
+        last : float
+            The persons still to come below which an exit counts as clear.
+        """
+        clear, walk = np.empty(len(capacity)), np.empty(len(capacity))
+        return _queue_loops.clearing_times(self.order, self.arrival, np.asarray(exit_of, np.intp),
+                                           np.asarray(persons, float), np.asarray(capacity, float),
+                                           np.asarray(exits, np.intp), float(last), clear, walk)  # fmt: skip
 
 
 def distance_to_each_exit(grid: Any, segs: np.ndarray, sight: Any) -> np.ndarray:

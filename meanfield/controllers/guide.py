@@ -309,7 +309,7 @@ class GuideController:
         """The exit each robot's sign names (module docstring, "Labels"): the labels that, with the people each sign
         reaches now walking to its exit and everyone else to Step I's, clear the building soonest (eq. (B1)) and,
         among those, cost the walkers least, found robot by robot from the labels of least regret."""
-        from meanfield.controllers.exit_assignment import LAST_PERSON, clearing_time
+        from meanfield.controllers.exit_assignment import LAST_PERSON, ArrivalOrder
 
         a = self.assignment
         n = len(robots)
@@ -324,14 +324,14 @@ class GuideController:
         plan = self._share[live]
         open_k = np.flatnonzero(a.open)
         arrival = a.arrival[:, cols]  # (K, m)
+        queues = ArrivalOrder(arrival)  # sorted once for the search's makespans
         best_walk = np.where(a.open[:, None], arrival, np.inf).min(axis=0)
         last = LAST_PERSON / max(len(open_k), 1)
         total = max(persons.sum(), 1e-300)
 
         def cost(labels: np.ndarray) -> float:
             exit_of = np.where(reader >= 0, labels[np.maximum(reader, 0)], plan)
-            makespan = max(clearing_time(arrival[k, exit_of == k], persons[exit_of == k], a.capacity[k], last)
-                           for k in open_k)  # fmt: skip
+            makespan = float(queues.times(exit_of, persons, a.capacity, open_k, last)[0][open_k].max())
             with np.errstate(invalid="ignore"):  # (a reader sent where no route reaches: inf − inf)
                 detour = (persons * (arrival[exit_of, np.arange(len(exit_of))] - best_walk)).sum() / total
             return makespan + detour if np.isfinite(detour) else math.inf

@@ -227,6 +227,9 @@ class PointMassEngine:
         """The exits' queues (:meth:`cap_exits`), in place on ``gone`` (the exit each human of ``idx`` reached,
         -1: none) and on the positions: those an exit cannot take this step get -1, their step's start, and a
         place in its doorway."""
+        if not len(self._waiting) and not (gone >= 0).any():  # nobody at a door: the credits refill, nothing else
+            self._credit = np.minimum(self._credit, 1.0) + self._capacity * dt
+            return
         waiting = np.empty(0, dtype=np.intp)  # those in a doorway, by their place in idx (sorted)
         busy = np.zeros(len(self._capacity), dtype=bool)
         if len(self._waiting) and len(idx):  # those in a doorway reach it again, whatever their step, while it is open

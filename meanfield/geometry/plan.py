@@ -164,10 +164,10 @@ class Plan:
     # ------------------------------------------------------------------ the Region interface
     @property
     def bounds(self) -> tuple[float, float, float, float]:
-        if self._frame is not None:
-            return self._frame
-        x0, y0, x1, y1 = self.polygon.bounds
-        return (x0, x1, y0, y1)
+        if self._frame is None:  # the polygon's box, once (a plan's polygon is not changed)
+            x0, y0, x1, y1 = self.polygon.bounds
+            self._frame = (x0, x1, y0, y1)
+        return self._frame
 
     @property
     def center(self) -> tuple[float, float]:

@@ -168,3 +168,38 @@ def test_the_balanced_signs_send_part_of_the_crowded_hall_to_the_idle_door():
         )
         out[potential] = ClosedLoop(sc).run(progress=False).summary["evacuated_per_exit"]
     assert out["balanced"][1] >= 40 and out["distance"][1] <= 5, out
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_sorted_queues_give_each_exit_s_clearing_time_to_the_bit(seed):
+    """:class:`ArrivalOrder` sorts each exit's cells once and reads (B1) over the whole row, the cells assigned
+    elsewhere holding nobody: the same ``T_k`` as :func:`clearing_time` of the exit's own cells, and the same last
+    counted arrival, on the compiled loop and on its numpy twin (ties of arrival, empty exits and unreachable
+    cells included)."""
+    from meanfield._compiled import core as compiled
+    from meanfield.controllers.exit_assignment import LAST_PERSON, ArrivalOrder
+
+    rng = np.random.default_rng(seed)
+    k_exits, m = 3, 400
+    arrival = np.round(rng.uniform(0, 30, (k_exits, m)), 1)  # rounded: many ties
+    arrival[2, rng.uniform(size=m) < 0.1] = np.inf  # cells exit 2 cannot be reached from
+    persons = np.where(rng.uniform(size=m) < 0.3, 0.0, rng.exponential(0.4, m))
+    exit_of = rng.integers(0, 2 if seed == 3 else k_exits, m)  # seed 3: exit 2 takes nobody
+    exit_of[(exit_of == 2) & ~np.isfinite(arrival[2])] = 0
+    capacity = np.array([1.8, 3.6, 0.9])
+    queues = ArrivalOrder(arrival)
+    exits = np.arange(k_exits)
+    fast = queues.times(exit_of, persons, capacity, exits, LAST_PERSON)
+    with compiled.numpy_path():
+        twin = queues.times(exit_of, persons, capacity, exits, LAST_PERSON)
+    for k in range(k_exits):
+        mine = exit_of == k
+        expected = clearing_time(arrival[k, mine], persons[mine], capacity[k])
+        assert fast[0][k] == expected and twin[0][k] == expected
+        a, p = arrival[k, mine], persons[mine]
+        order = np.argsort(a, kind="stable")
+        due = np.cumsum(p[order][::-1])[::-1] >= LAST_PERSON
+        assert fast[1][k] == twin[1][k] == (a[order][due].max() if due.any() else 0.0)
+    assert (fast[0][:2] > 0).all() and (fast[0][2] == 0.0) == (seed == 3)
+    only = queues.times(exit_of, persons, capacity, np.array([1]), LAST_PERSON)  # the exits asked for alone
+    assert only[0][1] == fast[0][1] and only[0][0] == only[0][2] == 0.0

@@ -1,0 +1,83 @@
+"""The exits' clearing times (eq. (B1)), compiled: one pass per exit over its cells in the order of arrival.
+
+:func:`clearing_times` is paired with its numpy twin; the caller is
+:class:`meanfield.controllers.exit_assignment.ArrivalOrder`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from meanfield._compiled.core import compiled
+
+__all__ = ["clearing_times"]
+
+
+def _clearing_numpy(order, arrival, exit_of, persons, capacity, exits, last, clear, walk):
+    clear[:] = 0.0
+    walk[:] = 0.0
+    for k in exits:
+        cells = order[k]
+        p = np.where(exit_of[cells] == k, persons[cells], 0.0)
+        rest = np.cumsum(p[::-1])[::-1]  # persons from a_j on
+        due = rest >= last
+        if due.any():
+            a = arrival[k][due]
+            clear[k] = (a + rest[due] / capacity[k]).max()
+            walk[k] = a.max()
+    return clear, walk
+
+
+@compiled(fallback=_clearing_numpy)
+def clearing_times(order, arrival, exit_of, persons, capacity, exits, last, clear, walk):
+    """``T_k`` of eq. (B1) and the last arrival it counts, for each exit of ``exits`` (0 for the others), in place.
+
+    Exit ``k`` reads its row of cells from the last arrival back, adding the persons of the cells assigned to it
+    (``exit_of[c] == k``; the others add nothing), and keeps the largest ``a_j + rest_j / C_k`` and ``a_j`` over
+    the cells with at least ``last`` persons from ``a_j`` on.
+
+    Parameters
+    ----------
+    order : ndarray of int, shape (K, M)
+        Each exit's cells in the order of arrival.
+    arrival : ndarray, shape (K, M)
+        Each exit's arrival times in that order.
+    exit_of : ndarray of int, shape (M,)
+        Each cell's exit.
+    persons : ndarray, shape (M,)
+        The persons in each cell (>= 0).
+    capacity : ndarray, shape (K,)
+        ``C_k`` > 0.
+    exits : ndarray of int
+        The exits to compute.
+    last : float
+        The persons still to come below which an exit counts as clear.
+    clear, walk : ndarray, shape (K,)
+        ``T_k`` and ``a_last,k`` (out).
+    """
+    for k in range(clear.shape[0]):
+        clear[k] = 0.0
+        walk[k] = 0.0
+    m = order.shape[1]
+    for e in range(exits.shape[0]):
+        k = exits[e]
+        rest = 0.0
+        latest = -math.inf
+        longest = -math.inf
+        for j in range(m - 1, -1, -1):
+            c = order[k, j]
+            if exit_of[c] == k:
+                rest = rest + persons[c]
+            if rest >= last:
+                a = arrival[k, j]
+                t = a + rest / capacity[k]
+                if t > longest:
+                    longest = t
+                if a > latest:
+                    latest = a
+        if longest > -math.inf:
+            clear[k] = longest
+            walk[k] = latest
+    return clear, walk
