@@ -534,13 +534,21 @@ class AssignedRoutes:
     def heading(self, points: np.ndarray, exit_of: np.ndarray) -> np.ndarray:
         """Unit vectors ``(N, 2)`` along each point's route to its exit ``exit_of[j]`` (-1: the nearest open; also
         where no route reaches that exit, from a piece of a plan a block cut without it)."""
-        out = self.nearest.heading(points)
-        for k in np.unique(exit_of[exit_of >= 0]):
+        assigned = exit_of >= 0
+        if not assigned.any():
+            return self.nearest.heading(points)
+        out = np.empty((len(points), 2))
+        nearest = np.flatnonzero(~assigned)
+        for k in np.unique(exit_of[assigned]):
             rows = np.flatnonzero(exit_of == k)
             routes = self.to(k)
             if not routes.everywhere:  # (a plan in pieces) those whose exit is in another piece: the nearest
-                rows = rows[np.isfinite(routes.distance(points[rows]))]
+                reached = np.isfinite(routes.distance(points[rows]))
+                nearest = np.union1d(nearest, rows[~reached])
+                rows = rows[reached]
             out[rows] = routes.heading(points[rows])
+        if len(nearest):
+            out[nearest] = self.nearest.heading(points[nearest])
         return out
 
     def exits_closed(self, open_exits: np.ndarray, exit_of: np.ndarray) -> None:

@@ -181,8 +181,14 @@ class Grid:
 
     @property
     def centers(self) -> tuple[np.ndarray, np.ndarray]:
-        """Cell-centre coordinates ``(X, Y)``, each of shape ``grid.shape``."""
-        return np.meshgrid(self.x, self.y, indexing="ij")
+        """Cell-centre coordinates ``(X, Y)``, each of shape ``grid.shape`` (read-only: built once, shared)."""
+        kept = self.__dict__.get("_centers")
+        if kept is None:
+            kept = tuple(np.meshgrid(self.x, self.y, indexing="ij"))
+            for a in kept:
+                a.flags.writeable = False
+            self.__dict__["_centers"] = kept
+        return kept
 
     @property
     def face_points_x(self) -> tuple[np.ndarray, np.ndarray]:
