@@ -63,7 +63,10 @@ SETTINGS: dict[str, dict[str, dict[str, Any]]] = {
     "startup": {"quick": {"repeats": 5}, "full": {"repeats": 11}},
     # each repeat: a cold and a warm first run with the parallel compile, and the same without
     "compile": {"quick": {"repeats": 1}, "full": {"repeats": 3}},
-    "plan": {"quick": {"window": 30, "seeds": 4, "repeats": 2}, "full": {"window": 30, "seeds": 10, "repeats": 3}},
+    "plan": {
+        "quick": {"window": 30, "seeds": 4, "repeats": 2, "plan_seeds": 1},
+        "full": {"window": 30, "seeds": 10, "repeats": 3, "plan_seeds": 3},
+    },
     "controllers": {"quick": {"steps": 60, "repeats": 1}, "full": {"steps": 300, "repeats": 2}},
     # (steps, seeds, repeats) at N = 200 (the bottleneck) and N = 1e6 (bench_congestion.py)
     "congestion": {

@@ -126,6 +126,32 @@ class WalkingDistances:
         """The active cell (index into :attr:`cells`) each point starts from: ``(n,)``."""
         return self._nearest[self.grid.cell_of(np.asarray(points, float).reshape(-1, 2))]
 
+    def walk_to(self, point: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The walking distance ``d(c)`` and first leg ``e(c)`` from one point to each of ``cells`` (indices into the
+        active cells): the columns ``cells`` of :meth:`from_points` for that point, the same numbers, without the
+        others.
+
+        Returns
+        -------
+        distance : ndarray, shape (m,)
+        leg : ndarray, shape (m, 2)
+        """
+        p = np.real(np.asarray(point, float)).reshape(1, 2)
+        start = int(self.cell_of(p)[0])
+        if start not in self._trees:
+            if len(self._trees) + 1 > self.keep:
+                self._trees.clear()
+            self._plant(np.array([start]), p)
+        D, anchor = self._trees[start]
+        cells = np.asarray(cells, np.intp)
+        a = anchor[cells]
+        to_anchor = self.xy[a] - p  # (m, 2)
+        straight = np.hypot(to_anchor[:, 0], to_anchor[:, 1])
+        with np.errstate(invalid="ignore"):  # inf − inf where no route reaches a cell
+            distance = np.where(np.isfinite(D[cells]), straight + D[cells] - D[a], np.inf)
+        leg = np.divide(to_anchor, straight[:, None], out=np.zeros_like(to_anchor), where=straight[:, None] > 0)
+        return distance, leg
+
     def from_points(self, points: np.ndarray) -> WalkingField:
         """The walking distances, first legs and anchors from each of ``points`` (``(n, 2)``) to every active cell.
 

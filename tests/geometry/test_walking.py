@@ -82,6 +82,25 @@ def test_a_point_s_trees_are_kept_per_cell_and_equal_a_fresh_computation():
     np.testing.assert_array_equal(fresh.anchor, f.anchor[::-1])
 
 
+def test_one_point_s_walks_to_some_cells_are_those_columns_of_every_walk_to_the_bit():
+    """``walk_to`` (the routed pull's walk to a hidden centroid's cell) gives the columns of ``from_points``, round
+    the wall, from a fresh store and from one that holds the tree, and a full store is emptied as by from_points."""
+    grid = Grid(TWO_ROOMS, (40, 20))
+    R = np.array([[1.0, 1.0], [6.0, 0.5], [3.7, 3.6]])
+    f = WalkingDistances(grid, SightLines(TWO_ROOMS)).from_points(R)
+    walk = WalkingDistances(grid, SightLines(TWO_ROOMS))
+    walk.keep = 2
+    rng = np.random.default_rng(3)
+    for i in (0, 1, 0, 2):  # the third call reuses a kept tree; the fourth finds the store full
+        cells = np.sort(rng.choice(len(walk.cells), 60, replace=False))
+        distance, leg = walk.walk_to(R[i], cells)
+        np.testing.assert_array_equal(distance, f.distance[i, cells])
+        np.testing.assert_array_equal(leg, f.leg[i, cells])
+        assert len(walk._trees) <= 2
+    hidden = f.distance[0] > np.hypot(*(walk.xy - R[0]).T) + 1e-9  # cells beyond the wall: the walk bends
+    assert hidden.sum() > 100
+
+
 def test_a_full_store_of_trees_keeps_every_cell_a_call_needs():
     grid = Grid(TWO_ROOMS, (40, 20))
     walk = WalkingDistances(grid)
