@@ -242,6 +242,8 @@ class PointMassEngine:
             busy[self._waiting_at[here]] = True
         credit = np.where(busy, self._credit, np.minimum(self._credit, 1.0)) + self._capacity * dt
         x = self.positions
+        in_doorway = np.zeros(len(idx), dtype=bool)
+        in_doorway[waiting] = True
         held_all, held_at = [], []
         for k in np.unique(gone[gone >= 0]):
             reached = np.flatnonzero(gone == k)
@@ -251,7 +253,7 @@ class PointMassEngine:
                 start = previous[idx[reached]]
                 along = np.clip((start - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0)
                 distance = np.hypot(*(start - (a + along[:, None] * (b - a))).T)
-                waits = np.isin(reached, waiting, assume_unique=True)
+                waits = in_doorway[reached]
                 order = np.lexsort((distance, ~waits))  # the waiting first, each the nearest first
                 held = reached[order[allowed:]]
                 gone[held] = -1
