@@ -166,8 +166,20 @@ def reached_cells(kernel: NavigationKernel, robots: np.ndarray, grid: Any, sight
     robots = np.real(np.asarray(robots, float)).reshape(-1, 2)
     X, Y = grid.centers
     peak = float(np.max(np.abs(kernel.magnitude(np.zeros(1), np.zeros(1)))))
-    reach = np.abs(kernel.magnitude(X[None] - robots[:, 0, None, None], Y[None] - robots[:, 1, None, None]))
-    reach = (reach >= REACH_FRACTION * peak) & grid.active
+    floor = REACH_FRACTION * peak
+    radius = getattr(kernel, "radius", None)  # a kernel that says where it falls below a level (GaussianKernel's)
+    if radius is None or not np.isfinite(robots).all():
+        reach = np.abs(kernel.magnitude(X[None] - robots[:, 0, None, None], Y[None] - robots[:, 1, None, None]))
+        reach = reach >= floor
+    else:  # the same test, on the cells within the kernel's reach of each robot (nowhere else can it pass)
+        r = radius(floor) * (1.0 + 1e-9) + max(grid.dx, grid.dy)
+        i0, i1 = np.searchsorted(grid.x, robots[:, 0] - r), np.searchsorted(grid.x, robots[:, 0] + r, side="right")
+        j0, j1 = np.searchsorted(grid.y, robots[:, 1] - r), np.searchsorted(grid.y, robots[:, 1] + r, side="right")
+        reach = np.zeros((len(robots), *grid.shape), dtype=bool)
+        for k, (rx, ry) in enumerate(robots):
+            box = (slice(i0[k], i1[k]), slice(j0[k], j1[k]))
+            reach[k][box] = np.abs(kernel.magnitude(X[box] - rx, Y[box] - ry)) >= floor
+    reach &= grid.active
     if sight is not None:
         reach &= np.asarray(sight.cell_rows(grid, robots), bool).reshape(reach.shape)
     return reach

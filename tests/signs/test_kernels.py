@@ -191,3 +191,26 @@ def test_gaussian_potential_gradient_is_its_derivative(rng):
     with pytest.raises(ParameterError) as info:
         GaussianPotential(1.0, 0.0)
     assert info.value.name == "interaction.length"
+
+
+def test_the_cells_a_sign_reaches_are_found_within_its_radius_as_over_the_whole_grid():
+    """``reached_cells`` tests only the cells within a kernel's radius (``GaussianKernel.radius``) when the kernel
+    has one: the same cells, to the bit, as the test over every cell (a kernel without a radius), for robots inside,
+    on the edge of and outside the grid, with a kernel wider and narrower than the room."""
+    from meanfield.signs.kernels import REACH_FRACTION, reached_cells
+
+    class WithoutRadius:
+        def __init__(self, kernel):
+            self.magnitude = kernel.magnitude
+
+    rng = np.random.default_rng(0)
+    grid = Grid(Domain.box(30.0, 14.0), (60, 28))
+    X, Y = grid.centers
+    for _ in range(100):
+        k = GaussianKernel(c=float(rng.uniform(0.5, 2.0)), eta=float(rng.uniform(0.2, 400.0)))
+        robots = rng.uniform(-3.0, 33.0, (8, 2))
+        robots[0] = (0.0, 0.0)  # a corner of the grid
+        fast, full = reached_cells(k, robots, grid), reached_cells(WithoutRadius(k), robots, grid)
+        assert np.array_equal(fast, full)
+        d2 = (X[None] - robots[:, 0, None, None]) ** 2 + (Y[None] - robots[:, 1, None, None]) ** 2
+        assert np.array_equal(full, k.c * np.exp(-d2 / k.eta) >= REACH_FRACTION * k.c)  # the test itself
