@@ -28,8 +28,9 @@ exits (:class:`~meanfield.controllers.evacuation.EvacuationController`, whose di
 signs ``v_r``; Step I, ``ṽ`` and ``A``; the integrals), computes ``v_d``, ``∂_t v_d``, ``v_r``,
 ``ṽ``, ``A``, the dissipation and the six face integrals behind ``b_i``, ``g_i`` (as
 :func:`meanfield.signs._masked_loops.face_moments`) from the kernel's 1-D factors and the cells each
-robot sees, without building the ``(n, faces)`` masked kernels.  The controller's
-``_fused_law`` says which call applies (docs page *Large crowds*, "Compiled loops").
+robot sees, without building the ``(n, faces)`` masked kernels.
+:meth:`~meanfield.controllers.fused_law.FusedLaw.which` says which call applies (docs page *Large crowds*,
+"Compiled loops").
 
 The numpy path of the controller is the reference; the two agree to round-off (tests).
 """
@@ -100,7 +101,7 @@ def paper_law(rho, target, cst, pos, cos, sin, prev_x, prev_y, have_prev, h, rho
     rho, target : ndarray, shape (nx, ny)
         The density (positive) and ``ρ_*``.
     cst : ndarray
-        The run's constants, flat (``_paper_constants``): ``∇ρ_*`` on the x-faces (nx-1, ny) and on the y-faces
+        The run's constants, flat (``FusedLaw._paper_constants``): ``∇ρ_*`` on the x-faces (nx-1, ny) and on the y-faces
         (nx, ny-1), the face weights of the grid's face inner product (the same shapes), the centre and face
         coordinates along x (nx, nx-1) and along y (ny, ny-1), uniform; the gains ``k_u``, ``k_ω`` (n each); then
         ``1/Δx``, ``1/Δy``, the constant σ, ``α₀`` and ``floor`` (α/ρ_f = α₀ / (ρ_f + floor); floor 0: the constant

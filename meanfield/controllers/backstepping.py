@@ -41,8 +41,6 @@ from typing import Any, Literal
 
 import numpy as np
 
-from meanfield._compiled.core import UNAVAILABLE
-from meanfield.controllers._law_loops import PAPER_STEP_ONE, face_law, paper_law
 from meanfield.controllers.alpha_schedules import ConstantAlpha, SaturatingAlpha
 from meanfield.controllers.beta_gamma import MinimumNormBetaGamma, UserBetaGamma
 from meanfield.controllers.congested_plant import (
@@ -52,6 +50,7 @@ from meanfield.controllers.congested_plant import (
     CongestionReport,
     congested_plant,
 )
+from meanfield.controllers.fused_law import FusedLaw, fused_robot_inputs  # noqa: F401  (its former place)
 from meanfield.controllers.step_one import PaperStepOne, Prepared, StepOne
 from meanfield.errors import ParameterError, SigmaLike, check_sigma
 from meanfield.fokker_planck.solver import FokkerPlanck
@@ -67,7 +66,6 @@ from meanfield.interfaces import (
     StabilityStep,
 )
 from meanfield.signs.interaction import InteractionField
-from meanfield.signs.kernels import GaussianKernel
 from meanfield.signs.robots import NavigationField
 
 DVD_DT_OPTIONS = ("model", "fokker-planck", "finite-difference")
@@ -170,9 +168,9 @@ class BacksteppingController:
             raise ParameterError("controller.dvd_dt", dvd_dt, " or ".join(map(repr, DVD_DT_OPTIONS)))
         self.dvd_dt = dvd_dt
         self._fokker_planck = self._plant_model(grid)
-        self._previous_vd: tuple[float, FaceField] | None = None
-        self._target_gradient = grid.gradient(self.target)
-        self._fused_state: dict[str, Any] = {}  # the compiled law's per-run constants (controllers._law_loops)
+        self.previous_vd: tuple[float, FaceField] | None = None  # (t, v_d) of the last call, for ∂_t v_d
+        self.target_gradient = grid.gradient(self.target)  # ∇ρ_* on the faces
+        self.fused = FusedLaw(self)  # the law in one compiled call where it applies (meanfield.controllers.fused_law)
         self.congestion_report: CongestionReport | None = None  # the last evaluation's, with a congested plant
         self._congestion_stats = [0, 0.0, 0.0, 0.0]  # calls, capped mass: sum, max; |residual| max
 
@@ -195,10 +193,10 @@ class BacksteppingController:
         value lived on the old faces)."""
         self.grid = change.grid
         self.target = np.asarray(change.target, float)
-        self._target_gradient = self.grid.gradient(self.target)
+        self.target_gradient = self.grid.gradient(self.target)
         self._fokker_planck = self._plant_model(self.grid)
-        self._previous_vd = None
-        self._fused_state = {}
+        self.previous_vd = None
+        self.fused.reset()
 
     @staticmethod
     def stability_step(scenario: Any, grid: Any) -> StabilityStep | None:
@@ -275,7 +273,7 @@ class BacksteppingController:
         if callable(self.sigma):
             gs = g.gradient(sig * rho)
         else:  # ∇(σρ) = σ (∇ρ̃ + ∇ρ_*) for constant σ
-            gt = self._target_gradient
+            gt = self.target_gradient
             gs = (sig * (grt[0] + gt[0]), sig * (grt[1] + gt[1]))
         q = (self.alpha.over_rho(rf[0]), self.alpha.over_rho(rf[1]))
         return self.step_one.prepare(self, Prepared(rho, rho_t, rf, grt, sig, gs, q, self.interaction_on_faces(rho)))
@@ -421,9 +419,9 @@ class BacksteppingController:
         dt : float, optional
             Step since the previous call (needed by ``dvd_dt="finite-difference"``).
         """
-        fused = self._fused_law(rho, field)
+        fused = self.fused.which(rho, field)
         if fused is not None:  # the common cases: one compiled call, the same numbers to round-off
-            state = fused_robot_inputs(self, rho, field, t, fused[1])
+            state = self.fused.inputs(rho, field, t, fused[1])
             if state is not None:
                 return state
         g = self.grid
@@ -439,13 +437,13 @@ class BacksteppingController:
         elif self.dvd_dt == "fokker-planck":
             dvd = self._virtual_velocity_rate(p, self._fokker_planck.rhs(rho, t, face_velocity=v_r))
         else:
-            prev = self._previous_vd
+            prev = self.previous_vd
             if prev is None or t <= prev[0]:
                 dvd = (np.zeros_like(v_d[0]), np.zeros_like(v_d[1]))
             else:
                 h = t - prev[0]
                 dvd = ((v_d[0] - prev[1][0]) / h, (v_d[1] - prev[1][1]) / h)
-            self._previous_vd = (t, v_d)
+            self.previous_vd = (t, v_d)
         k_u = self.k_u[:, None] if self.k_u.ndim else self.k_u
         if self.scales is not None:
             return self._scaled_inputs(p, v_d, vt, b, gg, dvd, k_u)
@@ -477,12 +475,12 @@ class BacksteppingController:
         elif self.dvd_dt == "fokker-planck":
             dw = self._tracked_rate(p, v_d, cf, self._fokker_planck.rhs(p.rho, t, face_velocity=v_r))
         else:
-            prev = self._previous_vd
+            prev = self.previous_vd
             if prev is None or t <= prev[0]:
                 dw = (np.zeros_like(w[0]), np.zeros_like(w[1]))
             else:
                 dw = ((w[0] - prev[1][0]) / (t - prev[0]), (w[1] - prev[1][1]) / (t - prev[0]))
-            self._previous_vd = (t, w)
+            self.previous_vd = (t, w)
         report = self._report(p, v_d, cf)
         pull = (p.rf[0] * cf.g[0], p.rf[1] * cf.g[1])
         k_u = self.k_u[:, None] if self.k_u.ndim else self.k_u
@@ -496,38 +494,11 @@ class BacksteppingController:
             dissipation=self._dissipation(p) - report.residual, k_u=self.k_u, k_omega=self.k_omega,
         )  # fmt: skip
 
-    def _fusable(self, rho: np.ndarray, field: NavigationField) -> bool:
-        """Whether one compiled call (:func:`fused_robot_inputs`) computes this law now."""
-        return self._fused_law(rho, field) is not None
-
-    def _fused_law(self, rho: np.ndarray, field: NavigationField) -> tuple[str, tuple | None] | None:
-        """Which compiled call computes this law, checked at every call (a schedule or strategy may change).
-
-        ``("paper", None)``: :func:`~meanfield.controllers._law_loops.paper_law`, the paper's Step I (eq. (6)) on a
-        box, every sign seen; ``("faces", step_one)``: :func:`~meanfield.controllers._law_loops.face_law`, any grid
-        (cut cells, signs hidden by walls), Step I as :meth:`_compiled_step_one` says; None: numpy.
-        Both need no congested plant, a constant σ, ``W = 0``, min-norm β/γ, ``∂_t v_d`` by a backward
-        difference, the paper's units, gains per robot at most, the Gaussian kernel on this grid, real C arrays.
-        """
-        if not (
-            self.congestion is None
-            and not callable(self.sigma) and self.interaction is None and type(self.strategy) is MinimumNormBetaGamma
-            and self.dvd_dt == "finite-difference" and self.scales is None and self.k_u.ndim <= 1
-            and self.k_omega.ndim <= 1 and type(field.kernel) is GaussianKernel and field.grid is self.grid
-            and rho.dtype == float and rho.shape == self.grid.shape and rho.flags.c_contiguous
-            and field.positions.dtype == float and field.headings.dtype == float
-        ):  # fmt: skip
-            return None
-        step_one = self._compiled_step_one()
-        if step_one is None:
-            return None
-        box = step_one[0] == PAPER_STEP_ONE and self.grid.is_box and field.separable
-        return ("paper", None) if box else ("faces", step_one)
-
-    def _compiled_step_one(self) -> tuple[int, float, float, FaceField | None] | None:
+    def compiled_step_one(self) -> tuple[int, float, float, FaceField | None] | None:
         """Step I as :func:`~meanfield.controllers._law_loops.face_law` computes it, ``(step, v_free, ρ_max, ∇φ)``,
         or None: what the law's Step I says (:meth:`~meanfield.controllers.step_one.StepOne.compiled`), unless a
-        subclass changed how the law computes Step I (then the numpy path, which follows it)."""
+        subclass changed how the law computes Step I (then the numpy path, which follows it; the compiled path's
+        choice is :meth:`~meanfield.controllers.fused_law.FusedLaw.which`)."""
         law = BacksteppingController
         if any(getattr(type(self), m) is not getattr(law, m) for m in _STEP_ONE_METHODS):
             return None
@@ -569,85 +540,10 @@ class BacksteppingController:
 
     def reset(self) -> None:
         """Forget the previous ``v_d`` (finite-difference mode) and the congestion figures."""
-        self._previous_vd = None
+        self.previous_vd = None
         self.congestion_report = None
         self._congestion_stats = [0, 0.0, 0.0, 0.0]
 
 
 _STEP_ONE_METHODS = ("_prepare", "_virtual_velocity", "_virtual_velocity_rate", "_dissipation")
 """The law's own calls of its Step I: a subclass that overrides one takes the numpy path."""
-
-
-# ---------------------------------------------------------------------- the law in one compiled call
-_NOTHING_HIDDEN = np.ones((0, 0, 0), dtype=bool)
-
-
-def _paper_constants(law: Any, g: Any, k: Any, n: int) -> np.ndarray:
-    """:func:`paper_law`'s ``cst``, packed once and kept in ``law._fused_state`` while its sources are the same
-    objects (the grid, ``∇ρ_*``, the gains, the schedule, σ) and the kernel's numbers the same."""
-    c = law._fused_state.get("paper")
-    tg = law._target_gradient
-    if (
-        c is None or c[0] is not g or c[1] is not tg or c[2] is not law.k_u or c[3] is not law.k_omega or c[4] != n
-        or c[5] is not law.alpha or c[6] is not law.sigma or c[7] != k.c or c[8] != k.eta
-    ):  # fmt: skip
-        alpha, floor = getattr(law.alpha, "alpha0", 1.0), getattr(law.alpha, "rho_floor", 0.0)  # constant: floor 0
-        gains = [np.broadcast_to(law.k_u, (n,)), np.broadcast_to(law.k_omega, (n,))]
-        numbers = [1.0 / g.dx, 1.0 / g.dy, float(law.sigma), alpha, floor, k.c, k.eta]
-        cst = np.concatenate([tg[0].ravel(), tg[1].ravel(), g.weight_x.ravel(), g.weight_y.ravel(), g.x, g.x_faces,
-                              g.y, g.y_faces, *gains, numbers], dtype=float)  # fmt: skip
-        c = law._fused_state["paper"] = (g, tg, law.k_u, law.k_omega, n, law.alpha, law.sigma, k.c, k.eta, cst)
-    return c[9]
-
-
-def fused_robot_inputs(
-    law: Any, rho: np.ndarray, field: NavigationField, t: float, step_one: tuple | None = None
-) -> ControlState | None:
-    """The :class:`BacksteppingController`'s inputs in one compiled call; None when not compiled.
-
-    The controller calls this only in the cases its ``_fused_law`` checks: ``step_one`` None is
-    the paper's law on a box with the signs seen everywhere (:func:`paper_law`); otherwise it is
-    ``(step, v_free, rho_max, ∇φ)`` for :func:`face_law` (``step`` :data:`PAPER_STEP_ONE` or
-    :data:`HUGHES_STEP_ONE`; ``∇φ`` None for the paper's).  The previous ``v_d`` is read from
-    and stored in ``law._previous_vd``, as the numpy path does.  The outputs are new arrays at
-    every call (the state is kept by observers).
-    """
-    g = law.grid
-    n = len(field.positions)
-    nx, ny = g.cells
-    vd = (np.empty((nx - 1, ny)), np.empty((nx, ny - 1)))
-    vt = (np.empty((nx - 1, ny)), np.empty((nx, ny - 1)))
-    rho_t, b, gg, u, w = np.empty((nx, ny)), np.empty((n, 2)), np.empty(n), np.empty((n, 2)), np.empty(n)
-    prev = law._previous_vd
-    have_prev = prev is not None and t > prev[0]
-    h = (t - prev[0]) if have_prev else 1.0
-    if step_one is None:
-        px, py = prev[1] if have_prev else vd  # (unused without a previous v_d)
-        out = paper_law(rho, law.target, _paper_constants(law, g, field.kernel, n), field.positions, field.cos,
-                        field.sin, px, py, have_prev, h, rho_t, vd[0], vd[1], vt[0], vt[1], b, gg, u, w)  # fmt: skip
-    else:
-        k, tg, cache = field.kernel, law._target_gradient, law._fused_state
-        source = cache.get("source", (None, None, None))  # the gains per robot, once per team size and gain arrays
-        if source[0] != n or source[1] is not law.k_u or source[2] is not law.k_omega:
-            cache.update(source=(n, law.k_u, law.k_omega), k_u=np.broadcast_to(law.k_u, (n,)).astype(float))
-            cache["k_w"] = np.broadcast_to(law.k_omega, (n,)).astype(float)
-        px, py = prev[1] if have_prev else tg  # (unused without a previous v_d)
-        alpha = getattr(law.alpha, "alpha0", 1.0)
-        floor = getattr(law.alpha, "rho_floor", 0.0)  # the constant schedule: α/ρ = α₀/(ρ + 0)
-        step, v_free, rho_max, phi = step_one
-        ph = tg if phi is None else phi  # (unused by the paper's Step I)
-        seen = field.cell_sight()
-        rx, ry = np.ascontiguousarray(field.positions.T)
-        out = face_law(
-            rho, law.target, tg[0], tg[1], 1.0 / g.dx, 1.0 / g.dy, g.aperture_x, g.aperture_y, g.weight_x,
-            g.weight_y, step, float(law.sigma), alpha, floor, v_free, rho_max, ph[0], ph[1],
-            g.x_faces, g.x, g.y_faces, g.y, rx, ry, field.cos, field.sin, k.c, k.eta,
-            _NOTHING_HIDDEN if seen is None else seen, seen is not None, cache["k_u"], cache["k_w"],
-            px, py, have_prev, h, rho_t, vd[0], vd[1], vt[0], vt[1], b, gg, u, w,
-        )  # fmt: skip
-    if out is UNAVAILABLE:
-        return None
-    law._previous_vd = (t, vd)
-    A, shortfall, dissipation = out
-    return ControlState(v_d=vd, v_tilde=vt, rho_tilde=rho_t, b=b, g=gg, A=A, u=u, omega=w, shortfall=shortfall,
-                        dissipation=dissipation, k_u=law.k_u, k_omega=law.k_omega)  # fmt: skip

@@ -255,7 +255,7 @@ def test_the_fused_law_matches_the_numpy_law(schedule, gains):
         return BacksteppingController(grid, target, 0.015, alpha, k_u=k_u, k_omega=7.0)
 
     fused, plain = law(), law()
-    assert fused._fusable(target, NavigationField(kernel, grid, [[0.5, 0.5]], [0.0]))
+    assert fused.fused.which(target, NavigationField(kernel, grid, [[0.5, 0.5]], [0.0])) is not None
     for t in (0.0, 0.01, 0.02):  # the first call without, the next ones with the previous v_d
         rho = grid.normalize(rng.uniform(0.2, 2.0, grid.shape))
         field = NavigationField(kernel, grid, rng.uniform(0, 1, (n, 2)) * [1.0, 1.5], rng.uniform(0, 6.3, n))

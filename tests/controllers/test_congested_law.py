@@ -278,7 +278,7 @@ def _fused(sc) -> bool:
     """Whether the scenario's law takes the fused compiled path at its first state."""
     loop = ClosedLoop(sc)
     obs = loop.observe()
-    return loop.parts.controller._fusable(obs.density, obs.field)
+    return loop.parts.controller.fused.which(obs.density, obs.field) is not None
 
 
 def test_the_summary_reports_where_the_guarantee_does_not_hold():

@@ -160,7 +160,7 @@ def test_a_closed_loop_with_hughes_potential_runs_on_the_l_room():
               "controller.options.evacuation.potential": "hughes",
               "controller.options.evacuation.rho_max": 0.01}  # fmt: skip
     loop = ClosedLoop(builtin_scenarios()["l-room"](seed=0).with_values(values))
-    assert loop.controller.potential == "hughes" and loop.controller._compiled_step_one() is None
+    assert loop.controller.potential == "hughes" and loop.controller.compiled_step_one() is None
     assert loop.controller.rho_max == 0.01
     s = loop.run(progress=False).summary
     assert s["status"] == "completed" and s["controller"] == "evacuation" and s["time_final"] == pytest.approx(3.0)

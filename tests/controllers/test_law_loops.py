@@ -63,7 +63,7 @@ def test_the_walked_factors_agree_with_exact_exponentials(case, robot):
     theta = 0.6
     r = (robot[0] * width, robot[1] * height)
     field = NavigationField(kernel, grid, [r], [theta])
-    assert law._fused_law(target, field) == ("paper", None)
+    assert law.fused.which(target, field) == ("paper", None)
     state = law.robot_inputs(target.copy(), field, 0.0)
     from meanfield.controllers._law_loops import paper_law
 

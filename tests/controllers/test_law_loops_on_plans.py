@@ -8,7 +8,7 @@
 * its ``b_i``, ``g_i`` keep the Step II identity ``⟨ṽ, ∂_t v_r⟩ = −Σ b_i·u_i + Σ g_i ω_i`` (eq. (5))
   with the masked field, and its inputs the law's identity of eq. (8);
 * it is deterministic, and ``use_compiled(False)`` runs the numpy path;
-* ``_fused_law`` says exactly when each compiled call applies;
+* ``FusedLaw.which`` says exactly when each compiled call applies;
 * the sight table, the coverage's owners and the view's gate: compiled loops against their numpy
   twins and against the formulas they replaced.
 """
@@ -28,13 +28,7 @@ from meanfield import ClosedLoop, Domain, GaussianKernel, Grid, NavigationField
 from meanfield._compiled import core as compiled
 from meanfield.controllers._coverage_loops import owners
 from meanfield.controllers._law_loops import face_law
-from meanfield.controllers.backstepping import (
-    BacksteppingController,
-    ConstantAlpha,
-    SaturatingAlpha,
-    UserBetaGamma,
-    fused_robot_inputs,
-)
+from meanfield.controllers.backstepping import BacksteppingController, ConstantAlpha, SaturatingAlpha, UserBetaGamma
 from meanfield.controllers.coverage import CoverageController
 from meanfield.controllers.evacuation import EvacuationController, exit_distance
 from meanfield.controllers.step_one import PaperStepOne
@@ -99,7 +93,7 @@ def _compare_over_calls(make_law, densities, fields, dt=0.1):
     fast, ref = make_law(), make_law()
     states = []
     for k, (rho, field) in enumerate(zip(densities, fields, strict=True)):
-        assert fast._fused_law(rho, field) == ("faces", fast._compiled_step_one())
+        assert fast.fused.which(rho, field) == ("faces", fast.compiled_step_one())
         a = fast.robot_inputs(rho, field, k * dt, dt)
         with compiled.numpy_path():
             r = ref.robot_inputs(rho, field, k * dt, dt)
@@ -173,7 +167,8 @@ def test_the_compiled_law_matches_the_numpy_law_on_the_office(office, step_one):
     def make():
         if step_one == "hughes":  # the office's own law, without its previous v_d
             law = copy.copy(hughes)
-            law._previous_vd, law._fused_state = None, {}
+            law.previous_vd = None
+            law.fused.reset()
             return law
         return BacksteppingController(grid, hughes.target, hughes.sigma, SaturatingAlpha(0.5, 0.1), 1.0, 1.0)
 
@@ -203,7 +198,7 @@ def test_on_a_box_with_exits_the_fused_law_follows_hughes_field_not_the_paper_s(
     densities = [smooth_density(grid) * rng.uniform(0.9, 1.1, grid.shape) for _ in range(2)]
     fields = [NavigationField(kernel, grid, rng.uniform(0, 2, (4, 2)), rng.uniform(0, 6, 4)) for _ in range(2)]
     states = _compare_over_calls(make, densities, fields)
-    assert make()._fused_law(densities[0], fields[0])[1][0] == 1  # Hughes', on the box
+    assert make().fused.which(densities[0], fields[0])[1][0] == 1  # Hughes', on the box
     hughes_vd = -1.0 * make().grad_phi[0]  # f(ρ) = v_free without congestion
     np.testing.assert_allclose(states[0].v_d[0], hughes_vd, rtol=1e-15, atol=1e-15)
 
@@ -226,7 +221,7 @@ def test_the_compiled_law_is_deterministic_and_use_compiled_false_runs_numpy():
     law = make()
     compiled.use_compiled(False)
     try:
-        assert fused_robot_inputs(law, rho, field, 0.0, law._compiled_step_one()) is None  # the loop does not run
+        assert law.fused.inputs(rho, field, 0.0, law.compiled_step_one()) is None  # the loop does not run
         off = make().robot_inputs(rho, field, 0.0, 0.1)
     finally:
         compiled.use_compiled(None)
@@ -254,12 +249,12 @@ def test_the_fused_law_applies_exactly_where_it_computes_the_same_law():
         return cls(grid, np.ones(grid.shape) / grid.area, 0.01, SaturatingAlpha(0.2, 0.3), **kw)
 
     field = NavigationField(kernel, box, [[0.5, 0.5]], [0.0])
-    assert law()._fused_law(rho, field) == ("paper", None)
-    assert law(cls=Same)._fused_law(rho, field) == ("paper", None)
+    assert law().fused.which(rho, field) == ("paper", None)
+    assert law(cls=Same).fused.which(rho, field) == ("paper", None)
     sight = SightLines(PILLAR)
     on_plan = NavigationField(kernel, plan, AROUND, np.zeros(len(AROUND)), sight)
-    assert law(plan)._fused_law(np.ones(plan.shape), on_plan)[0] == "faces"
-    assert law(plan)._fused_law(np.ones(plan.shape), NavigationField(kernel, plan, AROUND, np.zeros(6)))[0] == "faces"
+    assert law(plan).fused.which(np.ones(plan.shape), on_plan)[0] == "faces"
+    assert law(plan).fused.which(np.ones(plan.shape), NavigationField(kernel, plan, AROUND, np.zeros(6)))[0] == "faces"
     refused = [
         (law(cls=Mine), field),
         (law(step_one=NoCompiledForm()), field),
@@ -271,13 +266,12 @@ def test_the_fused_law_applies_exactly_where_it_computes_the_same_law():
         (law(), NavigationField(CustomKernel(lambda x, y: 0 * x, lambda x, y: (x, y)), box, [[0.5, 0.5]], [0.0])),
     ]
     for controller, f in refused:
-        assert controller._fused_law(rho, f) is None
-        assert not controller._fusable(rho, f)
+        assert controller.fused.which(rho, f) is None
     sigma = law()
     sigma.sigma = lambda x, y, t: 0.01 + 0 * x
-    assert sigma._fused_law(rho, field) is None
-    assert law()._fused_law(rho.astype(complex), field) is None
-    assert law()._fused_law(np.asfortranarray(rho), field) is None  # not C-ordered
+    assert sigma.fused.which(rho, field) is None
+    assert law().fused.which(rho.astype(complex), field) is None
+    assert law().fused.which(np.asfortranarray(rho), field) is None  # not C-ordered
 
 
 # ---------------------------------------------------------------------- sight, owners, view
