@@ -8,10 +8,12 @@ TOML file).  The format is read directly, as ``jupedsim_scenarios.load_scenario`
 full dependency set along, and reading the format is a JSON and a WKT.
 
 * the walkable area (the WKT) is the plan, ``[domain] kind = "plan"``, its holes the obstacles;
-* each exit polygon becomes the segments where it meets the walkable area's boundary (a door drawn
-  across the wall, or flush with it inside the room), ``domain.exits``; an exit polygon inside the
-  area, touching no wall, is cut out of the plan and its outline is the exit (people leave on reaching
-  it, as in the web app);
+* each exit polygon becomes the segments where it meets the walkable area's boundary, ``domain.exits``:
+  the walls it is drawn across (a door in a wall), or, drawn inside against walls, the longest of them;
+  an exit drawn across an opening (a corridor's end, a door's gap), whose edge inside the area is one
+  straight segment from wall to wall, is cut off the plan and that edge is the exit, where the web app
+  removes people; an exit polygon inside the area, touching no wall, is cut out of the plan and its
+  outline is the exit (people leave on reaching it, as in the web app);
 * each distribution becomes a group, ``crowd.initial = "groups"``: its polygon (the part in the
   walkable area) and its count (``distribution_mode = "by_number"``; a percentage is turned into a
   count as jupedsim-scenarios does, from the area its bodies could fill);
@@ -191,6 +193,26 @@ def _exit_segments(poly: Any, area: Any, tol: float) -> tuple[list, list]:
     return across, flush
 
 
+def _across_an_opening(poly: Any, area: Any, tol: float) -> Any:
+    """The straight segment where an exit polygon drawn across an opening (a corridor's end, a door's gap) meets the
+    inside of the area, if that is all of its edge inside the area (None otherwise)."""
+    import shapely
+
+    part = shapely.intersection(poly, area)
+    if not isinstance(part, shapely.Polygon) or part.area <= 0:
+        return None
+    inside = shapely.difference(part.boundary, area.boundary.buffer(tol, cap_style="flat"))
+    lines = [g for g in shapely.get_parts(inside) if isinstance(g, shapely.LineString) and g.length > 2 * tol]
+    if len(lines) != 1:
+        return None
+    pts = list(lines[0].simplify(2 * tol).coords)
+    if len(pts) != 2:
+        return None
+    # the segment ends on the walls (up to the buffer's trim): snap each end onto the boundary
+    ends = [shapely.get_coordinates(shapely.shortest_line(shapely.Point(p), area.boundary))[1] for p in pts]
+    return part, (tuple(map(float, ends[0])), tuple(map(float, ends[1])))
+
+
 def _exits(export: WebAppExport, area: Any) -> tuple[Any, list, dict[str, list[int]]]:
     """The plan (the area, inner exits cut out), the exit segments, and each exit's segment indices."""
     import shapely
@@ -203,10 +225,15 @@ def _exits(export: WebAppExport, area: Any) -> tuple[Any, list, dict[str, list[i
     segments: list = []
     of_exit: dict[str, list[int]] = {}
     inner: list[tuple[str, Any]] = []
+    cut: list[Any] = []
     for key, entry in exits.items():
         coords = entry.get("coordinates") if isinstance(entry, dict) else None
         poly = _polygon(source, coords, f"exit {key}")
         across, flush = _exit_segments(poly, area, tol)
+        opening = _across_an_opening(poly, area, tol) if across else None
+        if opening is not None:  # the area ends where the web app removes people: the exit's inner edge
+            cut.append(opening[0])
+            across = [opening[1]]
         if not across and flush:  # drawn inside, against the walls: the door is the longest wall it touches
             flush.sort(key=lambda seg: -math.dist(*seg))
             if len(flush) > 1:
@@ -229,6 +256,8 @@ def _exits(export: WebAppExport, area: Any) -> tuple[Any, list, dict[str, list[i
             _warn(source, f"exit {key}: its throughput limit ({rate} persons/s) is not mapped: it lets people "
                           "through as fast as they come")  # fmt: skip
     plan = area
+    for part in cut:
+        plan = shapely.difference(plan, part)
     for key, poly in inner:  # an exit inside the room: a hole whose outline is the exit
         plan = shapely.difference(plan, poly)
         ring = list(shapely.normalize(poly).exterior.coords)
