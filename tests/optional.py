@@ -22,6 +22,12 @@ OPTIONAL: dict[str, tuple[str, str]] = {
         'pip install -e ".[pedestrians]" && pip install --no-deps "jupedsim==1.4.2"',
     ),
     "pedpy": ("pedpy", 'pip install -e ".[pedestrians]"'),
+    # the peer of the web-app exports' tests (tests/scenarios/test_webapp.py): it runs an export in JuPedSim and reads
+    # a run's export back; --no-deps for the reason JuPedSim takes it (its requirement would pull PySide6 and VTK)
+    "jupedsim_scenarios": (
+        "jupedsim_scenarios",
+        'pip install -e ".[pedestrians]" && pip install --no-deps "jupedsim==1.4.2" "jupedsim-scenarios==0.7.4"',
+    ),
     # the peer of benchmarks/hughes2d_peer.py (GPL-3.0; also in the bench extra)
     "hughes2d": ("hughes2d", 'pip install "hughes2d==1.1.8"'),
     # cfchecker itself comes with the test extra; importing its checker loads the udunits2 C library

@@ -50,7 +50,7 @@ def output_file(text: str) -> Path:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-SCENARIO_HELP = "a built-in scenario ({}) or a TOML file"
+SCENARIO_HELP = "a built-in scenario ({}), a TOML file, or a JuPedSim web-app export (ZIP, folder or JSON)"
 
 
 def add_plugin_arguments(parser: argparse.ArgumentParser) -> None:

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from meanfield import plugins
-from meanfield.cli.arguments import add_scenario_arguments, scenario_from_args
+from meanfield.cli.arguments import add_scenario_arguments, output_file, scenario_from_args
 from meanfield.errors import ParameterError
 
 __all__ = ["register", "run_artifacts"]
@@ -41,6 +41,14 @@ def register(subparsers: Any) -> Callable[[argparse.Namespace], int]:
         default=None,
         metavar="N",
         help="threads of the crowd's per-human loops (default every core); the results do not depend on it",
+    )
+    r.add_argument(
+        "--export-webapp",
+        type=output_file,
+        default=None,
+        metavar="OUT.zip",
+        help="for a run of a JuPedSim web-app export: write the export and the run's trajectory.sqlite into "
+        "OUT.zip, which the web app and jupedsim-scenarios read back",
     )
     r.add_argument("--quiet", action="store_true", help="no progress bar, no summary printout")
     r.add_argument("--animate", action="store_true", help="also write animation.gif")
@@ -101,6 +109,35 @@ def _shipped_warnings(name: str, grid: Any, scenario: Any) -> set[str]:
     return set(stability_warnings(scenario, grid, {}))
 
 
+def _webapp_export(args: argparse.Namespace) -> Any:
+    """The web-app export the run reads, when ``--export-webapp`` asks for it back (refused otherwise, before the
+    run, naming ``--export-webapp``)."""
+    if args.export_webapp is None:
+        return None
+    from meanfield.io.webapp import looks_like_export, read_export
+
+    if not looks_like_export(args.scenario):
+        allowed = "a run of a JuPedSim web-app export (meanfield run EXPORT.zip --export-webapp OUT.zip)"
+        raise ParameterError("--export-webapp", str(args.export_webapp), allowed)
+    out = Path(args.export_webapp).resolve()
+    if out == Path(args.scenario).resolve():
+        raise ParameterError("--export-webapp", str(args.export_webapp), "a file other than the export the run reads")
+    return read_export(args.scenario)
+
+
+def _write_webapp_export(export: Any, folder: Path, out: Path, quiet: bool) -> None:
+    """The export and the run's ``trajectories.sqlite`` into ``out``
+    (:func:`meanfield.io.webapp.write_export_with_trajectory`)."""
+    from meanfield.io.webapp import write_export_with_trajectory
+
+    trajectory = folder / "trajectories.sqlite"
+    if not trajectory.is_file():
+        raise ParameterError("--export-webapp", str(out), "a run that records its humans (a crowd of agents)")
+    write_export_with_trajectory(export, trajectory, out)
+    if not quiet:
+        print(f"web-app export with the run's trajectory in {out}")
+
+
 def available_cores() -> int:
     """The cores this process may run on (its CPU affinity where the system tells it, else the machine's)."""
     try:
@@ -131,6 +168,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             raise ParameterError("--crowd-threads", args.crowd_threads, allowed)
         set_loop_threads(args.crowd_threads)
     sc = scenario_from_args(args)
+    export = _webapp_export(args)
     own = Path(args.scenario)
     if own.suffix == ".toml" and own.is_file() and own.resolve() == (Path(args.out) / "scenario.toml").resolve():
         raise ParameterError(
@@ -150,6 +188,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
             result = loop.run(progress=not args.quiet)
             result.save(args.out, artifacts=artifacts)
     s = result.summary
+    if export is not None:
+        _write_webapp_export(export, Path(args.out), args.export_webapp, args.quiet)
     if held():
         print("meanfield: a signal came after the last step: the run was finished and saved", file=sys.stderr)
     if not args.quiet:

@@ -19,8 +19,9 @@ guideline, test 10: the people of some rooms use the main exit, the others a sec
 Refused, naming the field: a missing or unknown key, ``n < 1``, a region that is not a
 polygon or lies outside the plan, an exit the plan does not have, groups whose sizes do not
 add up to ``crowd.n``, groups without ``initial = "groups"`` or the reverse, a crowd that
-does not place people in groups (it declares no ``places_groups``: the point masses and the density do), and a
-group's ``exit`` with a crowd that cannot keep one per group (it declares no ``group_exits``: the point masses do).
+does not place people in groups (it declares no ``places_groups``: the point masses, JuPedSim's bodies and the
+density do), and a group's ``exit`` with a crowd that cannot keep one per group (it declares no ``group_exits``: the
+point masses and JuPedSim's bodies do).
 The density starts as the point masses are drawn, each group uniform in its region
 (:func:`meanfield.crowds.density_crowd.initial_density`).
 """

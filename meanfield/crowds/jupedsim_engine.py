@@ -46,6 +46,7 @@ from meanfield.interfaces import CrowdContext
 __all__ = [
     "JuPedSimEngine",
     "place_bodies",
+    "place_groups",
     "door_areas",
     "jupedsim_crowd",
     "JuPedSimOptions",
@@ -63,11 +64,13 @@ def place_bodies(
     *,
     gap: float = 0.0,
     max_draws: int | None = None,
+    occupied: np.ndarray | None = None,
 ) -> np.ndarray:
     """``n`` non-overlapping bodies from a law, by random sequential adsorption.
 
     Candidates are drawn from ``draw(k) -> (k, 2)`` (the scenario's initial law) and kept
-    when their disk of ``radius`` lies in Ω and keeps ``gap`` from every kept body.
+    when their disk of ``radius`` lies in Ω and keeps ``gap`` from every kept body (and from
+    the bodies already ``occupied``, placed before: an earlier group's).
 
     Parameters
     ----------
@@ -83,6 +86,8 @@ def place_bodies(
         Extra clearance between bodies.
     max_draws : int, optional
         Give up after this many candidates (default ``200 n + 1000``).
+    occupied : ndarray, shape (M, 2), optional
+        Bodies of the same radius already placed, which the new ones keep clear of (not returned).
 
     Raises
     ------
@@ -96,8 +101,14 @@ def place_bodies(
     d_min = 2.0 * radius + gap
     cell = d_min
     buckets: dict[tuple[int, int], list[int]] = {}
-    kept = np.empty((n, 2))
-    count = drawn = 0
+    before = np.empty((0, 2)) if occupied is None else np.asarray(occupied, float).reshape(-1, 2)
+    m = len(before)
+    kept = np.empty((m + n, 2))
+    kept[:m] = before
+    for k, (x, y) in enumerate(before):
+        buckets.setdefault((math.floor(x / cell), math.floor(y / cell)), []).append(k)
+    n += m
+    count, drawn = m, 0
     while count < n and drawn < limit:
         batch = np.asarray(draw(min(max(2 * (n - count), 64), limit - drawn)), float)
         drawn += len(batch)
@@ -126,11 +137,46 @@ def place_bodies(
         raise ParameterError(
             "crowd.options.jupedsim.radius",
             radius,
-            f"a body radius at which {n} humans fit without overlapping in the initial crowd "
-            f"(only {count} could be placed from {drawn} draws; use smaller bodies, fewer humans "
+            f"a body radius at which {n - m} humans fit without overlapping in the initial crowd "
+            f"(only {count - m} could be placed from {drawn} draws; use smaller bodies, fewer humans "
             "or a wider initial law)",
         )
-    return kept
+    return kept[m:]
+
+
+def place_groups(groups: list[dict[str, Any]], radius: float, domain: Domain, rng: np.random.Generator) -> np.ndarray:
+    """Each group's bodies in its region, group after group, none overlapping another (``crowd.initial =
+    "groups"``, :mod:`meanfield.crowds.groups`): :func:`place_bodies` from the uniform law on the region, each
+    group keeping clear of the groups placed before it.
+
+    Raises
+    ------
+    ParameterError
+        ``crowd.groups[i].n`` when the group's bodies do not fit in its region without overlapping.
+    """
+    import shapely
+
+    from meanfield.crowds.groups import group_region
+
+    placed = np.empty((0, 2))
+    for i, g in enumerate(groups):
+        region = group_region(g["region"], f"crowd.groups[{i}].region")
+        x0, y0, x1, y1 = region.bounds
+
+        def draw(k: int, region: Any = region, box: tuple = ((x0, y0), (x1, y1))) -> np.ndarray:
+            p = rng.uniform(*box, size=(4 * k + 8, 2))
+            return p[shapely.contains_xy(region, p[:, 0], p[:, 1])][:k]
+
+        try:
+            bodies = place_bodies(draw, g["n"], radius, domain, occupied=placed)
+        except ParameterError:
+            raise ParameterError(
+                f"crowd.groups[{i}].n", g["n"],
+                f"a count whose bodies of radius {radius:g} m fit in the group's region without overlapping "
+                "(use a larger region, fewer people or smaller bodies, crowd.options.jupedsim.radius)",
+            ) from None  # fmt: skip
+        placed = np.vstack([placed, bodies])
+    return placed
 
 
 def door_areas(area: Any, segs: np.ndarray, depth: float) -> tuple[Any, list[Any]]:
@@ -518,13 +564,17 @@ def jupedsim_crowd(ctx: CrowdContext) -> AgentCrowd:
     """Registry factory (kind ``crowd``, name ``jupedsim``): the scenario's humans as JuPedSim bodies.
 
     The initial bodies come from the scenario's initial law without overlap
-    (:func:`place_bodies`); without JuPedSim, its adapter refuses here with the install command.
+    (:func:`place_bodies`), or group by group in the groups' regions (:func:`place_groups`); without
+    JuPedSim, its adapter refuses here with the install command.
     Its options are :class:`JuPedSimOptions` (``[crowd.options.jupedsim]``), checked with the
     scenario by :func:`check_scenario`.
     """
     sc = ctx.scenario
     ped = JuPedSimOptions.of(sc)
-    humans = place_bodies(lambda k: initial_positions(sc, k, ctx.rng), sc.crowd.n, ped.radius, sc.domain)
+    if sc.crowd.initial == "groups":
+        humans = place_groups(sc.crowd.groups, ped.radius, sc.domain, ctx.rng)
+    else:
+        humans = place_bodies(lambda k: initial_positions(sc, k, ctx.rng), sc.crowd.n, ped.radius, sc.domain)
     engine = JuPedSimEngine(
         humans, sc.domain, ped.radius, ped.max_speed, ped.time_step, ped.model, sc.seed, ped.parameters()
     )
@@ -533,6 +583,12 @@ def jupedsim_crowd(ctx: CrowdContext) -> AgentCrowd:
 
 jupedsim_crowd.options = JuPedSimOptions  # type: ignore[attr-defined]  # what the core asks (plugins.declared)
 jupedsim_crowd.check_scenario = check_scenario  # type: ignore[attr-defined]
+jupedsim_crowd.places_groups = True  # type: ignore[attr-defined]
+"""People may be placed in groups, each group's bodies in its region (``crowd.initial = "groups"``,
+:func:`place_groups`)."""
+jupedsim_crowd.group_exits = True  # type: ignore[attr-defined]
+"""A group may walk to an exit of its own (``[[crowd.groups]] exit = k``): each body keeps its group's, in the
+order :func:`place_groups` places them."""
 jupedsim_crowd.closes_exits = True  # type: ignore[attr-defined]
 """An exit can close during a run (``[[events]]``, :meth:`JuPedSimEngine.exits_closed`): no body is routed
 through it any more, and the informed crowd's routes lead to the exits still open."""

@@ -1,5 +1,6 @@
 """Files: atomic output and the run folder (:mod:`~meanfield.io.atomic`), trajectories in the formats
-pedestrian-dynamics tools read (:mod:`~meanfield.io.trajectories`).
+pedestrian-dynamics tools read (:mod:`~meanfield.io.trajectories`), JuPedSim web-app exports read and written
+back with a run (:mod:`~meanfield.io.webapp`).
 
 Names are imported on first use (:mod:`meanfield._namespace`).
 """
@@ -22,6 +23,9 @@ _LAZY = {
     "write_complete_folder": "meanfield.io.atomic",
     "write_jupedsim_sqlite": "meanfield.io.trajectories",
     "write_pedpy_trajectories": "meanfield.io.trajectories",
+    "WebAppExport": "meanfield.io.webapp",
+    "read_export": "meanfield.io.webapp",
+    "write_export_with_trajectory": "meanfield.io.webapp",
 }
 
 __getattr__, __dir__ = lazy_namespace(__name__, globals(), _LAZY)

@@ -797,21 +797,29 @@ def _plugins_beside(d: dict[str, Any], folder: Path) -> dict[str, Any]:
 
 
 def load_scenario(spec: str | Path, seed: int | None = None, *, allow_plugins: bool = False) -> Scenario:
-    """A built-in scenario by name, or a TOML file by path; ``seed`` overrides the file's.
+    """A built-in scenario by name, a TOML file by path, or a JuPedSim web-app export (a ZIP, a folder
+    or a JSON file: :mod:`meanfield.scenarios.webapp`); ``seed`` overrides the file's.
 
     In a file, ``plugins`` paths to ``.py`` files are relative to the file's folder; they are
     imported only with ``allow_plugins=True`` (or within
     :func:`meanfield.plugins.allow_scenario_plugins`), and otherwise refused with a
     :class:`ParameterError` naming ``plugins``, before anything is imported.
     """
+    from meanfield.io.webapp import looks_like_export, read_export
+
     spec = str(spec)
     table = builtin_scenarios()
     if spec in table:
         sc = table[spec]()
+    elif looks_like_export(spec):
+        from meanfield.scenarios.webapp import scenario_table
+
+        sc = Scenario.from_dict(scenario_table(read_export(spec)))
     else:
         path = Path(spec)
         if not path.is_file():
-            raise ParameterError("scenario", spec, f"a built-in name ({', '.join(table)}) or an existing .toml file")
+            allowed = f"a built-in name ({', '.join(table)}), an existing .toml file or a JuPedSim web-app export"
+            raise ParameterError("scenario", spec, allowed)
         sc = Scenario.from_dict(_plugins_beside(_read_toml(path), path.parent), allow_plugins=allow_plugins)
     if seed is not None:
         sc = sc.replace(seed=seed)

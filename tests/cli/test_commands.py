@@ -134,7 +134,7 @@ def test_the_help_lists_every_built_in_scenario(capsys):
     text = " ".join(capsys.readouterr().out.split()).replace("- ", "-")  # (argparse may wrap a name at a hyphen)
     names = ("bottleneck, hall, hall-crowded-west, l-room, office, paper, paper-unity, rimea-10, rimea-12, rimea-9, "
              "stadium")
-    assert f"a built-in scenario ({names}) or a TOML file" in text
+    assert f"a built-in scenario ({names}), a TOML file, or a JuPedSim web-app export" in text
 
 
 def test_the_paper_s_own_warning_is_kept_in_the_summary_and_printed_only_when_dt_changes(tmp_path, capsys):

@@ -72,7 +72,6 @@ def test_groups_survive_toml():
         ([{"region": WEST, "n": 2, "exit": 4}], {}, "crowd.groups[0].exit"),
         ([{"region": WEST, "n": 2, "exit": -1}], {}, "crowd.groups[0].exit"),
         ([{"region": WEST, "n": 2}], {"crowd.n": 3}, "crowd.n"),
-        ([{"region": WEST, "n": 2}], {"crowd.kind": "jupedsim"}, "crowd.initial"),  # (no places_groups)
         ([{"region": WEST, "n": 2, "exit": 1}], {"crowd.kind": "fokker-planck"}, "crowd.groups[0].exit"),
         ([{"region": WEST, "n": 2}], {"crowd.initial": "uniform"}, "crowd.groups"),
     ],
@@ -81,6 +80,56 @@ def test_bad_groups_are_refused_naming_the_field(groups, values, field):
     with pytest.raises(ParameterError) as exc:
         ClosedLoop(_hall(groups, **values))
     assert exc.value.name == field
+
+
+def test_a_crowd_that_places_no_groups_is_refused_naming_crowd_initial():
+    """A crowd kind that declares no ``places_groups`` (a plugin's) is refused with groups, naming ``crowd.initial``."""
+    from meanfield import plugins
+    from meanfield.crowds.agent_crowd import point_mass_crowd
+
+    def plain_crowd(ctx):  # the point masses without their declarations
+        return point_mass_crowd(ctx)
+
+    plugins.register("crowd", "plain-test-crowd", plain_crowd)
+    try:
+        with pytest.raises(ParameterError) as exc:
+            _hall([{"region": WEST, "n": 2}], **{"crowd.kind": "plain-test-crowd"})
+        assert exc.value.name == "crowd.initial"
+    finally:
+        plugins.unregister("crowd", "plain-test-crowd")
+
+
+@pytest.mark.requires("jupedsim")
+def test_jupedsim_bodies_stand_in_their_groups_regions_without_overlap_and_walk_to_their_group_s_exit():
+    """JuPedSim's bodies place groups (``places_groups``) and keep each group's exit (``group_exits``): 30 bodies by the
+    west wall sent to the east door all cross the hall and leave by it; the 20 by the east wall, without an exit of
+    their own, leave by the nearest."""
+    from meanfield.crowds.jupedsim_engine import max_body_overlap
+
+    sc = _hall([{"region": WEST, "n": 30, "exit": 3}, {"region": EAST, "n": 20}], t_final=60.0,
+               **{"crowd.kind": "jupedsim", "crowd.options": {"jupedsim": {"radius": 0.2, "time_step": 0.05}}})
+    loop = ClosedLoop(sc)
+    x = loop.crowd.engine.positions.copy()
+    west, east = shapely.from_wkt(WEST), shapely.from_wkt(EAST)
+    assert shapely.contains_xy(west, x[:30, 0], x[:30, 1]).all()
+    assert shapely.contains_xy(east, x[30:, 0], x[30:, 1]).all()
+    assert max_body_overlap(x[:, 0], x[:, 1], 0.2)[0] == 0.0
+    loop.run(progress=False)
+    e = loop.crowd.engine
+    assert (e.exit_index[:30] == 3).all() and (e.exit_index[30:] >= 0).all()
+
+
+def test_groups_whose_bodies_do_not_fit_are_refused_naming_the_group():
+    from meanfield.crowds.jupedsim_engine import place_groups
+
+    small = "POLYGON ((1 1, 2 1, 2 2, 1 2, 1 1))"  # 1 m²: not 40 bodies of 0.2 m
+    domain = builtin_scenarios()["hall"]().domain
+    groups = [{"region": WEST, "n": 5}, {"region": small, "n": 40}]
+    with pytest.raises(ParameterError) as exc:
+        place_groups(groups, 0.2, domain, np.random.default_rng(0))
+    assert exc.value.name == "crowd.groups[1].n"
+    ok = place_groups(groups[:1] + [{"region": small, "n": 3}], 0.2, domain, np.random.default_rng(0))
+    assert ok.shape == (8, 2)
 
 
 def test_groups_are_needed_with_initial_groups():
