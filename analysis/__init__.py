@@ -14,7 +14,7 @@
 - :mod:`analysis.cli`: ``meanfield analyze``.
 
 The modules ``analysis.nmpc_*`` and ``analysis.pedestrian_*`` of earlier releases moved into the
-two subpackages; their old paths still import for one release, with a warning naming the new
+two subpackages; their old paths still import until 0.3.0, with a warning naming the new
 module (:mod:`analysis._moved`).
 
 Built on :mod:`meanfield`; never imported by it (the strategy, the controller and the

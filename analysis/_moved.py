@@ -1,4 +1,4 @@
-"""The modules of ``analysis`` that moved into its subpackages, kept at their old paths for one release.
+"""The modules of ``analysis`` that moved into its subpackages, kept at their old paths until 0.3.0.
 
 The NMPC baseline now lives in :mod:`analysis.nmpc` and the pedestrian measurements in
 :mod:`analysis.pedestrians`.  ``from analysis.nmpc_qp import InputQP`` still gives the class,

@@ -24,6 +24,7 @@ _LAZY = {
     "SaturatingAlpha": "meanfield.controllers.backstepping",
     "UserBetaGamma": "meanfield.controllers.backstepping",
     "PointMassEngine": "meanfield.crowds.point_mass",
+    "Crowd": "meanfield.interfaces",
     "MeanfieldDeprecationWarning": "meanfield.errors",
     "KernelDensityEstimator": "meanfield.crowds.kde",
     "silverman_bandwidth": "meanfield.crowds.kde",
@@ -53,19 +54,19 @@ _LAZY = {
     "paper_scenario": "meanfield.scenarios.scenario",
 }
 
-# Old names that moved, for one release: read with a warning naming the new place.
-_DEPRECATED = {"Crowd": ("meanfield.crowds.point_mass", "PointMassEngine")}
-
-__getattr__, __dir__ = lazy_namespace(__name__, globals(), _LAZY, _DEPRECATED)
+# ``meanfield.Crowd`` is the crowd's protocol (meanfield.interfaces.Crowd) since 0.2.0; before, it was a deprecated
+# name of the point-mass engine, PointMassEngine.
+__getattr__, __dir__ = lazy_namespace(__name__, globals(), _LAZY)
 install_moved_modules()  # old module paths (meanfield.crowd, meanfield.control, ...) keep working
 
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 __all__ = [
     "BacksteppingController",
     "ClosedLoop",
     "ConstantAlpha",
+    "Crowd",
     "CustomKernel",
     "Domain",
     "ExtraInputs",

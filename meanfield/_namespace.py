@@ -5,7 +5,7 @@ SciPy's, xarray's and the solvers' import time, and ``meanfield --help`` stays q
 such as ``meanfield.run`` is imported the first time it is read, then kept
 (:func:`lazy_namespace`).
 
-Modules that moved into the subpackages keep working at their old paths for one release
+Modules that moved into the subpackages keep working at their old paths until 0.3.0
 (:data:`MOVED`, :func:`install_moved_modules`): ``from meanfield.crowd import Crowd`` still
 gives the point-mass engine, with a :class:`~meanfield.errors.MeanfieldDeprecationWarning`
 that names its new place (``meanfield.crowds.point_mass.PointMassEngine``).
@@ -44,7 +44,7 @@ def lazy_namespace(
     def __getattr__(name: str) -> Any:
         if name in deprecated:
             module, new_name = deprecated[name]
-            _warn(f"{package}.{name} is deprecated: use {module}.{new_name}")
+            _warn(f"{package}.{name}", f"use {module}.{new_name}")
             return getattr(importlib.import_module(module), new_name)
         module = names.get(name)
         if module is None:
@@ -209,9 +209,12 @@ def _where(package: str, entry: Any) -> str:
     return f"{package}.{entry if isinstance(entry, str) else entry[0]}"
 
 
-def _warn(message: str) -> None:
-    """Warn, attributed to the first frame outside the import machinery and this module (the user's line)."""
-    from meanfield.errors import MeanfieldDeprecationWarning
+def _warn(what: str, instead: str) -> None:
+    """Warn that ``what`` is deprecated (and removed in :data:`meanfield.errors.REMOVED_IN`), attributed to the first
+    frame outside the import machinery and this module (the user's line)."""
+    from meanfield.errors import MeanfieldDeprecationWarning, deprecation_message
+
+    message = deprecation_message(what, instead)
 
     def skipped(f: Any) -> bool:
         return f.f_code.co_filename == __file__ or "importlib" in f.f_code.co_filename
@@ -245,7 +248,7 @@ class _MovedModule(types.ModuleType):
         module = None if place is None else importlib.import_module(place[0])
         if place is None or not hasattr(module, place[1]):
             raise AttributeError(f"module {self.__name__!r} has no attribute {name!r}")
-        _warn(f"{self.__name__}.{name} is deprecated: use {place[0]}.{place[1]}")
+        _warn(f"{self.__name__}.{name}", f"use {place[0]}.{place[1]}")
         return getattr(module, place[1])
 
     def __dir__(self) -> list[str]:
@@ -277,7 +280,7 @@ class _MovedFinder:
     def exec_module(self, module: types.ModuleType) -> None:
         where = _where(self.package, self.table[module.__name__.removeprefix(self.package + ".")])
         module.__doc__ = f"Deprecated: moved to {where}."
-        _warn(f"the module {module.__name__} is deprecated: its names moved to {where}")
+        _warn(f"the module {module.__name__}", f"its names moved to {where}")
 
 
 def install_moved_modules(package: str = "meanfield", table: dict[str, Any] | None = None) -> None:

@@ -33,6 +33,7 @@ __all__ = [
     "check_sigma",
     "deprecated",
     "REMOVED_IN",
+    "deprecation_message",
     "options_table",
     "positive_number",
     "limit_or_inf",
@@ -92,8 +93,13 @@ def deprecated(what: str, instead: str, stacklevel: int = 2) -> None:
     """
     import warnings
 
-    warnings.warn(f"{what} is deprecated and removed in {REMOVED_IN}: {instead}", MeanfieldDeprecationWarning,
-                  stacklevel=stacklevel + 1)  # fmt: skip
+    warnings.warn(deprecation_message(what, instead), MeanfieldDeprecationWarning, stacklevel=stacklevel + 1)
+
+
+def deprecation_message(what: str, instead: str) -> str:
+    """The text of every deprecation, ``"<what> is deprecated and removed in 0.3.0: <instead>"``
+    (:data:`REMOVED_IN`)."""
+    return f"{what} is deprecated and removed in {REMOVED_IN}: {instead}"
 
 
 class SimulationDiverged(RuntimeError):

@@ -6,6 +6,7 @@ paths that still work, and the registry of parts (plugins)."""
 from __future__ import annotations
 
 import ast
+import sys
 from pathlib import Path
 
 import pytest
@@ -367,14 +368,53 @@ def test_an_old_import_path_works_with_a_warning_naming_the_new_one(old, name, n
     assert value is getattr(importlib.import_module(module), attr)
 
 
-def test_the_old_top_level_crowd_is_the_point_mass_engine_with_a_warning():
-    import meanfield
-    from meanfield.errors import MeanfieldDeprecationWarning
+def test_the_top_level_crowd_is_the_crowd_s_protocol_without_a_warning():
+    """``meanfield.Crowd`` was a deprecated name of the point-mass engine until 0.2.0; the protocol owns it now."""
+    import warnings
 
-    with pytest.warns(MeanfieldDeprecationWarning, match="PointMassEngine"):
-        assert meanfield.Crowd is meanfield.PointMassEngine
+    import meanfield
+    from meanfield.interfaces import Crowd
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert meanfield.Crowd is Crowd and meanfield.Crowd is not meanfield.PointMassEngine
     with pytest.raises(AttributeError):
         meanfield.crowd_loops_that_never_existed  # noqa: B018
+
+
+def test_every_deprecation_names_the_release_that_removes_it_and_is_gone_by_then():
+    """Every old module path, name, scenario field and option warns "removed in 0.3.0" (one message, from
+    ``meanfield.errors``), and this fails once the package reaches that release with any of them still read."""
+    import importlib
+    import warnings
+
+    import meanfield
+    from analysis._moved import MOVED as ANALYSIS_MOVED
+    from meanfield._namespace import MOVED
+    from meanfield.cli import _DEPRECATED as CLI_NAMES
+    from meanfield.controllers.coverage import DEPRECATED as COVERAGE_VALUES
+    from meanfield.errors import REMOVED_IN, MeanfieldDeprecationWarning
+    from meanfield.scenarios.scenario import OLD_FIELDS
+
+    def version(v: str) -> tuple[int, ...]:
+        return tuple(int(part) for part in v.split(".")[:3])
+
+    assert version(meanfield.__version__) >= (0, 2, 0)
+    old = next(iter(MOVED))
+    for module in (f"meanfield.{old}", "meanfield.cli"):
+        sys.modules.pop(f"meanfield.{old}", None)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            m = importlib.import_module(module)
+            getattr(m, sorted(CLI_NAMES)[0] if module == "meanfield.cli" else sorted(dir(m))[0])
+        said = [str(w.message) for w in caught if issubclass(w.category, MeanfieldDeprecationWarning)]
+        assert said and all(f"removed in {REMOVED_IN}" in m for m in said), said
+    left = {"meanfield's moved modules": MOVED, "analysis's moved modules": ANALYSIS_MOVED,
+            "meanfield.cli's moved names": CLI_NAMES, "the old scenario fields": OLD_FIELDS,
+            "coverage's deprecated values": COVERAGE_VALUES}  # fmt: skip
+    if version(meanfield.__version__) >= version(REMOVED_IN):
+        still = [name for name, table in left.items() if table]
+        assert not still, f"{meanfield.__version__} reads what its warnings said {REMOVED_IN} removes: {still}"
 
 
 def test_every_old_module_path_resolves_each_of_its_names():

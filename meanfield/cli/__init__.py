@@ -23,7 +23,7 @@ _LAZY = {
     "scenario_from_args": "meanfield.cli.arguments",
 }
 
-# Names the old module meanfield.cli held that live elsewhere now, for one release.
+# Names the old module meanfield.cli held that live elsewhere now, until 0.3.0 (meanfield.errors.REMOVED_IN).
 _DEPRECATED = {
     "parse_set": ("meanfield.scenarios.overrides", "parse_set"),
     "int_list": ("meanfield.scenarios.overrides", "int_list"),

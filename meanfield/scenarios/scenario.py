@@ -113,15 +113,14 @@ OLD_FIELDS: dict[str, str] = {
     **{f"pedestrians.{k}": f"crowd.options.{_OLD_PEDESTRIAN_KIND}.{k}" for k in ("model", "radius", "max_speed")},
     "pedestrians.time_step": f"crowd.options.{_OLD_PEDESTRIAN_KIND}.time_step",
 }
-"""Deprecated dotted fields and the fields that replaced them (read for one release, with a warning)."""
+"""Deprecated dotted fields and the fields that replaced them (read until 0.3.0, :data:`meanfield.errors.REMOVED_IN`,
+with a warning)."""
 
 
 def _deprecated(old: str, new: str) -> None:
-    import warnings
+    from meanfield.errors import deprecated
 
-    from meanfield.errors import MeanfieldDeprecationWarning
-
-    warnings.warn(f"{old} is deprecated: use {new}", MeanfieldDeprecationWarning, stacklevel=3)
+    deprecated(old, f"use {new}", stacklevel=3)
 
 
 def _get(d: dict[str, Any], key: str) -> Any:

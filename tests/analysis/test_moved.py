@@ -37,7 +37,8 @@ def test_an_old_module_path_works_with_a_warning_naming_the_new_one(old, name, n
     assert value is getattr(importlib.import_module(new), name)
     messages = [str(w.message) for w in caught if issubclass(w.category, MeanfieldDeprecationWarning)]
     assert len(messages) == 2 and all(new in m for m in messages), messages
-    assert re.search(rf"{re.escape(old)}\.{name} is deprecated: use {re.escape(new)}\.{name}$", messages[1])
+    said = rf"{re.escape(old)}\.{name} is deprecated and removed in 0\.3\.0: use {re.escape(new)}\.{name}$"
+    assert re.search(said, messages[1])
     assert all(w.filename == __file__ for w in caught)  # attributed to the line that imports
 
 

@@ -22,7 +22,8 @@ def test_the_old_pedestrians_table_is_read_as_the_new_fields_with_a_warning():
 
 def test_an_old_dotted_key_sets_the_new_field_with_a_warning():
     sc = paper_unity_scenario()
-    with pytest.warns(MeanfieldDeprecationWarning, match="pedestrians.backend is deprecated: use crowd.kind"):
+    said = "pedestrians.backend is deprecated and removed in 0.3.0: use crowd.kind"
+    with pytest.warns(MeanfieldDeprecationWarning, match=said):
         got = sc.with_values({"pedestrians.backend": "jupedsim"})
     assert got.crowd.kind == "jupedsim" and got == sc.with_values({"crowd.kind": "jupedsim"})
     with pytest.warns(MeanfieldDeprecationWarning, match="crowd.options.jupedsim.time_step"):
