@@ -32,8 +32,8 @@ from pathlib import Path
 
 RUNS: dict[str, list[str]] = {
     **{f"paper{s}": ["paper", "--seed", str(s)] for s in range(5)},
-    "paper-density": ["paper", "--seed", "0", "--backend", "fokker-planck"],
-    "unity-bodies": ["paper-unity", "--backend", "jupedsim", "--set", "t_final=100"],
+    "paper-density": ["paper", "--seed", "0", "--crowd", "fokker-planck"],
+    "unity-bodies": ["paper-unity", "--crowd", "jupedsim", "--set", "t_final=100"],
     "office0": ["office", "--seed", "0"],
     "hall1": ["hall", "--seed", "1"],
     "l-room0": ["l-room", "--seed", "0"],

@@ -116,7 +116,8 @@ def add_scenario_arguments(parser: argparse.ArgumentParser, seed_help: str = "ra
 
 
 def scenario_from_args(args: argparse.Namespace):
-    """The scenario named by ``args.scenario``, after ``--seed``, ``--set`` and ``--backend``.
+    """The scenario named by ``args.scenario``, after ``--seed``, ``--set`` and ``--crowd`` (``--backend``, its old
+    name, warns: removed in 0.3.0).
 
     The crowd it names is built when the loop is assembled, before anything runs: there,
     ``jupedsim`` without JuPedSim installed raises a :class:`ParameterError` that names the
@@ -129,7 +130,14 @@ def scenario_from_args(args: argparse.Namespace):
     sc = load_scenario(args.scenario, seed=args.seed)
     if args.set:
         sc = sc.with_values(parse_set(args.set))
-    backend = getattr(args, "backend", None)
+    crowd, backend = getattr(args, "crowd", None), getattr(args, "backend", None)
     if backend is not None:
-        sc = sc.with_values({"crowd.kind": backend})
+        if crowd is not None:
+            raise ParameterError("--backend", backend, "one of --crowd and --backend (deprecated), not both")
+        from meanfield.errors import deprecated
+
+        deprecated("--backend", "use --crowd (it sets crowd.kind)")
+        crowd = backend
+    if crowd is not None:
+        sc = sc.with_values({"crowd.kind": crowd})
     return sc

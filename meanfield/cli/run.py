@@ -22,11 +22,17 @@ def register(subparsers: Any) -> Callable[[argparse.Namespace], int]:
     r = subparsers.add_parser("run", help="run a closed-loop scenario and write its outputs")
     add_scenario_arguments(r)
     r.add_argument(
+        "--crowd",
+        choices=plugins.available("crowd"),
+        default=None,
+        help="the crowd (overrides crowd.kind): a registered crowd, e.g. point-mass (SDE humans), "
+        "jupedsim (bodies), fokker-planck (the mean-field density)",
+    )
+    r.add_argument(
         "--backend",
         choices=plugins.available("crowd"),
         default=None,
-        help="crowd (overrides crowd.kind): a registered crowd, e.g. point-mass (SDE humans), "
-        "jupedsim (bodies), fokker-planck (the mean-field density)",
+        help="deprecated and removed in 0.3.0: --crowd",
     )
     r.add_argument(
         "--threads",

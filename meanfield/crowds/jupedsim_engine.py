@@ -460,7 +460,7 @@ class JuPedSimOptions:
     ``time_step`` (s; ``dt`` must be a whole number of them) with the operational ``model``,
     one of :data:`~meanfield.crowds._jupedsim_api.PEDESTRIAN_MODELS`, moving bodies of
     ``radius`` metres.  The table is kept whatever ``crowd.kind`` is, so that
-    ``--backend jupedsim`` finds it.
+    ``--crowd jupedsim`` finds it.
 
     The model's own parameters, by JuPedSim's names, each unset (``None``, or the string
     ``"default"``, which ``--set`` can give: JuPedSim's default) unless given: ``time_gap`` (s,

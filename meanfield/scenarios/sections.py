@@ -80,7 +80,7 @@ class CrowdSpec:
     JuPedSim, :mod:`meanfield.crowds.jupedsim_engine`), ``"fokker-planck"`` (the density itself,
     eq. (4)) or a plugin's.  ``options`` holds one table per crowd kind, ``[crowd.options.<kind>]``,
     which that crowd checks itself (it declares ``options``, :func:`meanfield.plugins.declared`);
-    a table is kept whatever ``kind`` is, so that switching kind (``--backend``) finds it.
+    a table is kept whatever ``kind`` is, so that switching kind (``--crowd``) finds it.
 
     ``field_evaluation`` is how ``v_r`` reaches the humans: ``"exact"`` (eq. (3) at each
     human, O(N n)), ``"sampled"`` (on a lattice twice as fine as the grid, interpolated

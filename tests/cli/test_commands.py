@@ -153,3 +153,23 @@ def test_a_seed_beyond_64_bits_is_refused_before_the_run(tmp_path, capsys):
     out = tmp_path / "r"
     assert main(["run", "paper", "--seed", "9" * 26, "--out", str(out), "--quiet", "--no-figures"]) == 2
     assert "--seed" in capsys.readouterr().err and not out.exists()
+
+
+def test_the_crowd_is_chosen_by_crowd_and_the_old_backend_flag_warns(tmp_path, capsys):
+    """``--crowd`` sets ``crowd.kind`` for one run; ``--backend``, its name before 0.2.0, does the same with a warning
+    naming ``--crowd`` and the release that removes it; both at once are refused, naming ``--backend``."""
+    import json
+    import warnings
+
+    args = ["run", "paper", "--set", "t_final=0.02", "--quiet", "--no-figures"]
+    assert main([*args, "--crowd", "fokker-planck", "--out", str(tmp_path / "a")]) == 0
+    assert json.loads((tmp_path / "a" / "summary.json").read_text())["backend"] == "fokker-planck"
+    assert "deprecated" not in capsys.readouterr().err
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")  # (the command prints each warning as one line)
+        assert main([*args, "--backend", "fokker-planck", "--out", str(tmp_path / "b")]) == 0
+    said = "meanfield: warning: --backend is deprecated and removed in 0.3.0: use --crowd (it sets crowd.kind)"
+    assert said in capsys.readouterr().err.splitlines()
+    assert json.loads((tmp_path / "b" / "summary.json").read_text())["backend"] == "fokker-planck"
+    assert main([*args, "--crowd", "point-mass", "--backend", "point-mass", "--out", str(tmp_path / "c")]) == 2
+    assert "--backend" in capsys.readouterr().err and not (tmp_path / "c").exists()

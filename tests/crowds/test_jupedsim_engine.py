@@ -51,7 +51,7 @@ def test_missing_jupedsim_is_refused_with_the_install_command(monkeypatch, capsy
     from meanfield.cli.app import main
 
     monkeypatch.setitem(sys.modules, "jupedsim", None)  # import jupedsim -> ImportError
-    code = main(["run", "paper-unity", "--backend", "jupedsim", "--out", "/nonexistent/never-written"])
+    code = main(["run", "paper-unity", "--crowd", "jupedsim", "--out", "/nonexistent/never-written"])
     err = capsys.readouterr().err
     assert code == 2
     assert "pip install --no-deps" in err and "jupedsim" in err
