@@ -409,9 +409,13 @@ def test_every_deprecation_names_the_release_that_removes_it_and_is_gone_by_then
             getattr(m, sorted(CLI_NAMES)[0] if module == "meanfield.cli" else sorted(dir(m))[0])
         said = [str(w.message) for w in caught if issubclass(w.category, MeanfieldDeprecationWarning)]
         assert said and all(f"removed in {REMOVED_IN}" in m for m in said), said
+    from meanfield.cli.app import _build_parser
+
+    run = next(a for a in _build_parser()._actions if a.dest == "command").choices["run"]
+    old_flags = [flag for flag in ("--backend",) if flag in run._option_string_actions]
     left = {"meanfield's moved modules": MOVED, "analysis's moved modules": ANALYSIS_MOVED,
             "meanfield.cli's moved names": CLI_NAMES, "the old scenario fields": OLD_FIELDS,
-            "coverage's deprecated values": COVERAGE_VALUES}  # fmt: skip
+            "coverage's deprecated values": COVERAGE_VALUES, "meanfield run's old flags": old_flags}  # fmt: skip
     if version(meanfield.__version__) >= version(REMOVED_IN):
         still = [name for name, table in left.items() if table]
         assert not still, f"{meanfield.__version__} reads what its warnings said {REMOVED_IN} removes: {still}"
