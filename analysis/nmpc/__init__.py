@@ -7,7 +7,8 @@
   the allowed values :data:`FLUXES`, :data:`HESSIANS`, :data:`SOLVERS`;
 - :mod:`~analysis.nmpc.prediction_model`: :class:`CoarseFokkerPlanck`, the coarse Fokker–Planck
   model the controller predicts with;
-- :mod:`~analysis.nmpc.plan`: :class:`NMPCPlan`, one solution, and :func:`robot_state`;
+- :mod:`~analysis.nmpc.plan`: :class:`NMPCSolution`, one solution (``NMPCPlan`` before 0.2.0), and
+  :func:`robot_state`;
 - the two solvers of the one problem: :mod:`~analysis.nmpc.ipopt` (every state lifted, IPOPT:
   :func:`ipopt_function`, :func:`ipopt_arrays`) and the real-time SQP on the inputs,
   :mod:`~analysis.nmpc.sqp` (:class:`SQPSolver`, :class:`SQPResult`) with the problem condensed
@@ -32,7 +33,7 @@ _LAZY = {
     "InputQP": "analysis.nmpc.qp",
     "NMPCController": "analysis.nmpc.controller",
     "NMPCOptions": "analysis.nmpc.options",
-    "NMPCPlan": "analysis.nmpc.plan",
+    "NMPCSolution": "analysis.nmpc.plan",
     "QPResult": "analysis.nmpc.qp",
     "SOLVERS": "analysis.nmpc.options",
     "SQPResult": "analysis.nmpc.sqp",
@@ -44,6 +45,9 @@ _LAZY = {
     "robot_state": "analysis.nmpc.plan",
 }
 
-__getattr__, __dir__ = lazy_namespace(__name__, globals(), _LAZY)
+# its name before 0.2.0, read with a warning until 0.3.0
+_DEPRECATED = {"NMPCPlan": ("analysis.nmpc.plan", "NMPCSolution")}
+
+__getattr__, __dir__ = lazy_namespace(__name__, globals(), _LAZY, _DEPRECATED)
 
 __all__ = sorted(_LAZY)

@@ -53,7 +53,7 @@ import numpy as np
 from analysis.nmpc.condensed import CondensedProblem
 from analysis.nmpc.ipopt import ipopt_arrays, ipopt_function
 from analysis.nmpc.options import NMPCOptions
-from analysis.nmpc.plan import NMPCPlan, robot_state
+from analysis.nmpc.plan import NMPCSolution, robot_state
 from analysis.nmpc.prediction_model import CoarseFokkerPlanck
 from analysis.nmpc.sqp import SQPSolver
 from meanfield.controllers.backstepping import BacksteppingController, ControlState
@@ -133,10 +133,10 @@ class NMPCController:
         self.solver = self._build()  # a casadi.Function (IPOPT) or an SQPSolver
         self.stats: list[dict[str, Any]] = []
         self.backstepping_seconds: list[float] = []
-        self.plan: NMPCPlan | None = None
+        self.plan: NMPCSolution | None = None
         self._t_plan = 0.0
         self._t_start: float | None = None  # when the last solve started
-        self._pending: Generator[None, None, NMPCPlan] | None = None  # a solve under way (spread)
+        self._pending: Generator[None, None, NMPCSolution] | None = None  # a solve under way (spread)
         self._slices: list[float] = []
 
     # ------------------------------------------------------------------ the solver
@@ -160,7 +160,7 @@ class NMPCController:
         rho_coarse: np.ndarray,
         positions: np.ndarray,
         headings: np.ndarray,
-        previous: NMPCPlan | None = None,
+        previous: NMPCSolution | None = None,
         shift: int = 0,
     ) -> dict[str, Any]:
         """Initial guess of a solve: ``previous`` shifted by ``shift`` prediction steps (the last
@@ -203,7 +203,7 @@ class NMPCController:
         positions: np.ndarray,
         headings: np.ndarray,
         guess: Mapping[str, Any] | None = None,
-    ) -> NMPCPlan:
+    ) -> NMPCSolution:
         """Solve the optimal-control problem once (the SQP's QPs, or a call of the compiled IPOPT function).
 
         Parameters
@@ -217,7 +217,7 @@ class NMPCController:
 
         Returns
         -------
-        NMPCPlan
+        NMPCSolution
             The solver's inputs (:meth:`robot_inputs` projects them onto the limits).
         """
         positions = np.asarray(positions, float).reshape(-1, 2)
@@ -245,7 +245,7 @@ class NMPCController:
         seconds = time.perf_counter() - t0
         st = self.solver.stats()
         a = ipopt_arrays(out, self.n, self.options.horizon, self.model.shape)
-        return NMPCPlan(
+        return NMPCSolution(
             u=a["u"],
             omega=a["omega"],
             positions=np.concatenate([positions[None], a["R"]]),
@@ -262,7 +262,7 @@ class NMPCController:
 
     def _sqp_plan(
         self, rho_c: np.ndarray, positions: np.ndarray, headings: np.ndarray, g: Mapping[str, Any]
-    ) -> Generator[None, None, NMPCPlan]:
+    ) -> Generator[None, None, NMPCSolution]:
         """:meth:`solve` with the SQP solver, in slices: the guess's inputs at the first step of each block."""
         p = self.solver.problem
         starts = np.concatenate([[0], np.cumsum(p.blocks)[:-1]])
@@ -275,7 +275,7 @@ class NMPCController:
         z = res.z[p.beta]  # (H, n, 3)
         R, T = p.states(positions, headings, res.z)
         _, P = p.rollout(rho_c, positions, headings, res.z, self.target_coarse)
-        return NMPCPlan(
+        return NMPCSolution(
             u=z[..., :2],
             omega=z[..., 2],
             positions=np.concatenate([positions[None], R]),
@@ -369,14 +369,14 @@ class NMPCController:
 
     def _plan_steps(
         self, rho_c: np.ndarray, positions: np.ndarray, headings: np.ndarray, guess: Mapping[str, Any]
-    ) -> Generator[None, None, NMPCPlan]:
+    ) -> Generator[None, None, NMPCSolution]:
         """A solve as a generator: the SQP's slices (:meth:`SQPSolver.iterate`), or IPOPT's one call."""
         if self.options.solver == "sqp":
             plan = yield from self._sqp_plan(rho_c, positions, headings, guess)
             return plan
         return self.solve(rho_c, positions, headings, guess)
 
-    def _adopt(self, plan: NMPCPlan, t_start: float) -> None:
+    def _adopt(self, plan: NMPCSolution, t_start: float) -> None:
         """Make ``plan`` (solved from the state at ``t_start``) the current one, projected onto the limits."""
         u, w = self.project(plan.u, plan.omega)
         raw_speed = float(np.hypot(plan.u[..., 0], plan.u[..., 1]).max())

@@ -1,4 +1,4 @@
-"""One solution of the NMPC problem (:class:`NMPCPlan`) and the robot state a solve starts from.
+"""One solution of the NMPC problem (:class:`NMPCSolution`) and the robot state a solve starts from.
 
 Shared by the solvers of :class:`~analysis.nmpc.controller.NMPCController` (IPOPT and SQP); re-exported
 by :mod:`analysis.nmpc`.
@@ -12,11 +12,11 @@ import numpy as np
 
 from meanfield.signs.robots import NavigationField, RobotTeam
 
-__all__ = ["NMPCPlan", "robot_state"]
+__all__ = ["NMPCSolution", "robot_state"]
 
 
 @dataclass
-class NMPCPlan:
+class NMPCSolution:
     """One solution of the optimal-control problem.
 
     Attributes
@@ -68,3 +68,12 @@ def robot_state(field: NavigationField, robots: RobotTeam) -> tuple[np.ndarray, 
     if heads is None:
         heads = np.arctan2(field.sin, field.cos)
     return np.array(pos, float).reshape(-1, 2), np.array(heads, float).ravel()
+
+
+def __getattr__(name: str) -> object:
+    if name == "NMPCPlan":  # its name before 0.2.0 (a floor plan is a Plan)
+        from meanfield.errors import deprecated
+
+        deprecated("analysis.nmpc.plan.NMPCPlan", "use analysis.nmpc.plan.NMPCSolution")
+        return NMPCSolution
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -15,7 +15,7 @@ from meanfield._namespace import lazy_namespace
 _LAZY = {
     "AgentCrowd": "meanfield.crowds.agent_crowd",
     "AgentEngine": "meanfield.crowds.agent_crowd",
-    "BinnedPlan": "meanfield.crowds.kde",
+    "BinnedLayout": "meanfield.crowds.kde",
     "DENSITY_RADIUS": "meanfield.crowds.local_density",
     "DensityCrowd": "meanfield.crowds.density_crowd",
     "FREE_SPEED": "meanfield.crowds.congestion",
@@ -36,7 +36,7 @@ _LAZY = {
     "WEIDMANN_GAMMA": "meanfield.crowds.congestion",
     "WEIDMANN_RHO_MAX": "meanfield.crowds.congestion",
     "Weidmann": "meanfield.crowds.congestion",
-    "binned_plan": "meanfield.crowds.kde",
+    "binned_layout": "meanfield.crowds.kde",
     "check_scenario": "meanfield.crowds.jupedsim_engine",
     "door_areas": "meanfield.crowds.jupedsim_engine",
     "geodesic": "meanfield.crowds.guidance",
@@ -55,6 +55,12 @@ _LAZY = {
     "silverman_bandwidth": "meanfield.crowds.kde",
 }
 
-__getattr__, __dir__ = lazy_namespace(__name__, globals(), _LAZY)
+# names before 0.2.0 (a floor plan is a Plan), read with a warning until 0.3.0
+_DEPRECATED = {
+    "BinnedPlan": ("meanfield.crowds.kde", "BinnedLayout"),
+    "binned_plan": ("meanfield.crowds.kde", "binned_layout"),
+}
+
+__getattr__, __dir__ = lazy_namespace(__name__, globals(), _LAZY, _DEPRECATED)
 
 __all__ = sorted(_LAZY)

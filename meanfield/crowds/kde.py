@@ -48,7 +48,7 @@ from meanfield.crowds._kde_loops import axis_factors, linear_binning_into, separ
 from meanfield.errors import ParameterError
 from meanfield.geometry.grid import Grid
 
-__all__ = ["KernelDensityEstimator", "silverman_bandwidth", "kde_direct", "BinnedPlan", "binned_plan"]
+__all__ = ["KernelDensityEstimator", "silverman_bandwidth", "kde_direct", "BinnedLayout", "binned_layout"]
 
 Boundary = Literal["none", "reflect", "renormalize"]
 Method = Literal["auto", "separable", "binned"]
@@ -95,7 +95,7 @@ def _ones(n: int) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class BinnedPlan:
+class BinnedLayout:
     """How :meth:`KernelDensityEstimator._binned` works at one grid and bandwidth: the fine lattice
     ``mx × my`` (``r`` times the grid's), the kernel's half-widths ``kx, ky`` on it, and the
     convolution it chooses; :meth:`working_bytes` is the memory that takes."""
@@ -123,8 +123,10 @@ class BinnedPlan:
         return 8 * (self.mx * self.my + padded + kernel) + 48 * full
 
 
-def binned_plan(nx: int, ny: int, dx: float, dy: float, h: float, r: int, convolution: str = "auto") -> BinnedPlan:
-    """The plan of the binned estimate on an ``nx × ny`` grid of cells ``dx × dy`` at bandwidth ``h``
+def binned_layout(
+    nx: int, ny: int, dx: float, dy: float, h: float, r: int, convolution: str = "auto"
+) -> BinnedLayout:
+    """The layout of the binned estimate on an ``nx × ny`` grid of cells ``dx × dy`` at bandwidth ``h``
     with refinement ``r`` (``convolution`` ``"auto"``: the cheaper of the banded product and the FFT)."""
     mx, my = nx * r, ny * r
     bx, by = dx / r, dy / r
@@ -140,7 +142,7 @@ def binned_plan(nx: int, ny: int, dx: float, dy: float, h: float, r: int, convol
         macs = nx * wx * my + nx * ny * wy
         p = (mx + 4 * kx) * (my + 4 * ky)
         convolution = "matrix" if macs <= 25 * p * math.log2(p) else "fft"
-    return BinnedPlan(nx, ny, r, mx, my, kx, ky, wx, wy, convolution)
+    return BinnedLayout(nx, ny, r, mx, my, kx, ky, wx, wy, convolution)
 
 
 def silverman_bandwidth(points: np.ndarray, floor: float = 0.0) -> float:
@@ -318,8 +320,8 @@ class KernelDensityEstimator:
         r = self.oversample_for(h)
         nx, ny = g.shape
         x0, x1, y0, y1 = g.domain.bounds
-        plan = binned_plan(nx, ny, g.dx, g.dy, h, r, self.convolution)
-        mx, my, kx, ky, convolution = plan.mx, plan.my, plan.kx, plan.ky, plan.convolution
+        layout = binned_layout(nx, ny, g.dx, g.dy, h, r, self.convolution)
+        mx, my, kx, ky, convolution = layout.mx, layout.my, layout.kx, layout.ky, layout.convolution
         bx, by = g.dx / r, g.dy / r
         counts = linear_binning_into(points, x0, y0, bx, by, np.empty((mx, my)))
         norm = 1.0 / (2 * math.pi * h * h * len(points))
@@ -356,7 +358,7 @@ class KernelDensityEstimator:
             method = "separable" if n_points * nx * ny <= 5e7 else "binned"
         if method == "separable":
             return 8 * (3 * nx * ny + 2 * n_points * (nx + ny))
-        return binned_plan(nx, ny, g.dx, g.dy, h, self.oversample_for(h), self.convolution).working_bytes(
+        return binned_layout(nx, ny, g.dx, g.dy, h, self.oversample_for(h), self.convolution).working_bytes(
             self.boundary == "reflect"
         )
 
@@ -406,3 +408,16 @@ class KernelDensityEstimator:
             m = fftconvolve(g.volume, ker, mode="same")
             self._mass_cache[h] = np.where(g.active, np.maximum(m, 1e-300), 1.0)
         return self._mass_cache[h]
+
+
+_RENAMED = {"BinnedPlan": "BinnedLayout", "binned_plan": "binned_layout"}
+"""Names of this module before 0.2.0 (a floor plan is a ``Plan``): read with a warning until 0.3.0."""
+
+
+def __getattr__(name: str) -> object:
+    if name in _RENAMED:
+        from meanfield.errors import deprecated
+
+        deprecated(f"meanfield.crowds.kde.{name}", f"use meanfield.crowds.kde.{_RENAMED[name]}")
+        return globals()[_RENAMED[name]]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,5 +1,5 @@
 """The modules of analysis that moved into its subpackages (analysis._moved): the old paths still import,
-for one release, with a warning naming the new module; the package analysis.nmpc gives the names of the old
+until 0.3.0, with a warning naming the new module; the package analysis.nmpc gives the names of the old
 module analysis.nmpc without one; the subpackages' namespaces are lazy."""
 
 from __future__ import annotations
@@ -67,7 +67,7 @@ def test_the_old_module_analysis_nmpc_is_the_package_and_gives_its_names_without
     import analysis.nmpc
     from analysis.nmpc.controller import NMPCController, nmpc_controller_for
     from analysis.nmpc.options import FLUXES, HESSIANS, SOLVERS, NMPCOptions
-    from analysis.nmpc.plan import NMPCPlan
+    from analysis.nmpc.plan import NMPCSolution
     from analysis.nmpc.prediction_model import CoarseFokkerPlanck
 
     old_names = {
@@ -76,7 +76,7 @@ def test_the_old_module_analysis_nmpc_is_the_package_and_gives_its_names_without
         "SOLVERS": SOLVERS,
         "NMPCOptions": NMPCOptions,
         "CoarseFokkerPlanck": CoarseFokkerPlanck,
-        "NMPCPlan": NMPCPlan,
+        "NMPCSolution": NMPCSolution,
         "NMPCController": NMPCController,
         "nmpc_controller_for": nmpc_controller_for,
     }
@@ -106,3 +106,21 @@ def test_the_subpackages_import_their_names_on_first_use():
         "assert 'casadi' in sys.modules"
     )
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+@pytest.mark.parametrize(
+    "module, old, new",
+    [
+        ("analysis.nmpc", "NMPCPlan", "NMPCSolution"),
+        ("analysis.nmpc.plan", "NMPCPlan", "NMPCSolution"),
+        ("meanfield.crowds", "BinnedPlan", "BinnedLayout"),
+        ("meanfield.crowds.kde", "binned_plan", "binned_layout"),
+    ],
+)
+def test_a_name_that_said_plan_for_what_is_no_floor_plan_reads_as_its_new_name_with_a_dated_warning(module, old, new):
+    """"Plan" is a floor plan; the KDE's layout and NMPC's solution were renamed in 0.2.0: the old names give the
+    new objects until 0.3.0, with a warning naming the new name and that release."""
+    m = importlib.import_module(module)
+    with pytest.warns(MeanfieldDeprecationWarning, match=rf"{old} is deprecated and removed in 0\.3\.0: use .*{new}$"):
+        value = getattr(m, old)
+    assert value is getattr(m, new)
