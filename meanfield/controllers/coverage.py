@@ -80,8 +80,7 @@ WEIGHTS = ("tracking-error", "density", "excess", "unswept")
 """The coverage weights: ``ρ|ṽ|``, ``ρ``, ``max(ρ − ρ_*, 0)``, or ``ρ|ṽ|`` where no sign has reached lately."""
 REVISIT_AFTER = 20.0
 """Default ``controller.options.coverage.revisit_after`` (s in SI): the ``unswept`` weight counts a cell again this long
-after a sign last reached it (measured on the office with people who remember the way, 4 seeds: RSET 33.6, 28.7,
-28.0, 37.2 s at 20 s; 44.0, 35.7, 28.0, 49.2 at 10 s; 67.9, 28.7, 28.0, 59.4 never)."""
+after a sign last reached it (docs page *Buildings*, "Coverage's options", measures it against 10 s and never)."""
 METRICS = ("straight", "routed", "walking")
 """Coverage's metrics: straight lines (``straight``, deprecated), straight cells reached by walking (``routed``, the
 default), or walking round walls (``walking``)."""

@@ -49,10 +49,8 @@
     speed (each node's value comes from the one or two upwind neighbours the march takes), so
     the difference is its derivative to ``O(s)`` where the step keeps every node's upwind
     neighbours, and a one-sided, inexact rate where it changes them (on the ridge between two
-    exits, at a tie).  Measured on an L-shaped plan: the forward difference agrees with a
-    central one to 4e-6, steps from 1e-7 to 1e-5 agree to 3e-5, and a central difference of
-    ``V₂`` along the loop, through the marches themselves, meets Step II's identity to 2e-5
-    (``tests/controllers/test_evacuation.py``).  A complex ``ρ = a + i b`` gets
+    exits, at a tie; docs page *Buildings*, "Routes to the exits", gives its accuracy, checked by
+    ``tests/controllers/test_evacuation.py``).  A complex ``ρ = a + i b`` gets
     ``φ(a) + i (φ(a + s b) − φ(a))/s`` with the same step, so that complex-step derivatives of
     the law see the same ``φ̇`` (the identity then holds to round-off).  With
     ``dvd_dt = "finite-difference"`` (the scenarios' default) ``∂_t v_d`` is the backward
