@@ -6,6 +6,7 @@ paths that still work, and the registry of parts (plugins)."""
 from __future__ import annotations
 
 import ast
+import re
 import sys
 from pathlib import Path
 
@@ -413,6 +414,11 @@ def test_every_deprecation_names_the_release_that_removes_it_and_is_gone_by_then
 
     run = next(a for a in _build_parser()._actions if a.dest == "command").choices["run"]
     old_flags = [flag for flag in ("--backend",) if flag in run._option_string_actions]
+    from meanfield.controllers import backstepping
+
+    said = rf"removed in {re.escape(REMOVED_IN)}: use law\.fused\.inputs"
+    with pytest.warns(MeanfieldDeprecationWarning, match=said):
+        old_fused = [backstepping.fused_robot_inputs]  # the law's compiled call before 0.2.0
     from analysis.nmpc import _DEPRECATED as NMPC_NAMES
     from meanfield.crowds import _DEPRECATED as CROWDS_NAMES
     from meanfield.crowds.kde import _RENAMED as KDE_NAMES
@@ -420,7 +426,8 @@ def test_every_deprecation_names_the_release_that_removes_it_and_is_gone_by_then
     left = {"meanfield's moved modules": MOVED, "analysis's moved modules": ANALYSIS_MOVED,
             "meanfield.cli's moved names": CLI_NAMES, "the old scenario fields": OLD_FIELDS,
             "coverage's deprecated values": COVERAGE_VALUES, "meanfield run's old flags": old_flags,
-            "the renamed plans (BinnedPlan, NMPCPlan)": {**CROWDS_NAMES, **KDE_NAMES, **NMPC_NAMES}}  # fmt: skip
+            "the renamed plans (BinnedPlan, NMPCPlan)": {**CROWDS_NAMES, **KDE_NAMES, **NMPC_NAMES},
+            "backstepping.fused_robot_inputs": old_fused}  # fmt: skip
     if version(meanfield.__version__) >= version(REMOVED_IN):
         still = [name for name, table in left.items() if table]
         assert not still, f"{meanfield.__version__} reads what its warnings said {REMOVED_IN} removes: {still}"

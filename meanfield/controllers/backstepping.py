@@ -50,7 +50,7 @@ from meanfield.controllers.congested_plant import (
     CongestionReport,
     congested_plant,
 )
-from meanfield.controllers.fused_law import FusedLaw, fused_robot_inputs  # noqa: F401  (its former place)
+from meanfield.controllers.fused_law import FusedLaw
 from meanfield.controllers.step_one import PaperStepOne, Prepared, StepOne
 from meanfield.errors import ParameterError, SigmaLike, check_sigma
 from meanfield.fokker_planck.solver import FokkerPlanck
@@ -547,3 +547,16 @@ class BacksteppingController:
 
 _STEP_ONE_METHODS = ("_prepare", "_virtual_velocity", "_virtual_velocity_rate", "_dissipation")
 """The law's own calls of its Step I: a subclass that overrides one takes the numpy path."""
+
+
+def _fused_robot_inputs(law: Any, rho: np.ndarray, field: NavigationField, t: float, step_one: tuple | None = None):
+    return law.fused.inputs(rho, field, t, step_one)
+
+
+def __getattr__(name: str) -> Any:
+    if name == "fused_robot_inputs":  # this module's function before 0.2.0
+        from meanfield.errors import deprecated
+
+        deprecated("meanfield.controllers.backstepping.fused_robot_inputs(law, ...)", "use law.fused.inputs(...)")
+        return _fused_robot_inputs
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

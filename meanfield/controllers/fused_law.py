@@ -29,7 +29,7 @@ from meanfield.interfaces import ControlState
 from meanfield.signs.kernels import GaussianKernel
 from meanfield.signs.robots import NavigationField
 
-__all__ = ["FusedLaw", "fused_robot_inputs"]
+__all__ = ["FusedLaw"]
 
 _NOTHING_HIDDEN = np.ones((0, 0, 0), dtype=bool)
 
@@ -156,11 +156,3 @@ class FusedLaw:
                                   g.x_faces, g.y, g.y_faces, *gains, numbers], dtype=float)  # fmt: skip
             c = self._constants["paper"] = (g, tg, law.k_u, law.k_omega, n, law.alpha, law.sigma, k.c, k.eta, cst)
         return c[9]
-
-
-def fused_robot_inputs(
-    law: Any, rho: np.ndarray, field: NavigationField, t: float, step_one: tuple | None = None
-) -> ControlState | None:
-    """``law.fused.inputs(rho, field, t, step_one)``: the law's inputs in one compiled call (:meth:`FusedLaw.inputs`);
-    None when not compiled."""
-    return law.fused.inputs(rho, field, t, step_one)

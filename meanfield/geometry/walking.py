@@ -137,20 +137,10 @@ class WalkingDistances:
         leg : ndarray, shape (m, 2)
         """
         p = np.real(np.asarray(point, float)).reshape(1, 2)
-        start = int(self.cell_of(p)[0])
-        if start not in self._trees:
-            if len(self._trees) + 1 > self.keep:
-                self._trees.clear()
-            self._plant(np.array([start]), p)
-        D, anchor = self._trees[start]
+        D, anchor = self._trees[int(self._planted(p)[0])]
         cells = np.asarray(cells, np.intp)
         a = anchor[cells]
-        to_anchor = self.xy[a] - p  # (m, 2)
-        straight = np.hypot(to_anchor[:, 0], to_anchor[:, 1])
-        with np.errstate(invalid="ignore"):  # inf − inf where no route reaches a cell
-            distance = np.where(np.isfinite(D[cells]), straight + D[cells] - D[a], np.inf)
-        leg = np.divide(to_anchor, straight[:, None], out=np.zeros_like(to_anchor), where=straight[:, None] > 0)
-        return distance, leg
+        return _walks(self.xy[a] - p, D[cells], D[a])
 
     def from_points(self, points: np.ndarray) -> WalkingField:
         """The walking distances, first legs and anchors from each of ``points`` (``(n, 2)``) to every active cell.
@@ -159,19 +149,32 @@ class WalkingDistances:
         time a point stands in a cell and kept (the straight first leg is the point's own).
         """
         p = np.real(np.asarray(points, float)).reshape(-1, 2)
+        start = self._planted(p)
+        D = np.stack([self._trees[int(k)][0] for k in start])
+        anchor = np.stack([self._trees[int(k)][1] for k in start])
+        distance, leg = _walks(self.xy[anchor] - p[:, None, :], D, np.take_along_axis(D, anchor, axis=1))
+        return WalkingField(distance, leg, anchor)
+
+    def _planted(self, p: np.ndarray) -> np.ndarray:
+        """The start cell of each of the points ``p`` (``(n, 2)``), each with its tree kept (planted when new; a full
+        store starts again, planting every cell needed now)."""
         start = self.cell_of(p)
         cells, first = np.unique(start, return_index=True)
         new = np.array([int(k) not in self._trees for k in cells], dtype=bool)
         if new.any():
-            if len(self._trees) + int(new.sum()) > self.keep:  # full: start again, planting every cell needed now
+            if len(self._trees) + int(new.sum()) > self.keep:
                 self._trees.clear()
                 new[:] = True
             self._plant(cells[new], p[first[new]])
-        D = np.stack([self._trees[int(k)][0] for k in start])
-        anchor = np.stack([self._trees[int(k)][1] for k in start])
-        to_anchor = self.xy[anchor] - p[:, None, :]  # (n, m, 2)
-        straight = np.hypot(to_anchor[..., 0], to_anchor[..., 1])
-        with np.errstate(invalid="ignore"):  # inf − inf where no route reaches a cell
-            distance = np.where(np.isfinite(D), straight + D - np.take_along_axis(D, anchor, axis=1), np.inf)
-        leg = np.divide(to_anchor, straight[..., None], out=np.zeros_like(to_anchor), where=straight[..., None] > 0)
-        return WalkingField(distance, leg, anchor)
+        return start
+
+
+def _walks(to_anchor: np.ndarray, D: np.ndarray, D_anchor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``d = |x_a − R| + D(c) − D(a)`` (``inf`` where no route reaches ``c``) and the unit first leg ``e`` towards the
+    anchor (0 on it), from the offsets ``x_a − R`` (``(..., 2)``) and the tree's distances at the cells and their
+    anchors (the module docstring)."""
+    straight = np.hypot(to_anchor[..., 0], to_anchor[..., 1])
+    with np.errstate(invalid="ignore"):  # inf − inf where no route reaches a cell
+        distance = np.where(np.isfinite(D), straight + D - D_anchor, np.inf)
+    leg = np.divide(to_anchor, straight[..., None], out=np.zeros_like(to_anchor), where=straight[..., None] > 0)
+    return distance, leg

@@ -54,7 +54,7 @@ from typing import Any
 import numpy as np
 
 from meanfield import plugins as registry
-from meanfield.errors import ParameterError, ScenarioWarning, choice, integer, module_list, num
+from meanfield.errors import ParameterError, ScenarioWarning, choice, deprecated, integer, module_list, num
 from meanfield.geometry.domain import Domain
 from meanfield.geometry.region import Region, region_from_table
 from meanfield.scenarios.sections import (
@@ -117,12 +117,6 @@ OLD_FIELDS: dict[str, str] = {
 with a warning)."""
 
 
-def _deprecated(old: str, new: str) -> None:
-    from meanfield.errors import deprecated
-
-    deprecated(old, f"use {new}", stacklevel=3)
-
-
 def _get(d: dict[str, Any], key: str) -> Any:
     node: Any = d
     for part in key.split("."):
@@ -167,7 +161,8 @@ def _upgrade_old_fields(d: dict[str, Any]) -> dict[str, Any]:
             )
         _put(d, new, value)
         moved.append(f"pedestrians.{key} -> {new}")
-    _deprecated("the [pedestrians] table", "its new fields (" + ", ".join(moved) + ")" if moved else "crowd.kind")
+    instead = f"its new fields ({', '.join(moved)})" if moved else "crowd.kind"
+    deprecated("the [pedestrians] table", f"use {instead}")
     return d
 
 
@@ -528,7 +523,7 @@ class Scenario:
         ``crowd.options.jupedsim`` (with a warning naming them)."""
         from types import SimpleNamespace
 
-        _deprecated("Scenario.pedestrians", "Scenario.crowd.kind and Scenario.crowd.options")
+        deprecated("Scenario.pedestrians", "use Scenario.crowd.kind and Scenario.crowd.options")
         options = registry.declared("crowd", _OLD_PEDESTRIAN_KIND, "options")
         table = dataclasses.asdict(options(**self.crowd.options.get(_OLD_PEDESTRIAN_KIND, {})))
         return SimpleNamespace(backend=self.crowd.kind, **table)
@@ -572,7 +567,7 @@ class Scenario:
                 new = OLD_FIELDS[short]
                 if new in assignments:
                     raise ParameterError(short, value, f"one of {short} (deprecated) and {new}, not both")
-                _deprecated(short, new)
+                deprecated(short, f"use {new}")
                 short = new
             renamed[short] = value
         for short, value in renamed.items():

@@ -194,8 +194,9 @@ def _exit_segments(poly: Any, area: Any, tol: float) -> tuple[list, list]:
 
 
 def _across_an_opening(poly: Any, area: Any, tol: float) -> Any:
-    """The straight segment where an exit polygon drawn across an opening (a corridor's end, a door's gap) meets the
-    inside of the area, if that is all of its edge inside the area (None otherwise)."""
+    """For an exit polygon drawn across an opening (a corridor's end, a door's gap): its part inside the area and the
+    straight segment where it meets the rest of the area, if that is all of its edge inside the area (None
+    otherwise)."""
     import shapely
 
     part = shapely.intersection(poly, area)
