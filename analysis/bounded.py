@@ -52,6 +52,7 @@ from typing import Literal
 import numpy as np
 
 from analysis.bounded_cone import SOLVER_OPTIONS, ClarabelProgram, CvxpyProgram
+from meanfield.capabilities import BetaGammaCapabilities, declares
 from meanfield.controllers.backstepping import ExtraInputs
 from meanfield.errors import ParameterError, limit_or_inf
 from meanfield.scenarios.scenario import Scenario
@@ -414,6 +415,7 @@ class BoundedBetaGamma:
         return out
 
 
+@declares(BetaGammaCapabilities())  # its limits are in the scenario's units: no kernel scaling
 def bounded_strategy_for(scenario: Scenario) -> BoundedBetaGamma:
     """The ``bounded`` β/γ strategy of a scenario (entry point ``meanfield.beta_gamma``).
 

@@ -27,6 +27,8 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from meanfield.errors import SigmaLike
+from meanfield.geometry.blocking import ReactsToWalls
+from meanfield.geometry.exits import ReactsToClosedExits
 from meanfield.geometry.grid import FaceField, Grid
 from meanfield.geometry.region import BoundaryPart, Region
 from meanfield.geometry.sight import SightLines
@@ -38,6 +40,11 @@ __all__ = [
     "BoundaryPart",
     "Region",
     "Crowd",
+    "CrowdOfAgents",
+    "EvacuatingCrowd",
+    "Reports",
+    "ReactsToClosedExits",
+    "ReactsToWalls",
     "Controller",
     "Observation",
     "Command",
@@ -94,6 +101,60 @@ class Crowd(Protocol):
 
     def summary(self) -> dict[str, Any]:
         """Crowd-specific figures for the run's summary (may be empty)."""
+        ...
+
+
+@runtime_checkable
+class EvacuatingCrowd(Crowd, Protocol):
+    """A crowd whose people leave through the region's exits (docs page *Buildings*): the point masses, JuPedSim's
+    bodies and the density.  The loop records the fraction out, and the evacuation's measures the persons out
+    through each exit, of a crowd that is one (:mod:`meanfield.simulation.evacuation_measures`)."""
+
+    @property
+    def models_exits(self) -> bool:
+        """Whether people leave through the exits (a region with exits is refused with a crowd that says no)."""
+        ...
+
+    def remaining_fraction(self) -> float:
+        """The share of the crowd still in Ω (1 without exits)."""
+        ...
+
+    def persons_out(self, n_exits: int) -> np.ndarray:
+        """How many persons have left through each of the region's ``n_exits`` exits, shape ``(n_exits,)`` (the
+        density: its mass out times ``crowd.n``)."""
+        ...
+
+
+@runtime_checkable
+class CrowdOfAgents(Crowd, Protocol):
+    """A crowd of agents, each a person with a position, a body and a view of the signs (the point masses and
+    JuPedSim's bodies, :class:`~meanfield.crowds.agent_crowd.AgentCrowd`): what the observers record of them."""
+
+    @property
+    def body_radius(self) -> float:
+        """The agents' body radius (0 for point masses)."""
+        ...
+
+    @property
+    def reached(self) -> np.ndarray | None:
+        """Whom a sign reached at the last step (None: nobody follows signs, or before the first step)."""
+        ...
+
+    def seen_fraction(self) -> float:
+        """Fraction of the agents with a robot in view at the last step (1 without a view radius)."""
+        ...
+
+    def field_error_bound(self, robots: RobotTeam) -> float | None:
+        """Interpolation error bound of a sampled ``v_r`` at the robots' states (None: evaluated exactly)."""
+        ...
+
+
+@runtime_checkable
+class Reports(Protocol):
+    """A part with figures of its own for the run's summary (a controller's ``summary()``; every crowd has one)."""
+
+    def summary(self) -> dict[str, Any]:
+        """Its figures (may be empty)."""
         ...
 
 

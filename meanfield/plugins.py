@@ -24,6 +24,11 @@ entry points are not affected (installing a package is the user's choice).
 
 A name registered twice is refused, naming both origins.
 
+Every part of a kind that has a capability record (:data:`meanfield.capabilities.RECORDS`: every kind but
+``command``) carries one: what it can do, in typed fields that the core reads (:func:`capabilities`).  A part
+without it is refused when it is registered, and a built-in or entry-point part when it is first loaded, naming
+the part and the record it lacks.
+
 The kinds and what a factory of each kind receives and returns (docs page *Architecture*):
 
 ``region`` (entry-point group ``meanfield.regions``)
@@ -56,7 +61,8 @@ from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any
 
-from meanfield.errors import ParameterError
+from meanfield.capabilities import RECORDS, capabilities_of
+from meanfield.errors import ParameterError, deprecated
 
 __all__ = [
     "BUILTIN",
@@ -65,6 +71,7 @@ __all__ = [
     "PluginPermission",
     "allow_scenario_plugins",
     "available",
+    "capabilities",
     "check_scenario_plugins",
     "current_permission",
     "declared",
@@ -138,6 +145,7 @@ class _Entry:
     name: str
     origin: str  # where the name was registered, for messages
     target: Any  # a "module:attribute" reference, an entry point, or the object itself
+    record: Any = None  # the capability record given to register(); None: the factory's own
 
     def load(self) -> Any:
         t = self.target
@@ -203,7 +211,7 @@ def _entries(kind: str) -> dict[str, _Entry]:
     return out
 
 
-def register(kind: str, name: str, factory: Any, origin: str | None = None) -> Any:
+def register(kind: str, name: str, factory: Any, origin: str | None = None, capabilities: Any = None) -> Any:
     """Register ``factory`` under ``name`` (one line in the module that defines it).
 
     Parameters
@@ -215,6 +223,10 @@ def register(kind: str, name: str, factory: Any, origin: str | None = None) -> A
         See the module docstring for each kind's signature.
     origin : str, optional
         Where the registration comes from (default: the factory's module and name).
+    capabilities : capability record, optional
+        What the part can do, the record of its kind (:data:`meanfield.capabilities.RECORDS`, e.g.
+        :class:`~meanfield.capabilities.ControllerCapabilities`); default: the factory's own (a class's
+        ``capabilities`` attribute, or a function's from :func:`~meanfield.capabilities.declares`).
 
     Returns
     -------
@@ -223,12 +235,14 @@ def register(kind: str, name: str, factory: Any, origin: str | None = None) -> A
     Raises
     ------
     ParameterError
-        If the name is taken (built in, by an entry point, or registered before), naming both origins.
+        If the name is taken (built in, by an entry point, or registered before), naming both origins; if the
+        part carries no capability record of its kind, naming the part and the record.
     """
     _check_kind(kind)
     if not isinstance(name, str) or not name:
         raise ParameterError("name", name, "a non-empty string")
-    entry = _Entry(name, origin or _describe(factory), factory)
+    entry = _Entry(name, origin or _describe(factory), factory, capabilities)
+    _record(kind, entry, factory)  # refused here, before the name is taken
     existing = _entries(kind).get(name)
     if existing is not None:
         raise ParameterError(
@@ -238,6 +252,43 @@ def register(kind: str, name: str, factory: Any, origin: str | None = None) -> A
         )
     _registered[kind][name] = entry
     return factory
+
+
+def _record(kind: str, entry: _Entry, factory: Any) -> Any:
+    """The capability record of ``entry`` (its own, else the factory's); refused if it has none of its kind."""
+    wanted = RECORDS.get(kind)
+    record = entry.record if entry.record is not None else capabilities_of(factory)
+    if wanted is None:
+        if entry.record is not None:
+            why = f"no capability record (a {kind} has none)"
+            raise ParameterError(f"{kind} plugin {entry.name!r}", entry.record, why)
+        return None
+    if not isinstance(record, wanted):
+        how = (
+            f"a {wanted.__name__} (meanfield.capabilities): a class attribute capabilities = {wanted.__name__}(...), "
+            f"@declares({wanted.__name__}(...)) on a function, or register(..., capabilities={wanted.__name__}(...))"
+        )
+        lacks = "no capability record" if record is None else f"a record of another kind ({type(record).__name__})"
+        raise ParameterError(f"{kind} plugin {entry.name!r} ({entry.origin})", lacks, how)
+    return record
+
+
+def capabilities(kind: str, name: str) -> Any:
+    """What the part ``name`` of ``kind`` can do: its capability record (:mod:`meanfield.capabilities`).
+
+    The core reads the record's fields (``capabilities("controller", name).accepts_sensing``) instead of testing a
+    part's name; a field that does not exist raises :class:`AttributeError`.
+
+    Raises
+    ------
+    ParameterError
+        If no part of that kind has this name, or the part carries no record of its kind (naming the part and
+        the record it lacks).
+    """
+    if kind not in RECORDS:
+        raise ParameterError("kind", kind, " or ".join(map(repr, RECORDS)) + " (the kinds with a capability record)")
+    entry = _get(kind, name)
+    return _record(kind, entry, entry.load())
 
 
 def unregister(kind: str, name: str) -> None:
@@ -278,25 +329,24 @@ def load(kind: str, name: str) -> Any:
     Raises
     ------
     ParameterError
-        If no part of that kind has this name (the message lists those that do).
+        If no part of that kind has this name (the message lists those that do), or the part carries no
+        capability record of its kind (a built-in or an installed entry point is checked here, when first loaded).
     """
-    return _get(kind, name).load()
+    entry = _get(kind, name)
+    factory = entry.load()
+    _record(kind, entry, factory)
+    return factory
 
 
 def declared(kind: str, name: str, attribute: str, default: Any = None) -> Any:
-    """What the part ``name`` of ``kind`` declares as ``attribute`` (``default`` if it declares nothing).
+    """Deprecated: ``capabilities(kind, name).<attribute>`` (:func:`capabilities`), removed in 0.3.0.
 
-    The core asks a part what it needs instead of testing its name: a controller says whether
-    it runs on a group's knowledge (``accepts_sensing``), whether it needs exits
-    (``requires_exits``) and which time step keeps it stable (``stability_step``); a crowd
-    checks its own options (``options``, ``check_scenario``); a β/γ rule says whether it works
-    in the kernel's units (``accepts_kernel_scaling``).  The attribute is looked up on the
-    factory, then, for a factory that is a bound class method (``Class.from_parts``), on its class.
+    The field ``attribute`` of the part's capability record, ``default`` if the record has no such field (the old
+    behaviour; the record itself raises :class:`AttributeError` for a field it does not have).
     """
-    factory = load(kind, name)
-    if hasattr(factory, attribute):
-        return getattr(factory, attribute)
-    return getattr(getattr(factory, "__self__", None), attribute, default)
+    deprecated("meanfield.plugins.declared(kind, name, attribute)",
+               "use meanfield.plugins.capabilities(kind, name).<field>")  # fmt: skip
+    return getattr(capabilities(kind, name), attribute, default)
 
 
 # ---------------------------------------------------------------------- a scenario's own modules

@@ -216,10 +216,11 @@ def _rows(congestion: str) -> list[dict]:
 
 
 def _walk(row: dict) -> str:
-    """How the row's crowd walks: its congestion model, and its door model where its kind has door models."""
-    from meanfield.plugins import declared
+    """How the row's crowd walks: its congestion model, and its door model where its kind has door models of its own
+    (a kind whose queues are its own takes only ``"count"``, which it ignores)."""
+    from meanfield.plugins import capabilities
 
-    has_doors = declared("crowd", row["backend"], "door_models", None) is not None
+    has_doors = capabilities("crowd", row["backend"]).door_models != ("count",)
     return f"{row['congestion']}, {row['door_model']}" if has_doors else row["congestion"]
 
 
@@ -249,7 +250,7 @@ def run_all(
         for s in (settings or SETTINGS)
         for k in range(seeds)
         if (p, s, k, b) not in done and (not s.endswith(SHUT) or _exits(p) > 1)
-        and (not s.endswith(BLOCK) or (p in BLOCKS and plugins.declared("crowd", b, "changes_walls", False)))
+        and (not s.endswith(BLOCK) or (p in BLOCKS and plugins.capabilities("crowd", b).changes_walls))
     ]
     print(f"{len(todo)} runs to do")
     finished = 0

@@ -188,15 +188,20 @@ def corridor_bodies(ctx: Any) -> Any:
     return AgentCrowd.from_context(engine, ctx)
 
 
-CROWDS = {"corridor-point-mass": corridor_point_masses, "corridor-jupedsim": corridor_bodies}
+CROWDS = {
+    "corridor-point-mass": (corridor_point_masses, "point-mass"),
+    "corridor-jupedsim": (corridor_bodies, "jupedsim"),
+}
+"""The study's crowds: each a built-in kind's, started on the corridor's filled part, with that kind's capabilities
+(the run names it in place of the scenario's ``crowd.kind``, which stays the built-in one)."""
 
 
 def _register() -> None:
     from meanfield import plugins
 
-    for name, factory in CROWDS.items():
+    for name, (factory, kind) in CROWDS.items():
         if name not in plugins.available("crowd"):
-            plugins.register("crowd", name, factory)
+            plugins.register("crowd", name, factory, capabilities=plugins.capabilities("crowd", kind))
 
 
 POINT_MASS_MODELS = {

@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from meanfield import ParameterError, plugins
+from meanfield.capabilities import RECORDS, ControllerCapabilities
 from meanfield.cli.app import main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -177,6 +178,7 @@ def test_layering_holds_in_the_module_graph():
 RANKS: dict[str, int] = {
     # the foundations: exceptions, namespaces, the registry, the compiled-loop infrastructure
     "errors": 0,
+    "capabilities": 0,
     "_namespace": 1,
     "plugins": 2,
     "_compiled": 2,
@@ -199,7 +201,7 @@ RANKS: dict[str, int] = {
 rooms of a lower rank (or its own).  Rooms of one rank (geometry and io; crowds and controllers) ignore
 each other."""
 
-TOP_LEVEL_MODULES = {"__init__", "errors", "plugins", "interfaces", "_namespace"}
+TOP_LEVEL_MODULES = {"__init__", "errors", "capabilities", "plugins", "interfaces", "_namespace"}
 """The modules at ``meanfield``'s top (at most six); everything else lives in a subpackage."""
 
 
@@ -419,6 +421,9 @@ def test_every_deprecation_names_the_release_that_removes_it_and_is_gone_by_then
     said = rf"removed in {re.escape(REMOVED_IN)}: use law\.fused\.inputs"
     with pytest.warns(MeanfieldDeprecationWarning, match=said):
         old_fused = [backstepping.fused_robot_inputs]  # the law's compiled call before 0.2.0
+    said = rf"removed in {re.escape(REMOVED_IN)}: use meanfield\.plugins\.capabilities"
+    with pytest.warns(MeanfieldDeprecationWarning, match=said):
+        old_question = [plugins.declared] if plugins.declared("controller", "guide", "changes_walls") else []
     from analysis.nmpc import _DEPRECATED as NMPC_NAMES
     from meanfield.crowds import _DEPRECATED as CROWDS_NAMES
     from meanfield.crowds.kde import _RENAMED as KDE_NAMES
@@ -427,7 +432,8 @@ def test_every_deprecation_names_the_release_that_removes_it_and_is_gone_by_then
             "meanfield.cli's moved names": CLI_NAMES, "the old scenario fields": OLD_FIELDS,
             "coverage's deprecated values": COVERAGE_VALUES, "meanfield run's old flags": old_flags,
             "the renamed plans (BinnedPlan, NMPCPlan)": {**CROWDS_NAMES, **KDE_NAMES, **NMPC_NAMES},
-            "backstepping.fused_robot_inputs": old_fused}  # fmt: skip
+            "backstepping.fused_robot_inputs": old_fused,
+            "plugins.declared (the string question)": old_question}  # fmt: skip
     if version(meanfield.__version__) >= version(REMOVED_IN):
         still = [name for name, table in left.items() if table]
         assert not still, f"{meanfield.__version__} reads what its warnings said {REMOVED_IN} removes: {still}"
@@ -464,19 +470,70 @@ def test_a_name_registered_twice_is_refused_with_both_origins():
     def mine(parts):  # pragma: no cover - never built
         raise AssertionError
 
+    record = ControllerCapabilities()
     with pytest.raises(ParameterError) as exc:
-        plugins.register("controller", "backstepping", mine)
+        plugins.register("controller", "backstepping", mine, capabilities=record)
     msg = str(exc.value)
     assert "meanfield.controllers.backstepping:BacksteppingController.from_parts" in msg and "test_layering" in msg
-    plugins.register("controller", "test-only-controller", mine)
+    plugins.register("controller", "test-only-controller", mine, capabilities=record)
     try:
         with pytest.raises(ParameterError) as exc:
-            plugins.register("controller", "test-only-controller", lambda parts: None, origin="a second module")
+            plugins.register(
+                "controller", "test-only-controller", lambda parts: None, origin="a second module", capabilities=record
+            )
         assert "a second module" in str(exc.value) and "test_layering" in str(exc.value)
         assert plugins.load("controller", "test-only-controller") is mine
     finally:
         plugins.unregister("controller", "test-only-controller")
     assert "test-only-controller" not in plugins.available("controller")
+
+
+def test_every_registered_part_carries_the_capability_record_of_its_kind():
+    """Each kind but the commands has one record (meanfield.capabilities.RECORDS), and every part registered now
+    (built in, installed by entry point) carries a record of its kind: the core reads fields, never strings."""
+    assert set(RECORDS) == set(plugins.GROUPS) - {"command"}
+    for kind, record in RECORDS.items():
+        for name in plugins.available(kind):
+            assert type(plugins.capabilities(kind, name)) is record, (kind, name)
+
+
+def _probes(path: Path) -> list[str]:
+    """The ``getattr``/``hasattr`` calls of a module on anything but the object's own ``self``."""
+
+    def root(node: ast.AST) -> ast.AST:
+        while True:
+            if isinstance(node, ast.Attribute):
+                node = node.value
+            elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "getattr":
+                node = node.args[0]
+            else:
+                return node
+
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ("getattr", "hasattr"):
+            base = root(node.args[0]) if node.args else None
+            if not (isinstance(base, ast.Name) and base.id == "self"):
+                found.append(f"{path.relative_to(ROOT)}:{node.lineno} {ast.unparse(node)}")
+    return found
+
+
+def test_the_loop_and_the_scenarios_probe_no_part():
+    """The loop, its observers and the scenarios use what the protocols declare (meanfield.interfaces) and what
+    the records say (meanfield.capabilities): no getattr/hasattr on a part."""
+    found = [hit for room in ("simulation", "scenarios") for p in sorted((ROOT / "meanfield" / room).rglob("*.py"))
+             for hit in _probes(p)]  # fmt: skip
+    assert found == []
+
+
+def test_the_probe_check_finds_a_probe(tmp_path):
+    """The check above can fail: a module that asks a crowd whether it has an attribute is found."""
+    bad = ROOT / "meanfield" / "simulation" / "_probe_for_the_layering_test.py"
+    bad.write_text('def f(loop, self):\n    return hasattr(loop.crowd, "reached"), getattr(self, "x")\n')
+    try:
+        assert _probes(bad) == [f"{bad.relative_to(ROOT)}:2 hasattr(loop.crowd, 'reached')"]
+    finally:
+        bad.unlink()
 
 
 def test_an_entry_point_that_takes_a_built_in_name_is_refused(monkeypatch):

@@ -1,11 +1,22 @@
-"""What a part declares, and how the core asks (meanfield.plugins.declared): the core never tests a
-part's name; each built-in part declares what it needs, a plug-in part may declare the same."""
+"""What a part can do, and how the core asks (meanfield.plugins.capabilities): the core never tests a part's name;
+each registered part carries one typed record of what it can do (meanfield.capabilities), a plug-in part the same."""
 
 from __future__ import annotations
+
+import dataclasses
+import warnings
 
 import pytest
 
 from meanfield import ClosedLoop, ParameterError, paper_scenario, plugins
+from meanfield.capabilities import (
+    BetaGammaCapabilities,
+    ControllerCapabilities,
+    CrowdCapabilities,
+    GuidanceCapabilities,
+    declares,
+)
+from meanfield.errors import MeanfieldDeprecationWarning
 from meanfield.interfaces import StabilityStep
 from meanfield.simulation.assembly import sensing_controllers
 from meanfield.simulation.preflight import stability_warnings
@@ -13,42 +24,99 @@ from meanfield.simulation.preflight import stability_warnings
 
 def test_built_in_parts_declare_what_they_need():
     assert sensing_controllers() == ["backstepping", "coverage", "evacuation"]
-    assert plugins.declared("controller", "evacuation", "requires_exits") is True
-    assert plugins.declared("controller", "backstepping", "requires_exits", False) is False
-    assert plugins.declared("controller", "static-signs", "accepts_sensing", False) is False
-    assert plugins.declared("beta_gamma", "min-norm", "accepts_kernel_scaling") is True
-    assert plugins.declared("crowd", "jupedsim", "options").__name__ == "JuPedSimOptions"
-    assert plugins.declared("crowd", "point-mass", "options") is None
+    assert plugins.capabilities("controller", "evacuation").requires_exits is True
+    assert plugins.capabilities("controller", "backstepping").requires_exits is False
+    assert plugins.capabilities("controller", "static-signs").accepts_sensing is False
+    assert plugins.capabilities("beta_gamma", "min-norm").accepts_kernel_scaling is True
+    assert plugins.capabilities("beta_gamma", "bounded").accepts_kernel_scaling is False
+    assert plugins.capabilities("crowd", "jupedsim").options.__name__ == "JuPedSimOptions"
+    assert plugins.capabilities("crowd", "point-mass").options is None
+    assert plugins.capabilities("crowd", "point-mass").door_models[0] == "headway"
+    assert plugins.capabilities("crowd", "fokker-planck").door_models == ("count",)
+    assert plugins.capabilities("congestion", "none").slows is False
+    assert plugins.capabilities("guidance", "hughes").for_density is not None
 
 
-class _Parked:
-    """A controller plug-in that declares its own stability step and accepts sensing radii."""
+def test_a_misspelt_capability_fails_loudly():
+    """A field a record does not have is an error when read and when declared, never a silent default."""
+    record = plugins.capabilities("controller", "coverage")
+    with pytest.raises(AttributeError, match="acepts_sensing"):
+        record.acepts_sensing  # noqa: B018 - the read is the test
+    with pytest.raises(TypeError, match="acepts_sensing"):
+        ControllerCapabilities(acepts_sensing=True)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        record.accepts_sensing = False
+    with pytest.raises(TypeError, match="door_models"):
+        CrowdCapabilities(door_models=())
+    with pytest.raises(TypeError, match="options"):
+        ControllerCapabilities(options={"k": 1})  # an instance where the options' dataclass belongs
+    with pytest.raises(TypeError, match="capability record"):
+        declares({"accepts_sensing": True})
 
-    accepts_sensing = True
 
-    @staticmethod
-    def stability_step(scenario, grid):
-        return StabilityStep(dt=1e-9, what="the parked robots' made-up step", why="(a test)")
+def test_a_plugin_without_a_capability_record_is_refused_when_registered_naming_the_record():
+    def factory(parts):  # pragma: no cover - never built
+        raise AssertionError
+
+    with pytest.raises(ParameterError) as exc:
+        plugins.register("controller", "test-recordless", factory)
+    assert "test-recordless" in exc.value.name and "ControllerCapabilities" in exc.value.allowed
+    assert exc.value.value == "no capability record"
+    with pytest.raises(ParameterError) as exc:  # a record of another kind
+        plugins.register("controller", "test-recordless", factory, capabilities=BetaGammaCapabilities())
+    assert "BetaGammaCapabilities" in exc.value.value
+    assert "test-recordless" not in plugins.available("controller")  # nothing was registered
+    with pytest.raises(ParameterError):  # a command has no record to give
+        plugins.register("command", "test-recordless", factory, capabilities=ControllerCapabilities())
+
+
+def test_the_old_string_question_still_answers_with_a_dated_warning():
+    with pytest.warns(MeanfieldDeprecationWarning, match=r"removed in 0\.3\.0"):
+        assert plugins.declared("controller", "evacuation", "requires_exits") is True
+
+
+@declares(
+    ControllerCapabilities(
+        accepts_sensing=True,
+        stability_step=lambda scenario, grid: StabilityStep(
+            dt=1e-9, what="the parked robots' made-up step", why="(a test)"
+        ),
+    )
+)
+def _parked(parts):
+    from meanfield.controllers.static_signs import StaticSigns
+
+    return StaticSigns.from_parts(parts)
 
 
 def test_the_core_asks_a_plugin_for_its_stability_step_and_sensing():
-    from meanfield.controllers.static_signs import StaticSigns
-
-    def factory(parts):
-        return StaticSigns.from_parts(parts)
-
-    factory.accepts_sensing = _Parked.accepts_sensing
-    factory.stability_step = _Parked.stability_step
-    plugins.register("controller", "test-parked", factory)
+    plugins.register("controller", "test-parked", _parked)
     try:
         sc = paper_scenario(seed=0).replace(t_final=0.05).with_values({"controller.kind": "test-parked"})
         grid = ClosedLoop(sc).grid
-        warnings = stability_warnings(sc, grid, {})
-        assert warnings == ["dt = 0.01 exceeds the parked robots' made-up step = 1e-09 (a test)"]
+        said = stability_warnings(sc, grid, {})
+        assert said == ["dt = 0.01 exceeds the parked robots' made-up step = 1e-09 (a test)"]
         assert "test-parked" in sensing_controllers()
-        ClosedLoop(sc.with_values({"sensing.radius": 0.3}))  # accepted: it declares accepts_sensing
+        ClosedLoop(sc.with_values({"sensing.radius": 0.3}))  # accepted: its record says accepts_sensing
     finally:
         plugins.unregister("controller", "test-parked")
+
+
+def test_a_record_given_at_registration_is_the_part_s_own():
+    """A plain function registered with its record (no attribute set on it) is asked through that record."""
+
+    def guidance(ctx, positions):  # pragma: no cover - never built
+        raise AssertionError
+
+    plugins.register("guidance", "test-follow", guidance, capabilities=GuidanceCapabilities())
+    try:
+        assert plugins.capabilities("guidance", "test-follow") == GuidanceCapabilities()
+        assert not hasattr(guidance, "capabilities")
+    finally:
+        plugins.unregister("guidance", "test-follow")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        plugins.capabilities("guidance", "signs")  # the new question warns of nothing
 
 
 def test_a_controller_that_does_not_declare_sensing_is_refused_with_the_ones_that_do():
@@ -62,7 +130,7 @@ def test_the_paper_law_warns_past_its_step_and_hughes_step_one_does_not():
     sc = paper_scenario(seed=0)
     grid = ClosedLoop(sc.replace(t_final=0.05)).grid
     assert "0.9 h²/(4 α₀)" in stability_warnings(sc, grid, {})[0]
-    assert plugins.declared("controller", "evacuation", "stability_step", "absent") is None
+    assert plugins.capabilities("controller", "evacuation").stability_step is None
 
 
 # ---------------------------------------------------------------------- a scenario file runs no code unless allowed

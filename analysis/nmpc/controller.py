@@ -56,6 +56,7 @@ from analysis.nmpc.options import NMPCOptions
 from analysis.nmpc.plan import NMPCSolution, robot_state
 from analysis.nmpc.prediction_model import CoarseFokkerPlanck
 from analysis.nmpc.sqp import SQPSolver
+from meanfield.capabilities import ControllerCapabilities, declares
 from meanfield.controllers.backstepping import BacksteppingController, ControlState
 from meanfield.errors import ParameterError
 from meanfield.geometry.grid import Grid
@@ -452,6 +453,7 @@ class NMPCController:
         }
 
 
+@declares(ControllerCapabilities(options=NMPCOptions))  # [controller.options.nmpc], checked when the scenario is read
 def nmpc_controller_for(parts: ControllerParts) -> NMPCController:
     """Plugin factory (entry point ``nmpc`` of ``meanfield.controllers``): an NMPC from the loop's parts.
 

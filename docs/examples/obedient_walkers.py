@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from meanfield import KernelDensityEstimator, plugins
+from meanfield.capabilities import CrowdCapabilities
 from meanfield.crowds.agent_crowd import initial_positions
 from meanfield.geometry.region import Region
 from meanfield.geometry.target import fraction_in_disk
@@ -56,6 +57,9 @@ class ObedientWalkers:
         self.kde = kde
         self.speed = float(kernel.c)
         self.walking = np.zeros(len(self.positions), bool)
+
+    capabilities = CrowdCapabilities()
+    """What it can do: nothing beyond the :class:`~meanfield.interfaces.Crowd` protocol (the record's defaults)."""
 
     @classmethod
     def from_context(cls, ctx: CrowdContext) -> ObedientWalkers:

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from meanfield import plugins
+from meanfield.capabilities import ControllerCapabilities
 from meanfield.errors import num, options_table
 from meanfield.interfaces import Command, ControllerParts, Observation
 
@@ -64,8 +65,9 @@ class ParkedRobots:
         Gain of the turn, 1/s: ``ω_i = k_heading · wrap(bearing_i − θ_i)``.
     """
 
-    options = ParkedOptions
-    """What a scenario may set (the core reads it, and checks the table when the scenario is read)."""
+    capabilities = ControllerCapabilities(options=ParkedOptions)
+    """What it can do: a scenario may set :class:`ParkedOptions` (the core checks the table when the scenario is read);
+    it does not run on a group's knowledge, needs no exits and has no stability step (the record's defaults)."""
 
     def __init__(self, stations: np.ndarray, aim: tuple[float, float], k_position: float = 1.0, k_heading: float = 2.0):
         self.stations = np.asarray(stations, float)

@@ -37,10 +37,11 @@ paper's, number for number.
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
+from meanfield.capabilities import ControllerCapabilities
 from meanfield.controllers.alpha_schedules import ConstantAlpha, SaturatingAlpha
 from meanfield.controllers.beta_gamma import MinimumNormBetaGamma, UserBetaGamma
 from meanfield.controllers.congested_plant import (
@@ -174,11 +175,6 @@ class BacksteppingController:
         self.congestion_report: CongestionReport | None = None  # the last evaluation's, with a congested plant
         self._congestion_stats = [0, 0.0, 0.0, 0.0]  # calls, capped mass: sum, max; |residual| max
 
-    accepts_sensing = True
-    """It runs on a group's knowledge (``[sensing]``, :mod:`meanfield.controllers.local_sensing`)."""
-    changes_walls = True
-    """A region can become wall during a run (``[[events]] block``, :meth:`walls_changed`)."""
-
     def _plant_model(self, grid: Grid) -> FokkerPlanck | None:
         """With ``dvd_dt = "fokker-planck"`` the plant's right-hand side on ``grid``, congested as the plant is."""
         if self.dvd_dt != "fokker-planck":
@@ -213,9 +209,13 @@ class BacksteppingController:
             why=f"(h = {h:.3g}, α₀ = {alpha:g}): where the robots realise v_d, the held feedback overshoots",
         )
 
-    options: Any = None
-    """What a scenario may set under ``[controller.options.backstepping]``: nothing (the core reads it:
-    ``plugins.declared``); a law that takes options declares their dataclass here."""
+    capabilities: ClassVar[ControllerCapabilities] = ControllerCapabilities(
+        accepts_sensing=True,  # it runs on a group's knowledge ([sensing], meanfield.controllers.local_sensing)
+        changes_walls=True,  # a region can become wall during a run ([[events]] block, walls_changed)
+        stability_step=stability_step,
+    )
+    """What it can do (:class:`~meanfield.capabilities.ControllerCapabilities`): no options (a law that takes some
+    declares their dataclass in its record)."""
 
     @classmethod
     def from_parts(cls, parts: ControllerParts) -> BacksteppingController:

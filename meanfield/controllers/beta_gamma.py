@@ -9,10 +9,11 @@ registered by name (``controller.beta_gamma``; the speed-limited ``bounded`` liv
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
+from meanfield.capabilities import BetaGammaCapabilities
 from meanfield.errors import ParameterError
 from meanfield.interfaces import ExtraInputs
 
@@ -31,7 +32,7 @@ class MinimumNormBetaGamma:
     """
 
     name = "min-norm"
-    accepts_kernel_scaling = True
+    capabilities: ClassVar[BetaGammaCapabilities] = BetaGammaCapabilities(accepts_kernel_scaling=True)
     """Its inputs follow the law's own units (``controller.scaling = "kernel"``): it has no limits of its own."""
 
     @classmethod

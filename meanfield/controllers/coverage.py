@@ -69,6 +69,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from meanfield.capabilities import ControllerCapabilities
 from meanfield.controllers._coverage_loops import owners as nearest_owners
 from meanfield.controllers.evacuation import EvacuationOptions
 from meanfield.errors import ParameterError, choice, deprecated, num, options_table
@@ -180,8 +181,9 @@ class CoverageController:
         The walls that hide a cell from a robot (None: every cell is seen).
     k_position : float
         Gain of the drive to the centroid, 1/s, > 0.
-    k_heading : float
-        Gain of the heading feedback, > 0 (from a scenario: :data:`HEADING_GAIN_FACTOR` × ``controller.k_omega``).
+    k_heading : float, optional
+        Gain of the heading feedback, > 0; None (the default, here and in a scenario): :data:`HEADING_GAIN_FACTOR`
+        × the law's ``k_ω`` (its largest, with one gain per robot).
     weight : {"tracking-error", "density", "excess", "unswept"}
         The coverage weight (module docstring).
     metric : {"routed", "walking", "straight"}
@@ -190,8 +192,12 @@ class CoverageController:
         With ``weight = "unswept"``: how long after a sign last reached a cell it weighs again, > 0 (s in SI).
     """
 
-    options = CoverageOptions
-    """What a scenario may set, ``[controller.options.coverage]`` (the core reads it: ``plugins.declared``)."""
+    capabilities: ClassVar[ControllerCapabilities] = ControllerCapabilities(
+        accepts_sensing=True,  # it runs on a group's knowledge ([sensing], meanfield.controllers.local_sensing)
+        changes_walls=True,  # a region can become wall during a run ([[events]] block, walls_changed)
+        options=CoverageOptions,  # [controller.options.coverage]
+    )
+    """What it can do (:class:`~meanfield.capabilities.ControllerCapabilities`)."""
 
     def __init__(
         self,
@@ -199,12 +205,16 @@ class CoverageController:
         grid: Any,
         sight: Any = None,
         k_position: float = 1.0,
-        k_heading: float = 10.0,
+        k_heading: float | None = None,
         weight: str = "tracking-error",
         metric: str = "routed",
         revisit_after: float = REVISIT_AFTER,
     ):
+        if k_heading is None and law is not None:
+            k_heading = HEADING_GAIN_FACTOR * float(np.max(law.k_omega))
         for name, k in (("k_position", k_position), ("k_heading", k_heading)):
+            if k is None and law is None:  # no law (the cells' geometry alone): no headings to steer
+                continue
             if not (isinstance(k, (int, float)) and math.isfinite(k) and k > 0):
                 raise ParameterError(f"controller.options.coverage.{name}", k, "a finite number > 0")
         if weight not in WEIGHTS:
@@ -219,16 +229,11 @@ class CoverageController:
         self.metric = metric
         self._cover(grid, sight)
         self.k_position = float(k_position)
-        self.k_heading = float(k_heading)
+        self.k_heading = float(k_heading) if k_heading is not None else math.nan
         self.weight = weight
         self.steps = 0
         self.idle_robot_steps = 0
         self.idle = np.zeros(0, dtype=bool)  # robots whose cells held no weight at the last step
-
-    accepts_sensing = True
-    """It runs on a group's knowledge (``[sensing]``, :mod:`meanfield.controllers.local_sensing`)."""
-    changes_walls = True
-    """A region can become wall during a run (``[[events]] block``, :meth:`walls_changed`)."""
 
     def _cover(self, grid: Any, sight: Any) -> None:
         """The cells to cover on ``grid``, the walls that hide them and the walking distances between them: for the
@@ -269,9 +274,8 @@ class CoverageController:
             law = EvacuationController.with_options(parts, o)
         else:
             law = BacksteppingController.from_parts(dataclasses.replace(parts, options={}))
-        k_heading = o.k_heading if o.k_heading is not None else HEADING_GAIN_FACTOR * float(np.max(parts.k_omega))
         sight = parts.sight if parts.sight is not None else SightLines(parts.region)
-        return cls(law, parts.grid, sight, k_position=o.k_position, k_heading=k_heading, weight=o.weight,
+        return cls(law, parts.grid, sight, k_position=o.k_position, k_heading=o.k_heading, weight=o.weight,
                    metric=o.metric, revisit_after=o.revisit_after)  # fmt: skip
 
     # ------------------------------------------------------------------ positions

@@ -70,6 +70,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from meanfield.capabilities import ControllerCapabilities
 from meanfield.controllers._law_loops import HUGHES_STEP_ONE
 from meanfield.controllers.backstepping import BacksteppingController
 from meanfield.controllers.exit_assignment import ExitAssignment, distance_to_each_exit
@@ -323,10 +324,6 @@ class EvacuationController(BacksteppingController):
         Keyword arguments of :class:`~meanfield.controllers.backstepping.BacksteppingController`.
     """
 
-    requires_exits = True
-    """It steers towards the region's exits: a region without exits has nothing to offer it."""
-    stability_step = None
-    """Hughes' Step I (``v_d = -f(ρ) ∇φ``) is not the sampled diffusion the paper's step bounds."""
 
     def __init__(
         self,
@@ -395,8 +392,14 @@ class EvacuationController(BacksteppingController):
         """Hughes' ``φ`` on the law's cells for the density ``rho`` (:meth:`ExitsStepOne.hughes_potential`)."""
         return self.step_one.hughes_potential(self.grid, rho)
 
-    options = EvacuationOptions
-    """What a scenario may set, ``[controller.options.evacuation]`` (the core reads it: ``plugins.declared``)."""
+    capabilities: ClassVar[ControllerCapabilities] = ControllerCapabilities(
+        accepts_sensing=True,  # as the paper's law: it runs on a group's knowledge
+        requires_exits=True,  # it steers towards the region's exits: a region without has nothing to offer it
+        changes_walls=True,  # a region can become wall during a run (walls_changed)
+        options=EvacuationOptions,  # [controller.options.evacuation]
+        stability_step=None,  # Hughes' Step I (v_d = -f(ρ) ∇φ) is not the sampled diffusion the paper's step bounds
+    )
+    """What it can do (:class:`~meanfield.capabilities.ControllerCapabilities`)."""
 
     @classmethod
     def from_parts(cls, parts: ControllerParts) -> EvacuationController:

@@ -35,10 +35,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
+from meanfield.capabilities import ControllerCapabilities
 from meanfield.controllers._coverage_loops import owners as nearest_owners
 from meanfield.controllers.coverage import _NOTHING_HIDDEN, walk_towards
 from meanfield.errors import ParameterError, num, options_table
@@ -146,14 +147,14 @@ class GuideController:
         How often the shares and the team are solved again, s, > 0.
     """
 
-    options = GuideOptions
-    """What a scenario may set, ``[controller.options.guide]``: :class:`GuideOptions` (the core reads it:
-    ``plugins.declared``).  The gains are the constructor's: the drive saturates at the robots' ``u_max`` beyond
-    ``u_max / k_position`` metres, and no study has found a setting of them that wins."""
-
-    accepts_sensing = False
-    changes_walls = True
-    """A region can become wall during a run (``[[events]] block``, :meth:`walls_changed`)."""
+    capabilities: ClassVar[ControllerCapabilities] = ControllerCapabilities(
+        changes_walls=True,  # a region can become wall during a run ([[events]] block, walls_changed)
+        options=GuideOptions,  # [controller.options.guide]
+    )
+    """What it can do (:class:`~meanfield.capabilities.ControllerCapabilities`): what a scenario may set is
+    :class:`GuideOptions`.  The gains are the constructor's: the drive saturates at the robots' ``u_max`` beyond
+    ``u_max / k_position`` metres, and no study has found a setting of them that wins.  It does not run on a group's
+    knowledge (no ``accepts_sensing``)."""
 
     def __init__(self, grid: Any, sight: Any, assignment: Any, routes: Any, k_position: float = 1.0,
                  k_heading: float = 2.0, revisit_after: float = REVISIT_AFTER,

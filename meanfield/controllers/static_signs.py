@@ -14,9 +14,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
+from meanfield.capabilities import ControllerCapabilities
 from meanfield.errors import ParameterError, num, options_table
 from meanfield.interfaces import Command, ControllerParts, Observation
 
@@ -52,11 +54,12 @@ class StaticSigns:
         Gain of the turn, 1/s: ``ω_i = k_heading · wrap(bearing_i − θ_i)``.
     """
 
-    options = StaticSignsOptions
-    """What a scenario may set, ``[controller.options.static-signs]`` (the core reads it: ``plugins.declared``)."""
-    changes_walls = True
-    """A region can become wall during a run (``[[events]] block``): the signs keep their stations and bearings
-    (a station in the block is held at its edge by the robots' region)."""
+    capabilities: ClassVar[ControllerCapabilities] = ControllerCapabilities(
+        changes_walls=True,  # the signs keep their stations and bearings (held at a block's edge by the robots' region)
+        options=StaticSignsOptions,  # [controller.options.static-signs]
+    )
+    """What it can do (:class:`~meanfield.capabilities.ControllerCapabilities`): a region can become wall during a
+    run (``[[events]] block``)."""
 
     def __init__(self, stations: np.ndarray, bearings: np.ndarray, k_position: float = 1.0, k_heading: float = 2.0):
         for name, k in (("k_position", k_position), ("k_heading", k_heading)):

@@ -44,6 +44,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from meanfield import plugins
+from meanfield.capabilities import CrowdCapabilities, declares
 from meanfield.crowds._field_loops import bilinear_at, gaussian_field_at
 from meanfield.crowds.congestion import FundamentalDiagram, GodunovTwin
 from meanfield.crowds.groups import group_positions
@@ -640,6 +641,11 @@ class AgentCrowd:
         """The share of the crowd still in Ω (1 without exits)."""
         return self.remaining() / self.n
 
+    def persons_out(self, n_exits: int) -> np.ndarray:
+        """How many agents have left through each of the region's ``n_exits`` exits (floats, for the measures)."""
+        index = self.engine.exit_index
+        return np.bincount(index[index >= 0], minlength=n_exits).astype(float)
+
     @property
     def models_exits(self) -> bool:
         """Whether the engine lets agents leave through exits (the point-mass SDE does)."""
@@ -753,30 +759,32 @@ class AgentCrowd:
         return crowd
 
 
+@declares(
+    CrowdCapabilities(
+        # each human is an agent: it may wait its own pre-movement time and ignore the signs
+        # (crowd.premovement, crowd.compliance; Individuals)
+        models_individuals=True,
+        # people may be placed in groups, each in its region with its own exit (crowd.initial = "groups",
+        # meanfield.crowds.groups); each person keeps its group's exit
+        places_groups=True,
+        group_exits=True,
+        # a congested human's speed from the spacing to the person ahead ("headway", the first: the default), the
+        # count round it or the Godunov twin (crowd.door_model, DOOR_MODELS)
+        door_models=("headway", "count", "godunov-twin"),
+        # a region can become wall during a run ([[events]] block, AgentCrowd.walls_changed): the people in it step
+        # out, and the signs, routes and walks go round it
+        changes_walls=True,
+        # an exit can close during a run ([[events]], AgentCrowd.exits_closed): the engine stops taking people
+        # through it and the informed crowd's routes lead to the exits still open
+        closes_exits=True,
+        # crowd.congestion = "auto": the linear diagram in metres and seconds (it reproduces the measured
+        # bottleneck flows, docs page Congestion), none in the paper's dimensionless units
+        default_congestion={"SI": "linear"},
+    )
+)
 def point_mass_crowd(ctx: CrowdContext) -> AgentCrowd:
     """Registry factory (kind ``crowd``, name ``point-mass``): the SDE of eq. (1) with reflecting walls."""
     sc = ctx.scenario
     humans = initial_positions(sc, sc.crowd.n, ctx.rng)
     return AgentCrowd.from_context(PointMassEngine(humans, sc.domain, ctx.sigma, ctx.rng), ctx)
 
-
-point_mass_crowd.models_individuals = True  # type: ignore[attr-defined]
-"""Each human is an agent: it may wait its own pre-movement time and ignore the signs
-(``crowd.premovement``, ``crowd.compliance``; :class:`Individuals`)."""
-point_mass_crowd.places_groups = True  # type: ignore[attr-defined]
-"""People may be placed in groups, each in its region with its own exit (``crowd.initial = "groups"``,
-:mod:`meanfield.crowds.groups`)."""
-point_mass_crowd.group_exits = True  # type: ignore[attr-defined]
-"""A group may walk to an exit of its own (``[[crowd.groups]] exit = k``): each person keeps its group's."""
-point_mass_crowd.door_models = ("headway", "count", "godunov-twin")  # type: ignore[attr-defined]
-"""A congested human's speed from the spacing to the person ahead (``"headway"``, the first: the default), the
-count round it or the Godunov twin (``crowd.door_model``, :data:`DOOR_MODELS`)."""
-point_mass_crowd.changes_walls = True  # type: ignore[attr-defined]
-"""A region can become wall during a run (``[[events]] block``, :meth:`AgentCrowd.walls_changed`): the people in it
-step out, and the signs, routes and walks go round it."""
-point_mass_crowd.closes_exits = True  # type: ignore[attr-defined]
-"""An exit can close during a run (``[[events]]``, :meth:`AgentCrowd.exits_closed`): the engine stops
-taking people through it and the informed crowd's routes lead to the exits still open."""
-point_mass_crowd.default_congestion = {"SI": "linear"}  # type: ignore[attr-defined]
-"""``crowd.congestion = "auto"``: the linear diagram in metres and seconds (it reproduces the measured
-bottleneck flows, docs page *Congestion*), none in the paper's dimensionless units."""

@@ -29,10 +29,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
+from meanfield.capabilities import CongestionCapabilities
 from meanfield.errors import ParameterError, num
 
 __all__ = [
@@ -95,7 +96,13 @@ class NoCongestion:
 
     free_speed: float = FREE_SPEED
     rho_max: float = math.inf
-    slows = False
+    capabilities: ClassVar[CongestionCapabilities] = CongestionCapabilities(slows=False)
+    """No density slows the crowd (:class:`~meanfield.capabilities.CongestionCapabilities`)."""
+
+    @property
+    def slows(self) -> bool:
+        """False: a crowd model then computes nothing (the record's ``slows``)."""
+        return self.capabilities.slows
 
     def speed_factor(self, rho: np.ndarray) -> np.ndarray:
         """``g ≡ 1``."""
@@ -130,7 +137,13 @@ class Weidmann:
     free_speed: float = FREE_SPEED
     rho_max: float = WEIDMANN_RHO_MAX
     gamma: float = WEIDMANN_GAMMA
-    slows = True
+    capabilities: ClassVar[CongestionCapabilities] = CongestionCapabilities(slows=True)
+    """It slows the crowd with its density (:class:`~meanfield.capabilities.CongestionCapabilities`)."""
+
+    @property
+    def slows(self) -> bool:
+        """True: the crowd walks ``v₀ g(ρ)`` (the record's ``slows``)."""
+        return self.capabilities.slows
 
     def speed_factor(self, rho: np.ndarray) -> np.ndarray:
         """``1 − exp(−γ (1/ρ − 1/ρ_max))``, 1 at ``ρ = 0`` and 0 from ``ρ_max`` on."""
@@ -157,7 +170,13 @@ class Linear:
 
     free_speed: float = FREE_SPEED
     rho_max: float = WEIDMANN_RHO_MAX
-    slows = True
+    capabilities: ClassVar[CongestionCapabilities] = CongestionCapabilities(slows=True)
+    """It slows the crowd with its density (:class:`~meanfield.capabilities.CongestionCapabilities`)."""
+
+    @property
+    def slows(self) -> bool:
+        """True: the crowd walks ``v₀ g(ρ)`` (the record's ``slows``)."""
+        return self.capabilities.slows
 
     def speed_factor(self, rho: np.ndarray) -> np.ndarray:
         """``max(0, 1 − ρ/ρ_max)`` (clipped to [0, 1]; in place on one new array, a step of 10⁶ humans)."""

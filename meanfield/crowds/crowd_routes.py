@@ -31,12 +31,9 @@ otherwise (Hughes' model, guidance ``hughes``)
 ``P`` the agents in each cell (:meth:`CrowdRoutes.plan_for_agents`).  The density takes its own
 cells, ``ρ̄ = N ρ`` (:meth:`CrowdRoutes.plan_for_density`): (R2) as ``r`` shrinks to the cell, the
 mean-field limit of the agents' rule, whose radius can shrink as ``N`` grows.  The agents need the
-disk: a person counts itself, ``1/(π r²)`` (1.3 persons/m² at 0.5 m, 8 at 0.2 m, beyond the jam
-density), and with ``r = 0.2`` m the bottleneck stalled (seeds 0 and 1: 90 % not out in 400 s).  The
-density needs its cells: smoothed over 0.3 m or 0.5 m, the route no longer sees the lanes that form
-in a corridor at ``σ = 0.01`` m²/s, steers the mass into them, and the bottleneck passes 1.22 or
-1.09 persons/(m·s) instead of the diagram's capacity 1.81 (measured at ``b`` = 1 m; the density on
-its cells and at ``r = 0.2`` m: 1.81 at 0.8, 1.0, 2.0 and 2.5 m; docs page *Congestion*, "Routes").
+disk (a person counts itself, ``1/(π r²)``, and a small disk reads one person alone beyond the jam); the
+density needs its cells (smoothed, its route no longer sees the lanes of a corridor and steers the mass into
+them).  Both are measured in the bottleneck on the docs page *Congestion*, "Routes".
 
 The agents take the route's face field interpolated at their positions (the ``x`` component
 bilinearly from the ``x``-faces, ``y`` from the ``y``-faces; a wall's face carries nothing),

@@ -30,11 +30,12 @@ from the density then.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from meanfield import plugins
+from meanfield.capabilities import CrowdCapabilities
 from meanfield.crowds.guidance import DensityGuidance
 from meanfield.errors import ParameterError
 from meanfield.fokker_planck.solver import FokkerPlanck
@@ -107,6 +108,9 @@ class DensityCrowd:
         What the density follows (:mod:`meanfield.crowds.guidance`): the robots' field (None, the
         default: the paper), or a drift of its own on the faces, fixed or a function of the density
         (the robots' field then does not act); its added diffusion is already in ``fp``'s σ.
+    people : int, optional
+        ``N`` = ``crowd.n``: the persons the unit mass stands for, to count the persons out
+        (:meth:`persons_out`); None: a crowd of mass only.
     """
 
     n = None
@@ -114,18 +118,19 @@ class DensityCrowd:
 
     models_exits = True
 
-    closes_exits = True
-    """An exit can close during a run (``[[events]]``, :meth:`exits_closed`): it becomes a wall for the density's
-    flux and its sink, and a guidance that walks to the exits plans again."""
-
-    default_congestion = {"SI": "linear"}
-    """``crowd.congestion = "auto"``: as the point masses, the linear diagram in SI units, none in the
-    paper's dimensionless units (:attr:`~meanfield.scenarios.scenario.Scenario.congestion_model`)."""
-
-    places_groups = True
-    """People may start in groups, each uniform in its region (``crowd.initial = "groups"``,
-    :func:`initial_density`): the same starting law as the point masses'.  A group's own ``exit`` is refused (one
-    density cannot hold people bound for different exits; it declares no ``group_exits``)."""
+    capabilities: ClassVar[CrowdCapabilities] = CrowdCapabilities(
+        # an exit can close during a run ([[events]], exits_closed): it becomes a wall for the density's flux and its
+        # sink, and a guidance that walks to the exits plans again
+        closes_exits=True,
+        # crowd.congestion = "auto": as the point masses, the linear diagram in SI units, none in the paper's
+        # dimensionless units (Scenario.congestion_model)
+        default_congestion={"SI": "linear"},
+        # people may start in groups, each uniform in its region (crowd.initial = "groups", initial_density): the
+        # same starting law as the point masses'; a group's own exit is refused (one density cannot hold people
+        # bound for different exits: no group_exits)
+        places_groups=True,
+    )
+    """What it can do (:class:`~meanfield.capabilities.CrowdCapabilities`)."""
 
     def __init__(
         self,
@@ -135,8 +140,10 @@ class DensityCrowd:
         substeps: bool = True,
         sight: SightLines | None = None,
         guidance: DensityGuidance | None = None,
+        people: int | None = None,
     ):
         self.fp = fp
+        self.people = people
         self.guidance = DensityGuidance(follows_signs=True) if guidance is None else guidance
         self.sight = sight
         self.grid = fp.grid
@@ -222,6 +229,19 @@ class DensityCrowd:
         """The mass still in Ω over the initial mass."""
         return float(self.grid.integrate(self.rho)) / self.initial_mass
 
+    def persons_out(self, n_exits: int) -> np.ndarray:
+        """The persons out through each of its exits: the mass out over the initial mass, times ``people``
+        (``crowd.n``; the solver's exits are the region's ``n_exits``).
+
+        Raises
+        ------
+        ParameterError
+            Naming ``people`` for a crowd built without it (by hand: it has mass, not persons).
+        """
+        if self.people is None:
+            raise ParameterError("people", None, "the crowd's number of people (crowd.n), to count the persons out")
+        return self.people * np.asarray(self.out_per_exit, float) / self.initial_mass
+
     def density(self) -> np.ndarray:
         """The density itself (the robots see it exactly)."""
         return self.rho
@@ -252,10 +272,10 @@ class DensityCrowd:
         ``N = crowd.n`` and the diagram of ``crowd.congestion``/``crowd.rho_max``
         (:mod:`meanfield.fokker_planck.congested`; ``method`` ``"split"`` or ``"explicit"``).
 
-        ``crowd.guidance`` says what drives the density: the factory of that guidance declares
-        ``for_density`` (:func:`meanfield.plugins.declared`), which returns a
+        ``crowd.guidance`` says what drives the density: that guidance's record holds
+        ``for_density`` (:func:`meanfield.plugins.capabilities`), which returns a
         :class:`~meanfield.crowds.guidance.DensityGuidance` (docs page *Congestion*, "The PDE");
-        a guidance that declares nothing is refused, naming ``crowd.guidance`` and those the
+        a guidance without one is refused, naming ``crowd.guidance`` and those the
         density takes.
 
         The run's generator advances exactly as the agents' initial draw would
@@ -266,9 +286,9 @@ class DensityCrowd:
         from meanfield.crowds.agent_crowd import initial_positions
 
         c = ctx.scenario.crowd
-        for_density = plugins.declared("guidance", c.guidance, "for_density")
+        for_density = plugins.capabilities("guidance", c.guidance).for_density
         if for_density is None:
-            takes = [n for n in plugins.available("guidance") if plugins.declared("guidance", n, "for_density")]
+            takes = [n for n in plugins.available("guidance") if plugins.capabilities("guidance", n).for_density]
             raise ParameterError(
                 "crowd.guidance",
                 c.guidance,
@@ -305,6 +325,7 @@ class DensityCrowd:
             substeps=substeps,
             sight=ctx.sight,
             guidance=guidance,
+            people=c.n,
         )
 
 

@@ -30,10 +30,11 @@ positions and returns a :class:`Guidance`, or None for the robots' signs.
 
 **The density.**  The crowd's density (crowd kind ``fokker-planck``,
 :class:`~meanfield.crowds.density_crowd.DensityCrowd`) asks each guidance what it gives the
-mean-field equation: a factory declares ``for_density``, a function of the
-:class:`~meanfield.interfaces.CrowdContext` returning a :class:`DensityGuidance` (read with
-:func:`meanfield.plugins.declared`); a guidance that declares nothing (a plug-in's) is refused
-by the density, naming ``crowd.guidance``.  The built-in ones (docs page *Congestion*,
+mean-field equation: a guidance's record (:class:`~meanfield.capabilities.GuidanceCapabilities`, read with
+:func:`meanfield.plugins.capabilities`) holds ``for_density``, a function of the
+:class:`~meanfield.interfaces.CrowdContext` returning a :class:`DensityGuidance`; a guidance whose
+``for_density`` is None (a plug-in's for agents only) is refused by the density, naming ``crowd.guidance``.
+The built-in ones (docs page *Congestion*,
 "The PDE"):
 
 ``signs``
@@ -59,6 +60,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from meanfield.capabilities import GuidanceCapabilities, declares
 from meanfield.crowds.crowd_routes import route_velocity  # (where it lives: the routes' drift on the faces)
 from meanfield.errors import ParameterError
 from meanfield.geometry.grid import FaceField
@@ -401,10 +403,6 @@ def random_walk_for_density(ctx: CrowdContext) -> DensityGuidance:
     return DensityGuidance(diffusion=walk_diffusion(v.walk_speed, v.turning_rate))
 
 
-# what each guidance gives the density (the core asks: meanfield.plugins.declared("guidance", name, "for_density"))
-signs.for_density = signs_for_density  # type: ignore[attr-defined]
-geodesic.for_density = geodesic_for_density  # type: ignore[attr-defined]
-random_walk.for_density = random_walk_for_density  # type: ignore[attr-defined]
 
 
 class DensityRoutes:
@@ -443,5 +441,9 @@ def hughes_for_density(ctx: CrowdContext) -> DensityGuidance:
     return DensityGuidance(velocity_of=DensityRoutes(routes_of(ctx, keep_exit=False), ctx.scenario.crowd.n))
 
 
-fastest_route.for_density = fastest_route_for_density  # type: ignore[attr-defined]
-hughes.for_density = hughes_for_density  # type: ignore[attr-defined]
+# what each guidance can do: what it gives the density (meanfield.plugins.capabilities("guidance", name).for_density)
+declares(GuidanceCapabilities(for_density=signs_for_density))(signs)
+declares(GuidanceCapabilities(for_density=geodesic_for_density))(geodesic)
+declares(GuidanceCapabilities(for_density=random_walk_for_density))(random_walk)
+declares(GuidanceCapabilities(for_density=fastest_route_for_density))(fastest_route)
+declares(GuidanceCapabilities(for_density=hughes_for_density))(hughes)

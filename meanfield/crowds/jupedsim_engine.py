@@ -35,12 +35,13 @@ from typing import Any
 
 import numpy as np
 
+from meanfield.capabilities import CrowdCapabilities, declares
 from meanfield.crowds._jupedsim_api import MODEL_PARAMETERS, PEDESTRIAN_MODELS, REPULSION, JuPedSimAdapter
 from meanfield.crowds.agent_crowd import AgentCrowd, initial_positions
 from meanfield.crowds.point_mass import PointMassEngine
 from meanfield.errors import ParameterError, choice, num
 from meanfield.geometry.exits import exit_segments, leaving
-from meanfield.geometry.region import Region as Domain
+from meanfield.geometry.region import Region
 from meanfield.interfaces import CrowdContext
 
 __all__ = [
@@ -60,7 +61,7 @@ def place_bodies(
     draw: Callable[[int], np.ndarray],
     n: int,
     radius: float,
-    domain: Domain,
+    domain: Region,
     *,
     gap: float = 0.0,
     max_draws: int | None = None,
@@ -80,7 +81,7 @@ def place_bodies(
         Number of bodies.
     radius : float
         Body radius ``> 0``.
-    domain : Domain
+    domain : Region
         Ω (convex): bodies must stay ``radius`` inside its walls.
     gap : float
         Extra clearance between bodies.
@@ -144,7 +145,7 @@ def place_bodies(
     return kept[m:]
 
 
-def place_groups(groups: list[dict[str, Any]], radius: float, domain: Domain, rng: np.random.Generator) -> np.ndarray:
+def place_groups(groups: list[dict[str, Any]], radius: float, domain: Region, rng: np.random.Generator) -> np.ndarray:
     """Each group's bodies in its region, group after group, none overlapping another (``crowd.initial =
     "groups"``, :mod:`meanfield.crowds.groups`): :func:`place_bodies` from the uniform law on the region, each
     group keeping clear of the groups placed before it.
@@ -249,7 +250,7 @@ class JuPedSimEngine:
     positions : ndarray, shape (N, 2)
         Initial positions: inside Ω, a radius from the walls, bodies not overlapping
         (see :func:`place_bodies`).
-    domain : Domain
+    domain : Region
         Ω, the walkable area.
     radius : float
         Body radius (m).
@@ -282,7 +283,7 @@ class JuPedSimEngine:
     def __init__(
         self,
         positions: np.ndarray,
-        domain: Domain,
+        domain: Region,
         radius: float,
         max_speed: float,
         time_step: float,
@@ -322,7 +323,7 @@ class JuPedSimEngine:
         self.track_body_overlap(0.0)
 
     @staticmethod
-    def _not_convex(domain: Domain) -> bool:
+    def _not_convex(domain: Region) -> bool:
         """Whether Ω may be non-convex (a plan: its reflection follows paths)."""
         return bool(getattr(domain, "reflects_along_paths", False))
 
@@ -560,6 +561,22 @@ def check_scenario(scenario: Any) -> None:
         )
 
 
+@declares(
+    CrowdCapabilities(
+        options=JuPedSimOptions,  # [crowd.options.jupedsim]
+        check_scenario=check_scenario,
+        # people may be placed in groups, each group's bodies in its region (crowd.initial = "groups",
+        # place_groups); each body keeps its group's exit, in the order place_groups places them
+        places_groups=True,
+        group_exits=True,
+        # an exit can close during a run ([[events]], JuPedSimEngine.exits_closed): no body is routed through it
+        # any more, and the informed crowd's routes lead to the exits still open
+        closes_exits=True,
+        # each body may wait its pre-movement time (its desired speed is 0 until then: it stands, and only other
+        # bodies may push it) and ignore the signs (it walks the random walk of [view]): Individuals
+        models_individuals=True,
+    )
+)
 def jupedsim_crowd(ctx: CrowdContext) -> AgentCrowd:
     """Registry factory (kind ``crowd``, name ``jupedsim``): the scenario's humans as JuPedSim bodies.
 
@@ -579,23 +596,6 @@ def jupedsim_crowd(ctx: CrowdContext) -> AgentCrowd:
         humans, sc.domain, ped.radius, ped.max_speed, ped.time_step, ped.model, sc.seed, ped.parameters()
     )
     return AgentCrowd.from_context(engine, ctx)
-
-
-jupedsim_crowd.options = JuPedSimOptions  # type: ignore[attr-defined]  # what the core asks (plugins.declared)
-jupedsim_crowd.check_scenario = check_scenario  # type: ignore[attr-defined]
-jupedsim_crowd.places_groups = True  # type: ignore[attr-defined]
-"""People may be placed in groups, each group's bodies in its region (``crowd.initial = "groups"``,
-:func:`place_groups`)."""
-jupedsim_crowd.group_exits = True  # type: ignore[attr-defined]
-"""A group may walk to an exit of its own (``[[crowd.groups]] exit = k``): each body keeps its group's, in the
-order :func:`place_groups` places them."""
-jupedsim_crowd.closes_exits = True  # type: ignore[attr-defined]
-"""An exit can close during a run (``[[events]]``, :meth:`JuPedSimEngine.exits_closed`): no body is routed
-through it any more, and the informed crowd's routes lead to the exits still open."""
-jupedsim_crowd.models_individuals = True  # type: ignore[attr-defined]
-"""Each body may wait its pre-movement time (its desired speed is 0 until then: it stands, and only
-other bodies may push it, by the pedestrian model) and ignore the signs (it walks the random walk of
-``[view]``): :class:`~meanfield.crowds.agent_crowd.Individuals`."""
 
 
 def max_body_overlap(x: np.ndarray, y: np.ndarray, radius: float) -> tuple[float, int]:

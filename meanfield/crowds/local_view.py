@@ -25,7 +25,7 @@ import numpy as np
 
 from meanfield.crowds._view_loops import in_view, turn_walkers
 from meanfield.errors import ParameterError
-from meanfield.geometry.domain import Domain
+from meanfield.geometry.region import Region
 
 __all__ = ["LocalView", "robots_in_view"]
 
@@ -103,7 +103,7 @@ class LocalView:
         Speed ``s >= 0`` of the random walk.
     turning_rate : float
         Heading diffusion ``D_r >= 0`` (rad²/s).
-    domain : Domain
+    domain : Region
         Ω, whose walls turn the walkers.
     rng : numpy.random.Generator
         Source of the initial headings (uniform) and of the heading increments.
@@ -117,7 +117,7 @@ class LocalView:
         radius: float | None,
         walk_speed: float,
         turning_rate: float,
-        domain: Domain,
+        domain: Region,
         rng: np.random.Generator,
         clearance: float = 0.0,
     ):
@@ -147,7 +147,7 @@ class LocalView:
         n: int,
         walk_speed: float,
         turning_rate: float,
-        domain: Domain,
+        domain: Region,
         rng: np.random.Generator,
         clearance: float = 0.0,
     ) -> LocalView:

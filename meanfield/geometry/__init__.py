@@ -1,4 +1,4 @@
-"""The workspace Ω and everything drawn on it.
+"""The region Ω and everything drawn on it.
 
 Regions (:mod:`~meanfield.geometry.region`: the :class:`Region` interface; :mod:`~meanfield.geometry.domain`:
 box, disk, polygon; :mod:`~meanfield.geometry.plan`: floor plans with holes, from WKT, GeoJSON or

@@ -21,13 +21,13 @@ another piece still has one.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
 from meanfield.errors import ParameterError
 
-__all__ = ["WallsChange", "blocked_region", "exit_pieces", "tell_walls_changed"]
+__all__ = ["ReactsToWalls", "WallsChange", "blocked_region", "exit_pieces", "tell_walls_changed"]
 
 PIECE_AREA = 1e-6
 """Pieces of ``Ω ∖ B`` smaller than this share of Ω's area are clipping round-off, dropped."""
@@ -98,7 +98,7 @@ def exit_pieces(region: Any) -> list[list[int]]:
 
 @dataclass(frozen=True)
 class WallsChange:
-    """What a ``block`` event changes, told to every part that declares ``walls_changed``.
+    """What a ``block`` event changes, told to every part that reacts to walls (:class:`ReactsToWalls`).
 
     Attributes
     ----------
@@ -124,9 +124,19 @@ class WallsChange:
     blocked: Any
 
 
+@runtime_checkable
+class ReactsToWalls(Protocol):
+    """A part told when a region becomes wall during a run (a scenario's ``[[events]] block``; docs page *Buildings*,
+    "Events"): a crowd, its engine, view or guidance, a controller."""
+
+    def walls_changed(self, change: WallsChange) -> None:
+        """The walls are ``change``'s from now on."""
+        ...
+
+
 def tell_walls_changed(parts: Any, change: WallsChange) -> None:
-    """Tell each of ``parts`` that declares ``walls_changed`` what the walls are now (a ``block`` event)."""
+    """Tell each of ``parts`` that reacts to walls (:class:`ReactsToWalls`) what the walls are now (a ``block``
+    event)."""
     for part in parts:
-        changed = getattr(part, "walls_changed", None)
-        if changed is not None:
-            changed(change)
+        if isinstance(part, ReactsToWalls):
+            part.walls_changed(change)

@@ -1,4 +1,4 @@
-"""The workspace Ω: the entry point to every region, and the convex shapes in closed form.
+"""The region Ω: the entry point to every region, and the convex shapes in closed form.
 
 :class:`Domain` builds every :class:`~meanfield.geometry.region.Region` the toolkit has:
 ``Domain.box``, ``Domain.disk`` and ``Domain.polygon`` (registered as region kinds ``box``,
@@ -24,10 +24,11 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
+from meanfield.capabilities import RegionCapabilities
 from meanfield.errors import ParameterError
 from meanfield.geometry.region import (
     BoundaryPart,
@@ -55,7 +56,7 @@ def _finite(name: str, value: float) -> float:
 
 @dataclass(frozen=True)
 class Domain:
-    """A convex, bounded workspace Ω, and the builder of every region.
+    """A convex, bounded region Ω, and the builder of every region.
 
     Do not call the constructor directly; use :meth:`box`, :meth:`disk` or :meth:`polygon`
     (or :meth:`from_wkt`, :meth:`from_geojson`, :meth:`from_dxf`, :meth:`from_shapely`), which
@@ -77,6 +78,10 @@ class Domain:
         Parts of the boundary that are exits (doors), each ``((x0, y0), (x1, y1))`` on ∂Ω;
         the rest of ∂Ω is wall.  Empty by default (the paper's closed room).
     """
+
+    capabilities: ClassVar[RegionCapabilities] = RegionCapabilities()
+    """What the ``box``, ``disk`` and ``polygon`` region kinds declare
+    (:class:`~meanfield.capabilities.RegionCapabilities`)."""
 
     kind: DomainKind
     vertices: np.ndarray = field(repr=False)

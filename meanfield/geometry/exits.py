@@ -17,7 +17,7 @@ An exit is a segment of ∂Ω (``exits`` of the region).  Its physics, for both 
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -25,7 +25,15 @@ from meanfield.errors import ParameterError
 from meanfield.geometry._exit_loops import bridge_exits, first_exit_crossed
 from meanfield.geometry._exit_loops import segment_distances as distance_to_segments
 
-__all__ = ["exit_segments", "exits_on", "distance_to_segments", "leaving", "tell_exits_closed", "ExitSink"]
+__all__ = [
+    "exit_segments",
+    "exits_on",
+    "distance_to_segments",
+    "leaving",
+    "tell_exits_closed",
+    "ExitSink",
+    "ReactsToClosedExits",
+]
 
 
 def exit_segments(region: Any) -> np.ndarray:
@@ -44,13 +52,22 @@ def exits_on(shape: Any, segs: np.ndarray, tol: float) -> list[int]:
     return [k for k, seg in enumerate(segs) if shape.distance(shapely.LineString(seg)) < tol]
 
 
+@runtime_checkable
+class ReactsToClosedExits(Protocol):
+    """A part told when exits close during a run (a scenario's ``[[events]] close_exit``; docs page *Buildings*,
+    "Events"): a crowd, its engine or guidance, a controller."""
+
+    def exits_closed(self, open_exits: np.ndarray) -> None:
+        """From now on only the exits with ``open_exits[k]`` are open."""
+        ...
+
+
 def tell_exits_closed(parts: Any, open_exits: np.ndarray) -> None:
-    """Tell each of ``parts`` that declares ``exits_closed`` which exits are still open (a scenario's
-    ``[[events]]``; docs page *Buildings*, "Events"): the parts that plan to the exits plan again."""
+    """Tell each of ``parts`` that reacts to closed exits (:class:`ReactsToClosedExits`) which exits are still open
+    (a scenario's ``[[events]]``; docs page *Buildings*, "Events"): the parts that plan to the exits plan again."""
     for part in parts:
-        closed = getattr(part, "exits_closed", None)
-        if closed is not None:
-            closed(np.asarray(open_exits, dtype=bool).copy())
+        if isinstance(part, ReactsToClosedExits):
+            part.exits_closed(np.asarray(open_exits, dtype=bool).copy())
 
 
 def leaving(

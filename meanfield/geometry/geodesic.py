@@ -23,14 +23,9 @@
   falls between the exit and the first node, still has a front.  The march runs in units of
   the fastest speed, so a constant ``F = c`` gives exactly ``φ/c`` of ``F = 1``.
 
-  Measured (``tests/geometry/test_fast_marching.py``): a whole wall as the exit is exact to
-  round-off; a 0.1 m door in a 2 m room (``h`` = 0.05 and 0.025) is within 0.04 ``h`` of the
-  Euclidean distance everywhere, at most 0.5 % long beyond 5 cells in every 15° sector, where
-  Dijkstra's 8-neighbour metric (this module before fast marching) was 6.7 % to 8.2 % long in
-  every sector (``1/cos 22.5° − 1``); behind the corner of an L, within −0.24 ``h`` and
-  +0.02 ``h`` of the straight line to the corner and on (−0.7 % to +0.1 %; Dijkstra +4.5 %); a
-  corridor of two speeds is exact on its fast side and within 0.12 ``h/F`` on the slow one
-  (the speed at the lattice's nodes is the cells' mean).
+  Its accuracy (exact for a whole wall as the exit, within a fraction of a cell of the Euclidean distance to
+  a small door and round a corner) is tested in ``tests/geometry/test_fast_marching.py`` and stated, with the
+  Dijkstra distance it replaced, on the docs page *Buildings*, "Routes to the exits".
 
 * :func:`exit_distance` — ``φ`` on the cells for ``F = 1``: the geodesic distance to the
   nearest exit inside Ω (``inf`` on inactive cells).
@@ -45,8 +40,7 @@
   ("string pulling").  A point's distance to the exit (:meth:`ExitRoutes.distance`, what the
   evacuation lower bound uses) is the straight leg to its cell's waypoint plus ``φ`` there:
   the length of a path inside Ω, within ``φ``'s error of the geodesic when the waypoint is on
-  it (measured 0 to 1.5 % long in a 10 m room, 0.25 m cells, where the route length down the
-  Dijkstra tree was up to 5.7 % long).
+  it (docs page *Buildings*, "Routes to the exits").
 
   *Why a tree down φ, string-pulled, and not the stream lines of* ``−∇φ``.  A walker steered
   by ``−∇φ`` itself takes the cell-centred difference of ``φ`` at the wall, where it is one
@@ -57,8 +51,7 @@
   the axes and the diagonals, so a waypoint 16 cells ahead could sit up to ``tan 22.5°`` of
   that distance off the straight line, and near the ridge between two exits it chose the exit
   nearer in its metric, up to 8 % off; the tree down ``φ`` alternates between the two
-  neighbours that bracket ``−∇φ`` and chooses the exit nearer in Ω (walked in a 10 m room:
-  at most 0.6 % longer than the straight line, 1 % down the Dijkstra tree).  A cell that no
+  neighbours that bracket ``−∇φ`` and chooses the exit nearer in Ω.  A cell that no
   lower neighbour joins (none has been seen: fast marching gives every node a lower upwind
   neighbour) would take its Dijkstra predecessor, and the routes would fall back to the
   Dijkstra tree altogether if that closed a loop (:attr:`ExitRoutes.tree` says which).

@@ -98,7 +98,7 @@ class Grid:
     Parameters
     ----------
     domain : Region
-        The workspace Ω.
+        The region Ω.
     cells : (int, int)
         Number of cells ``(nx, ny)`` along x and y, each >= 2.
     cut_cells : bool, default True

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from meanfield.capabilities import RegionCapabilities, declares
 from meanfield.errors import ParameterError
 from meanfield.geometry._wall_loops import reflect_steps, robot_steps
 from meanfield.geometry.region import (
@@ -370,6 +371,7 @@ class Plan:
         return f"Plan({self.polygon.wkt[:60]}{'...' if len(self.polygon.wkt) > 60 else ''})"
 
 
+@declares(RegionCapabilities())
 def plan_from_table(
     wkt: str | None = None,
     file: str | None = None,

@@ -1,4 +1,4 @@
-"""The :class:`Region` interface: the workspace Ω as geometry, its boundary as walls and exits.
+"""The :class:`Region` interface: the region Ω as geometry, its boundary as walls and exits.
 
 The first of the closed loop's three interfaces (:mod:`meanfield.interfaces` holds the
 other two); :class:`meanfield.geometry.domain.Domain` builds every implementation of it (its
@@ -60,7 +60,7 @@ class BoundaryPart:
 
 @runtime_checkable
 class Region(Protocol):
-    """The workspace Ω as geometry (:class:`meanfield.geometry.domain.Domain` implements it).
+    """The region Ω as geometry (:class:`meanfield.geometry.domain.Domain` implements it).
 
     Ω is a bounded polygon, possibly with holes (a disk is an exact curved special case),
     whose boundary is split into walls and exits.  Box and disk answer every question

@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from meanfield.geometry._target_loops import count_in_disk
-from meanfield.geometry.domain import Domain
 from meanfield.geometry.grid import Grid
+from meanfield.geometry.region import Region
 
 __all__ = ["gaussian_target", "target_region_radius", "fraction_in_disk"]
 
@@ -33,7 +33,7 @@ def gaussian_target(grid: Grid, center: tuple[float, float], std: float) -> np.n
 
 
 def target_region_radius(
-    domain: Domain, center: tuple[float, float], std: float, mass: float = 0.95, samples: int = 800
+    domain: Region, center: tuple[float, float], std: float, mass: float = 0.95, samples: int = 800
 ) -> float:
     """Smallest ``r`` with ``∫_{Ω ∩ B(center, r)} ρ_* >= mass`` (ρ_* normalised in Ω).
 

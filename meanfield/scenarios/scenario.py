@@ -25,7 +25,8 @@ Every field is checked when the scenario is built (or read); a bad value raises
 (:mod:`meanfield.geometry.region`), and an unknown TOML key is refused.  Names of parts
 (``domain.kind``, ``crowd.kind``, ``controller.kind``, ``controller.beta_gamma``) must be
 registered in :mod:`meanfield.plugins`; a part checks its own options and its own cross-field
-conditions (a crowd declares ``options`` and ``check_scenario``).
+conditions (a crowd's capability record holds ``options`` and ``check_scenario``:
+:class:`~meanfield.capabilities.CrowdCapabilities`).
 
 The ``[pedestrians]`` table of earlier releases is still read, with a
 :class:`~meanfield.errors.MeanfieldDeprecationWarning` naming the new fields
@@ -54,6 +55,7 @@ from typing import Any
 import numpy as np
 
 from meanfield import plugins as registry
+from meanfield.capabilities import CrowdCapabilities
 from meanfield.errors import ParameterError, ScenarioWarning, choice, deprecated, integer, module_list, num
 from meanfield.geometry.domain import Domain
 from meanfield.geometry.region import Region, region_from_table
@@ -199,6 +201,10 @@ def resolve_key(key: str, value: Any = None) -> str:
 class Scenario:
     """All parameters of one closed-loop run (see the module docstring for the layout).
 
+    Every field's default is the paper's: a bare ``Scenario()`` is the paper's room (the built-in ``paper``
+    scenario but for its name), in the paper's dimensionless units, so that no congestion and no memory are on
+    unless a scenario in ``"SI"`` units asks for them.
+
     Cross-field checks run on construction: explicit robot positions and the initial
     crowd centre must lie in Ω, the target must put mass in Ω, ``dt < t_final``, and a crowd
     with congestion (a :attr:`congestion_model` other than ``"none"``) needs ``units = "SI"``.
@@ -225,8 +231,8 @@ class Scenario:
     t_final: float = 40.0
     record_every: int = 10
     record_humans: int | str = 10_000
-    units: str = "SI"
-    domain: Domain = field(default_factory=lambda: Domain.box(1.0, 1.0))
+    units: str = "dimensionless"
+    domain: Region = field(default_factory=lambda: Domain.box(1.0, 1.0))
     grid: GridSpec = field(default_factory=GridSpec)
     crowd: CrowdSpec = field(default_factory=CrowdSpec)
     robots: RobotSpec = field(default_factory=RobotSpec)
@@ -288,7 +294,7 @@ class Scenario:
             ("crowd.compliance", c.compliance, 1.0),
             ("view.memory", self.memory, "none"),
         ):
-            if value != default and not registry.declared("crowd", c.kind, "models_individuals", False):
+            if value != default and not self.crowd_capabilities.models_individuals:
                 raise ParameterError(
                     key,
                     value,
@@ -328,7 +334,7 @@ class Scenario:
         c = self.crowd
         if c.door_model == "auto":
             return
-        takes = registry.declared("crowd", c.kind, "door_models", None) or ("count",)
+        takes = self.crowd_capabilities.door_models
         if c.door_model not in takes:
             raise ParameterError(
                 "crowd.door_model", c.door_model,
@@ -346,14 +352,13 @@ class Scenario:
         from meanfield.crowds.groups import group_region
         from meanfield.geometry.exits import exit_segments
 
-        if not registry.declared("crowd", c.kind, "places_groups", False):
+        if not self.crowd_capabilities.places_groups:
             raise ParameterError(
                 "crowd.initial", c.initial, f"'uniform' or 'gaussian' with the {c.kind!r} crowd (it declares no "
                 "places_groups): use point masses or the density"
             )  # fmt: skip
         n_exits = len(exit_segments(self.domain))
-        to_shapely = getattr(self.domain, "to_shapely", None)
-        plan = to_shapely() if to_shapely is not None else None
+        plan = self.domain.to_shapely()
         for i, g in enumerate(c.groups):
             region = group_region(g["region"], f"crowd.groups[{i}].region")
             if plan is not None and shapely.intersection(region, plan).area < 0.5 * region.area:
@@ -361,7 +366,7 @@ class Scenario:
             if g.get("exit") is not None and g["exit"] >= n_exits:
                 allowed = f"an index into domain.exits, 0 to {n_exits - 1}" if n_exits else "none (no exits)"
                 raise ParameterError(f"crowd.groups[{i}].exit", g["exit"], allowed)
-            if g.get("exit") is not None and not registry.declared("crowd", c.kind, "group_exits", False):
+            if g.get("exit") is not None and not self.crowd_capabilities.group_exits:
                 raise ParameterError(
                     f"crowd.groups[{i}].exit", g["exit"],
                     f"no exit of the group's own with the {c.kind!r} crowd (it declares no group_exits: its people "
@@ -413,7 +418,7 @@ class Scenario:
                 )
             out.append(ev)
         out.sort(key=lambda ev: ev.time)
-        if not registry.declared("crowd", self.crowd.kind, "closes_exits", False):
+        if not self.crowd_capabilities.closes_exits:
             raise ParameterError(
                 "events",
                 f"{len(out)} event(s)",
@@ -424,8 +429,8 @@ class Scenario:
         if blocks:
             first = blocks[0].name + ".block"
             for kind, part in (("crowd", self.crowd.kind), ("controller", self.controller.kind)):
-                if not registry.declared(kind, part, "changes_walls", False):
-                    fits = [k for k in registry.available(kind) if registry.declared(kind, k, "changes_walls", False)]
+                if not registry.capabilities(kind, part).changes_walls:
+                    fits = [k for k in registry.available(kind) if registry.capabilities(kind, k).changes_walls]
                     raise ParameterError(first, f"a block with the {part!r} {kind}", f"{kind}.kind among {fits}")
             if self.interaction.kind != "none":
                 why = 'interaction.kind = "none" (the interaction lives on the grid the block cuts)'
@@ -473,7 +478,7 @@ class Scenario:
         the crowd kind's default for the scenario's units.
 
         A crowd declares ``default_congestion``, a table from units to a registered diagram
-        (:func:`meanfield.plugins.declared`): the point masses and the density walk by the
+        (:attr:`crowd_capabilities`): the point masses and the density walk by the
         ``"linear"`` diagram in SI units, the one that puts the bottleneck's measured flows in
         range (docs page *Congestion*), and by none in the paper's dimensionless units (its
         study, unchanged); JuPedSim's bodies declare none (they queue by their own model).  A
@@ -481,8 +486,7 @@ class Scenario:
         """
         if self.crowd.congestion != "auto":
             return self.crowd.congestion
-        defaults = registry.declared("crowd", self.crowd.kind, "default_congestion", None) or {}
-        return defaults.get(self.units, "none")
+        return self.crowd_capabilities.default_congestion.get(self.units, "none")
 
     @property
     def memory(self) -> str:
@@ -491,9 +495,11 @@ class Scenario:
         dimensionless room, the density)."""
         if self.view.memory != "auto":
             return self.view.memory
-        if self.units != "SI" or not registry.declared("crowd", self.crowd.kind, "models_individuals", False):
+        from meanfield.geometry.exits import exit_segments
+
+        if self.units != "SI" or not self.crowd_capabilities.models_individuals:
             return "none"
-        return "sign" if len(getattr(self.domain, "exits", None) or ()) else "none"
+        return "sign" if len(exit_segments(self.domain)) else "none"
 
     @property
     def door_model(self) -> str:
@@ -504,7 +510,7 @@ class Scenario:
         """
         if self.crowd.door_model != "auto":
             return self.crowd.door_model
-        return registry.declared("crowd", self.crowd.kind, "door_models", ("count",))[0]
+        return self.crowd_capabilities.door_models[0]
 
     def _congestion(self) -> Any:
         """The crowd's fundamental diagram (:mod:`meanfield.crowds.congestion`), from the registry."""
@@ -512,10 +518,13 @@ class Scenario:
         return registry.load("congestion", self.congestion_model)(free_speed=c.free_speed, rho_max=c.rho_max)
 
     def _check_crowd(self) -> None:
-        """The chosen crowd's own cross-field checks (it declares ``check_scenario``)."""
-        check = registry.declared("crowd", self.crowd.kind, "check_scenario")
-        if check is not None:
-            check(self)
+        """The chosen crowd's own cross-field checks (its record's ``check_scenario``)."""
+        self.crowd_capabilities.check(self)
+
+    @property
+    def crowd_capabilities(self) -> CrowdCapabilities:
+        """What the chosen crowd kind can do (:class:`~meanfield.capabilities.CrowdCapabilities`, from the registry)."""
+        return registry.capabilities("crowd", self.crowd.kind)
 
     @property
     def pedestrians(self) -> Any:
@@ -524,7 +533,7 @@ class Scenario:
         from types import SimpleNamespace
 
         deprecated("Scenario.pedestrians", "use Scenario.crowd.kind and Scenario.crowd.options")
-        options = registry.declared("crowd", _OLD_PEDESTRIAN_KIND, "options")
+        options = registry.capabilities("crowd", _OLD_PEDESTRIAN_KIND).options
         table = dataclasses.asdict(options(**self.crowd.options.get(_OLD_PEDESTRIAN_KIND, {})))
         return SimpleNamespace(backend=self.crowd.kind, **table)
 

@@ -79,7 +79,7 @@ class CrowdSpec:
     (the SDE of eq. (1), :mod:`meanfield.crowds.point_mass`), ``"jupedsim"`` (bodies moved by
     JuPedSim, :mod:`meanfield.crowds.jupedsim_engine`), ``"fokker-planck"`` (the density itself,
     eq. (4)) or a plugin's.  ``options`` holds one table per crowd kind, ``[crowd.options.<kind>]``,
-    which that crowd checks itself (it declares ``options``, :func:`meanfield.plugins.declared`);
+    which that crowd checks itself (its record's ``options``, :func:`meanfield.plugins.capabilities`);
     a table is kept whatever ``kind`` is, so that switching kind (``--crowd``) finds it.
 
     ``field_evaluation`` is how ``v_r`` reaches the humans: ``"exact"`` (eq. (3) at each
@@ -182,7 +182,7 @@ class CrowdSpec:
             if kind not in kinds:
                 raise ParameterError(f"crowd.options.{kind}", table, f"a table named after a registered crowd {kinds}")
             # the crowd checks its own options, naming crowd.options.<kind>.<field>
-            options_table(f"crowd.options.{kind}", plugins.declared("crowd", kind, "options"), table)
+            options_table(f"crowd.options.{kind}", plugins.capabilities("crowd", kind).options, table)
         self.options = {k: dict(v) for k, v in self.options.items()}
 
 
@@ -202,6 +202,8 @@ class RobotSpec:
     ``layout = "grid"`` puts the robots on a regular lattice (the paper's 4×4),
     ``"random"`` draws them uniformly, ``"explicit"`` takes ``positions``.
     ``headings`` is ``"random"`` (uniform on [0, 2π), as in the paper) or a list.
+    ``u_max`` and ``omega_max`` are the paper's limits by default (0.2 and 3 in its units); ``None`` (``"none"`` in
+    TOML): no limit.
     ``margin`` keeps robots at least that far inside the bounding walls of a box
     (a robot is a body; it cannot stand in a wall).
     """
@@ -210,8 +212,8 @@ class RobotSpec:
     layout: str = "grid"
     positions: list[list[float]] | None = None
     headings: str | list[float] = "random"
-    u_max: float | None = None
-    omega_max: float | None = None
+    u_max: float | None = 0.2
+    omega_max: float | None = 3.0
     margin: float = 0.0
 
     def __post_init__(self) -> None:
@@ -395,16 +397,11 @@ def controller_options(options: Any, kind: str) -> dict[str, dict[str, Any]]:
         new = ", ".join(f"controller.options.{kind}.{k}" for k in sorted(flat))
         deprecated(old, f"use {new} (the table [controller.options.{kind}])", stacklevel=3)
     for k, table in nested.items():
-        declared = plugins.declared("controller", k, "options", _UNDECLARED)
-        if declared is _UNDECLARED:  # a plugin that declares nothing checks its table itself, when it is built
-            continue
-        options_table(f"controller.options.{k}", declared, table,
+        options_table(f"controller.options.{k}", plugins.capabilities("controller", k).options, table,
                       f"no options: the {k!r} controller takes none (the law's gains are fields of [controller]: "
                       "alpha, k_u, k_omega, ...)")  # fmt: skip
     return nested
 
-
-_UNDECLARED = object()
 
 FLAT_CONTROLLER_OPTIONS_REMOVED_IN = REMOVED_IN
 """The release that no longer reads options directly under ``[controller.options]`` (they go under the kind's table)."""

@@ -24,8 +24,8 @@ import numpy as np
 
 from meanfield._compiled.core import NO_BOX
 from meanfield.errors import ParameterError, limit_or_inf
-from meanfield.geometry.domain import Domain
 from meanfield.geometry.grid import FaceField, Grid
+from meanfield.geometry.region import Region
 from meanfield.geometry.sight import SightLines
 from meanfield.signs._masked_loops import face_moments, masked_face_kernels
 from meanfield.signs._robot_loops import limit_inputs, robot_euler
@@ -89,7 +89,7 @@ class RobotTeam:
         """Number of robots."""
         return len(self.positions)
 
-    def check_inside(self, domain: Domain, tol: float = 1e-12) -> None:
+    def check_inside(self, domain: Region, tol: float = 1e-12) -> None:
         """Raise :class:`ParameterError` if a robot is outside Ω."""
         inside = domain.contains(self.positions[:, 0], self.positions[:, 1], tol=tol)
         if not inside.all():
@@ -106,7 +106,7 @@ class RobotTeam:
             out |= np.abs(omega) >= (1 - rtol) * self.omega_max
         return out
 
-    def step(self, u: np.ndarray, omega: np.ndarray, dt: float, domain: Domain) -> None:
+    def step(self, u: np.ndarray, omega: np.ndarray, dt: float, domain: Region) -> None:
         """Advance eq. (2) by one explicit Euler step, saturating and keeping robots in Ω.
 
         ``u`` and ``omega`` are saturated with :func:`saturate_inputs` first, then the
@@ -115,7 +115,7 @@ class RobotTeam:
         u, omega = saturate_inputs(u, omega, self.u_max, self.omega_max)
         self.advance(u, omega, dt, domain)
 
-    def advance(self, u: np.ndarray, omega: np.ndarray, dt: float, domain: Domain) -> None:
+    def advance(self, u: np.ndarray, omega: np.ndarray, dt: float, domain: Region) -> None:
         """Euler step of eq. (2) with inputs already within the limits; robots kept in ``domain``.
 
         In a plan (a region with ``slide_along_walls``) a robot whose step meets a wall or a

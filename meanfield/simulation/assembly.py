@@ -32,6 +32,7 @@ from meanfield.interfaces import (
     Crowd,
     CrowdContext,
     Disturbance,
+    EvacuatingCrowd,
     Region,
     SigmaLike,
 )
@@ -124,21 +125,22 @@ def disturbance_for(scenario: Scenario) -> Disturbance | None:
 
 
 def sensing_controllers() -> list[str]:
-    """The registered controllers that run on a group's knowledge (they declare ``accepts_sensing``)."""
-    return [name for name in plugins.available("controller") if plugins.declared("controller", name, "accepts_sensing")]
+    """The registered controllers that run on a group's knowledge (their records' ``accepts_sensing``)."""
+    names = plugins.available("controller")
+    return [name for name in names if plugins.capabilities("controller", name).accepts_sensing]
 
 
 def law_scales(scenario: Scenario, region: Region, kernel: NavigationKernel) -> tuple[float, float] | None:
     """``(ℓ, c)`` of ``controller.scaling = "kernel"`` (``√|Ω|`` and the kernel's strength), else None."""
     if scenario.controller.scaling != "kernel":
         return None
-    c = getattr(kernel, "c", None)
+    c = kernel.c if isinstance(kernel, GaussianKernel) else None  # the paper's kernel: its strength
     if not (isinstance(c, (int, float)) and c > 0):
         raise ParameterError("controller.scaling", "kernel", "a kernel with a strength c > 0 (the unit of speed)")
     strategy = scenario.controller.beta_gamma
-    if not plugins.declared("beta_gamma", strategy, "accepts_kernel_scaling", False):
+    if not plugins.capabilities("beta_gamma", strategy).accepts_kernel_scaling:
         rules = plugins.available("beta_gamma")
-        fits = [s for s in rules if plugins.declared("beta_gamma", s, "accepts_kernel_scaling")]
+        fits = [s for s in rules if plugins.capabilities("beta_gamma", s).accepts_kernel_scaling]
         raise ParameterError(
             "controller.scaling",
             "kernel",
@@ -220,7 +222,8 @@ def assemble(
     sight = SightLines(region)
     context = CrowdContext(sc, grid, kern, sig, dist, interaction, rng, None if sight.trivial else sight)
     the_crowd = plugins.load("crowd", crowd_name)(context)
-    if any(part.kind == "exit" for part in region.boundary_parts()) and not getattr(the_crowd, "models_exits", False):
+    evacuates = isinstance(the_crowd, EvacuatingCrowd) and the_crowd.models_exits
+    if any(part.kind == "exit" for part in region.boundary_parts()) and not evacuates:
         raise ParameterError(
             "domain.exits",
             f"exits with the {crowd_name!r} crowd",
@@ -258,7 +261,7 @@ def assemble(
     if sc.sensing.local:  # one controller per robot, on what its group knows
         from meanfield.controllers.local_sensing import LocalSensing
 
-        if not plugins.declared("controller", kind, "accepts_sensing", False):
+        if not plugins.capabilities("controller", kind).accepts_sensing:
             raise ParameterError(
                 "sensing", kind, f"controller.kind among {sensing_controllers()} with a sensing or comm radius"
             )

@@ -39,6 +39,8 @@ from typing import Any
 
 import numpy as np
 
+from meanfield.interfaces import EvacuatingCrowd
+
 __all__ = ["EvacuationTracker", "SPECIFIC_FLOW", "DESIGN_SPECIFIC_FLOW", "CRUSH_DENSITY"]
 
 SPECIFIC_FLOW = 2.5
@@ -70,7 +72,7 @@ class EvacuationTracker:
         from meanfield.geometry.exits import exit_segments
 
         segs = exit_segments(loop.parts.region)
-        self.active = bool(len(segs)) and hasattr(loop.crowd, "remaining_fraction")
+        self.active = bool(len(segs)) and isinstance(loop.crowd, EvacuatingCrowd)
         if not self.active:
             return
         self.segs = segs
@@ -85,17 +87,9 @@ class EvacuationTracker:
         if self.active:
             self._record(loop)
 
-    def _persons_out(self, loop: Any) -> np.ndarray:
-        crowd = loop.crowd
-        engine = getattr(crowd, "engine", None)
-        if engine is not None and hasattr(engine, "exit_index"):
-            gone = engine.exit_index[engine.exit_index >= 0]
-            return np.bincount(gone, minlength=len(self.segs)).astype(float)
-        return self.n * np.asarray(crowd.out_per_exit, float) / crowd.initial_mass  # the density
-
     def _record(self, loop: Any) -> None:
         self.times.append(loop.t)
-        self.out.append(self._persons_out(loop))
+        self.out.append(loop.crowd.persons_out(len(self.segs)))
         peak = self.n * float(np.max(loop.density))
         if peak > self.peak:
             self.peak, self.peak_time = peak, loop.t

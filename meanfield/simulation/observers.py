@@ -19,7 +19,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from meanfield.interfaces import Command, ControlState, Crowd, Observation
+from meanfield.interfaces import Command, ControlState, Crowd, CrowdOfAgents, EvacuatingCrowd, Observation
 from meanfield.scenarios.scenario import Scenario
 from meanfield.signs._robot_loops import input_report
 from meanfield.signs.robots import AT_LIMIT_RTOL, RobotTeam
@@ -220,12 +220,14 @@ class Recorder:
         self.humans: np.ndarray | None = None
         self.loop: LoopView | None = None
         self.exits = False  # the region has exits: record the fraction out
+        self.agents = False  # the crowd is one of agents (CrowdOfAgents)
 
     def start(self, loop: LoopView) -> None:
         self.loop = loop
         self._every = (loop.scenario.record_every, loop.scenario.steps)  # the run's settings, read once
         region_has_exits = any(p.kind == "exit" for p in loop.parts.region.boundary_parts())
-        self.exits = region_has_exits and hasattr(loop.crowd, "remaining_fraction")
+        self.exits = region_has_exits and isinstance(loop.crowd, EvacuatingCrowd)
+        self.agents = isinstance(loop.crowd, CrowdOfAgents)  # what the crowd can say of its people (read once)
         if loop.crowd.positions is not None:
             self.humans = recorded_humans(loop.crowd.n, loop.scenario.record_humans)
         self.record_state()
@@ -300,8 +302,7 @@ class Recorder:
             f["human_y"].append(loop.crowd.positions[self.humans, 1])
         f["density"].append(loop.density.copy())
         f["fraction_in_target"].append(self.target.fraction)
-        seen = getattr(loop.crowd, "seen_fraction", None)
-        f["seen_fraction"].append(seen() if seen is not None else np.nan)
+        f["seen_fraction"].append(loop.crowd.seen_fraction() if self.agents else np.nan)
         if self.exits:
             f.setdefault("fraction_evacuated", []).append(1.0 - loop.crowd.remaining_fraction())
         for key in ("robot_speed", "robot_turn_rate"):
@@ -366,7 +367,7 @@ class Recorder:
                 "V1_definition": "V1 = integral of rho_tilde^2 (no factor 1/2)",
                 "V2_definition": "V2 = integral of rho_tilde^2/2 + |v_tilde|^2/2",
                 "backend": loop.scenario.crowd.kind,
-                "body_radius": getattr(loop.crowd, "body_radius", 0.0),
+                "body_radius": loop.crowd.body_radius if self.agents else 0.0,
                 "humans_total": loop.crowd.n if loop.crowd.n is not None else 0,
                 "humans_recorded": len(self.humans) if self.humans is not None else 0,
                 "units_system": loop.scenario.units,

@@ -110,7 +110,7 @@ def _kde_bytes(scenario: Any) -> int:
     nx, ny = scenario.grid.cells
     x0, x1, y0, y1 = scenario.domain.bounds
     dx, dy = (x1 - x0) / nx, (y1 - y0) / ny
-    box = len(getattr(scenario.domain, "box_walls", ())) > 0
+    box = scenario.domain.area >= (x1 - x0) * (y1 - y0) * (1.0 - 1e-12)  # Ω fills its bounding box
     grid = SimpleNamespace(shape=(nx, ny), cells=(nx, ny), dx=dx, dy=dy, is_box=box)
     d = scenario.density
     h = d.bandwidth if isinstance(d.bandwidth, int | float) else max(dx, dy)
@@ -256,7 +256,7 @@ def _refuse_record(scenario: Any, est: RunEstimate, need: int, have: int, what: 
 def stability_warnings(scenario: Any, grid: Any, summary: dict[str, Any]) -> list[str]:
     """The known conditions of the scheme a finished run broke (empty: none).
 
-    * the controller's own stability step, as it declares it (``stability_step(scenario, grid)``,
+    * the controller's own stability step, as its record declares it (``stability_step(scenario, grid)``,
       a :class:`~meanfield.interfaces.StabilityStep`): for the paper's law, holding ``v_d(ρⁿ)``
       over a step is an explicit step of the closed-loop diffusion ``∇·(α∇ρ̃)``, stable for
       ``dt ≤ 0.9 h²/(4 α₀)`` (docs page *Verification*, Theorem 1);
@@ -266,8 +266,7 @@ def stability_warnings(scenario: Any, grid: Any, summary: dict[str, Any]) -> lis
     out = []
     h = min(grid.dx, grid.dy)
     dt = scenario.dt
-    stability_step = plugins.declared("controller", scenario.controller.kind, "stability_step")
-    step = stability_step(scenario, grid) if stability_step is not None else None
+    step = plugins.capabilities("controller", scenario.controller.kind).largest_stable_step(scenario, grid)
     if step is not None and dt > step.dt:
         out.append(f"dt = {dt:g} exceeds {step.what} = {step.dt:.3g} {step.why}")
     speed = summary.get("max_robot_speed") or 0.0

@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from meanfield.interfaces import CrowdOfAgents
+
 __all__ = ["StragglerTracker"]
 
 
@@ -28,12 +30,14 @@ class StragglerTracker:
 
     def start(self, loop: Any) -> None:
         n = loop.crowd.n
-        self.ever = np.zeros(n, dtype=bool) if n is not None and hasattr(loop.crowd, "reached") else None
+        self.ever = np.zeros(n, dtype=bool) if n is not None and isinstance(loop.crowd, CrowdOfAgents) else None
         self.half = 0.5 * loop.scenario.t_final
 
     def step(self, loop: Any, record: Any) -> None:
-        reached = getattr(loop.crowd, "reached", None)
-        if self.ever is None or reached is None or loop.t <= self.half:
+        if self.ever is None or loop.t <= self.half:
+            return
+        reached = loop.crowd.reached
+        if reached is None:
             return
         self.ever |= reached
         self.watched_steps += 1

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from meanfield.interfaces import CrowdOfAgents, Reports
 from meanfield.simulation.observers import InputStatistics, LoopView, Recorder, TargetTracker
 from meanfield.simulation.wasserstein import w2_block_size, wasserstein2_to_grid_density
 
@@ -114,8 +115,7 @@ def run_summary(
 
 def _controller_summary(loop: LoopView) -> dict[str, Any]:
     """A controller's own figures, if it reports any (``summary()``; the paper's law has none)."""
-    own = getattr(loop.controller, "summary", None)
-    return own() if callable(own) else {}
+    return loop.controller.summary() if isinstance(loop.controller, Reports) else {}
 
 
 def _last_A(recorder: Recorder) -> float | None:
@@ -143,8 +143,7 @@ def _w2_coarsening_bound(loop: LoopView) -> float:
 
 def _field_error_bound(loop: LoopView) -> float | None:
     """Interpolation error bound of a sampled ``v_r`` at the final robots (None: exact or no agents)."""
-    bound = getattr(loop.crowd, "field_error_bound", None)
-    return bound(loop.robots) if bound is not None else None
+    return loop.crowd.field_error_bound(loop.robots) if isinstance(loop.crowd, CrowdOfAgents) else None
 
 
 def run_id(loop: LoopView, status: str) -> str:

@@ -42,10 +42,10 @@ def reference_law() -> tuple[str, str]:
 def candidates(scenario: Any, sensing: float | None = None) -> dict[str, dict[str, Any]]:
     """Every installed controller that applies to ``scenario``: ``{label: scenario overrides}``.
 
-    The registered controllers by name (those that declare ``requires_exits``, such as
+    The registered controllers by name (those whose record says ``requires_exits``, such as
     ``evacuation``, only in a room with exits), and the paper's law (:func:`reference_law`) with each other
     registered β/γ rule (``backstepping+bounded`` when :mod:`analysis.bounded` is installed).
-    With ``sensing = r``, each controller that runs on local knowledge (it declares
+    With ``sensing = r``, each controller that runs on local knowledge (its record's
     ``accepts_sensing``) gets a twin ``<name>@r`` whose robots see within ``r`` and talk within
     ``2 r`` (:mod:`meanfield.controllers.local_sensing`).
     """
@@ -56,14 +56,15 @@ def candidates(scenario: Any, sensing: float | None = None) -> dict[str, dict[st
     law, default_rule = reference_law()
     out: dict[str, dict[str, Any]] = {}
     for name in plugins.available("controller"):
-        if plugins.declared("controller", name, "requires_exits", False) and not exits:
+        can = plugins.capabilities("controller", name)
+        if can.requires_exits and not exits:
             continue
         out[name] = {"controller.kind": name}
         if name == law:
             for rule in plugins.available("beta_gamma"):
                 if rule != default_rule:
                     out[f"{law}+{rule}"] = {"controller.kind": law, "controller.beta_gamma": rule}
-        if sensing is not None and plugins.declared("controller", name, "accepts_sensing", False):
+        if sensing is not None and can.accepts_sensing:
             local = {"sensing.radius": sensing, "sensing.comm_radius": 2 * sensing}
             out[f"{name}@{sensing:g}"] = {"controller.kind": name, **local}
     return out

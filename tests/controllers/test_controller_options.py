@@ -18,7 +18,7 @@ def test_every_built_in_controller_declares_its_options():
     from meanfield.controllers.guide import GuideOptions
     from meanfield.controllers.static_signs import StaticSignsOptions
 
-    declared = {k: plugins.declared("controller", k, "options", "undeclared") for k in
+    declared = {k: plugins.capabilities("controller", k).options for k in
                 ("backstepping", "evacuation", "coverage", "guide", "static-signs")}  # fmt: skip
     assert declared == {"backstepping": None, "evacuation": EvacuationOptions, "coverage": CoverageOptions,
                         "guide": GuideOptions, "static-signs": StaticSignsOptions}  # fmt: skip
@@ -77,27 +77,36 @@ def test_a_bad_option_is_refused_as_the_scenario_is_read_naming_it(key, value, n
     assert exc.value.name == name
 
 
-def test_a_plugin_that_declares_no_options_checks_its_table_itself():
-    """A controller registered before the options were typed (no ``options`` on its factory) is given its table
-    unchecked when the scenario is read, and refuses what it does not take when it is built."""
-    from meanfield import ClosedLoop, paper_scenario
+def test_a_plugin_s_options_are_checked_by_its_record_when_the_scenario_is_read():
+    """A controller plug-in declares its options' dataclass in its record: a key it does not take is refused when
+    the scenario is read, naming it; one whose record declares none is refused any option."""
+    from meanfield import paper_scenario
+    from meanfield.capabilities import ControllerCapabilities
     from meanfield.controllers.static_signs import StaticSigns
 
-    def factory(parts):
-        if set(parts.options) - {"k_position"}:
-            raise ParameterError("controller.options.undeclared", sorted(parts.options), "k_position only")
+    @dataclasses.dataclass(frozen=True)
+    class WingOptions:
+        k_position: float = 1.0
+
+    def factory(parts):  # pragma: no cover - never built
         return StaticSigns.from_parts(dataclasses.replace(parts, options={}))
 
-    plugins.register("controller", "undeclared-options", factory)
+    plugins.register("controller", "winged", factory, capabilities=ControllerCapabilities(options=WingOptions))
+    plugins.register("controller", "wingless", factory, capabilities=ControllerCapabilities())
     try:
         sc = paper_scenario(seed=0).with_values(
-            {"controller.kind": "undeclared-options", "controller.options.undeclared-options.wings": 2, "t_final": 0.1}
+            {"controller.kind": "winged", "controller.options.winged.k_position": 2.0}
         )
-        assert sc.controller.options == {"undeclared-options": {"wings": 2}}
-        with pytest.raises(ParameterError, match="k_position only"):
-            ClosedLoop(sc)
+        assert sc.controller.options == {"winged": {"k_position": 2.0}}
+        with pytest.raises(ParameterError) as exc:
+            paper_scenario(seed=0).with_values({"controller.kind": "winged", "controller.options.winged.wings": 2})
+        assert exc.value.name == "controller.options.winged.wings" and "k_position" in exc.value.allowed
+        with pytest.raises(ParameterError) as exc:
+            paper_scenario(seed=0).with_values({"controller.kind": "wingless", "controller.options.wingless.k": 2})
+        assert exc.value.name == "controller.options.wingless"
     finally:
-        plugins.unregister("controller", "undeclared-options")
+        plugins.unregister("controller", "winged")
+        plugins.unregister("controller", "wingless")
 
 
 def test_the_evacuation_law_deprecates_its_walking_speed():

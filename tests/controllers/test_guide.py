@@ -16,7 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from meanfield import ClosedLoop, Grid, ParameterError, run
-from meanfield.controllers.guide import GuideController, allocate
+from meanfield.controllers.guide import GuideController, GuideOptions, allocate
 from meanfield.crowds.memory import RouteMemory
 from meanfield.geometry.exits import exit_segments
 from meanfield.geometry.geodesic import ExitRoutes
@@ -159,4 +159,5 @@ def test_the_guide_is_registered_and_declares_what_it_can_do():
 
     assert "guide" in plugins.available("controller")
     assert plugins.load("controller", "guide") == GuideController.from_parts
-    assert GuideController.changes_walls and not GuideController.accepts_sensing
+    can = plugins.capabilities("controller", "guide")
+    assert can.changes_walls and not can.accepts_sensing and can.options is GuideOptions

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from meanfield import ClosedLoop, ParameterError, paper_scenario, plugins
+from meanfield.capabilities import GuidanceCapabilities
 from meanfield.crowds.congestion import Linear
 from meanfield.crowds.guidance import DensityGuidance, route_velocity, walk_diffusion
 from meanfield.geometry.domain import Domain
@@ -154,7 +155,7 @@ def test_the_density_refuses_a_walk_that_never_turns_and_a_guidance_that_declare
     def follow_the_leader(ctx, positions):  # a plug-in's guidance: agents only
         return None
 
-    plugins.register("guidance", "follow-the-leader", follow_the_leader)
+    plugins.register("guidance", "follow-the-leader", follow_the_leader, capabilities=GuidanceCapabilities())
     try:
         sc = _corridor("none", **{"crowd.guidance": "follow-the-leader"})
         with pytest.raises(ParameterError) as exc:
@@ -162,7 +163,11 @@ def test_the_density_refuses_a_walk_that_never_turns_and_a_guidance_that_declare
         assert exc.value.name == "crowd.guidance" and exc.value.value == "follow-the-leader"
         for name in ("'geodesic'", "'random-walk'", "'signs'"):
             assert name in str(exc.value)
-        follow_the_leader.for_density = lambda ctx: "a field"  # declares, but not a DensityGuidance
+    finally:
+        plugins.unregister("guidance", "follow-the-leader")
+    field = GuidanceCapabilities(for_density=lambda ctx: "a field")  # declares, but not a DensityGuidance
+    plugins.register("guidance", "follow-the-leader", follow_the_leader, capabilities=field)
+    try:
         with pytest.raises(ParameterError) as exc:
             ClosedLoop(sc)
         assert exc.value.name == "crowd.guidance"

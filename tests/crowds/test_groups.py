@@ -83,14 +83,16 @@ def test_bad_groups_are_refused_naming_the_field(groups, values, field):
 
 
 def test_a_crowd_that_places_no_groups_is_refused_naming_crowd_initial():
-    """A crowd kind that declares no ``places_groups`` (a plugin's) is refused with groups, naming ``crowd.initial``."""
+    """A crowd kind whose record says no ``places_groups`` (a plugin's) is refused with groups, naming
+    ``crowd.initial``."""
     from meanfield import plugins
+    from meanfield.capabilities import CrowdCapabilities
     from meanfield.crowds.agent_crowd import point_mass_crowd
 
-    def plain_crowd(ctx):  # the point masses without their declarations
+    def plain_crowd(ctx):  # the point masses without their capabilities
         return point_mass_crowd(ctx)
 
-    plugins.register("crowd", "plain-test-crowd", plain_crowd)
+    plugins.register("crowd", "plain-test-crowd", plain_crowd, capabilities=CrowdCapabilities())
     try:
         with pytest.raises(ParameterError) as exc:
             _hall([{"region": WEST, "n": 2}], **{"crowd.kind": "plain-test-crowd"})

@@ -24,6 +24,15 @@ def test_toml_round_trip_paper():
     assert back.to_toml() == sc.to_toml()
 
 
+def test_a_bare_scenario_is_the_paper_s_room():
+    """Every default is the paper's (issue 44, "Defaults that tell the truth"): no congestion, no memory, the
+    paper's speed limits, in its dimensionless units."""
+    bare = Scenario()
+    assert bare.to_dict() == paper_scenario().replace(name="custom").to_dict()
+    assert (bare.units, bare.congestion_model, bare.memory) == ("dimensionless", "none", "none")
+    assert (bare.robots.u_max, bare.robots.omega_max) == (0.2, 3.0)
+
+
 @pytest.mark.parametrize("domain", [Domain.disk(0.8, (0.2, -0.1)), Domain.polygon(PENTAGON)])
 def test_toml_round_trip_other_shapes(domain):
     sc = Scenario(
@@ -176,6 +185,7 @@ def test_paper_unity_builtin_is_paper_under_the_similarity():
     expected = Scenario(
         name="paper-unity",
         seed=3,
+        units="SI",
         dt=base.dt * T,
         t_final=base.t_final * T,
         domain=Domain.box(L, L),
@@ -223,7 +233,8 @@ def test_plugin_module_registers_a_controller_the_scenario_names(tmp_path):
     name = "test-scenario-parked"
     module = tmp_path / "scenario_plugin_parked.py"
     module.write_text(
-        f"from meanfield import plugins\nplugins.register('controller', {name!r}, lambda parts: None)\n"
+        "from meanfield import plugins\nfrom meanfield.capabilities import ControllerCapabilities\n"
+        f"plugins.register('controller', {name!r}, lambda parts: None, capabilities=ControllerCapabilities())\n"
     )
     text = f'[controller]\nkind = "{name}"\n'
     try:
@@ -281,11 +292,13 @@ def test_unknown_region_kind_refused_listing_the_registered_kinds():
 
 def test_region_from_table_passes_the_table_to_the_registered_factory():
     from meanfield import plugins
+    from meanfield.capabilities import RegionCapabilities
     from meanfield.geometry.region import region_from_table
 
     assert region_from_table({}) == Domain.box(1.0, 1.0)
     assert region_from_table({"kind": "disk", "radius": 0.5, "center": [1, 2]}) == Domain.disk(0.5, (1.0, 2.0))
-    plugins.register("region", "test-square", lambda side=1.0: Domain.box(side, side))
+    square = RegionCapabilities()
+    plugins.register("region", "test-square", lambda side=1.0: Domain.box(side, side), capabilities=square)
     try:
         assert region_from_table({"kind": "test-square", "side": 2.0}) == Domain.box(2.0, 2.0)
         err = _err(lambda: region_from_table({"kind": "test-square", "width": 1.0}))

@@ -134,6 +134,7 @@ def test_the_grid_reads_the_shape_from_the_region():
 def test_a_new_region_is_one_class_and_one_registration_line(tmp_path):
     """A region that is not a Domain: the scenario, the assembly and the loop take any Region."""
     from meanfield import load_scenario, plugins
+    from meanfield.capabilities import RegionCapabilities
 
     class SquareRoom:
         """A square room of side ``side`` (its geometry delegated to a box)."""
@@ -143,6 +144,7 @@ def test_a_new_region_is_one_class_and_one_registration_line(tmp_path):
             self._box = Domain.box(self.side, self.side)
 
         kind = "square-room"
+        capabilities = RegionCapabilities()  # what it declares beyond the Region protocol: nothing
 
         def __getattr__(self, name):
             return getattr(self._box, name)
