@@ -93,8 +93,8 @@ DEPRECATED = {
 """Option values removed in 0.3.0: each option's old value and its replacement, and why (docs page *Buildings*,
 "Coverage's options")."""
 HEADING_GAIN_FACTOR = 3.0
-"""Default ``k_heading``: this many times the law's ``k_ω`` (on ``paper``, seeds 0–9, the worst
-seed's fraction in target was 0.845, 0.93, 0.94, 0.935 for 1, 2, 3, 5 times)."""
+"""Default ``k_heading``: this many times the law's ``k_ω`` (chosen on ``paper`` against 1, 2 and 5 times: docs page
+*The controller*, "Coverage and heading")."""
 V_D = ("auto", "safe-zone", "exits")
 """Which Step I the headings track: the exits' when the region has exits (``auto``)."""
 _NOTHING_HIDDEN = np.ones((0, 0), dtype=bool)
