@@ -36,7 +36,7 @@ _LAZY = {
     "InteractionField": "meanfield.signs.interaction",
     "CustomKernel": "meanfield.signs.kernels",
     "GaussianKernel": "meanfield.signs.kernels",
-    "GaussianPotential": "meanfield.signs.kernels",
+    "GaussianPotential": "meanfield.signs.interaction",
     "kernel_jacobian_theta": "meanfield.signs.kernels",
     "kernel_jacobian_xi": "meanfield.signs.kernels",
     "kernel_value": "meanfield.signs.kernels",

@@ -427,13 +427,19 @@ def test_every_deprecation_names_the_release_that_removes_it_and_is_gone_by_then
     from analysis.nmpc import _DEPRECATED as NMPC_NAMES
     from meanfield.crowds import _DEPRECATED as CROWDS_NAMES
     from meanfield.crowds.kde import _RENAMED as KDE_NAMES
+    from meanfield.signs import kernels
+
+    said = rf"removed in {re.escape(REMOVED_IN)}: use meanfield\.signs\.interaction\.GaussianPotential"
+    with pytest.warns(MeanfieldDeprecationWarning, match=said):
+        assert kernels.GaussianPotential is meanfield.signs.interaction.GaussianPotential
 
     left = {"meanfield's moved modules": MOVED, "analysis's moved modules": ANALYSIS_MOVED,
             "meanfield.cli's moved names": CLI_NAMES, "the old scenario fields": OLD_FIELDS,
             "coverage's deprecated values": COVERAGE_VALUES, "meanfield run's old flags": old_flags,
             "the renamed plans (BinnedPlan, NMPCPlan)": {**CROWDS_NAMES, **KDE_NAMES, **NMPC_NAMES},
             "backstepping.fused_robot_inputs": old_fused,
-            "plugins.declared (the string question)": old_question}  # fmt: skip
+            "plugins.declared (the string question)": old_question,
+            "the interaction potential in signs.kernels": kernels._MOVED_TO_INTERACTION}  # fmt: skip
     if version(meanfield.__version__) >= version(REMOVED_IN):
         still = [name for name, table in left.items() if table]
         assert not still, f"{meanfield.__version__} reads what its warnings said {REMOVED_IN} removes: {still}"

@@ -25,7 +25,7 @@ import numpy as np
 
 from meanfield.errors import ParameterError, SimulationDiverged
 from meanfield.scenarios.scenario import Scenario
-from meanfield.signs.kernels import GaussianPotential
+from meanfield.signs.interaction import GaussianPotential
 from meanfield.workflows.mean_field_limit import compare_agents_pde, fit_slope
 from verification.result import CheckResult
 

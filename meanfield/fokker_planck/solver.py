@@ -58,8 +58,7 @@ from meanfield.fokker_planck.stepping import (
 )
 from meanfield.geometry.exits import ExitSink, exit_segments
 from meanfield.geometry.grid import FaceField, Grid
-from meanfield.signs.interaction import InteractionField
-from meanfield.signs.kernels import InteractionPotential
+from meanfield.signs.interaction import InteractionField, InteractionPotential
 
 __all__ = ["FokkerPlanck", "scharfetter_gummel", "METHODS"]
 

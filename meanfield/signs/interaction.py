@@ -1,4 +1,5 @@
-"""The mean interaction velocity ``u_W`` evaluated through the grid (never O(N²)).
+"""The humans' pairwise interaction: the potential ``W`` and the mean interaction velocity ``u_W`` evaluated through
+the grid (never O(N²)).
 
 Microscopic (paper, eq. (1)):   ``u_W(X_j) = (1/N) Σ_k ∇W(X_k - X_j)``
 Mean-field limit:               ``u_W[ρ](x) = ∫_Ω ∇W(y - x) ρ(y) dy``
@@ -14,13 +15,62 @@ zero-padded (non-periodic) grid; the kernels' transforms are computed once.
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
 import numpy as np
 from scipy import fft as sfft
 
+from meanfield.errors import ParameterError, positive_number
 from meanfield.geometry.grid import FaceField, Grid, linear_binning
-from meanfield.signs.kernels import InteractionPotential
 
-__all__ = ["InteractionField"]
+__all__ = ["InteractionField", "InteractionPotential", "GaussianPotential"]
+
+
+@runtime_checkable
+class InteractionPotential(Protocol):
+    """Pairwise potential W between humans; the SDE drift is ``(1/N) Σ_k ∇W(X_k - X_j)``."""
+
+    def gradient(self, z_x: Any, z_y: Any) -> tuple[np.ndarray, np.ndarray]:
+        """∇W at ``z``."""
+        ...
+
+
+@dataclass(frozen=True)
+class GaussianPotential:
+    """``W(z) = s exp(-|z|²/ℓ²)``; ``s > 0`` repels, ``s < 0`` attracts.
+
+    With the SDE's convention ``(1/N) Σ_k ∇W(X_k - X_j)``, ``∇W(X_k - X_j)`` points from
+    ``X_k`` towards ``X_j`` when ``s > 0``: human ``j`` is pushed away from ``k``.
+
+    Parameters
+    ----------
+    strength : float
+        ``s`` (any finite non-zero value).
+    length : float
+        ``ℓ > 0``.
+    """
+
+    strength: float
+    length: float
+
+    def __post_init__(self) -> None:
+        s = float(self.strength)
+        if not math.isfinite(s):
+            raise ParameterError("interaction.strength", s, "a finite number")
+        object.__setattr__(self, "strength", s)
+        object.__setattr__(self, "length", positive_number("interaction.length", self.length))
+
+    def value(self, z_x: Any, z_y: Any) -> np.ndarray:
+        """``W(z)``."""
+        return self.strength * np.exp(-(z_x * z_x + z_y * z_y) / self.length**2)
+
+    def gradient(self, z_x: Any, z_y: Any) -> tuple[np.ndarray, np.ndarray]:
+        """``∇W(z) = -(2/ℓ²) z W(z)``."""
+        w = self.value(z_x, z_y)
+        s = -2.0 / self.length**2
+        return s * z_x * w, s * z_y * w
 
 
 class _Convolver:

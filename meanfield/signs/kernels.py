@@ -22,7 +22,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from meanfield.errors import ParameterError, positive_number
+from meanfield.errors import positive_number
 
 __all__ = [
     "REACH_FRACTION",
@@ -32,9 +32,21 @@ __all__ = [
     "kernel_value",
     "kernel_jacobian_xi",
     "kernel_jacobian_theta",
-    "InteractionPotential",
-    "GaussianPotential",
 ]
+
+_MOVED_TO_INTERACTION = ("InteractionPotential", "GaussianPotential")
+"""The interaction potential's names, in :mod:`meanfield.signs.interaction` since 0.2.0 (a "kernel" here is a sign's
+field; the old names warn until 0.3.0)."""
+
+
+def __getattr__(name: str) -> Any:
+    if name in _MOVED_TO_INTERACTION:
+        from meanfield.errors import deprecated
+        from meanfield.signs import interaction
+
+        deprecated(f"meanfield.signs.kernels.{name}", f"use meanfield.signs.interaction.{name}")
+        return getattr(interaction, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 REACH_FRACTION = 0.05
 """A sign *reaches* a point where its field is at least this share of one kernel's peak: a human there who sees the
@@ -184,47 +196,3 @@ def reached_cells(kernel: NavigationKernel, robots: np.ndarray, grid: Any, sight
         reach &= np.asarray(sight.cell_rows(grid, robots), bool).reshape(reach.shape)
     return reach
 
-
-@runtime_checkable
-class InteractionPotential(Protocol):
-    """Pairwise potential W between humans; the SDE drift is ``(1/N) Σ_k ∇W(X_k - X_j)``."""
-
-    def gradient(self, z_x: Any, z_y: Any) -> tuple[np.ndarray, np.ndarray]:
-        """∇W at ``z``."""
-        ...
-
-
-@dataclass(frozen=True)
-class GaussianPotential:
-    """``W(z) = s exp(-|z|²/ℓ²)``; ``s > 0`` repels, ``s < 0`` attracts.
-
-    With the SDE's convention ``(1/N) Σ_k ∇W(X_k - X_j)``, ``∇W(X_k - X_j)`` points from
-    ``X_k`` towards ``X_j`` when ``s > 0``: human ``j`` is pushed away from ``k``.
-
-    Parameters
-    ----------
-    strength : float
-        ``s`` (any finite non-zero value).
-    length : float
-        ``ℓ > 0``.
-    """
-
-    strength: float
-    length: float
-
-    def __post_init__(self) -> None:
-        s = float(self.strength)
-        if not math.isfinite(s):
-            raise ParameterError("interaction.strength", s, "a finite number")
-        object.__setattr__(self, "strength", s)
-        object.__setattr__(self, "length", positive_number("interaction.length", self.length))
-
-    def value(self, z_x: Any, z_y: Any) -> np.ndarray:
-        """``W(z)``."""
-        return self.strength * np.exp(-(z_x * z_x + z_y * z_y) / self.length**2)
-
-    def gradient(self, z_x: Any, z_y: Any) -> tuple[np.ndarray, np.ndarray]:
-        """``∇W(z) = -(2/ℓ²) z W(z)``."""
-        w = self.value(z_x, z_y)
-        s = -2.0 / self.length**2
-        return s * z_x * w, s * z_y * w

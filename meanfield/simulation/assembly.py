@@ -37,8 +37,8 @@ from meanfield.interfaces import (
     SigmaLike,
 )
 from meanfield.scenarios.scenario import Scenario
-from meanfield.signs.interaction import InteractionField
-from meanfield.signs.kernels import GaussianKernel, GaussianPotential, NavigationKernel
+from meanfield.signs.interaction import GaussianPotential, InteractionField
+from meanfield.signs.kernels import GaussianKernel, NavigationKernel
 from meanfield.signs.robots import RobotTeam
 from meanfield.simulation.preflight import check_fits
 

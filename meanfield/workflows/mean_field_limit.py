@@ -37,8 +37,8 @@ from meanfield.errors import ParameterError, SimulationDiverged, positive_number
 from meanfield.fokker_planck.solver import FokkerPlanck
 from meanfield.geometry.grid import Grid
 from meanfield.scenarios.scenario import Scenario
-from meanfield.signs.interaction import InteractionField
-from meanfield.signs.kernels import GaussianKernel, GaussianPotential
+from meanfield.signs.interaction import GaussianPotential, InteractionField
+from meanfield.signs.kernels import GaussianKernel
 from meanfield.simulation.assembly import disturbance_for
 from meanfield.simulation.loop import ClosedLoop
 
