@@ -25,6 +25,13 @@ walk of each human's neighbours (and cuts the turned lanes at the walls, :class:
 ``K`` calls of :func:`headways`; :func:`choose_lanes` then picks the lane of most progress (docs page
 *Congestion*, "The headway door model", (H4)).
 
+A congested step with the linear diagram is one compiled pass, :func:`headway_step`: the cell list, then each
+human in turn, its lanes (H4), their speed factors (H1), its lane and walk, its contact cone (H2) and soft core
+(H3), and the count of its neighbours that the model reports as its local density, all from one reading of the
+cells round it, in arrays kept between steps (:class:`HeadwayWork`); the numbers of the separate calls, to the
+last bit (docs page *Congestion*, section *Cost*).  The arithmetic of (H2) and (H3) is one function,
+:func:`_cone`, that :func:`contact_cone` and the pass share.
+
 The compiled loops search a cell list (cells of width ``d`` over the active humans' bounding box, sorted by
 :func:`cell_list`, itself compiled); the headway's search widens ring by ring and stops once a ring lies farther
 than the nearest found, the lanes' search row by row.  The numpy twins list every pair closer than the reach
@@ -48,10 +55,13 @@ __all__ = [
     "lane_headways",
     "choose_lanes",
     "contact_cone",
+    "headway_step",
     "cell_list",
     "CellList",
+    "HeadwayWork",
     "LaneWalls",
     "NO_WALLS",
+    "NO_COUNT",
 ]
 
 
@@ -452,6 +462,13 @@ BLOCK = 2
 """The lanes' search reads the ``(2 BLOCK + 1)²`` cells round a human first, then the walls, then row by row."""
 
 
+@inner
+def _wall_cuts_call(px, py, tx, ty, k, reach, half, a, v, norm, starts, walls, box, cut):
+    """:func:`_wall_cuts` as a call, not inlined: for the rare humans the cells do not hold or who stand (their code
+    kept out of the loop's)."""
+    _wall_cuts(px, py, tx, ty, k, reach, half, a, v, norm, starts, walls, box, cut)
+
+
 @inlined
 def _turned(ex, ey, cos, sin, tx, ty):
     """The lanes' directions ``t_q = (cos_q e_x − sin_q e_y, sin_q e_x + cos_q e_y)``, into ``tx``, ``ty``; the
@@ -631,7 +648,7 @@ def _lane_search(t, k, w, tx, ty, best2, lane, reach, half, pos, starts, ox, oy,
                 if cut[q] < s[q]:
                     s[q] = cut[q]
         else:
-            _wall_cuts(xj, yj, tx, ty, k, reach, half, wa, wv, wnorm, wstarts, wlist, wbox, s)
+            _wall_cuts_call(xj, yj, tx, ty, k, reach, half, wa, wv, wnorm, wstarts, wlist, wbox, s)
     return count, contacts
 
 
@@ -654,7 +671,7 @@ def _lanes_compiled(x, e, active, cos, sin, lane, reach, half, cells, walls, out
             yj = x[j, 1]
             if wa.shape[0] and not (active[j] and math.isfinite(xj) and math.isfinite(yj)):
                 _turned(e[j, 0], e[j, 1], cos, sin, tx, ty)
-                _wall_cuts(xj, yj, tx, ty, k, reach, half, wa, wv, wnorm, wstarts, wlist, wbox, out[j])
+                _wall_cuts_call(xj, yj, tx, ty, k, reach, half, wa, wv, wnorm, wstarts, wlist, wbox, out[j])
     m = order.shape[0]
     kp = (k + LANES - 1) // LANES * LANES
     chunks = (m + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
@@ -744,17 +761,7 @@ def _choose_compiled(f, s, e, cos, sin, best_s, best_f, walk):
     k = f.shape[1]
     for chunk in prange((n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):
         for j in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, n)):
-            b = 0
-            top = f[j, 0] * cos[0]
-            if top == top:  # (numpy's argmax: the first nan, if any, else the first of the largest)
-                for q in range(1, k):
-                    g = f[j, q] * cos[q]
-                    if g != g:
-                        b = q
-                        break
-                    if g > top:
-                        top = g
-                        b = q
+            b = _best_turn(f[j], cos, k)
             best_s[j] = s[j, b]
             best_f[j] = f[j, b]
             walk[j, 0] = cos[b] * e[j, 0] - sin[b] * e[j, 1]
@@ -896,7 +903,7 @@ def _contacts(pos, starts, ox, oy, h, nx, ny, t, jam2, cdx, cdy, cr2):
     return contacts
 
 
-@inlined
+@inner
 def _contact_cone_one(pos, starts, ox, oy, h, nx, ny, t, vx, vy, jam, separation, cdx, cdy, cr2):
     """:func:`_cone` for the human in slot ``t``, its contacts read from the cells (buffers grown as needed)."""
     contacts = _contacts(pos, starts, ox, oy, h, nx, ny, t, jam * jam, cdx, cdy, cr2)
@@ -1138,7 +1145,7 @@ def _step_compiled(v, x, active, cos, sin, lane, reach, half, walls, jam, separa
             for q in range(k):
                 sl[q] = math.inf
             if wa.shape[0]:
-                _wall_cuts(xj, yj, tx, ty, k, reach, half, wa, wv, wnorm, wstarts, wlist, wbox, sl)
+                _wall_cuts_call(xj, yj, tx, ty, k, reach, half, wa, wv, wnorm, wstarts, wlist, wbox, sl)
             _linear_factors(sl, fl, k, jam, rho_max)
             b = _best_turn(fl, cos, k)
             s_out[j] = sl[b]
