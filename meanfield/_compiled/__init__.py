@@ -36,6 +36,7 @@ _LAZY = {
     "fill_normal_pairs": "meanfield._compiled.philox",
     "fill_pairs_rows": "meanfield._compiled.philox",
     "gemm": "meanfield._compiled.blas",
+    "inlined": "meanfield._compiled.core",
     "inner": "meanfield._compiled.core",
     "limited_blas": "meanfield._compiled.threads",
     "loop_threads": "meanfield._compiled.threads",

@@ -25,6 +25,13 @@ walk of each human's neighbours (and cuts the turned lanes at the walls, :class:
 ``K`` calls of :func:`headways`; :func:`choose_lanes` then picks the lane of most progress (docs page
 *Congestion*, "The headway door model", (H4)).
 
+A congested step with the linear diagram is one compiled pass, :func:`headway_step`: the cell list, then each
+human in turn, its lanes (H4), their speed factors (H1), its lane and walk, its contact cone (H2) and soft core
+(H3), and the count of its neighbours that the model reports as its local density, all from one reading of the
+cells round it, in arrays kept between steps (:class:`HeadwayWork`); the numbers of the separate calls, to the
+last bit (docs page *Congestion*, section *Cost*).  The arithmetic of (H2) and (H3) is one function,
+:func:`_cone`, that :func:`contact_cone` and the pass share.
+
 The compiled loops search a cell list (cells of width ``d`` over the active humans' bounding box, sorted by
 :func:`cell_list`, itself compiled); the headway's search widens ring by ring and stops once a ring lies farther
 than the nearest found, the lanes' search row by row.  The numpy twins list every pair closer than the reach
@@ -41,17 +48,20 @@ import math
 
 import numpy as np
 
-from meanfield._compiled.core import PARALLEL_CHUNK, compiled, inner, prange
+from meanfield._compiled.core import PARALLEL_CHUNK, compiled, inlined, inner, prange
 
 __all__ = [
     "headways",
     "lane_headways",
     "choose_lanes",
     "contact_cone",
+    "headway_step",
     "cell_list",
     "CellList",
+    "HeadwayWork",
     "LaneWalls",
     "NO_WALLS",
+    "NO_COUNT",
 ]
 
 
@@ -106,8 +116,12 @@ def _cells_numpy(x, active, h):
     return order, starts, np.ascontiguousarray(x[order]), x0, y0, h, nx, ny
 
 
-@compiled(fallback=_cells_numpy)
-def _cells_compiled(x, active, h):
+@inner
+def _sort_cells(x, active, h, order, starts, pos, key, idx, cursor):
+    """:func:`cell_list`'s counting sort into the given arrays (``order``, ``key``, ``idx``: at least ``N``;
+    ``pos``: at least (N, 2); ``starts``, ``cursor``: at least ``4 N + 65``): returns ``(m, x0, y0, h, nx, ny)``,
+    ``order[:m]``, ``starts[:nx·ny + 1]`` and ``pos[:m]`` the cell list's arrays (``starts[:2]`` zero for
+    ``m = 0``)."""
     n = x.shape[0]
     m = 0
     x0 = math.inf
@@ -122,7 +136,9 @@ def _cells_compiled(x, active, h):
             y0 = min(y0, x[j, 1])
             y1 = max(y1, x[j, 1])
     if m == 0:
-        return np.zeros(0, np.int64), np.zeros(2, np.int64), np.zeros((0, 2)), 0.0, 0.0, h, 1, 1
+        starts[0] = 0
+        starts[1] = 0
+        return 0, 0.0, 0.0, h, 1, 1
     wx = x1 - x0
     wy = y1 - y0
     nx = int(wx // h) + 1
@@ -131,9 +147,8 @@ def _cells_compiled(x, active, h):
         h *= 2.0
         nx = int(wx // h) + 1
         ny = int(wy // h) + 1
-    key = np.empty(m, np.int64)
-    idx = np.empty(m, np.int64)
-    starts = np.zeros(nx * ny + 1, np.int64)
+    for c in range(nx * ny + 1):
+        starts[c] = 0
     i = 0
     for j in range(n):
         if active[j] and math.isfinite(x[j, 0]) and math.isfinite(x[j, 1]):
@@ -144,9 +159,8 @@ def _cells_compiled(x, active, h):
             i += 1
     for c in range(nx * ny):
         starts[c + 1] += starts[c]
-    cursor = starts[:-1].copy()
-    order = np.empty(m, np.int64)
-    pos = np.empty((m, 2))
+    for c in range(nx * ny):
+        cursor[c] = starts[c]
     for i in range(m):  # stable: each cell's humans in their order
         slot = cursor[key[i]]
         cursor[key[i]] = slot + 1
@@ -154,7 +168,20 @@ def _cells_compiled(x, active, h):
         order[slot] = j
         pos[slot, 0] = x[j, 0]
         pos[slot, 1] = x[j, 1]
-    return order, starts, pos, x0, y0, h, nx, ny
+    return m, x0, y0, h, nx, ny
+
+
+@compiled(fallback=_cells_numpy)
+def _cells_compiled(x, active, h):
+    n = x.shape[0]
+    order = np.empty(n, np.int64)
+    starts = np.empty(4 * n + 66, np.int64)
+    pos = np.empty((n, 2))
+    key = np.empty(n, np.int64)
+    idx = np.empty(n, np.int64)
+    cursor = np.empty(4 * n + 66, np.int64)
+    m, x0, y0, h, nx, ny = _sort_cells(x, active, h, order, starts, pos, key, idx, cursor)
+    return order[:m].copy(), starts[: nx * ny + 1].copy(), pos[:m].copy(), x0, y0, h, nx, ny
 
 
 def _lattice(p: np.ndarray, h: float) -> tuple[float, float, float, int, int]:
@@ -375,12 +402,14 @@ def _lanes_numpy(x, e, active, cos, sin, lane, reach, half, cells, walls, out):
         out[:, q] = col
 
 
-@inner
-def _walls_ahead(j, px, py, tx, ty, reach, half, a, v, norm, starts, walls, box, out):
-    """``out[j, q] = min(out[j, q], t_q reach + half)`` for the turned lanes ``q >= 1``, ``t_q`` the first wall on
-    the ray from ``p`` to ``p + reach (tx_q, ty_q)`` (nothing where none): the walls' first hit's ``t``, without its
-    division where it cannot count (a wall whose line is farther than the reach, or than the lane's headway less
-    ``half`` with a margin of 1e-6 for round-off, or a ray that points away from it)."""
+@inlined
+def _wall_cuts(px, py, tx, ty, k, reach, half, a, v, norm, starts, walls, box, cut):
+    """``cut[q] = min(cut[q], t_q reach + half)`` for the turned lanes ``1 <= q < k``, ``t_q`` the first wall on the ray
+    from ``p`` to ``p + reach (tx_q, ty_q)`` (nothing where none): the walls' first hit's ``t``, without its division
+    where it cannot count (a wall whose line is farther than the reach, or than ``cut[q]`` less ``half`` with a
+    margin of 1e-6 for round-off, or a ray that points away from it).  ``min`` of the cuts is the cut of the first
+    wall (rounding is monotone), so a ``cut[q]`` that is the lane's headway so far, or any bound above its final
+    headway, leaves the lane's ``min(headway, first wall's cut)`` as it is."""
     size = box[2]
     fx = (px - box[0]) / size
     fy = (py - box[1]) / size
@@ -393,10 +422,9 @@ def _walls_ahead(j, px, py, tx, ty, reach, half, a, v, norm, starts, walls, box,
         lo = starts[c]
         hi = starts[c + 1]
     far = reach * (1.0 + 1e-9)
-    k = tx.shape[0]
     most = 0.0  # the farthest a wall can be and still cut a lane: its headway less half, at most the reach
     for q in range(1, k):
-        most = max(most, min(far, (out[j, q] - half) * (1.0 + 1e-6) + 1e-9))
+        most = max(most, min(far, (cut[q] - half) * (1.0 + 1e-6) + 1e-9))
     for s in range(lo, hi):
         w = walls[s] if inside else s
         ex = v[w, 0]
@@ -407,7 +435,7 @@ def _walls_ahead(j, px, py, tx, ty, reach, half, a, v, norm, starts, walls, box,
         if not abs(num) <= most * norm[w]:
             continue  # no ray gets there within the reach (t > 1), or it cuts no lane shorter than it is
         for q in range(1, k):
-            if not abs(num) <= min(far, (out[j, q] - half) * (1.0 + 1e-6) + 1e-9) * norm[w]:
+            if not abs(num) <= min(far, (cut[q] - half) * (1.0 + 1e-6) + 1e-9) * norm[w]:
                 continue
             dx = (px + reach * tx[q]) - px
             dy = (py + reach * ty[q]) - py
@@ -420,18 +448,218 @@ def _walls_ahead(j, px, py, tx, ty, reach, half, a, v, norm, starts, walls, box,
             u = (wx * dy - wy * dx) / cross
             if u >= 0.0 and u <= 1.0:  # the smallest t, times the reach plus half, is the smallest of the cuts
                 sw = t * reach + half
-                if sw < out[j, q]:
-                    out[j, q] = sw
+                if sw < cut[q]:
+                    cut[q] = sw
+
+
+LANES = 8
+"""The lanes' scratch arrays are padded to a multiple of this (lanes that no one is ahead in): the compiled search
+tests one neighbour against 8 lanes at once, without a branch (one vector instruction each, where the processor
+has them)."""
+
+
+BLOCK = 2
+"""The lanes' search reads the ``(2 BLOCK + 1)²`` cells round a human first, then the walls, then row by row."""
+
+
+@inner
+def _wall_cuts_call(px, py, tx, ty, k, reach, half, a, v, norm, starts, walls, box, cut):
+    """:func:`_wall_cuts` as a call, not inlined: for the rare humans the cells do not hold or who stand (their code
+    kept out of the loop's)."""
+    _wall_cuts(px, py, tx, ty, k, reach, half, a, v, norm, starts, walls, box, cut)
+
+
+@inlined
+def _turned(ex, ey, cos, sin, tx, ty):
+    """The lanes' directions ``t_q = (cos_q e_x − sin_q e_y, sin_q e_x + cos_q e_y)``, into ``tx``, ``ty``; the
+    padding (``q >= K``) 0."""
+    k = cos.shape[0]
+    for q in range(tx.shape[0]):
+        if q < k:
+            tx[q] = cos[q] * ex - sin[q] * ey
+            ty[q] = sin[q] * ex + cos[q] * ey
+        else:
+            tx[q] = 0.0
+            ty[q] = 0.0
+
+
+@inlined
+def _lane_search(t, k, w, tx, ty, best2, lane, reach, half, pos, starts, ox, oy, h, nx, ny, wa, wv, wnorm, wstarts,
+                 wlist, wbox, cut, s, radius2, contact2, cdx, cdy, cr2):  # fmt: skip
+    """The headways of the human in slot ``t`` of the cell list along its ``k`` lanes ``(tx_q, ty_q)``, into ``s``
+    (m; ``inf``: nobody within the reach), each turned lane cut at its first wall (:func:`lane_headways`); and,
+    from the same reading of its neighbours, how many others are closer than ``√radius2`` and its contacts, those
+    at ``0 < r² < contact2``, into ``cdx``, ``cdy``, ``cr2`` (their offsets and squared distances, in the order
+    of the cells: row by row, each row's cells in turn).  Returns ``(count, contacts)``; more contacts than the
+    buffers hold are counted, not all kept (the caller reads them again).
+
+    The ``(2 BLOCK + 1)²`` cells round it first, all of them (they hold everyone within ``BLOCK h``: the count's
+    disk and the contacts when ``√radius2``, ``√contact2 <= BLOCK h``); then the walls, each turned lane cut at
+    its first (a wall nearer than the lane's nearest so far bounds the rest of that lane's search: nobody beyond
+    its cut changes ``min(s, cut)``); then, unless every lane's nearest lies within the block, row by row, nearest
+    rows first, in each row the cells within every lane's nearest so far: a row's humans are contiguous in the cell
+    order (one run, or two beside the block already seen), so no loop over cells.  ``pos``, ``starts``,
+    ``(ox, oy)``, ``h``, ``nx``, ``ny``: the cell list's arrays (:meth:`CellList.arrays`), the ``w*``: the walls'
+    (:meth:`LaneWalls.arrays`); ``w``: the lanes' ``tx``, ``ty`` (0 beyond ``k``) and nearest so far, one after the
+    other, each of a length that :data:`LANES` divides, as ``cut`` and ``s``.  Every neighbour is tested against
+    every lane, a lane's nearest replaced by a select, not a branch: the same minima over the same candidates."""
+    kp = tx.shape[0]
+    reach2 = reach * reach
+    cap = cdx.shape[0]
+    xj = pos[t, 0]
+    yj = pos[t, 1]
+    far2 = -1.0  # the largest of the lanes' nearest so far: the search stops beyond it
+    for q in range(kp):
+        s[q] = math.inf
+        if q >= k:
+            best2[q] = -1.0  # the padding: nobody is nearer than this, and it is below every lane's nearest
+        elif tx[q] == 0.0 and ty[q] == 0.0:
+            best2[q] = math.nan  # a standing human: no lane, no headway
+        else:
+            best2[q] = reach2
+            far2 = reach2
+    searched = far2 > 0.0
+    cx = min(int((xj - ox) // h), nx - 1)
+    cy = min(int((yj - oy) // h), ny - 1)
+    count = 0
+    contacts = 0
+    for gy in range(max(cy - BLOCK, 0), min(cy + BLOCK, ny - 1) + 1):  # the block: rows up, each row's cells in turn
+        for u in range(starts[gy * nx + max(cx - BLOCK, 0)], starts[gy * nx + min(cx + BLOCK, nx - 1) + 1]):
+            dx = pos[u, 0] - xj  # (X_j itself, dx = dy = 0, is ahead in no lane and no contact; it is counted)
+            dy = pos[u, 1] - yj
+            r2 = dx * dx + dy * dy
+            count += r2 < radius2
+            c = min(contacts, cap - 1)
+            cdx[c] = dx
+            cdy[c] = dy
+            cr2[c] = r2
+            contacts += (r2 > 0.0) & (r2 < contact2)
+            if kp == LANES:  # (one block of lanes: offsets the compiler sees apart, so it vectorises)
+                for q in range(LANES):  # (no branch: a select per lane)
+                    along = dx * w[q] + dy * w[LANES + q]
+                    across = dx * w[LANES + q] - dy * w[q]
+                    b2 = w[2 * LANES + q]
+                    ok = (r2 < b2) & (along > 0.0) & (abs(across) < lane)
+                    w[2 * LANES + q] = r2 if ok else b2
+            else:
+                for q in range(kp):
+                    along = dx * tx[q] + dy * ty[q]
+                    across = dx * ty[q] - dy * tx[q]
+                    b2 = best2[q]
+                    best2[q] = r2 if (r2 < b2) & (along > 0.0) & (abs(across) < lane) else b2
+    if radius2 > 0.0:
+        count -= 1  # (X_j itself)
+    if searched:
+        far2 = -1.0
+        for q in range(k):
+            far2 = max(far2, best2[q])
+        if wa.shape[0] and k > 1:  # the walls: a lane cut short is searched no farther
+            for q in range(k):
+                cut[q] = math.sqrt(best2[q]) if best2[q] < reach2 else math.inf
+            _wall_cuts(xj, yj, tx, ty, k, reach, half, wa, wv, wnorm, wstarts, wlist, wbox, cut)
+            far2 = -1.0
+            for q in range(k):
+                if q >= 1 and cut[q] < math.inf:
+                    b = cut[q] * (1.0 + 1e-9)  # sqrt(b²) > cut[q]: nobody this far changes min(s, cut)
+                    if b * b < best2[q]:
+                        best2[q] = b * b
+                far2 = max(far2, best2[q])
+        # the nearest anyone outside the block can be (nobody beyond the lattice's edge)
+        gap = math.inf
+        if cx - BLOCK > 0:
+            gap = min(gap, xj - (ox + (cx - BLOCK) * h))
+        if cx + BLOCK < nx - 1:
+            gap = min(gap, ox + (cx + BLOCK + 1) * h - xj)
+        if cy - BLOCK > 0:
+            gap = min(gap, yj - (oy + (cy - BLOCK) * h))
+        if cy + BLOCK < ny - 1:
+            gap = min(gap, oy + (cy + BLOCK + 1) * h - yj)
+        gap -= SLACK
+        if not (gap > 0.0 and far2 < gap * gap):  # someone outside the block may be nearer: row by row
+            rings = int(math.ceil(reach / h)) + 1
+            lo_x = 0.0  # the lanes' bounding box, from X_j
+            hi_x = 0.0
+            lo_y = 0.0
+            hi_y = 0.0
+            for q in range(k):
+                if best2[q] != best2[q]:
+                    continue
+                lo_x = min(lo_x, reach * tx[q] - lane * abs(ty[q]), -lane * abs(ty[q]))
+                hi_x = max(hi_x, reach * tx[q] + lane * abs(ty[q]), lane * abs(ty[q]))
+                lo_y = min(lo_y, reach * ty[q] - lane * abs(tx[q]), -lane * abs(tx[q]))
+                hi_y = max(hi_y, reach * ty[q] + lane * abs(tx[q]), lane * abs(tx[q]))
+            gx0 = min(max(int(math.floor((xj + max(lo_x, -reach) - SLACK - ox) / h)), 0), nx - 1)
+            gx1 = min(max(int(math.floor((xj + min(hi_x, reach) + SLACK - ox) / h)), 0), nx - 1)
+            gy0 = min(max(int(math.floor((yj + max(lo_y, -reach) - SLACK - oy) / h)), 0), ny - 1)
+            gy1 = min(max(int(math.floor((yj + min(hi_y, reach) + SLACK - oy) / h)), 0), ny - 1)
+            for dr in range(rings + 1):
+                if dr >= 2 and (dr - 1) * h * ((dr - 1) * h) >= far2:
+                    break  # every row from here is farther than every lane's nearest found
+                for side in range(2):
+                    if dr == 0 and side == 1:
+                        continue
+                    gy = cy - dr if side == 0 else cy + dr
+                    if gy < gy0 or gy > gy1:
+                        continue
+                    by0 = oy + gy * h - yj - SLACK  # the row's band, from X_j, a little wider
+                    by1 = by0 + h + 2.0 * SLACK
+                    dy2 = by0 * by0 if by0 > 0.0 else (by1 * by1 if by1 < 0.0 else 0.0)
+                    if dy2 >= far2:
+                        continue
+                    wide = math.sqrt(far2 - dy2) + SLACK
+                    ga = max(gx0, min(max(int(math.floor((xj - wide - ox) / h)), 0), nx - 1))
+                    gb = min(gx1, min(max(int(math.floor((xj + wide - ox) / h)), 0), nx - 1))
+                    for run in range(2 if dr <= BLOCK else 1):  # beside the block, or the whole row
+                        a = ga
+                        b = gb
+                        if dr <= BLOCK:
+                            if run == 0:
+                                b = min(gb, cx - BLOCK - 1)
+                            else:
+                                a = max(ga, cx + BLOCK + 1)
+                        if a > b:
+                            continue
+                        for u in range(starts[gy * nx + a], starts[gy * nx + b + 1]):
+                            dx = pos[u, 0] - xj
+                            dy = pos[u, 1] - yj
+                            r2 = dx * dx + dy * dy
+                            if kp == LANES:
+                                for q in range(LANES):
+                                    along = dx * w[q] + dy * w[LANES + q]
+                                    across = dx * w[LANES + q] - dy * w[q]
+                                    b2 = w[2 * LANES + q]
+                                    ok = (r2 < b2) & (along > 0.0) & (abs(across) < lane)
+                                    w[2 * LANES + q] = r2 if ok else b2
+                            else:
+                                for q in range(kp):
+                                    along = dx * tx[q] + dy * ty[q]
+                                    across = dx * ty[q] - dy * tx[q]
+                                    b2 = best2[q]
+                                    best2[q] = r2 if (r2 < b2) & (along > 0.0) & (abs(across) < lane) else b2
+                        far2 = -1.0  # (once a run: a bound of the search, not of the minima)
+                        for q in range(k):
+                            far2 = max(far2, best2[q])
+        for q in range(k):
+            if best2[q] < reach2:
+                s[q] = math.sqrt(best2[q])
+    if wa.shape[0] and k > 1:
+        if searched:
+            for q in range(1, k):  # the first wall's cut, if any is nearer than the headway
+                if cut[q] < s[q]:
+                    s[q] = cut[q]
+        else:
+            _wall_cuts_call(xj, yj, tx, ty, k, reach, half, wa, wv, wnorm, wstarts, wlist, wbox, s)
+    return count, contacts
 
 
 @compiled(fallback=_lanes_numpy, parallel_over="x")
 def _lanes_compiled(x, e, active, cos, sin, lane, reach, half, cells, walls, out):
     order, starts, pos, origin, h, nx, ny = cells
+    ox = origin[0]
+    oy = origin[1]
     wa, wv, wnorm, wstarts, wlist, wbox = walls
     n = x.shape[0]
     k = cos.shape[0]
-    reach2 = reach * reach
-    rings = int(math.ceil(reach / h)) + 1
     chunks = (n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
     for chunk in prange(chunks):  # everyone: no one ahead; the walls of those the cells do not hold
         tx = np.empty(k)
@@ -442,112 +670,26 @@ def _lanes_compiled(x, e, active, cos, sin, lane, reach, half, cells, walls, out
             xj = x[j, 0]
             yj = x[j, 1]
             if wa.shape[0] and not (active[j] and math.isfinite(xj) and math.isfinite(yj)):
-                ex = e[j, 0]
-                ey = e[j, 1]
-                for q in range(k):
-                    tx[q] = cos[q] * ex - sin[q] * ey
-                    ty[q] = sin[q] * ex + cos[q] * ey
-                _walls_ahead(j, xj, yj, tx, ty, reach, half, wa, wv, wnorm, wstarts, wlist, wbox, out)
+                _turned(e[j, 0], e[j, 1], cos, sin, tx, ty)
+                _wall_cuts_call(xj, yj, tx, ty, k, reach, half, wa, wv, wnorm, wstarts, wlist, wbox, out[j])
     m = order.shape[0]
+    kp = (k + LANES - 1) // LANES * LANES
     chunks = (m + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
     for chunk in prange(chunks):  # the humans in cell order: their neighbours are near in memory
-        tx = np.empty(k)
-        ty = np.empty(k)
-        best2 = np.empty(k)
+        w = np.empty(3 * kp)
+        tx = w[:kp]
+        ty = w[kp : 2 * kp]
+        best2 = w[2 * kp :]
+        cut = np.empty(kp)
+        s = np.empty(kp)
+        none = np.empty(1)  # (no count, no contacts)
         for t in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, m)):
             j = order[t]
-            ex = e[j, 0]
-            ey = e[j, 1]
-            xj = pos[t, 0]
-            yj = pos[t, 1]
-            far2 = -1.0  # the largest of the lanes' nearest so far: the search stops beyond it
+            _turned(e[j, 0], e[j, 1], cos, sin, tx, ty)
+            _lane_search(t, k, w, tx, ty, best2, lane, reach, half, pos, starts, ox, oy, h, nx, ny, wa, wv, wnorm,
+                         wstarts, wlist, wbox, cut, s, -1.0, -1.0, none, none, none)  # fmt: skip
             for q in range(k):
-                tx[q] = cos[q] * ex - sin[q] * ey
-                ty[q] = sin[q] * ex + cos[q] * ey
-                if tx[q] == 0.0 and ty[q] == 0.0:
-                    best2[q] = math.nan  # a standing human: no lane, no headway
-                else:
-                    best2[q] = reach2
-                    far2 = reach2
-            if far2 > 0.0:
-                cx = min(int((xj - origin[0]) // h), nx - 1)
-                cy = min(int((yj - origin[1]) // h), ny - 1)
-                lo_x = 0.0  # the lanes' bounding box, from X_j
-                hi_x = 0.0
-                lo_y = 0.0
-                hi_y = 0.0
-                for q in range(k):
-                    if best2[q] == best2[q]:
-                        lo_x = min(lo_x, reach * tx[q] - lane * abs(ty[q]), -lane * abs(ty[q]))
-                        hi_x = max(hi_x, reach * tx[q] + lane * abs(ty[q]), lane * abs(ty[q]))
-                        lo_y = min(lo_y, reach * ty[q] - lane * abs(tx[q]), -lane * abs(tx[q]))
-                        hi_y = max(hi_y, reach * ty[q] + lane * abs(tx[q]), lane * abs(tx[q]))
-                gx0 = min(max(int(math.floor((xj + max(lo_x, -reach) - SLACK - origin[0]) / h)), 0), nx - 1)
-                gx1 = min(max(int(math.floor((xj + min(hi_x, reach) + SLACK - origin[0]) / h)), 0), nx - 1)
-                gy0 = min(max(int(math.floor((yj + max(lo_y, -reach) - SLACK - origin[1]) / h)), 0), ny - 1)
-                gy1 = min(max(int(math.floor((yj + min(hi_y, reach) + SLACK - origin[1]) / h)), 0), ny - 1)
-                # the 3 × 3 cells round X_j first, then row by row, nearest rows first, in each row the cells within
-                # every lane's nearest so far: a row's humans are contiguous in the cell order (one run, or two
-                # beside the block already seen), so no loop over cells
-                for phase in range(2):
-                    for dr in range(2 if phase == 0 else rings + 1):
-                        if dr >= 2 and (dr - 1) * h * ((dr - 1) * h) >= far2:
-                            break  # every row from here is farther than every lane's nearest found
-                        for side in range(2):
-                            if dr == 0 and side == 1:
-                                continue
-                            gy = cy - dr if side == 0 else cy + dr
-                            if gy < gy0 or gy > gy1:
-                                continue
-                            by0 = origin[1] + gy * h - yj - SLACK  # the row's band, from X_j, a little wider
-                            by1 = by0 + h + 2.0 * SLACK
-                            dy2 = by0 * by0 if by0 > 0.0 else (by1 * by1 if by1 < 0.0 else 0.0)
-                            if dy2 >= far2:
-                                continue
-                            if phase == 0:
-                                ga = max(gx0, cx - 1)
-                                gb = min(gx1, cx + 1)
-                                runs = 1
-                            else:
-                                wide = math.sqrt(far2 - dy2) + SLACK
-                                ga = max(gx0, min(max(int(math.floor((xj - wide - origin[0]) / h)), 0), nx - 1))
-                                gb = min(gx1, min(max(int(math.floor((xj + wide - origin[0]) / h)), 0), nx - 1))
-                                runs = 2 if dr <= 1 else 1  # beside the block, or the whole row
-                            for run in range(runs):
-                                a = ga
-                                b = gb
-                                if phase == 1 and dr <= 1:
-                                    if run == 0:
-                                        b = min(gb, cx - 2)
-                                    else:
-                                        a = max(ga, cx + 2)
-                                if a > b:
-                                    continue
-                                for u in range(starts[gy * nx + a], starts[gy * nx + b + 1]):
-                                    if u == t:
-                                        continue
-                                    dx = pos[u, 0] - xj
-                                    dy = pos[u, 1] - yj
-                                    r2 = dx * dx + dy * dy
-                                    if r2 >= far2:
-                                        continue
-                                    found = False
-                                    for q in range(k):  # (&: no branch per test, one per hit)
-                                        along = dx * tx[q] + dy * ty[q]
-                                        across = dx * ty[q] - dy * tx[q]
-                                        if (r2 < best2[q]) & (along > 0.0) & (abs(across) < lane):
-                                            best2[q] = r2
-                                            found = True
-                                    if found:
-                                        far2 = -1.0
-                                        for q in range(k):
-                                            if best2[q] > far2:
-                                                far2 = best2[q]
-                for q in range(k):
-                    if best2[q] < reach2:
-                        out[j, q] = math.sqrt(best2[q])
-            if wa.shape[0]:
-                _walls_ahead(j, x[j, 0], x[j, 1], tx, ty, reach, half, wa, wv, wnorm, wstarts, wlist, wbox, out)
+                out[j, q] = s[q]
 
 
 def lane_headways(
@@ -619,17 +761,7 @@ def _choose_compiled(f, s, e, cos, sin, best_s, best_f, walk):
     k = f.shape[1]
     for chunk in prange((n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):
         for j in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, n)):
-            b = 0
-            top = f[j, 0] * cos[0]
-            if top == top:  # (numpy's argmax: the first nan, if any, else the first of the largest)
-                for q in range(1, k):
-                    g = f[j, q] * cos[q]
-                    if g != g:
-                        b = q
-                        break
-                    if g > top:
-                        top = g
-                        b = q
+            b = _best_turn(f[j], cos, k)
             best_s[j] = s[j, b]
             best_f[j] = f[j, b]
             walk[j, 0] = cos[b] * e[j, 0] - sin[b] * e[j, 1]
@@ -701,87 +833,108 @@ def _cone_numpy(v, x, active, jam, separation, cells):
     v[:, 1] += sep_y
 
 
+@inlined
+def _cone(cdx, cdy, cr2, contacts, vx, vy, jam, separation):
+    """(H2) and (H3) for one human walking ``(vx, vy)`` whose contacts (those closer than ``jam``, not at its own
+    point) are at the offsets ``(cdx, cdy)``, squared distances ``cr2``, the first ``contacts`` of them in the
+    order of the cells: its walk projected on the cone of those that approach nobody it touches, plus the soft
+    core's separation (module docstring).  Returns the new ``(vx, vy)``."""
+    sx = 0.0  # (H3), and whether the walk approaches a contact
+    sy = 0.0
+    bad = False
+    for c in range(contacts):
+        dx = cdx[c]
+        dy = cdy[c]
+        r = math.sqrt(cr2[c])
+        w = separation * (jam - r) / jam
+        sx -= w * (dx / r)
+        sy -= w * (dy / r)
+        if vx * (dx / r) + vy * (dy / r) > 0.0:
+            bad = True
+    if bad:  # (H2): the violated contact whose line's projection satisfies all, removing least; else 0
+        tol = 1e-12 * math.hypot(vx, vy)
+        best = math.inf
+        bx = 0.0
+        by = 0.0
+        for c in range(contacts):
+            r = math.sqrt(cr2[c])
+            fx = cdx[c] / r
+            fy = cdy[c] / r
+            af = vx * fx + vy * fy
+            if af <= 0.0 or af >= best:
+                continue
+            px = vx - af * fx
+            py = vy - af * fy
+            worst = -math.inf  # the largest u·n over the contacts: u approaches none of them iff it is <= 0
+            for c2 in range(contacts):
+                r2 = math.sqrt(cr2[c2])
+                worst = max(worst, px * (cdx[c2] / r2) + py * (cdy[c2] / r2))
+            if worst <= tol:
+                best = af
+                bx = px
+                by = py
+        vx = bx
+        vy = by
+    return vx + sx, vy + sy
+
+
+@inlined
+def _contacts(pos, starts, ox, oy, h, nx, ny, t, jam2, cdx, cdy, cr2):
+    """The contacts of the human in slot ``t`` (``0 < r² < jam2``, in the 3 × 3 cells round it: cells at least
+    ``√jam2`` wide), in the order of the cells, into ``cdx``, ``cdy``, ``cr2`` while they hold them; returns how
+    many there are."""
+    xj = pos[t, 0]
+    yj = pos[t, 1]
+    cx = min(int((xj - ox) // h), nx - 1)
+    cy = min(int((yj - oy) // h), ny - 1)
+    cap = cdx.shape[0]
+    contacts = 0
+    for gy in range(max(cy - 1, 0), min(cy + 2, ny)):  # each row's three cells: one run of the cell order
+        for u in range(starts[gy * nx + max(cx - 1, 0)], starts[gy * nx + min(cx + 2, nx)]):
+            dx = pos[u, 0] - xj
+            dy = pos[u, 1] - yj
+            r2 = dx * dx + dy * dy
+            if 0.0 < r2 < jam2:
+                if contacts < cap:
+                    cdx[contacts] = dx
+                    cdy[contacts] = dy
+                    cr2[contacts] = r2
+                contacts += 1
+    return contacts
+
+
 @inner
-def _approach(pos, starts, nx, x0, x1, y0, y1, t, jam2, ux, uy):
-    """The largest ``u·n_tk`` over the contacts of the human in slot ``t`` (closer than ``√jam2``, in the cells
-    ``[x0, x1) × [y0, y1)``); ``-inf`` without contacts.  ``u`` approaches none of them iff it is ``<= 0``."""
-    worst = -math.inf
-    xt = pos[t, 0]
-    yt = pos[t, 1]
-    for gy in range(y0, y1):
-        for gx in range(x0, x1):
-            c = gy * nx + gx
-            for q in range(starts[c], starts[c + 1]):
-                dx = pos[q, 0] - xt
-                dy = pos[q, 1] - yt
-                r2 = dx * dx + dy * dy
-                if q != t and 0.0 < r2 < jam2:
-                    r = math.sqrt(r2)
-                    worst = max(worst, ux * (dx / r) + uy * (dy / r))
-    return worst
+def _contact_cone_one(pos, starts, ox, oy, h, nx, ny, t, vx, vy, jam, separation, cdx, cdy, cr2):
+    """:func:`_cone` for the human in slot ``t``, its contacts read from the cells (buffers grown as needed)."""
+    contacts = _contacts(pos, starts, ox, oy, h, nx, ny, t, jam * jam, cdx, cdy, cr2)
+    if contacts > cdx.shape[0]:
+        cdx = np.empty(contacts)
+        cdy = np.empty(contacts)
+        cr2 = np.empty(contacts)
+        _contacts(pos, starts, ox, oy, h, nx, ny, t, jam * jam, cdx, cdy, cr2)
+    return _cone(cdx, cdy, cr2, contacts, vx, vy, jam, separation)
+
+
+CONTACTS = 32
+"""Contacts a human's buffers hold before the compiled cone reads them again into larger ones."""
 
 
 @compiled(fallback=_cone_numpy, parallel_over="v")
 def _cone_compiled(v, x, active, jam, separation, cells):
     order, starts, pos, origin, h, nx, ny = cells
-    jam2 = jam * jam
-    for t in prange(order.shape[0]):  # the humans in cell order; the contacts are read again, not stored
-        j = order[t]
-        xj = pos[t, 0]
-        yj = pos[t, 1]
-        vx = v[j, 0]
-        vy = v[j, 1]
-        cx = min(int((xj - origin[0]) // h), nx - 1)
-        cy = min(int((yj - origin[1]) // h), ny - 1)
-        x0, x1, y0, y1 = max(cx - 1, 0), min(cx + 2, nx), max(cy - 1, 0), min(cy + 2, ny)
-        sx = 0.0  # (H3), and whether the walk approaches a contact
-        sy = 0.0
-        bad = False
-        for gy in range(y0, y1):
-            for gx in range(x0, x1):
-                c = gy * nx + gx
-                for u in range(starts[c], starts[c + 1]):
-                    dx = pos[u, 0] - xj
-                    dy = pos[u, 1] - yj
-                    r2 = dx * dx + dy * dy
-                    if u != t and 0.0 < r2 < jam2:
-                        r = math.sqrt(r2)
-                        w = separation * (jam - r) / jam
-                        sx -= w * (dx / r)
-                        sy -= w * (dy / r)
-                        if vx * (dx / r) + vy * (dy / r) > 0.0:
-                            bad = True
-        if bad:  # (H2): the violated contact whose line's projection satisfies all, removing least; else 0
-            tol = 1e-12 * math.hypot(vx, vy)
-            best = math.inf
-            bx = 0.0
-            by = 0.0
-            for gy in range(y0, y1):
-                for gx in range(x0, x1):
-                    c = gy * nx + gx
-                    for u in range(starts[c], starts[c + 1]):
-                        dx = pos[u, 0] - xj
-                        dy = pos[u, 1] - yj
-                        r2 = dx * dx + dy * dy
-                        if u == t or not (0.0 < r2 < jam2):
-                            continue
-                        r = math.sqrt(r2)
-                        fx = dx / r
-                        fy = dy / r
-                        af = vx * fx + vy * fy
-                        if af <= 0.0 or af >= best:
-                            continue
-                        px = vx - af * fx
-                        py = vy - af * fy
-                        ok = _approach(pos, starts, nx, x0, x1, y0, y1, t, jam2, px, py) <= tol
-                        if ok:
-                            best = af
-                            bx = px
-                            by = py
-            vx = bx
-            vy = by
-        v[j, 0] = vx + sx
-        v[j, 1] = vy + sy
+    ox = origin[0]
+    oy = origin[1]
+    m = order.shape[0]
+    for chunk in prange((m + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):  # the humans in cell order
+        cdx = np.empty(CONTACTS)
+        cdy = np.empty(CONTACTS)
+        cr2 = np.empty(CONTACTS)
+        for t in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, m)):
+            j = order[t]
+            vx, vy = _contact_cone_one(pos, starts, ox, oy, h, nx, ny, t, v[j, 0], v[j, 1], jam, separation, cdx,
+                                       cdy, cr2)  # fmt: skip
+            v[j, 0] = vx
+            v[j, 1] = vy
 
 
 def contact_cone(
@@ -809,3 +962,286 @@ def contact_cone(
         raise ValueError(f"contact_cone needs cells at least {jam} m wide, got {cells.h}")
     _cone_compiled(v, x, active, jam, separation, cells.arrays())
     return v
+
+
+@inlined
+def _best_turn(f, cos, k):
+    """numpy's ``argmax`` of ``f_q cos_q`` over the ``k`` lanes: the first nan, if any, else the first of the
+    largest (the smallest turn: (H4)'s ties)."""
+    b = 0
+    top = f[0] * cos[0]
+    if top == top:
+        for q in range(1, k):
+            g = f[q] * cos[q]
+            if g != g:
+                b = q
+                break
+            if g > top:
+                top = g
+                b = q
+    return b
+
+
+@inlined
+def _unit(vx, vy):
+    """``(|v|, e)``: the walk's length and direction, ``e = v/|v|`` (0 for ``|v| = 0``; ``v`` itself where ``|v|`` is
+    nan), numpy's ``hypot`` and division."""
+    norm = math.hypot(vx, vy)
+    if norm > 0.0:
+        return norm, vx / norm, vy / norm
+    if norm == 0.0:
+        return norm, 0.0, 0.0
+    return norm, vx, vy
+
+
+@inlined
+def _linear_factors(s, f, k, jam, rho_max):
+    """(H1) with the linear diagram, ``f_q = clip(1 − ρ(s_q)/ρ_max, 0, 1)``, ``ρ(s) = ρ_max (d/s)²``, for the ``k``
+    lanes: the operations of :meth:`~meanfield.crowds.headway.Headway.choose_direction` and
+    :meth:`~meanfield.crowds.congestion.Linear.speed_factor`, in their order."""
+    for q in range(k):
+        rho = jam / s[q]
+        rho = rho * rho
+        rho = rho * rho_max
+        g = rho / -rho_max
+        g = g + 1.0
+        if g < 0.0:  # (np.maximum, np.minimum: a nan stays)
+            g = 0.0
+        if g > 1.0:
+            g = 1.0
+        f[q] = g
+
+
+@inlined
+def _count_one(pos, starts, ox, oy, h, nx, ny, t, radius):
+    """How many others are closer than ``radius`` to the human in slot ``t`` (read from the cells of any width)."""
+    xj = pos[t, 0]
+    yj = pos[t, 1]
+    r2 = radius * radius
+    ga = min(max(int(math.floor((xj - radius - SLACK - ox) / h)), 0), nx - 1)
+    gb = min(max(int(math.floor((xj + radius + SLACK - ox) / h)), 0), nx - 1)
+    gc = min(max(int(math.floor((yj - radius - SLACK - oy) / h)), 0), ny - 1)
+    gd = min(max(int(math.floor((yj + radius + SLACK - oy) / h)), 0), ny - 1)
+    count = 0
+    for gy in range(gc, gd + 1):  # each row's cells: one run of the cell order
+        for u in range(starts[gy * nx + ga], starts[gy * nx + gb + 1]):
+            dx = pos[u, 0] - xj
+            dy = pos[u, 1] - yj
+            count += dx * dx + dy * dy < r2
+    return count - 1  # (X_j itself)
+
+
+@inlined
+def _density_of(count, xj, yj, inv_area, table, tox, toy, spacing, floor, clipped):
+    """The local density of a human at ``(xj, yj)`` with ``count`` others in its disk: the arithmetic of
+    :func:`~meanfield.crowds._congestion_loops.neighbour_density` (the count over the disk's area, then over its
+    share in Ω, read bilinearly)."""
+    rho = count * inv_area
+    if clipped:
+        tx = table.shape[0]
+        ty = table.shape[1]
+        fx = (xj - tox) / spacing
+        fy = (yj - toy) / spacing
+        i = min(max(math.floor(fx), 0), tx - 2)
+        k = min(max(math.floor(fy), 0), ty - 2)
+        wx = min(max(fx - i, 0.0), 1.0)
+        wy = min(max(fy - k, 0.0), 1.0)
+        lo = table[i, k] + wy * (table[i, k + 1] - table[i, k])  # as DiskShare.at: exactly 1 among 1s
+        hi = table[i + 1, k] + wy * (table[i + 1, k + 1] - table[i + 1, k])
+        share = max(lo + wx * (hi - lo), floor)
+        rho = rho / share
+    return rho
+
+
+class HeadwayWork:
+    """The arrays :func:`headway_step` works in for a crowd of ``n``, allocated once and kept between steps: the
+    cell list's (``order``, ``starts``, ``sorted``), the counting sort's scratch, and each human's headway."""
+
+    __slots__ = ("n", "order", "starts", "sorted", "key", "idx", "cursor", "headway")
+
+    def __init__(self, n: int) -> None:
+        self.n = int(n)
+        self.order = np.empty(n, np.int64)
+        self.starts = np.empty(4 * n + 66, np.int64)
+        self.sorted = np.empty((n, 2))
+        self.key = np.empty(n, np.int64)
+        self.idx = np.empty(n, np.int64)
+        self.cursor = np.empty(4 * n + 66, np.int64)
+        self.headway = np.empty(n)
+
+    def arrays(self) -> tuple:
+        """``(order, starts, sorted, key, idx, cursor)``, as :func:`headway_step`'s loop takes them."""
+        return self.order, self.starts, self.sorted, self.key, self.idx, self.cursor
+
+
+NO_COUNT = (1.0, 0.0, np.ones((2, 2)), 0.0, 0.0, 1.0, 0.0, False)
+""":func:`headway_step` without the count (``(radius, 1/(π r²), share table, its origin x, y, its spacing, s_min,
+clipped)``)."""
+
+
+def _step_numpy(v, x, active, cos, sin, lane, reach, half, walls, jam, separation, rho_max, count, counting, work,
+                s_out, rho_out):  # fmt: skip
+    """The numpy twin of :func:`headway_step`: the numpy twins of the cell list, the lanes, the choice, the contact
+    cone and the count, one after the other (``work`` unused)."""
+    from meanfield.crowds._congestion_loops import _neighbour_density_numpy
+
+    n = len(x)
+    norm = np.hypot(v[:, 0], v[:, 1])
+    e = v.copy()
+    np.divide(e, norm[:, None], out=e, where=norm[:, None] > 0)
+    e[norm == 0] = 0.0
+    order, starts, pos, x0, y0, h, nx, ny = _cells_numpy(x, active, jam)
+    cells = (order, starts, pos, (x0, y0), h, nx, ny)
+    s = np.empty((n, len(cos)))
+    _lanes_numpy(x, e, active, cos, sin, lane, reach, half, cells, walls, s)
+    with np.errstate(divide="ignore"):
+        rho = np.divide(jam, s)
+    np.square(rho, out=rho)
+    rho *= rho_max
+    f = rho / -rho_max
+    f += 1.0
+    np.maximum(f, 0.0, out=f)
+    np.minimum(f, 1.0, out=f)
+    best_f, walk = np.empty(n), np.empty((n, 2))
+    _choose_numpy(f, s, e, cos, sin, s_out, best_f, walk)
+    v[:] = (norm * best_f)[:, None] * walk
+    _cone_numpy(v, x, active, jam, separation, cells)
+    if counting:
+        radius, inv_area, table, tox, toy, spacing, floor, clipped = count
+        none = np.empty(1)
+        _neighbour_density_numpy(
+            x, active, radius, inv_area, table, tox, toy, spacing, floor, clipped, np.zeros((1, 2)), False, 0.0,
+            None, None, None, None, None, None, rho_out, none, np.empty((1, 2)),
+        )  # fmt: skip
+
+
+@compiled(fallback=_step_numpy, parallel_over="x")
+def _step_compiled(v, x, active, cos, sin, lane, reach, half, walls, jam, separation, rho_max, count, counting, work,
+                   s_out, rho_out):  # fmt: skip
+    wa, wv, wnorm, wstarts, wlist, wbox = walls
+    radius, inv_area, table, tox, toy, spacing, floor, clipped = count
+    order, starts, pos, key, idx, cursor = work
+    n = x.shape[0]
+    k = cos.shape[0]
+    kp = (k + LANES - 1) // LANES * LANES
+    m, ox, oy, h, nx, ny = _sort_cells(x, active, jam, order, starts, pos, key, idx, cursor)
+    jam2 = jam * jam
+    in_block = radius * radius if counting and radius + SLACK <= BLOCK * h else -1.0  # (the count's disk in the block)
+    chunks = (n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
+    for chunk in prange(chunks):  # those the cells do not hold: nobody ahead, the walls; no contact, no count
+        tx = np.empty(k)
+        ty = np.empty(k)
+        sl = np.empty(k)
+        fl = np.empty(k)
+        for j in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, n)):
+            if counting:
+                rho_out[j] = 0.0
+            xj = x[j, 0]
+            yj = x[j, 1]
+            if active[j] and math.isfinite(xj) and math.isfinite(yj):
+                continue
+            norm, ex, ey = _unit(v[j, 0], v[j, 1])
+            _turned(ex, ey, cos, sin, tx, ty)
+            for q in range(k):
+                sl[q] = math.inf
+            if wa.shape[0]:
+                _wall_cuts_call(xj, yj, tx, ty, k, reach, half, wa, wv, wnorm, wstarts, wlist, wbox, sl)
+            _linear_factors(sl, fl, k, jam, rho_max)
+            b = _best_turn(fl, cos, k)
+            s_out[j] = sl[b]
+            speed = norm * fl[b]
+            v[j, 0] = speed * (cos[b] * ex - sin[b] * ey)
+            v[j, 1] = speed * (sin[b] * ex + cos[b] * ey)
+    chunks = (m + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
+    for chunk in prange(chunks):  # the humans in cell order: (H4), (H1), (H2), (H3) and the count, one at a time
+        w = np.empty(3 * kp)
+        tx = w[:kp]
+        ty = w[kp : 2 * kp]
+        best2 = w[2 * kp :]
+        cut = np.empty(kp)
+        sl = np.empty(kp)
+        fl = np.empty(k)
+        cdx = np.empty(CONTACTS)
+        cdy = np.empty(CONTACTS)
+        cr2 = np.empty(CONTACTS)
+        for t in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, m)):
+            j = order[t]
+            norm, ex, ey = _unit(v[j, 0], v[j, 1])
+            _turned(ex, ey, cos, sin, tx, ty)
+            count, contacts = _lane_search(t, k, w, tx, ty, best2, lane, reach, half, pos, starts, ox, oy, h, nx, ny,
+                                           wa, wv, wnorm, wstarts, wlist, wbox, cut, sl, in_block, jam2, cdx, cdy,
+                                           cr2)  # fmt: skip
+            _linear_factors(sl, fl, k, jam, rho_max)
+            b = _best_turn(fl, cos, k)
+            s_out[j] = sl[b]
+            speed = norm * fl[b]
+            vx = speed * (cos[b] * ex - sin[b] * ey)
+            vy = speed * (sin[b] * ex + cos[b] * ey)
+            if contacts <= CONTACTS:
+                vx, vy = _cone(cdx, cdy, cr2, contacts, vx, vy, jam, separation)
+            else:  # (more contacts than the buffers hold: read again)
+                vx, vy = _contact_cone_one(pos, starts, ox, oy, h, nx, ny, t, vx, vy, jam, separation, cdx, cdy, cr2)
+            v[j, 0] = vx
+            v[j, 1] = vy
+            if counting:
+                if in_block < 0.0:  # (a disk wider than the block: counted on its own)
+                    count = _count_one(pos, starts, ox, oy, h, nx, ny, t, radius)
+                rho_out[j] = _density_of(count, pos[t, 0], pos[t, 1], inv_area, table, tox, toy, spacing, floor,
+                                         clipped)  # fmt: skip
+
+
+def headway_step(
+    v: np.ndarray, x: np.ndarray, active: np.ndarray, cos: np.ndarray, sin: np.ndarray, lane: float, reach: float,
+    half: float, walls: LaneWalls, jam: float, separation: float, rho_max: float, work: HeadwayWork,
+    count: tuple = NO_COUNT, rho: np.ndarray | None = None,
+) -> np.ndarray:  # fmt: skip
+    """A congested step of the headway door model with the linear diagram, (H1) to (H4), in one compiled pass:
+    each human's velocity in place, and its chosen lane's headway (returned: ``work.headway``).
+
+    The numbers, to the last bit, of :func:`cell_list` (cells of width ``jam``), :func:`lane_headways`, (H1)'s
+    density and :meth:`~meanfield.crowds.congestion.Linear.speed_factor` of every lane, :func:`choose_lanes`, the
+    walk ``|v| f`` along the chosen lane, :func:`contact_cone` and, with ``rho``, the count of
+    :func:`~meanfield.crowds._congestion_loops.neighbour_density` (docs page *Congestion*, "The headway door model";
+    its section *Cost*).  The cell list is sorted once into ``work``; then each human, in cell order, finds its
+    lanes' headways (H4), their speed factors (H1), its lane, its walk, its contact cone (H2) and soft core (H3)
+    and its count, writing only its own row: the same numbers on any number of threads.  Those the cells do not
+    hold (not active, or not finite) walk as :meth:`~meanfield.crowds.headway.Headway.choose_direction` has them
+    walk (nobody ahead; the walls), with no contact and a count of 0.
+
+    Parameters
+    ----------
+    v : ndarray, shape (N, 2)
+        Each human's walk before congestion (its direction is the line of walk; 0: standing); C-contiguous,
+        changed in place.
+    x : ndarray, shape (N, 2)
+        Positions, C-contiguous.
+    active : ndarray of bool, shape (N,)
+    cos, sin : ndarray, shape (K,)
+        The turns' cosines and sines (the route's own first).
+    lane, reach, half : float
+        ``w``, ``R`` and what a wall adds to its distance (:func:`lane_headways`).
+    walls : LaneWalls
+    jam : float
+        ``d``: the cells' width and the contacts' distance (m).
+    separation : float
+        ``u`` of (H3), m/s.
+    rho_max : float
+        The linear diagram's jam density (persons/m²).
+    work : HeadwayWork
+        For ``N`` humans.
+    count : tuple
+        ``(radius, 1/(π r²), share table, its origin x, y, its spacing, s_min, clipped)``: the count's
+        (:class:`~meanfield.crowds.local_density.LocalDensity`); read only with ``rho``.
+    rho : ndarray, shape (N,), optional
+        The local density of each human (written; 0 for those not active).
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        The chosen lane's headway (m), ``work.headway``.
+    """
+    counting = rho is not None
+    _step_compiled(v, x, active, cos, sin, float(lane), float(reach), float(half), walls.arrays(), float(jam),
+                   float(separation), float(rho_max), count, counting, work.arrays(), work.headway,
+                   rho if counting else work.headway)  # fmt: skip
+    return work.headway

@@ -56,8 +56,19 @@ from typing import Any
 
 import numpy as np
 
-from meanfield.crowds._headway_loops import NO_WALLS, LaneWalls, cell_list, choose_lanes, contact_cone, lane_headways
-from meanfield.crowds.congestion import FundamentalDiagram
+from meanfield.crowds._headway_loops import (
+    NO_COUNT,
+    NO_WALLS,
+    HeadwayWork,
+    LaneWalls,
+    cell_list,
+    choose_lanes,
+    contact_cone,
+    headway_step,
+    lane_headways,
+)
+from meanfield.crowds.congestion import FundamentalDiagram, Linear
+from meanfield.crowds.local_density import SHARE_FLOOR, LocalDensity
 
 __all__ = ["Headway", "HEADWAY_REACH", "TURNS", "boundary_walls"]
 
@@ -130,6 +141,9 @@ class Headway:
             self.reach)  # fmt: skip
         self._headway = np.empty(0)
         self._density = np.empty(0)
+        self._fused = type(diagram) is Linear  # (H1) to (H4) in one compiled pass (headway_step)
+        self._work: HeadwayWork | None = None
+        self._count: tuple | None = None  # (the count, what headway_step takes of it)
 
     def density(self, headway: np.ndarray) -> np.ndarray:
         """``ρ(s) = ρ_max (d/s)²``, persons/m², of a hexagonal crowd at spacing ``s`` (0 for ``s = inf``)."""
@@ -207,6 +221,8 @@ class Headway:
         n = len(positions)
         if active is None:
             active = np.ones(n, dtype=bool)
+        if self._fused and (density is None or (type(density) is LocalDensity and density.n == n)):
+            return self._one_pass(velocity, positions, active, density)
         e = velocity.copy()
         norm = np.hypot(e[:, 0], e[:, 1])
         np.divide(e, norm[:, None], out=e, where=norm[:, None] > 0)
@@ -216,3 +232,33 @@ class Headway:
         velocity[:] = (norm * f)[:, None] * e
         contact_cone(velocity, positions, active, self.jam_spacing, self.separation, cells)
         return self.density(s) if density is None else density(positions, active)
+
+    def _one_pass(self, velocity: np.ndarray, positions: np.ndarray, active: np.ndarray,
+                  density: LocalDensity | None) -> np.ndarray:  # fmt: skip
+        """:meth:`slow_down` with the linear diagram, in one compiled pass
+        (:func:`~meanfield.crowds._headway_loops.headway_step`, the same numbers), its work arrays kept between
+        steps."""
+        n = len(positions)
+        if self._work is None or self._work.n != n:
+            self._work = HeadwayWork(n)
+        x = np.ascontiguousarray(positions, dtype=float)
+        here = np.ascontiguousarray(active, dtype=bool)
+        v = velocity if velocity.dtype == np.float64 and velocity.flags.c_contiguous else np.array(velocity, float)
+        rho = None if density is None else np.empty(n)
+        s = headway_step(v, x, here, self._cos, self._sin, self.lane, self.reach, 0.5 * self.jam_spacing,
+                         self._lane_walls, self.jam_spacing, self.separation, self.rho_max, self._work,
+                         NO_COUNT if density is None else self._count_of(density), rho)  # fmt: skip
+        if v is not velocity:
+            velocity[:] = v
+        return self.density(s) if rho is None else rho
+
+    def _count_of(self, density: LocalDensity) -> tuple:
+        """What :func:`~meanfield.crowds._headway_loops.headway_step` takes of the count ``density`` (kept)."""
+        if self._count is None or self._count[0] is not density:
+            share = density.share
+            table, (x0, y0), spacing = (NO_COUNT[2], (0.0, 0.0), 1.0) if share is None else (
+                share.table, share.origin, share.spacing)  # fmt: skip
+            clipped = share is not None
+            args = (density.radius, density.inv_area, table, float(x0), float(y0), float(spacing), SHARE_FLOOR, clipped)
+            self._count = (density, args)
+        return self._count[1]

@@ -269,3 +269,113 @@ def test_the_compiled_cell_list_is_the_stable_counting_sort(seed, n, h):
     assert got.nx * got.ny <= 4 * len(got.order) + 64 and len(got.order) == np.sum(active & np.isfinite(x).all(1))
     empty = cell_list(x, np.zeros(n, bool), h)
     assert len(empty.order) == 0 and empty.starts.tolist() == [0, 0] and empty.sorted.shape == (0, 2)
+
+
+def separate_calls(model, v, x, active, density):
+    """The reference for the one-pass step: :meth:`Headway.slow_down`'s separate calls (the cell list, the lanes,
+    the diagram in numpy, the choice, the product, the contact cone, the count)."""
+    v = v.copy()
+    model._fused = False
+    try:
+        rho = model.slow_down(v, x, active, 0.0, density)
+    finally:
+        model._fused = True
+    return v, rho
+
+
+def step_crowd(n, seed, width=10.0, height=8.0):
+    """A crowd of walkers over the bottleneck's room: crowded, some standing, inactive, non-finite, two at one point,
+    some outside the room."""
+    rng = np.random.default_rng(seed)
+    x, e, active = crowd(n, rng, 1.0)
+    x = x * [width, height]
+    x[20:26] = rng.uniform(-0.5, width + 2.5, (6, 2))
+    v = e * rng.uniform(0.5, 1.5, (n, 1))
+    v[3] = [np.nan, 1.0]  # a walk that is not finite: its direction is the walk itself
+    return v, x, active
+
+
+@pytest.mark.parametrize("walled", [False, True])
+@pytest.mark.parametrize("counted", [False, True])
+@pytest.mark.parametrize("seed, n", [(0, 400), (1, 150), (2, 900)])
+def test_the_one_pass_step_is_the_separate_calls_to_the_last_bit(walled, counted, seed, n):
+    """:func:`headway_step` (one compiled pass: the cell list, (H4), (H1), the choice, (H2), (H3) and the count)
+    gives the numbers of the separate calls it replaced, to the last bit: velocities, headways, local densities."""
+    from meanfield import Domain
+    from meanfield.crowds.local_density import LocalDensity
+
+    room = Domain.from_wkt("POLYGON ((0 0, 10 0, 10 3.5, 12 3.5, 12 4.5, 10 4.5, 10 8, 0 8, 0 0))")
+    model = Headway(Linear(), region=room if walled else None)
+    v, x, active = step_crowd(n, seed)
+    density = LocalDensity(n, 0.5, room if walled else None) if counted else None
+    want_v, want_rho = separate_calls(model, v, x, active, density)
+    got_v = v.copy()
+    got_rho = model.slow_down(got_v, x, active, 0.0, density)
+    assert model._work is not None  # (the one pass ran)
+    assert np.array_equal(got_v, want_v, equal_nan=True)
+    assert np.array_equal(got_rho, want_rho, equal_nan=True)
+    if counted:
+        assert np.mean(got_rho > 0) > 0.5  # (the crowd is dense enough to count)
+    with compiled.numpy_path():  # the twin: the same headways and counts, the velocities to round-off
+        twin_v = v.copy()
+        twin_rho = model.slow_down(twin_v, x, active, 0.0, density)
+    assert np.array_equal(twin_rho, want_rho, equal_nan=True)
+    assert np.allclose(twin_v, want_v, rtol=1e-12, atol=1e-12, equal_nan=True)
+
+
+def test_the_one_pass_step_reads_a_disk_wider_than_its_block_on_its_own():
+    """A count's radius beyond the cells read first (``BLOCK`` cells round a human) is counted on its own."""
+    from meanfield.crowds.local_density import LocalDensity
+
+    model = Headway(Linear())
+    v, x, active = step_crowd(300, 3)
+    density = LocalDensity(300, 1.5)
+    want_v, want_rho = separate_calls(model, v, x, active, density)
+    got_v = v.copy()
+    assert np.array_equal(model.slow_down(got_v, x, active, 0.0, density), want_rho)
+    assert np.array_equal(got_v, want_v, equal_nan=True)
+
+
+def test_the_one_pass_step_is_the_weidmann_separate_calls():
+    """Another diagram than the linear one takes the separate calls (the one pass has the linear one's ``g``)."""
+    from meanfield.crowds.local_density import LocalDensity
+
+    model = Headway(Weidmann())
+    assert not model._fused
+    v, x, active = step_crowd(200, 4)
+    got_v = v.copy()
+    model.slow_down(got_v, x, active, 0.0, LocalDensity(200))
+    assert model._work is None and not np.array_equal(got_v, v, equal_nan=True)
+
+
+@needs_numba
+def test_the_one_pass_step_does_not_depend_on_the_threads():
+    """Above one chunk the one pass runs on numba's threads: each human writes its own row only, so one thread and
+    every thread give the same velocities, headways and counts."""
+    import numba
+
+    from meanfield import Domain
+    from meanfield.crowds._headway_loops import _step_compiled
+    from meanfield.crowds.local_density import LocalDensity
+
+    if not compiled.enabled():
+        pytest.skip("the compiled path is off (MEANFIELD_COMPILED=0): nothing to compare")
+    room = Domain.from_wkt("POLYGON ((0 0, 40 0, 40 14, 48 14, 48 18, 40 18, 40 32, 0 32, 0 0))")
+    model = Headway(Linear(), region=room)
+    v, x, active = step_crowd(12000, 7, 40.0, 32.0)
+    density = LocalDensity(12000, 0.5, room)
+    before = numba.get_num_threads()
+    runs = []
+    try:
+        for threads in sorted({1, before}):
+            numba.set_num_threads(threads)
+            out = v.copy()
+            rho = model.slow_down(out, x, active, 0.0, density)
+            runs.append((out, rho, model._work.headway.copy()))
+    finally:
+        numba.set_num_threads(before)
+    assert _step_compiled._threaded is not None  # the threaded version ran
+    for a, b in zip(runs[0], runs[-1], strict=True):
+        assert np.array_equal(a, b, equal_nan=True)
+    want_v, want_rho = separate_calls(model, v, x, active, density)
+    assert np.array_equal(runs[0][0], want_v, equal_nan=True) and np.array_equal(runs[0][1], want_rho)
