@@ -550,6 +550,12 @@ class AgentCrowd:
             velocity *= self.congestion.speed_factor(rho)[:, None]
         else:
             rho = self._door.slow_down(velocity, positions, active, dt, self._density)
+            factor = getattr(self._door, "noise_factor", None)
+            if factor is not None and hasattr(self.engine, "noise_factor"):  # (H5): the noise among contacts
+                sigma = self.engine.sigma
+                s = np.asarray(sigma(positions[:, 0], positions[:, 1], t), float)[:, None] if callable(sigma) else sigma
+                velocity += s * self._door.noise_gradient  # σ ∇φ: the noise ∇·(σφ∇p), not Itô's Δ(σφp)
+                self.engine.noise_factor = factor
         self._peak(rho, t)
 
     def _peak(self, rho: np.ndarray, t: float) -> None:
