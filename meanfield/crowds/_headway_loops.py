@@ -20,6 +20,9 @@ steps away from those it touches, the more the deeper the overlap (a soft core, 
 
     v_j ← v_j − u Σ_{k : 0 < |X_k − X_j| < d} (1 − |X_k − X_j|/d) n_jk
 
+:func:`contact_noise` gives each the share ``φ_j = Π_k (|X_k − X_j|/d)^m`` of the noise it keeps among those it
+touches, and its gradient (H5).
+
 (H4) needs the headway along ``K`` turned lanes of every human: :func:`lane_headways` finds all of them in one
 walk of each human's neighbours (and cuts the turned lanes at the walls, :class:`LaneWalls`), the numbers of
 ``K`` calls of :func:`headways`; :func:`choose_lanes` then picks the lane of most progress (docs page
@@ -56,6 +59,8 @@ __all__ = [
     "choose_lanes",
     "contact_cone",
     "headway_step",
+    "contact_noise",
+    "CONTACT_NOISE_POWER",
     "cell_list",
     "CellList",
     "HeadwayWork",
@@ -1245,3 +1250,108 @@ def headway_step(
                    float(separation), float(rho_max), count, counting, work.arrays(), work.headway,
                    rho if counting else work.headway)  # fmt: skip
     return work.headway
+CONTACT_NOISE_POWER = 4.0
+"""``m`` of :func:`contact_noise`: each contact at ``r < d`` scales a human's diffusion by ``(r/d)^m``."""
+
+
+def _contact_noise_numpy(x, active, jam, power, phi, grad, cells):
+    """The numpy twin of :func:`contact_noise`'s loop (every pair closer than ``d``; ``cells`` unused)."""
+    phi[:] = 1.0
+    grad[:] = 0.0
+    j, k, r2 = _pairs(x, active, jam)
+    keep = r2 > 0.0
+    j, k, r2 = j[keep], k[keep], r2[keep]
+    if not len(j):
+        return
+    r = np.sqrt(r2)
+    log_phi = np.zeros(len(x))
+    np.add.at(log_phi, j, power * np.log(r / jam))
+    np.add.at(grad[:, 0], j, -power * (x[k, 0] - x[j, 0]) / r2)
+    np.add.at(grad[:, 1], j, -power * (x[k, 1] - x[j, 1]) / r2)
+    touched = np.unique(j)
+    phi[touched] = np.exp(log_phi[touched])
+    grad[touched] *= phi[touched, None]
+
+
+@compiled(fallback=_contact_noise_numpy, parallel_over="x")
+def _contact_noise_compiled(x, active, jam, power, phi, grad, cells):
+    order, starts, pos, origin, h, nx, ny = cells
+    jam2 = jam * jam
+    for j in prange(x.shape[0]):
+        phi[j] = 1.0
+        grad[j, 0] = 0.0
+        grad[j, 1] = 0.0
+    for t in prange(order.shape[0]):
+        j = order[t]
+        xj = pos[t, 0]
+        yj = pos[t, 1]
+        cx = min(int((xj - origin[0]) // h), nx - 1)
+        cy = min(int((yj - origin[1]) // h), ny - 1)
+        log_phi = 0.0
+        gx = 0.0
+        gy = 0.0
+        touched = False
+        for gy_ in range(max(cy - 1, 0), min(cy + 2, ny)):
+            for gx_ in range(max(cx - 1, 0), min(cx + 2, nx)):
+                c = gy_ * nx + gx_
+                for u in range(starts[c], starts[c + 1]):
+                    dx = pos[u, 0] - xj
+                    dy = pos[u, 1] - yj
+                    r2 = dx * dx + dy * dy
+                    if u != t and 0.0 < r2 < jam2:
+                        log_phi += power * math.log(math.sqrt(r2) / jam)
+                        gx -= power * dx / r2
+                        gy -= power * dy / r2
+                        touched = True
+        if touched:
+            f = math.exp(log_phi)
+            phi[j] = f
+            grad[j, 0] = f * gx
+            grad[j, 1] = f * gy
+
+
+def contact_noise(x: np.ndarray, active: np.ndarray, jam: float, cells: CellList, phi: np.ndarray, grad: np.ndarray,
+                  power: float = CONTACT_NOISE_POWER) -> np.ndarray:  # fmt: skip
+    """The noise's share ``φ_j`` that each active human keeps among those it touches, and its gradient, in place
+    (docs page *Congestion*, "The headway door model").
+
+    A human's diffusion is ``σ φ_j``, each contact closer than the jam spacing ``d`` scaling it by ``(r/d)^m``::
+
+        φ_j = Π_{k : 0 < |X_k − X_j| < d} (|X_k − X_j|/d)^m,    ∇_j φ_j = −m φ_j Σ_k (X_k − X_j)/|X_k − X_j|²
+
+    (1 and 0 for a human who touches nobody, or is not active).  The crowd's step adds ``σ ∇_j φ_j`` to the drift:
+    the noise is then the divergence ``∇·(σ φ ∇p)`` of the density ``p``, not Itô's ``Δ(σ φ p)``, which would
+    drift everyone down the gradient of its own noise, into its contacts.  With it, two people who touch and
+    only step apart by (H3) at ``u (1 − r/d)`` each keep their separation ``r < d`` at the stationary law::
+
+        p(r) / p(d) = exp(−∫_r^d u (1 − s/d) / (σ (s/d)^m) ds)
+
+    whose overlap shrinks as ``(r/d)^m`` falls, instead of the Ornstein–Uhlenbeck pair's ``√(σ d / u)``; at the
+    jam spacing and beyond, nobody's noise changes, so a queue standing at ``d`` keeps its noise and no jam is
+    frozen.
+
+    Parameters
+    ----------
+    x : ndarray, shape (N, 2)
+        Positions.
+    active : ndarray of bool, shape (N,)
+        Who counts and is counted.
+    jam : float
+        ``d``: those closer than this touch (m).
+    cells : CellList
+        The active humans in cells of width at least ``d`` (:func:`cell_list`).
+    phi : ndarray, shape (N,)
+        ``φ``, written.
+    grad : ndarray, shape (N, 2)
+        ``∇_j φ_j``, 1/m, written.
+    power : float
+        ``m`` (:data:`CONTACT_NOISE_POWER`).
+
+    Returns
+    -------
+    phi : ndarray
+    """
+    if cells.h < jam:
+        raise ValueError(f"contact_noise needs cells at least {jam} m wide, got {cells.h}")
+    _contact_noise_compiled(x, active, float(jam), float(power), phi, grad, cells.arrays())
+    return phi

@@ -551,6 +551,12 @@ class AgentCrowd:
             velocity *= self.congestion.speed_factor(rho)[:, None]
         else:
             rho = self._door.slow_down(velocity, positions, active, dt, self._density)
+            door, engine = self._door, self.engine
+            if isinstance(door, Headway) and door.noise_factor is not None and isinstance(engine, PointMassEngine):
+                sigma = engine.sigma  # (H5): the noise among contacts (docs page Congestion, "The headway door model")
+                s = np.asarray(sigma(positions[:, 0], positions[:, 1], t), float)[:, None] if callable(sigma) else sigma
+                velocity += s * door.noise_gradient  # σ ∇φ: the noise ∇·(σφ∇p), not Itô's Δ(σφp)
+                engine.noise_factor = door.noise_factor
         self._peak(rho, t)
 
     def _peak(self, rho: np.ndarray, t: float) -> None:

@@ -43,7 +43,13 @@ The excluded volume is a velocity, never a displacement (:func:`~meanfield.crowd
 * (H3) a soft core: two people closer than ``d`` step apart at up to the free speed ``v₀`` (at the same point),
   ``u (1 − r/d)`` each, so that the overlaps the noise makes are undone at a walker's pace.
 
-Both are drifts of the SDE that do not depend on the step, so the model has a limit as ``dt → 0``.  A contact
+* (H5) the noise among contacts: a human's diffusion is ``σ φ_j``, each contact at ``r < d`` scaling it by
+  ``(r/d)^m``, and its drift gains ``σ ∇_j φ_j`` (:func:`~meanfield.crowds._headway_loops.contact_noise`), so that
+  the noise is ``∇·(σ φ ∇p)`` and not Itô's ``Δ(σ φ p)``, which would pile people into their contacts.  A touching
+  pair's overlap is no longer the Ornstein–Uhlenbeck pair's ``√(σ d/u)``, which packed the queues beyond
+  ``1.25 ρ_max`` at σ = 0.1 m²/s; at the jam spacing and beyond nobody's noise changes, so no queue is frozen.
+
+(H2), (H3) and (H5) do not depend on the step, so the model has a limit as ``dt → 0``.  A contact
 that moves people by their overlap over the step (the twin's push, or a projection of the positions) reflects
 the noise, and turns σ into a pressure that drives people through the doors, more the finer the step (docs
 page *Congestion*, "The headway door model", where the three are measured against the step).
@@ -57,6 +63,7 @@ from typing import Any
 import numpy as np
 
 from meanfield.crowds._headway_loops import (
+    CONTACT_NOISE_POWER,
     NO_COUNT,
     NO_WALLS,
     HeadwayWork,
@@ -64,6 +71,7 @@ from meanfield.crowds._headway_loops import (
     cell_list,
     choose_lanes,
     contact_cone,
+    contact_noise,
     headway_step,
     lane_headways,
 )
@@ -112,6 +120,17 @@ class Headway:
         Ω, whose walls (H4) keeps the turned directions off (None: no walls).
     turns : tuple of float, optional
         (H4)'s directions off the route's, rad (default :data:`TURNS`; ``(0.0,)``: (H1) to (H3) alone).
+    contact_power : float, optional
+        ``m`` of (H5), each contact at ``r < d`` scaling one's noise by ``(r/d)^m``
+        (:func:`~meanfield.crowds._headway_loops.contact_noise`; default
+        :data:`~meanfield.crowds._headway_loops.CONTACT_NOISE_POWER`; 0: the noise unchanged).
+
+    Attributes
+    ----------
+    noise_factor, noise_gradient : ndarray, shape (N,) and (N, 2), or None
+        (H5) at the last :meth:`slow_down`'s positions: ``φ_j`` and ``∇_j φ_j`` (None with ``contact_power = 0``).
+        The crowd scales its noise by ``φ`` and adds ``σ ∇φ`` to the drift (docs page *Congestion*, "The headway
+        door model").
     """
 
     caps_exits = True
@@ -121,7 +140,7 @@ class Headway:
 
     def __init__(
         self, diagram: FundamentalDiagram, reach: float = HEADWAY_REACH, separation: float | None = None,
-        region: Any = None, turns: tuple[float, ...] = TURNS,
+        region: Any = None, turns: tuple[float, ...] = TURNS, contact_power: float = CONTACT_NOISE_POWER,
     ) -> None:  # fmt: skip
         self.diagram = diagram
         self.separation = float(diagram.free_speed if separation is None else separation)
@@ -144,6 +163,9 @@ class Headway:
         self._fused = type(diagram) is Linear  # (H1) to (H4) in one compiled pass (headway_step)
         self._work: HeadwayWork | None = None
         self._count: tuple | None = None  # (the count, what headway_step takes of it)
+        self.contact_power = float(contact_power)
+        self.noise_factor: np.ndarray | None = None
+        self.noise_gradient: np.ndarray | None = None
 
     def density(self, headway: np.ndarray) -> np.ndarray:
         """``ρ(s) = ρ_max (d/s)²``, persons/m², of a hexagonal crowd at spacing ``s`` (0 for ``s = inf``)."""
@@ -206,9 +228,10 @@ class Headway:
 
     def slow_down(self, velocity: np.ndarray, positions: np.ndarray, active: np.ndarray | None, dt: float = 0.0,
                   density: Any = None) -> np.ndarray:  # fmt: skip
-        """(H4), (H1), (H2) and (H3), in place on ``velocity`` (m/s, the walk before congestion); returns the local
-        density to report: ``density``'s count (a :class:`~meanfield.crowds.local_density.LocalDensity`), or,
-        without one, the density (H1) reads from each headway.  ``dt`` is not used: nothing here depends on the step.
+        """(H4), (H1), (H2) and (H3), in place on ``velocity`` (m/s, the walk before congestion), and (H5)'s
+        :attr:`noise_factor` and :attr:`noise_gradient`; returns the local density to report: ``density``'s count (a
+        :class:`~meanfield.crowds.local_density.LocalDensity`), or, without one, the density (H1) reads from each
+        headway.  ``dt`` is not used: nothing here depends on the step.
 
         Parameters
         ----------
@@ -231,7 +254,22 @@ class Headway:
         s, f, e = self.choose_direction(positions, e, active, cells)
         velocity[:] = (norm * f)[:, None] * e
         contact_cone(velocity, positions, active, self.jam_spacing, self.separation, cells)
+        self._contact_noise(positions, active, cells)
         return self.density(s) if density is None else density(positions, active)
+
+    def _contact_noise(self, positions: np.ndarray, active: np.ndarray, cells: Any = None) -> None:
+        """(H5): each one's share of the noise among its contacts, :attr:`noise_factor`, and its gradient,
+        :attr:`noise_gradient` (nothing with ``contact_power = 0``); ``cells`` the active humans in cells (None:
+        listed here)."""
+        if not self.contact_power:
+            return
+        n = len(positions)
+        if self.noise_factor is None or len(self.noise_factor) != n:
+            self.noise_factor, self.noise_gradient = np.empty(n), np.empty((n, 2))
+        if cells is None:
+            cells = cell_list(positions, active, self.jam_spacing)
+        contact_noise(positions, active, self.jam_spacing, cells, self.noise_factor, self.noise_gradient,
+                      self.contact_power)  # fmt: skip
 
     def _one_pass(self, velocity: np.ndarray, positions: np.ndarray, active: np.ndarray,
                   density: LocalDensity | None) -> np.ndarray:  # fmt: skip
@@ -250,6 +288,7 @@ class Headway:
                          NO_COUNT if density is None else self._count_of(density), rho)  # fmt: skip
         if v is not velocity:
             velocity[:] = v
+        self._contact_noise(x, here)
         return self.density(s) if rho is None else rho
 
     def _count_of(self, density: LocalDensity) -> tuple:

@@ -89,6 +89,7 @@ class PointMassEngine:
         self._amp_key: tuple | None = None
         self._box = NO_BOX if self._path_reflection else getattr(domain, "box_walls", NO_BOX)
         self.standing: np.ndarray | None = None  # who waits (pre-movement): no noise, no exit
+        self.noise_factor: np.ndarray | None = None  # each one's share of σ (the headway model's (H5); None: all)
         self._open: np.ndarray | None = None  # the exits still open, by index (None: all; exits_closed)
         self._capacity: np.ndarray | None = None  # persons/s each exit passes at most (None: any; cap_exits)
         self._credit = np.zeros(0)
@@ -170,6 +171,8 @@ class PointMassEngine:
             amp = np.sqrt(2.0 * s * dt)[:, None]
         else:
             amp = self._constant_amplitude(dt)
+        if self.noise_factor is not None:  # (H5): σ φ_j (docs page Congestion, "The headway door model")
+            amp = amp * np.sqrt(self.noise_factor)[:, None]
         previous = x.copy() if self._path_reflection or len(self.exits) else None
         # a box without exits folds its walls into the same pass (meanfield.crowds._field_loops)
         folded = self._box if previous is None else NO_BOX

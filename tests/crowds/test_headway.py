@@ -5,6 +5,9 @@
 * (H2) the walk projected on the cone of the velocities that approach nobody one touches: feasible, and no
   feasible velocity is nearer (a fine polar grid of the plane as the reference);
 * (H3) two people closer than ``d`` step apart at ``u (1 − r/d)`` each;
+* (H5) the noise's share among one's contacts and its gradient, against their closed form and finite
+  differences; with ``σ ∇φ`` in the drift, a touching pair's separation follows its exact stationary law
+  (Itô's step without it packs the pair);
 * the compiled loops equal their numpy twins; the point masses take the model, by default (``"auto"``), the
   density and the bodies refuse it naming ``crowd.door_model``.
 """
@@ -17,7 +20,7 @@ import numpy as np
 import pytest
 
 from meanfield._compiled import core as compiled
-from meanfield.crowds._headway_loops import cell_list, contact_cone, headways
+from meanfield.crowds._headway_loops import cell_list, contact_cone, contact_noise, headways
 from meanfield.crowds.congestion import Linear, Weidmann
 from meanfield.crowds.headway import HEADWAY_REACH, TURNS, Headway
 from meanfield.errors import ParameterError
@@ -251,9 +254,85 @@ def test_the_soft_core_steps_two_people_apart_by_their_overlap():
     np.testing.assert_allclose(out, [[-step, 0.0], [step, 0.0], [0.0, 0.0]], atol=1e-15)
 
 
+def test_the_noise_s_share_is_the_product_of_the_contacts_and_its_gradient_the_exact_one():
+    """(H5): ``φ_j = Π (r_jk/d)^m`` over the contacts, 1 and no gradient without; ``∇_j φ_j`` its derivative."""
+    x = np.array([[0.0, 0.0], [0.3, 0.0], [0.0, 0.4], [5.0, 5.0], [np.nan, np.nan], [0.1, 0.1]])
+    active = np.array([True, True, True, True, True, False])
+    phi, grad = np.empty(6), np.empty((6, 2))
+    contact_noise(x, active, JAM, cell_list(x, active, JAM), phi, grad, 4.0)
+    expected = [(0.3 / JAM) ** 4 * (0.4 / JAM) ** 4, (0.3 / JAM) ** 4, (0.4 / JAM) ** 4, 1.0, 1.0, 1.0]
+    np.testing.assert_allclose(phi, expected, rtol=1e-14)
+    np.testing.assert_allclose(grad[0], [-expected[0] * 4 / 0.3, -expected[0] * 4 / 0.4], rtol=1e-14)  # away from both
+    np.testing.assert_allclose(grad[1], [expected[1] * 4 / 0.3, 0.0], rtol=1e-14, atol=1e-15)
+    assert np.all(grad[3:] == 0.0)
+    rng = np.random.default_rng(4)
+    x = rng.uniform(0.0, 3.0, (200, 2))
+    active = np.ones(200, bool)
+    phi, grad = np.empty(200), np.empty((200, 2))
+    contact_noise(x, active, JAM, cell_list(x, active, JAM), phi, grad)
+    h = 1e-6
+    for j in np.flatnonzero(phi < 1.0)[:20]:
+        for a in range(2):
+            ends = []
+            for sign in (1.0, -1.0):
+                y = x.copy()
+                y[j, a] += sign * h
+                p, g = np.empty(200), np.empty((200, 2))
+                ends.append(contact_noise(y, active, JAM, cell_list(y, active, JAM), p, g)[j])
+            assert grad[j, a] == pytest.approx((ends[0] - ends[1]) / (2 * h), rel=1e-5, abs=1e-9)
+
+
+def _pair_separations(sigma, u, correct, pairs=400, steps=1600, dt=0.002, seed=0):
+    """Independent touching pairs under (H3) and (H5), no walk, by Euler–Maruyama; the separation reflected at
+    ``d``: the separations of the second half, every 20th step."""
+    rng = np.random.default_rng(seed)
+    side = int(math.ceil(math.sqrt(pairs)))
+    centre = 3.0 * np.stack(np.divmod(np.arange(pairs), side), axis=1).astype(float)
+    x = np.concatenate([centre - [0.2, 0.0], centre + [0.2, 0.0]])
+    active = np.ones(len(x), bool)
+    phi, grad, out = np.empty(len(x)), np.empty((len(x), 2)), []
+    for step in range(steps):
+        cells = cell_list(x, active, JAM)
+        v = contact_cone(np.zeros_like(x), x, active, JAM, u, cells)
+        contact_noise(x, active, JAM, cells, phi, grad)
+        if correct:
+            v += sigma * grad
+        x = x + v * dt + np.sqrt(2.0 * sigma * phi * dt)[:, None] * rng.standard_normal(x.shape)
+        rel = x[pairs:] - x[:pairs]
+        r = np.hypot(*rel.T)
+        far = r > JAM  # r -> 2d - r
+        shift = np.where(far, r - JAM, 0.0)[:, None] * rel / r[:, None]
+        x[:pairs] += shift
+        x[pairs:] -= shift
+        if step >= steps // 2 and step % 20 == 0:
+            out.append(np.hypot(*(x[pairs:] - x[:pairs]).T))
+    return np.concatenate(out)
+
+
+def test_a_touching_pair_keeps_the_stationary_separation_of_h5():
+    """Two people who touch, step apart by (H3) at ``u (1 − r/d)`` each and diffuse at ``σ φ`` with ``σ ∇φ`` in the
+    drift: their separation ``r < d`` has the density ``r p(r)``, ``p(r) ∝ exp(−∫_r^d u (1 − s/d) / (σ (s/d)^m) ds)``
+    (zero flux of ``∂p = ∇·(2σφ ∇p) − ∇·(2u (1 − r/d) r̂ p)``), whatever ``φ``'s steepness; without ``σ ∇φ``
+    the Itô step packs the pair (its law is ``p / φ``, piled where the noise is weakest)."""
+    from meanfield.crowds._headway_loops import CONTACT_NOISE_POWER as m
+
+    sigma, u = 0.1, 1.34
+    s = np.linspace(1e-3, JAM, 4001)
+    rate = u * (1.0 - s / JAM) / (sigma * (s / JAM) ** m)
+    log_p = -np.concatenate([np.cumsum(((rate[1:] + rate[:-1]) / 2 * np.diff(s))[::-1])[::-1], [0.0]])
+    cdf = np.cumsum(s * np.exp(log_p))
+    cdf /= cdf[-1]
+    q = np.array([0.30, 0.35, 0.38, 0.40, 0.42, 0.44])
+    exact = np.interp(q, s, cdf)
+    r = _pair_separations(sigma, u, correct=True)
+    np.testing.assert_allclose((r[:, None] < q).mean(axis=0), exact, atol=0.025)
+    ito = _pair_separations(sigma, u, correct=False, steps=800)
+    assert np.max((ito[:, None] < q).mean(axis=0) - exact) > 0.1
+
+
 @needs_numba
 def test_compiled_loops_equal_their_numpy_twins():
-    from meanfield.crowds._headway_loops import _cone_compiled, _headways_compiled
+    from meanfield.crowds._headway_loops import _cone_compiled, _contact_noise_compiled, _headways_compiled
 
     if not compiled.enabled():
         pytest.skip("the compiled path is off (MEANFIELD_COMPILED=0): nothing to compare")
@@ -272,6 +351,15 @@ def test_compiled_loops_equal_their_numpy_twins():
         ref = contact_cone(v.copy(), x, active, JAM, 1.34, cells)
     np.testing.assert_allclose(fast, ref, rtol=0, atol=1e-13)
     assert np.sum(np.any(fast != v, axis=1)) > 1000
+    phi, grad = np.empty(len(x)), np.empty((len(x), 2))
+    contact_noise(x, active, JAM, cells, phi, grad)
+    assert _contact_noise_compiled._ready
+    with compiled.numpy_path():
+        ref_phi, ref_grad = np.empty(len(x)), np.empty((len(x), 2))
+        contact_noise(x, active, JAM, cells, ref_phi, ref_grad)
+    np.testing.assert_allclose(phi, ref_phi, rtol=1e-13, atol=0)
+    np.testing.assert_allclose(grad, ref_grad, rtol=1e-12, atol=1e-12)
+    assert np.sum(phi < 1.0) > 1000
 
 
 def test_cells_narrower_than_the_jam_spacing_are_refused():
@@ -287,8 +375,11 @@ def test_the_point_masses_walk_the_headway_model():
     chosen = crowd.guidance.velocity(x, 0.0, 0.05).copy()
     drift = crowd.drift(loop.robots, 0.0, 0.05).copy()
     expected = chosen.copy()
-    Headway(Linear(), region=loop.scenario.domain).slow_down(expected, x, crowd.engine.active)
+    model = Headway(Linear(), region=loop.scenario.domain)
+    model.slow_down(expected, x, crowd.engine.active)
+    expected += crowd.engine.sigma * model.noise_gradient  # (H5): σ ∇φ
     np.testing.assert_array_equal(drift, expected)
+    np.testing.assert_array_equal(crowd.engine.noise_factor, model.noise_factor)
     assert np.any(np.hypot(*drift.T) < 0.9 * np.hypot(*chosen.T))  # somebody is slowed at the start
     assert crowd.peak_local_density > 0
     loop.run(progress=False)
