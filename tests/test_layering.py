@@ -240,6 +240,8 @@ def test_the_rooms_have_no_cycle():
 
 COMPILED_LOOP_EXCEPTIONS = {
     "meanfield.crowds._kde_loops": {"meanfield.geometry.grid"},  # its numpy twin is grid.linear_binning itself
+    # the fused headway step's numpy twin counts by the count's own twin (a sibling leaf of compiled loops)
+    "meanfield.crowds._headway_loops": {"meanfield.crowds._congestion_loops"},
 }
 
 
@@ -336,7 +338,12 @@ def test_the_name_test_finds_a_test_for_a_name(tmp_path):
 
 # modules allowed above ~1,200 lines, and why (a module holds one whole concept, however long; past
 # about 1,200 lines it is usually two)
-LONG_MODULES: dict[str, str] = {}
+LONG_MODULES: dict[str, str] = {
+    "meanfield/crowds/_headway_loops.py": (
+        "the headway door model's compiled loops, one concept: each pass of (H1)-(H5) on its own, the fused step "
+        "that does them in one call (kept beside them: a test holds the two equal to the last bit), every numpy twin"
+    ),
+}
 
 
 def test_no_module_is_over_about_1200_lines_without_a_reason():
