@@ -909,19 +909,49 @@ def _contacts(pos, starts, ox, oy, h, nx, ny, t, jam2, cdx, cdy, cr2):
 
 
 @inner
-def _contact_cone_one(pos, starts, ox, oy, h, nx, ny, t, vx, vy, jam, separation, cdx, cdy, cr2):
-    """:func:`_cone` for the human in slot ``t``, its contacts read from the cells (buffers grown as needed)."""
-    contacts = _contacts(pos, starts, ox, oy, h, nx, ny, t, jam * jam, cdx, cdy, cr2)
+def _read_contacts(pos, starts, ox, oy, h, nx, ny, t, jam2, cdx, cdy, cr2):
+    """:func:`_contacts` of the human in slot ``t`` into ``cdx``, ``cdy``, ``cr2``, or, if they hold too few, into
+    new buffers; returns ``(contacts, cdx, cdy, cr2)``."""
+    contacts = _contacts(pos, starts, ox, oy, h, nx, ny, t, jam2, cdx, cdy, cr2)
     if contacts > cdx.shape[0]:
         cdx = np.empty(contacts)
         cdy = np.empty(contacts)
         cr2 = np.empty(contacts)
-        _contacts(pos, starts, ox, oy, h, nx, ny, t, jam * jam, cdx, cdy, cr2)
+        _contacts(pos, starts, ox, oy, h, nx, ny, t, jam2, cdx, cdy, cr2)
+    return contacts, cdx, cdy, cr2
+
+
+@inner
+def _contact_cone_one(pos, starts, ox, oy, h, nx, ny, t, vx, vy, jam, separation, cdx, cdy, cr2):
+    """:func:`_cone` for the human in slot ``t``, its contacts read from the cells (buffers grown as needed)."""
+    contacts, cdx, cdy, cr2 = _read_contacts(pos, starts, ox, oy, h, nx, ny, t, jam * jam, cdx, cdy, cr2)
     return _cone(cdx, cdy, cr2, contacts, vx, vy, jam, separation)
+
+
+@inlined
+def _noise_share(cdx, cdy, cr2, contacts, jam, power):
+    """(H5) for one human whose contacts are at the offsets ``(cdx, cdy)``, squared distances ``cr2`` (the first
+    ``contacts``, in the order of the cells): ``(φ_j, ∂φ_j/∂x, ∂φ_j/∂y)`` of :func:`contact_noise`, ``(1, 0, 0)``
+    for one who touches nobody."""
+    if contacts == 0:
+        return 1.0, 0.0, 0.0
+    log_phi = 0.0
+    gx = 0.0
+    gy = 0.0
+    for c in range(contacts):
+        r2 = cr2[c]
+        log_phi += power * math.log(math.sqrt(r2) / jam)
+        gx -= power * cdx[c] / r2
+        gy -= power * cdy[c] / r2
+    f = math.exp(log_phi)
+    return f, f * gx, f * gy
 
 
 CONTACTS = 32
 """Contacts a human's buffers hold before the compiled cone reads them again into larger ones."""
+
+CONTACT_NOISE_POWER = 4.0
+"""``m`` of :func:`contact_noise`: each contact at ``r < d`` scales a human's diffusion by ``(r/d)^m``."""
 
 
 @compiled(fallback=_cone_numpy, parallel_over="v")
@@ -1084,10 +1114,10 @@ NO_COUNT = (1.0, 0.0, np.ones((2, 2)), 0.0, 0.0, 1.0, 0.0, False)
 clipped)``)."""
 
 
-def _step_numpy(v, x, active, cos, sin, lane, reach, half, walls, jam, separation, rho_max, count, counting, work,
-                s_out, rho_out):  # fmt: skip
+def _step_numpy(v, x, active, cos, sin, lane, reach, half, walls, jam, separation, rho_max, power, count, counting,
+                work, s_out, rho_out, phi, grad):  # fmt: skip
     """The numpy twin of :func:`headway_step`: the numpy twins of the cell list, the lanes, the choice, the contact
-    cone and the count, one after the other (``work`` unused)."""
+    cone, the count and (H5), one after the other (``work`` unused)."""
     from meanfield.crowds._congestion_loops import _neighbour_density_numpy
 
     n = len(x)
@@ -1118,11 +1148,13 @@ def _step_numpy(v, x, active, cos, sin, lane, reach, half, walls, jam, separatio
             x, active, radius, inv_area, table, tox, toy, spacing, floor, clipped, np.zeros((1, 2)), False, 0.0,
             None, None, None, None, None, None, rho_out, none, np.empty((1, 2)),
         )  # fmt: skip
+    if power != 0.0:
+        _contact_noise_numpy(x, active, jam, power, phi, grad, cells)
 
 
 @compiled(fallback=_step_numpy, parallel_over="x")
-def _step_compiled(v, x, active, cos, sin, lane, reach, half, walls, jam, separation, rho_max, count, counting, work,
-                   s_out, rho_out):  # fmt: skip
+def _step_compiled(v, x, active, cos, sin, lane, reach, half, walls, jam, separation, rho_max, power, count,
+                   counting, work, s_out, rho_out, phi, grad):  # fmt: skip
     wa, wv, wnorm, wstarts, wlist, wbox = walls
     radius, inv_area, table, tox, toy, spacing, floor, clipped = count
     order, starts, pos, key, idx, cursor = work
@@ -1133,6 +1165,7 @@ def _step_compiled(v, x, active, cos, sin, lane, reach, half, walls, jam, separa
     jam2 = jam * jam
     in_block = radius * radius if counting and radius + SLACK <= BLOCK * h else -1.0  # (the count's disk in the block)
     chunks = (n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
+    noise = power != 0.0
     for chunk in prange(chunks):  # those the cells do not hold: nobody ahead, the walls; no contact, no count
         tx = np.empty(k)
         ty = np.empty(k)
@@ -1141,6 +1174,10 @@ def _step_compiled(v, x, active, cos, sin, lane, reach, half, walls, jam, separa
         for j in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, n)):
             if counting:
                 rho_out[j] = 0.0
+            if noise:
+                phi[j] = 1.0
+                grad[j, 0] = 0.0
+                grad[j, 1] = 0.0
             xj = x[j, 0]
             yj = x[j, 1]
             if active[j] and math.isfinite(xj) and math.isfinite(yj):
@@ -1158,7 +1195,7 @@ def _step_compiled(v, x, active, cos, sin, lane, reach, half, walls, jam, separa
             v[j, 0] = speed * (cos[b] * ex - sin[b] * ey)
             v[j, 1] = speed * (sin[b] * ex + cos[b] * ey)
     chunks = (m + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
-    for chunk in prange(chunks):  # the humans in cell order: (H4), (H1), (H2), (H3) and the count, one at a time
+    for chunk in prange(chunks):  # the humans in cell order: (H4), (H1), (H2), (H3), the count and (H5), one at a time
         w = np.empty(3 * kp)
         tx = w[:kp]
         ty = w[kp : 2 * kp]
@@ -1184,8 +1221,13 @@ def _step_compiled(v, x, active, cos, sin, lane, reach, half, walls, jam, separa
             vy = speed * (sin[b] * ex + cos[b] * ey)
             if contacts <= CONTACTS:
                 vx, vy = _cone(cdx, cdy, cr2, contacts, vx, vy, jam, separation)
+                if noise:
+                    phi[j], grad[j, 0], grad[j, 1] = _noise_share(cdx, cdy, cr2, contacts, jam, power)
             else:  # (more contacts than the buffers hold: read again)
-                vx, vy = _contact_cone_one(pos, starts, ox, oy, h, nx, ny, t, vx, vy, jam, separation, cdx, cdy, cr2)
+                contacts, bdx, bdy, br2 = _read_contacts(pos, starts, ox, oy, h, nx, ny, t, jam2, cdx, cdy, cr2)
+                vx, vy = _cone(bdx, bdy, br2, contacts, vx, vy, jam, separation)
+                if noise:
+                    phi[j], grad[j, 0], grad[j, 1] = _noise_share(bdx, bdy, br2, contacts, jam, power)
             v[j, 0] = vx
             v[j, 1] = vy
             if counting:
@@ -1198,20 +1240,22 @@ def _step_compiled(v, x, active, cos, sin, lane, reach, half, walls, jam, separa
 def headway_step(
     v: np.ndarray, x: np.ndarray, active: np.ndarray, cos: np.ndarray, sin: np.ndarray, lane: float, reach: float,
     half: float, walls: LaneWalls, jam: float, separation: float, rho_max: float, work: HeadwayWork,
-    count: tuple = NO_COUNT, rho: np.ndarray | None = None,
+    count: tuple = NO_COUNT, rho: np.ndarray | None = None, noise: tuple[np.ndarray, np.ndarray] | None = None,
+    power: float = CONTACT_NOISE_POWER,
 ) -> np.ndarray:  # fmt: skip
-    """A congested step of the headway door model with the linear diagram, (H1) to (H4), in one compiled pass:
+    """A congested step of the headway door model with the linear diagram, (H1) to (H5), in one compiled pass:
     each human's velocity in place, and its chosen lane's headway (returned: ``work.headway``).
 
     The numbers, to the last bit, of :func:`cell_list` (cells of width ``jam``), :func:`lane_headways`, (H1)'s
     density and :meth:`~meanfield.crowds.congestion.Linear.speed_factor` of every lane, :func:`choose_lanes`, the
     walk ``|v| f`` along the chosen lane, :func:`contact_cone` and, with ``rho``, the count of
-    :func:`~meanfield.crowds._congestion_loops.neighbour_density` (docs page *Congestion*, "The headway door model";
-    its section *Cost*).  The cell list is sorted once into ``work``; then each human, in cell order, finds its
-    lanes' headways (H4), their speed factors (H1), its lane, its walk, its contact cone (H2) and soft core (H3)
-    and its count, writing only its own row: the same numbers on any number of threads.  Those the cells do not
-    hold (not active, or not finite) walk as :meth:`~meanfield.crowds.headway.Headway.choose_direction` has them
-    walk (nobody ahead; the walls), with no contact and a count of 0.
+    :func:`~meanfield.crowds._congestion_loops.neighbour_density` and, with ``noise``, of :func:`contact_noise`
+    (docs page *Congestion*, "The headway door model"; its section *Cost*).  The cell list is sorted once into
+    ``work``; then each human, in cell order, finds its lanes' headways (H4), their speed factors (H1), its lane,
+    its walk, its contacts, read once for its contact cone (H2), its soft core (H3) and its share of the noise
+    (H5), and its count, writing only its own row: the same numbers on any number of threads.  Those the cells do
+    not hold (not active, or not finite) walk as :meth:`~meanfield.crowds.headway.Headway.choose_direction` has
+    them walk (nobody ahead; the walls), with no contact, a count of 0 and ``φ = 1``.
 
     Parameters
     ----------
@@ -1239,6 +1283,10 @@ def headway_step(
         (:class:`~meanfield.crowds.local_density.LocalDensity`); read only with ``rho``.
     rho : ndarray, shape (N,), optional
         The local density of each human (written; 0 for those not active).
+    noise : (ndarray, ndarray), shapes (N,) and (N, 2), optional
+        ``φ`` and ``∇φ`` of (H5) (written, as :func:`contact_noise` writes them; None: not computed).
+    power : float
+        ``m`` of (H5) (:data:`CONTACT_NOISE_POWER`; read only with ``noise``).
 
     Returns
     -------
@@ -1246,12 +1294,15 @@ def headway_step(
         The chosen lane's headway (m), ``work.headway``.
     """
     counting = rho is not None
+    phi, grad = (work.headway, _NO_GRADIENT) if noise is None else noise
     _step_compiled(v, x, active, cos, sin, float(lane), float(reach), float(half), walls.arrays(), float(jam),
-                   float(separation), float(rho_max), count, counting, work.arrays(), work.headway,
-                   rho if counting else work.headway)  # fmt: skip
+                   float(separation), float(rho_max), 0.0 if noise is None else float(power), count, counting,
+                   work.arrays(), work.headway, rho if counting else work.headway, phi, grad)  # fmt: skip
     return work.headway
-CONTACT_NOISE_POWER = 4.0
-"""``m`` of :func:`contact_noise`: each contact at ``r < d`` scales a human's diffusion by ``(r/d)^m``."""
+
+
+_NO_GRADIENT = np.zeros((1, 2))
+"""What :func:`headway_step` passes for ``∇φ`` without (H5) (not written)."""
 
 
 def _contact_noise_numpy(x, active, jam, power, phi, grad, cells):
@@ -1276,38 +1327,22 @@ def _contact_noise_numpy(x, active, jam, power, phi, grad, cells):
 @compiled(fallback=_contact_noise_numpy, parallel_over="x")
 def _contact_noise_compiled(x, active, jam, power, phi, grad, cells):
     order, starts, pos, origin, h, nx, ny = cells
+    ox = origin[0]
+    oy = origin[1]
     jam2 = jam * jam
     for j in prange(x.shape[0]):
         phi[j] = 1.0
         grad[j, 0] = 0.0
         grad[j, 1] = 0.0
-    for t in prange(order.shape[0]):
-        j = order[t]
-        xj = pos[t, 0]
-        yj = pos[t, 1]
-        cx = min(int((xj - origin[0]) // h), nx - 1)
-        cy = min(int((yj - origin[1]) // h), ny - 1)
-        log_phi = 0.0
-        gx = 0.0
-        gy = 0.0
-        touched = False
-        for gy_ in range(max(cy - 1, 0), min(cy + 2, ny)):
-            for gx_ in range(max(cx - 1, 0), min(cx + 2, nx)):
-                c = gy_ * nx + gx_
-                for u in range(starts[c], starts[c + 1]):
-                    dx = pos[u, 0] - xj
-                    dy = pos[u, 1] - yj
-                    r2 = dx * dx + dy * dy
-                    if u != t and 0.0 < r2 < jam2:
-                        log_phi += power * math.log(math.sqrt(r2) / jam)
-                        gx -= power * dx / r2
-                        gy -= power * dy / r2
-                        touched = True
-        if touched:
-            f = math.exp(log_phi)
-            phi[j] = f
-            grad[j, 0] = f * gx
-            grad[j, 1] = f * gy
+    m = order.shape[0]
+    for chunk in prange((m + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):  # the humans in cell order
+        cdx = np.empty(CONTACTS)
+        cdy = np.empty(CONTACTS)
+        cr2 = np.empty(CONTACTS)
+        for t in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, m)):
+            j = order[t]
+            contacts, bdx, bdy, br2 = _read_contacts(pos, starts, ox, oy, h, nx, ny, t, jam2, cdx, cdy, cr2)
+            phi[j], grad[j, 0], grad[j, 1] = _noise_share(bdx, bdy, br2, contacts, jam, power)
 
 
 def contact_noise(x: np.ndarray, active: np.ndarray, jam: float, cells: CellList, phi: np.ndarray, grad: np.ndarray,

@@ -257,19 +257,20 @@ class Headway:
         self._contact_noise(positions, active, cells)
         return self.density(s) if density is None else density(positions, active)
 
-    def _contact_noise(self, positions: np.ndarray, active: np.ndarray, cells: Any = None) -> None:
+    def _contact_noise(self, positions: np.ndarray, active: np.ndarray, cells: Any) -> None:
         """(H5): each one's share of the noise among its contacts, :attr:`noise_factor`, and its gradient,
-        :attr:`noise_gradient` (nothing with ``contact_power = 0``); ``cells`` the active humans in cells (None:
-        listed here)."""
+        :attr:`noise_gradient` (nothing with ``contact_power = 0``); ``cells`` the active humans in cells."""
+        noise = self._noise_arrays(len(positions))
+        if noise is not None:
+            contact_noise(positions, active, self.jam_spacing, cells, *noise, self.contact_power)
+
+    def _noise_arrays(self, n: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """:attr:`noise_factor` and :attr:`noise_gradient` for ``n`` humans, allocated once (None without (H5))."""
         if not self.contact_power:
-            return
-        n = len(positions)
+            return None
         if self.noise_factor is None or len(self.noise_factor) != n:
             self.noise_factor, self.noise_gradient = np.empty(n), np.empty((n, 2))
-        if cells is None:
-            cells = cell_list(positions, active, self.jam_spacing)
-        contact_noise(positions, active, self.jam_spacing, cells, self.noise_factor, self.noise_gradient,
-                      self.contact_power)  # fmt: skip
+        return self.noise_factor, self.noise_gradient
 
     def _one_pass(self, velocity: np.ndarray, positions: np.ndarray, active: np.ndarray,
                   density: LocalDensity | None) -> np.ndarray:  # fmt: skip
@@ -285,10 +286,10 @@ class Headway:
         rho = None if density is None else np.empty(n)
         s = headway_step(v, x, here, self._cos, self._sin, self.lane, self.reach, 0.5 * self.jam_spacing,
                          self._lane_walls, self.jam_spacing, self.separation, self.rho_max, self._work,
-                         NO_COUNT if density is None else self._count_of(density), rho)  # fmt: skip
+                         NO_COUNT if density is None else self._count_of(density), rho, self._noise_arrays(n),
+                         self.contact_power)  # fmt: skip
         if v is not velocity:
             velocity[:] = v
-        self._contact_noise(x, here)
         return self.density(s) if rho is None else rho
 
     def _count_of(self, density: LocalDensity) -> tuple:

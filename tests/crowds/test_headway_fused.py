@@ -271,16 +271,25 @@ def test_the_compiled_cell_list_is_the_stable_counting_sort(seed, n, h):
     assert len(empty.order) == 0 and empty.starts.tolist() == [0, 0] and empty.sorted.shape == (0, 2)
 
 
-def separate_calls(model, v, x, active, density):
+def separate_calls(model, v, x, active, density, noise=False):
     """The reference for the one-pass step: :meth:`Headway.slow_down`'s separate calls (the cell list, the lanes,
-    the diagram in numpy, the choice, the product, the contact cone, the count)."""
+    the diagram in numpy, the choice, the product, the contact cone, the count, (H5)'s
+    :func:`~meanfield.crowds._headway_loops.contact_noise`); with ``noise``, also (H5)'s ``φ`` and ``∇φ``."""
     v = v.copy()
     model._fused = False
     try:
         rho = model.slow_down(v, x, active, 0.0, density)
     finally:
         model._fused = True
+    if noise:
+        return v, rho, model.noise_factor.copy(), model.noise_gradient.copy()
     return v, rho
+
+
+def same_noise(model, phi, grad):
+    """Whether (H5)'s ``φ`` and ``∇φ`` of the last step are ``phi`` and ``grad`` to the last bit, and touch some."""
+    assert np.mean(phi < 1.0) > 0.05  # (the crowd is dense enough for contacts)
+    return np.array_equal(model.noise_factor, phi) and np.array_equal(model.noise_gradient, grad)
 
 
 def step_crowd(n, seed, width=10.0, height=8.0):
@@ -308,12 +317,15 @@ def test_the_one_pass_step_is_the_separate_calls_to_the_last_bit(walled, counted
     model = Headway(Linear(), region=room if walled else None)
     v, x, active = step_crowd(n, seed)
     density = LocalDensity(n, 0.5, room if walled else None) if counted else None
-    want_v, want_rho = separate_calls(model, v, x, active, density)
+    want_v, want_rho, want_phi, want_grad = separate_calls(model, v, x, active, density, noise=True)
+    model.noise_factor[:] = np.nan  # (the one pass writes every row)
+    model.noise_gradient[:] = np.nan
     got_v = v.copy()
     got_rho = model.slow_down(got_v, x, active, 0.0, density)
     assert model._work is not None  # (the one pass ran)
     assert np.array_equal(got_v, want_v, equal_nan=True)
     assert np.array_equal(got_rho, want_rho, equal_nan=True)
+    assert same_noise(model, want_phi, want_grad)
     if counted:
         assert np.mean(got_rho > 0) > 0.5  # (the crowd is dense enough to count)
     with compiled.numpy_path():  # the twin: the same headways and counts, the velocities to round-off
@@ -321,6 +333,26 @@ def test_the_one_pass_step_is_the_separate_calls_to_the_last_bit(walled, counted
         twin_rho = model.slow_down(twin_v, x, active, 0.0, density)
     assert np.array_equal(twin_rho, want_rho, equal_nan=True)
     assert np.allclose(twin_v, want_v, rtol=1e-12, atol=1e-12, equal_nan=True)
+    assert np.allclose(model.noise_factor, want_phi, rtol=1e-12, atol=0.0)
+    assert np.allclose(model.noise_gradient, want_grad, rtol=1e-12, atol=1e-12)
+
+
+def test_the_one_pass_step_reads_again_the_contacts_its_buffers_do_not_hold():
+    """A human with more contacts than the buffers hold (``CONTACTS``) has its contacts read again: its cone and
+    (H5)'s share of the noise are still those of the separate calls."""
+    from meanfield.crowds._headway_loops import CONTACTS
+
+    model = Headway(Linear())
+    v, x, active = step_crowd(300, 5)
+    rng = np.random.default_rng(5)
+    x[30 : 30 + 2 * CONTACTS] = [5.0, 4.0] + rng.normal(0.0, 0.05, (2 * CONTACTS, 2))  # a heap
+    active[30 : 30 + 2 * CONTACTS] = True
+    want_v, _, want_phi, want_grad = separate_calls(model, v, x, active, None, noise=True)
+    got_v = v.copy()
+    model.slow_down(got_v, x, active, 0.0)
+    assert np.array_equal(got_v, want_v, equal_nan=True)
+    assert same_noise(model, want_phi, want_grad)
+    assert model.noise_factor[30] < 1e-6  # (the heap's share of the noise)
 
 
 def test_the_one_pass_step_reads_a_disk_wider_than_its_block_on_its_own():
@@ -371,11 +403,12 @@ def test_the_one_pass_step_does_not_depend_on_the_threads():
             numba.set_num_threads(threads)
             out = v.copy()
             rho = model.slow_down(out, x, active, 0.0, density)
-            runs.append((out, rho, model._work.headway.copy()))
+            runs.append((out, rho, model._work.headway.copy(), model.noise_factor.copy(), model.noise_gradient.copy()))
     finally:
         numba.set_num_threads(before)
     assert _step_compiled._threaded is not None  # the threaded version ran
     for a, b in zip(runs[0], runs[-1], strict=True):
         assert np.array_equal(a, b, equal_nan=True)
-    want_v, want_rho = separate_calls(model, v, x, active, density)
+    want_v, want_rho, want_phi, want_grad = separate_calls(model, v, x, active, density, noise=True)
     assert np.array_equal(runs[0][0], want_v, equal_nan=True) and np.array_equal(runs[0][1], want_rho)
+    assert np.array_equal(runs[0][3], want_phi) and np.array_equal(runs[0][4], want_grad)
