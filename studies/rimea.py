@@ -15,8 +15,10 @@ model.
 **Test 12** (``rimea-12``: 150 people leave a 10 m room through a 5 m × 1 m corridor into a second room and out
 by its 1 m exit).  For each seed one line of ``studies/results/rimea12.jsonl``: ``t100``, the exit's flow over
 the central 90 % of its passages, the peak 1 s mean density in the box in front of the corridor (after the
-first 10 s) and in the box in front of the exit (persons/m², :data:`BEFORE`, :data:`AFTER`, the boxes of
-``tests/scenarios/test_rimea.py``), and the most people in room 2 at once.
+first 10 s) and in the box in front of the exit (persons/m², :data:`BEFORE`, :data:`AFTER`; the first is the box
+of ``tests/scenarios/test_rimea.py``), the most people in room 2 at once, and JuPedSim's two flows of its system
+test 12 (:func:`line_flow`, at the corridor's end and 1 m before the exit) with its verdict, no jam at the exit
+when the second is at least the first less 0.05 persons/s.
 
 The crowds are the scenarios' own: the point masses by the linear diagram and their default door model (the
 headway), JuPedSim's bodies (``--backend jupedsim``) as JuPedSim's bottleneck validation sets them (docs page
@@ -40,7 +42,11 @@ BEFORE = (8.0, 10.0, 3.5, 6.5)
 AFTER = (23.0, 25.0, 3.5, 6.5)
 """Test 12: the box in front of the exit (m; 6 m²)."""
 ROOM_2 = 15.0
-"""Test 12: room 2 starts at this x (m)."""
+"""Test 12: room 2 starts at this x (m), where the corridor ends."""
+BEFORE_EXIT = 24.0
+"""Test 12: the line 1 m before the exit (x, m) where JuPedSim's system test reads the last flow."""
+FLOW_TOLERANCE = 0.05
+"""Test 12: JuPedSim's tolerance (persons/s): no jam at the exit if its flow is at least the corridor's less this."""
 RESULTS = {9: Path("studies/results/rimea9.jsonl"), 12: Path("studies/results/rimea12.jsonl")}
 
 
@@ -55,6 +61,13 @@ def door_flows(exit_time: np.ndarray, exit_index: np.ndarray, doors: int) -> lis
         a, b = int(0.05 * len(t)), int(0.95 * len(t)) - 1
         flows.append(round((b - a) / (t[b] - t[a]), 3))
     return flows
+
+
+def line_flow(crossed: np.ndarray) -> float:
+    """JuPedSim's flow at a line (its system tests' ``utils.flow``): ``(N − 1) / (t_last − t_first)`` over each
+    person's first step past it (persons/s; ``crossed`` the times, ``inf`` for who never passed)."""
+    t = crossed[np.isfinite(crossed)]
+    return float((len(t) - 1) / (t.max() - t.min())) if len(t) > 1 else float("nan")
 
 
 def _in_box(x: np.ndarray, box: tuple[float, float, float, float]) -> int:
@@ -100,6 +113,7 @@ def rimea_12(seed: int, backend: str) -> list[dict[str, Any]]:
     before: list[int] = []
     after: list[int] = []
     room_2: list[int] = []
+    crossed = {line: np.full(sc.crowd.n, np.inf) for line in (ROOM_2, BEFORE_EXIT)}
 
     def count(loop: ClosedLoop) -> None:
         x = loop.crowd.positions
@@ -107,6 +121,8 @@ def rimea_12(seed: int, backend: str) -> list[dict[str, Any]]:
         after.append(_in_box(x, AFTER))
         with np.errstate(invalid="ignore"):
             room_2.append(int(np.count_nonzero(x[:, 0] >= ROOM_2)))
+            for line, first in crossed.items():
+                first[(x[:, 0] >= line) & np.isinf(first)] = loop.t
 
     loop = ClosedLoop(sc)
     s = loop.run(progress=False, callback=count).summary
@@ -115,6 +131,7 @@ def rimea_12(seed: int, backend: str) -> list[dict[str, Any]]:
     rho_before = np.convolve(before, kernel, mode="valid") / 6.0
     rho_after = np.convolve(after, kernel, mode="valid") / 6.0
     engine = loop.crowd.engine
+    j_corridor, j_exit = line_flow(crossed[ROOM_2]), line_flow(crossed[BEFORE_EXIT])
     return [
         {
             "backend": backend,
@@ -125,6 +142,9 @@ def rimea_12(seed: int, backend: str) -> list[dict[str, Any]]:
             "peak_before_corridor": round(float(rho_before[int(10.0 / sc.dt) :].max()), 3),
             "peak_before_exit": round(float(rho_after.max()), 3),
             "most_in_room_2": max(room_2),
+            "flow_corridor_end": round(j_corridor, 4),
+            "flow_before_exit": round(j_exit, 4),
+            "no_jam_at_exit": bool(j_exit >= j_corridor - FLOW_TOLERANCE),
         }
     ]
 

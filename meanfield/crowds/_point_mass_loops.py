@@ -18,7 +18,7 @@ import numpy as np
 from meanfield._compiled.core import PARALLEL_CHUNK, compiled, prange
 from meanfield._compiled.philox import fill_normal_pairs, fill_pairs_rows
 
-__all__ = ["euler_maruyama"]
+__all__ = ["euler_maruyama", "hold_at_capacity"]
 
 
 # ----------------------------------------------------------------------------- the SDE step
@@ -113,3 +113,153 @@ def euler_maruyama(x, drift, noise, dt, amp, box, standing, key0, key1, step, ki
                         v = low + (period - r if r > high - low else r)
                 x[j, k] = v
     return True
+
+
+# ----------------------------------------------------------------------------- the exits' queues
+def _doorway_distance_numpy(start, a, b):
+    """The distance from each of ``start`` (M, 2) to the exit ``[a, b]`` (m), in :func:`hold_at_capacity`'s
+    arithmetic."""
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    along = np.clip(((start[:, 0] - a[0]) * dx + (start[:, 1] - a[1]) * dy) / (dx * dx + dy * dy), 0.0, 1.0)
+    return np.hypot(start[:, 0] - (a[0] + along * dx), start[:, 1] - (a[1] + along * dy))
+
+
+def _hold_numpy(gone, idx, previous, x, exits, capacity, credit, waiting, waiting_at, is_open, dt):
+    """The numpy twin of :func:`hold_at_capacity`."""
+    if not len(waiting) and not (gone >= 0).any():  # nobody at a door: the credits refill, nothing else
+        return np.minimum(credit, 1.0) + capacity * dt, waiting, waiting_at
+    in_doorway = np.zeros(len(idx), dtype=bool)  # those in a doorway, by their place in idx
+    busy = np.zeros(len(capacity), dtype=bool)
+    if len(waiting) and len(idx):  # those in a doorway reach it again, whatever their step, while it is open
+        at = np.minimum(np.searchsorted(idx, waiting), len(idx) - 1)
+        here = (idx[at] == waiting) & is_open[waiting_at]
+        gone[at[here]] = waiting_at[here]
+        busy[waiting_at[here]] = True
+        in_doorway[at[here]] = True
+    credit = np.where(busy, credit, np.minimum(credit, 1.0)) + capacity * dt
+    held_all, held_at = [], []
+    for k in np.unique(gone[gone >= 0]):
+        reached = np.flatnonzero(gone == k)
+        allowed = int(credit[k])
+        if len(reached) > allowed:
+            distance = _doorway_distance_numpy(previous[idx[reached]], exits[k, 0], exits[k, 1])
+            order = np.lexsort((distance, ~in_doorway[reached]))  # the waiting first, each the nearest first
+            held = reached[order[allowed:]]
+            gone[held] = -1
+            x[idx[held]] = previous[idx[held]]
+            held_all.append(idx[held])
+            held_at.append(np.full(len(held), k, dtype=np.intp))
+        credit[k] -= min(len(reached), allowed)
+    if not held_all:
+        return credit, np.empty(0, dtype=np.intp), np.empty(0, dtype=np.intp)
+    who, at = np.concatenate(held_all), np.concatenate(held_at)
+    order = np.argsort(who)
+    return credit, who[order], at[order]
+
+
+@compiled(fallback=_hold_numpy)
+def hold_at_capacity(gone, idx, previous, x, exits, capacity, credit, waiting, waiting_at, is_open, dt):
+    """The exits' queues, one step (docs page *Congestion*, "The exits' capacity"): each exit ``k`` lets through
+    at most ``⌊c_k⌋`` of those who reached it, its credit ``c_k`` refilled by ``q_k dt`` (and kept at most 1
+    while nobody waits in its doorway); those it cannot take step back to where they started and wait in its
+    doorway, to pass first, the nearest first, when it has credit.
+
+    Parameters
+    ----------
+    gone : ndarray of intp, shape (M,)
+        The exit each human of ``idx`` reached this step (-1: none); those held get -1 (in place).
+    idx : ndarray of intp, shape (M,)
+        The humans who stepped (sorted).
+    previous, x : ndarray, shape (N, 2)
+        The positions before and after the step; those held get ``previous`` in ``x`` (in place).
+    exits : ndarray, shape (K, 2, 2)
+        The exits' segments.
+    capacity : ndarray, shape (K,)
+        ``q_k``, persons/s each exit passes at most.
+    credit : ndarray, shape (K,)
+        The credits before the step (not changed).
+    waiting, waiting_at : ndarray of intp
+        Who waited in a doorway after the last step (sorted) and at which exit.
+    is_open : ndarray of bool, shape (K,)
+        The exits still open (those waiting at a closed one wait no more).
+    dt : float
+
+    Returns
+    -------
+    credit, waiting, waiting_at : ndarray
+        The credits after the step, and who waits in a doorway now (sorted) and at which exit.
+    """
+    m = idx.shape[0]
+    n_exits = capacity.shape[0]
+    out = np.empty(n_exits)
+    anyone = waiting.shape[0] > 0
+    for i in range(m):
+        anyone = anyone or gone[i] >= 0
+    if not anyone:  # nobody at a door: the credits refill, nothing else
+        for k in range(n_exits):
+            out[k] = min(credit[k], 1.0) + capacity[k] * dt
+        return out, waiting, waiting_at
+    in_doorway = np.zeros(m, dtype=np.bool_)
+    busy = np.zeros(n_exits, dtype=np.bool_)
+    if waiting.shape[0] and m:  # those in a doorway reach it again, whatever their step, while it is open
+        p = 0
+        for w in range(waiting.shape[0]):  # (both sorted: a merge, numpy's searchsorted)
+            while p < m and idx[p] < waiting[w]:
+                p += 1
+            at = min(p, m - 1)
+            if idx[at] == waiting[w] and is_open[waiting_at[w]]:
+                gone[at] = waiting_at[w]
+                busy[waiting_at[w]] = True
+                in_doorway[at] = True
+    for k in range(n_exits):
+        out[k] = (credit[k] if busy[k] else min(credit[k], 1.0)) + capacity[k] * dt
+    held_who = np.empty(m, dtype=np.intp)
+    held_at = np.empty(m, dtype=np.intp)
+    held = 0
+    reached = np.empty(m, dtype=np.intp)
+    first = np.empty(m, dtype=np.bool_)  # (waiting first)
+    distance = np.empty(m)
+    for k in range(n_exits):
+        count = 0
+        for i in range(m):
+            if gone[i] == k:
+                reached[count] = i
+                count += 1
+        if count == 0:
+            continue
+        allowed = int(out[k])
+        if count > allowed:
+            ax = exits[k, 0, 0]
+            ay = exits[k, 0, 1]
+            dx = exits[k, 1, 0] - ax
+            dy = exits[k, 1, 1] - ay
+            for c in range(count):  # the arithmetic of _doorway_distance_numpy
+                sx = previous[idx[reached[c]], 0]
+                sy = previous[idx[reached[c]], 1]
+                along = min(max(((sx - ax) * dx + (sy - ay) * dy) / (dx * dx + dy * dy), 0.0), 1.0)
+                distance[c] = math.hypot(sx - (ax + along * dx), sy - (ay + along * dy))
+                first[c] = in_doorway[reached[c]]
+            for c in range(1, count):  # a stable insertion sort: the waiting first, each the nearest first
+                r = reached[c]
+                f = first[c]
+                d = distance[c]
+                e = c - 1
+                while e >= 0 and ((f and not first[e]) or (f == first[e] and d < distance[e])):
+                    reached[e + 1] = reached[e]
+                    first[e + 1] = first[e]
+                    distance[e + 1] = distance[e]
+                    e -= 1
+                reached[e + 1] = r
+                first[e + 1] = f
+                distance[e + 1] = d
+            for c in range(allowed, count):
+                i = reached[c]
+                gone[i] = -1
+                x[idx[i], 0] = previous[idx[i], 0]
+                x[idx[i], 1] = previous[idx[i], 1]
+                held_who[held] = idx[i]
+                held_at[held] = k
+                held += 1
+        out[k] -= min(count, allowed)
+    order = np.argsort(held_who[:held])
+    return out, held_who[:held][order], held_at[:held][order]

@@ -17,7 +17,7 @@ import numpy as np
 
 from meanfield._compiled.core import NO_BOX
 from meanfield._compiled.philox import ZIG_FI, ZIG_KI, ZIG_WI, noise_key
-from meanfield.crowds._point_mass_loops import euler_maruyama
+from meanfield.crowds._point_mass_loops import euler_maruyama, hold_at_capacity
 from meanfield.errors import ParameterError, SigmaLike, SimulationDiverged, check_sigma
 from meanfield.geometry.region import Region
 
@@ -91,6 +91,7 @@ class PointMassEngine:
         self.standing: np.ndarray | None = None  # who waits (pre-movement): no noise, no exit
         self.noise_factor: np.ndarray | None = None  # each one's share of σ (the headway model's (H5); None: all)
         self._open: np.ndarray | None = None  # the exits still open, by index (None: all; exits_closed)
+        self._is_open = np.ones(len(self.exits), dtype=bool)  # the same, one flag per exit
         self._capacity: np.ndarray | None = None  # persons/s each exit passes at most (None: any; cap_exits)
         self._credit = np.zeros(0)
         self._waiting = np.empty(0, dtype=np.intp)  # who waits in a doorway (sorted), and at which exit
@@ -129,6 +130,7 @@ class PointMassEngine:
         if open_exits.shape != (len(self.exits),):
             raise ParameterError("open_exits", open_exits.shape, f"one flag per exit, shape ({len(self.exits)},)")
         self._open = None if open_exits.all() else np.flatnonzero(open_exits)
+        self._is_open = open_exits.copy()
 
     def walls_changed(self, change: Any) -> None:
         """Ω is ``change.region`` from now on (a ``block`` event): its walls reflect, and the humans standing
@@ -227,50 +229,13 @@ class PointMassEngine:
         x[stay] = moved
 
     def _hold_at_capacity(self, gone: np.ndarray, idx: np.ndarray, previous: np.ndarray, dt: float) -> None:
-        """The exits' queues (:meth:`cap_exits`), in place on ``gone`` (the exit each human of ``idx`` reached,
-        -1: none) and on the positions: those an exit cannot take this step get -1, their step's start, and a
-        place in its doorway."""
-        if not len(self._waiting) and not (gone >= 0).any():  # nobody at a door: the credits refill, nothing else
-            self._credit = np.minimum(self._credit, 1.0) + self._capacity * dt
-            return
-        waiting = np.empty(0, dtype=np.intp)  # those in a doorway, by their place in idx (sorted)
-        busy = np.zeros(len(self._capacity), dtype=bool)
-        if len(self._waiting) and len(idx):  # those in a doorway reach it again, whatever their step, while it is open
-            at = np.minimum(np.searchsorted(idx, self._waiting), len(idx) - 1)
-            here = idx[at] == self._waiting
-            if self._open is not None:
-                here &= np.isin(self._waiting_at, self._open)
-            waiting = at[here]
-            gone[waiting] = self._waiting_at[here]
-            busy[self._waiting_at[here]] = True
-        credit = np.where(busy, self._credit, np.minimum(self._credit, 1.0)) + self._capacity * dt
-        x = self.positions
-        in_doorway = np.zeros(len(idx), dtype=bool)
-        in_doorway[waiting] = True
-        held_all, held_at = [], []
-        for k in np.unique(gone[gone >= 0]):
-            reached = np.flatnonzero(gone == k)
-            allowed = int(credit[k])
-            if len(reached) > allowed:
-                a, b = self.exits[k]
-                start = previous[idx[reached]]
-                along = np.clip((start - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0)
-                distance = np.hypot(*(start - (a + along[:, None] * (b - a))).T)
-                waits = in_doorway[reached]
-                order = np.lexsort((distance, ~waits))  # the waiting first, each the nearest first
-                held = reached[order[allowed:]]
-                gone[held] = -1
-                x[idx[held]] = previous[idx[held]]
-                held_all.append(idx[held])
-                held_at.append(np.full(len(held), k, dtype=np.intp))
-            credit[k] -= min(len(reached), allowed)
-        self._credit = credit
-        if held_all:
-            who, at = np.concatenate(held_all), np.concatenate(held_at)
-            order = np.argsort(who)
-            self._waiting, self._waiting_at = who[order], at[order]
-        else:
-            self._waiting = self._waiting_at = np.empty(0, dtype=np.intp)
+        """The exits' queues (:meth:`cap_exits`; :func:`~meanfield.crowds._point_mass_loops.hold_at_capacity`), in
+        place on ``gone`` (the exit each human of ``idx`` reached, -1: none) and on the positions: those an exit
+        cannot take this step get -1, their step's start, and a place in its doorway."""
+        self._credit, self._waiting, self._waiting_at = hold_at_capacity(
+            gone, idx, previous, self.positions, self.exits, self._capacity, self._credit, self._waiting,
+            self._waiting_at, self._is_open, float(dt),
+        )  # fmt: skip
 
     def remaining(self) -> int:
         """How many humans have not left."""

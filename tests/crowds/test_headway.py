@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 import numpy as np
@@ -502,6 +503,42 @@ def test_an_idle_exit_keeps_one_person_s_credit():
     for step in range(1, 21):  # the next second: exactly one more
         engine.step(still, 10.0 + step * 0.05, 0.05)
     assert engine.remaining() == 1
+
+
+def queue_step(seed):
+    """One step's state of the exits' queues: three exits (one closed), people reaching them, some waiting in their
+    doorways, credits below and above one person."""
+    rng = np.random.default_rng(seed)
+    n = 80
+    exits = np.array([[[4.0, 0.0], [4.0, 2.0]], [[0.0, 0.0], [0.0, 2.0]], [[1.0, 2.0], [2.0, 2.0]]])
+    previous = np.column_stack([rng.uniform(0.0, 4.0, n), rng.uniform(0.0, 2.0, n)])
+    x = previous + rng.normal(0.0, 0.1, (n, 2))
+    idx = np.flatnonzero(rng.random(n) > 0.2)  # who stepped (sorted)
+    gone = np.where(rng.random(len(idx)) < 0.4, rng.integers(0, 3, len(idx)), -1).astype(np.intp)
+    waiting = np.sort(rng.choice(n, 12, replace=False)).astype(np.intp)  # some of them no longer stepping
+    waiting_at = rng.integers(0, 3, 12).astype(np.intp)
+    credit = np.array([0.4, 2.7, 1.0]) * rng.uniform(0.5, 1.5, 3)
+    is_open = np.array([True, True, seed % 2 == 0])
+    previous[idx[3]] = previous[idx[4]]  # two equally near: the first of them first
+    return gone, idx, previous, x, exits, np.array([1.8, 3.6, 0.9]), credit, waiting, waiting_at, is_open, 0.05
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_the_compiled_queues_are_their_numpy_twin_s(seed):
+    """The exits' queues (:func:`~meanfield.crowds._point_mass_loops.hold_at_capacity`), compiled and in numpy:
+    the same credits, the same held, to the last bit."""
+    from meanfield.crowds._point_mass_loops import hold_at_capacity
+
+    runs = []
+    for path in ("compiled", "numpy"):
+        gone, idx, previous, x, *rest = queue_step(seed)
+        with compiled.numpy_path() if path == "numpy" else contextlib.nullcontext():
+            credit, waiting, waiting_at = hold_at_capacity(gone, idx, previous, x, *rest)
+        runs.append((gone, x, credit, waiting, waiting_at))
+    assert hold_at_capacity._ready or not compiled.enabled()  # (the compiled path ran)
+    assert len(runs[0][3]) > 0  # (some were held)
+    for a, b in zip(*runs, strict=True):
+        assert a.dtype == b.dtype and np.array_equal(a, b)
 
 
 def test_an_exit_capacity_that_means_nothing_is_refused():
