@@ -5,7 +5,7 @@ a :class:`NetCDFVariable` (dimensions, a numpy array, attributes), its coordinat
 after their dimension) and its global attributes.  From that one description
 
 * :meth:`NetCDFDataset.write_netcdf` writes the file with :class:`h5netcdf.File`, without importing
-  xarray or pandas (about 1.5 s of imports, more than a small run takes);
+  xarray or pandas (issue 45: with the dataset's building, up to 1.9 s, more than a small crowd's run);
 * :meth:`NetCDFDataset.to_xarray` builds the :class:`xarray.Dataset` for whoever asks for one.
 
 The written file is the one ``to_xarray().to_netcdf(path, engine="h5netcdf")`` writes: the same calls

@@ -49,7 +49,7 @@ class SimulationResult:
     @cached_property
     def dataset(self) -> Any:
         """The recorded frames as an :class:`xarray.Dataset`, built from :attr:`timeseries` on first use
-        (importing xarray and pandas, about 1.5 s, which a run and its :meth:`save` never do).
+        (importing xarray and pandas, which a run and its :meth:`save` never do).
 
         The dataset ``xr.open_dataset(folder / "timeseries.nc", engine="h5netcdf")`` reads back; its arrays
         are :attr:`timeseries`' own, its attributes copies (:meth:`~meanfield.io.netcdf.NetCDFDataset.to_xarray`).
