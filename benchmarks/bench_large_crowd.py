@@ -114,8 +114,8 @@ def child(mode: str, steps: int) -> dict:
             "loop_steps_per_second": s["steps_per_second"],
             "field_evaluation": s["field_evaluation"],
             "field_error_bound_final": s["field_error_bound_final"],
-            "frames_recorded": int(result.dataset.sizes["time"]),
-            "humans_recorded": int(result.dataset.sizes["human"]),
+            "frames_recorded": int(result.timeseries.sizes["time"]),  # (result.dataset would import xarray)
+            "humans_recorded": int(result.timeseries.sizes["human"]),
             "humans": n,
             "peak_mb": peak_resident_mb(),
         }

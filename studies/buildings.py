@@ -172,7 +172,7 @@ def one_run(plan: str, setting: str, seed: int, backend: str, congestion: str = 
     sc = sc.with_values({"crowd.congestion": congestion}) if congestion != "auto" else sc
     result = run(sc, progress=False)
     s = result.summary
-    curve = result.dataset["fraction_evacuated"]
+    frames = result.timeseries  # the recorded frames, without xarray (result.dataset would import it)
     return {
         "plan": plan,
         "setting": setting,
@@ -181,8 +181,8 @@ def one_run(plan: str, setting: str, seed: int, backend: str, congestion: str = 
         "congestion": sc.congestion_model,
         "door_model": sc.door_model,
         **{k: s.get(k) for k in KEYS},
-        "curve_t": curve["time"].values.tolist(),
-        "curve": curve.values.tolist(),
+        "curve_t": frames["time"].values.tolist(),
+        "curve": frames["fraction_evacuated"].values.tolist(),
     }
 
 

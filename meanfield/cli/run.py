@@ -66,10 +66,11 @@ def _trajectory_file(result, folder: Path) -> dict[str, Path]:
     """``trajectories.sqlite``: the humans in JuPedSim's format, for PedPy and JuPedSim's viewer."""
     from meanfield.io.trajectories import write_jupedsim_sqlite
 
-    if "human_x" not in result.dataset or result.dataset.sizes["time"] < 2:
+    frames = result.timeseries  # (not result.dataset: no xarray import in a run)
+    if "human_x" not in frames or frames.sizes["time"] < 2:
         return {}  # a density crowd has no humans to trace
     area = result.scenario.domain.to_shapely()
-    return {"trajectories": write_jupedsim_sqlite(result.dataset, area, folder / "trajectories.sqlite")}
+    return {"trajectories": write_jupedsim_sqlite(frames, area, folder / "trajectories.sqlite")}
 
 
 def run_artifacts(figures: bool = True, animate: bool = False, progress: bool = False) -> list:

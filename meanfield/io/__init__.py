@@ -1,4 +1,5 @@
-"""Files: atomic output and the run folder (:mod:`~meanfield.io.atomic`), trajectories in the formats
+"""Files: atomic output and the run folder (:mod:`~meanfield.io.atomic`), a NetCDF dataset as plain data written
+without xarray (:mod:`~meanfield.io.netcdf`), trajectories in the formats
 pedestrian-dynamics tools read (:mod:`~meanfield.io.trajectories`), JuPedSim web-app exports read and written
 back with a run (:mod:`~meanfield.io.webapp`).
 
@@ -9,6 +10,8 @@ from meanfield._namespace import lazy_namespace
 
 _LAZY = {
     "JUPEDSIM_SQLITE_VERSION": "meanfield.io.trajectories",
+    "NetCDFDataset": "meanfield.io.netcdf",
+    "NetCDFVariable": "meanfield.io.netcdf",
     "atomic_write_json": "meanfield.io.atomic",
     "atomic_write_text": "meanfield.io.atomic",
     "atomic_write_with": "meanfield.io.atomic",

@@ -7,8 +7,9 @@ included), which PedPy loads directly and JuPedSim's viewer plays.
 dataset in the whitespace-separated format of the Pedestrian Dynamics Data Archive, the
 format :func:`pedpy.load_trajectory_from_txt` reads: comment lines starting with ``#``
 that give the frame rate and the unit, then one line ``id frame x y`` per human and
-recorded frame.  Only numpy and xarray are needed here; PedPy itself is used by
-:mod:`analysis.pedestrians.metrics`.
+recorded frame.  Only numpy is needed here: the dataset is an :class:`xarray.Dataset` (a run's
+``timeseries.nc`` read back) or a run's frames as they are, a :class:`~meanfield.io.netcdf.NetCDFDataset`
+(``result.timeseries``); PedPy itself is used by :mod:`analysis.pedestrians.metrics`.
 """
 
 from __future__ import annotations
@@ -101,8 +102,8 @@ def write_pedpy_trajectories(dataset: Any, path: str | Path) -> Path:
 
     Parameters
     ----------
-    dataset : xarray.Dataset
-        A run's ``timeseries.nc``: the variables ``human_x`` and ``human_y`` with dims
+    dataset : xarray.Dataset or NetCDFDataset
+        A run's ``timeseries.nc`` (or ``result.timeseries``): the variables ``human_x`` and ``human_y`` with dims
         ``(time, human)`` and the coordinate ``time``.
     path : str or Path
         Destination file (its directory is created).
@@ -203,8 +204,8 @@ def write_jupedsim_sqlite(dataset: Any, walkable_area: Any, path: str | Path) ->
 
     Parameters
     ----------
-    dataset : xarray.Dataset
-        A run's ``timeseries.nc`` (``human_x``, ``human_y`` on ``(time, human)``).
+    dataset : xarray.Dataset or NetCDFDataset
+        A run's ``timeseries.nc`` or ``result.timeseries`` (``human_x``, ``human_y`` on ``(time, human)``).
     walkable_area : shapely geometry
         Ω (e.g. ``scenario.domain.to_shapely()``).
     path : str or Path

@@ -49,7 +49,7 @@ def _people(result: SimulationResult, k: int | None = None) -> float:
     if result.scenario.units != "SI":
         return 1.0
     n = float(result.scenario.crowd.n)
-    ds = result.dataset
+    ds = result.timeseries
     if k is None or "human_x" not in ds or "fraction_evacuated" not in ds:
         return n
     return n * (1.0 - float(ds["fraction_evacuated"].values[k]))
@@ -62,7 +62,7 @@ def _axes_labels(ax, u: dict[str, str]) -> None:
 
 def plot_target_and_error(result: SimulationResult):
     """Fig. 2 of the paper: target density (left) and convergence error over time (right)."""
-    ds = result.dataset
+    ds = result.timeseries
     u = _units(result)
     fig, (a0, a1) = subplots(1, 2, figsize=(10.5, 4.4), constrained_layout=True)
     im = a0.imshow(ds["target_density"].values.T * _people(result), origin="lower", extent=_extent(ds), cmap="viridis")
@@ -92,7 +92,7 @@ def plot_target_and_error(result: SimulationResult):
 
 
 def _field_arrows(result: SimulationResult, k: int, m: int = 15):
-    ds = result.dataset
+    ds = result.timeseries
     loop_kernel = result_kernel(result)
     x0, x1, y0, y1 = _extent(ds)
     xs = np.linspace(x0, x1, m + 2)[1:-1]
@@ -129,7 +129,7 @@ def result_kernel(result: SimulationResult):
 
 
 def _draw_crowd(ax, result: SimulationResult, k: int):
-    ds = result.dataset
+    ds = result.timeseries
     pts, v = _field_arrows(result, k)
     ax.quiver(pts[:, 0], pts[:, 1], v[:, 0], v[:, 1], color="0.55", scale=result.scenario.kernel.c * 12, width=0.004)
     if "human_x" in ds:  # agents; a density crowd has none (its density is the bottom row)
@@ -190,7 +190,7 @@ def _outline(ax, result: SimulationResult, t: float | None = None):
 
 def plot_snapshots(result: SimulationResult, count: int = 4):
     """Fig. 3 of the paper: humans, robots, v_r arrows (top) and density estimates (bottom)."""
-    ds = result.dataset
+    ds = result.timeseries
     n = ds.sizes["time"]
     idx = np.unique(np.round(np.linspace(0, n - 1, count)).astype(int))
     fig, axes = subplots(2, len(idx), figsize=(3.2 * len(idx), 6.4), constrained_layout=True, squeeze=False)
@@ -210,7 +210,7 @@ def plot_snapshots(result: SimulationResult, count: int = 4):
 
 def plot_evacuation(result: SimulationResult):
     """The fraction of the crowd out over time, with RSET (95 %, 100 %), the lower bound and the events."""
-    ds, s = result.dataset, result.summary
+    ds, s = result.timeseries, result.summary
     u = _units(result)
     fig, ax = subplots(figsize=(6.4, 4.0), constrained_layout=True)
     ax.plot(ds["time"].values, ds["fraction_evacuated"].values, color="tab:green", lw=2, label="fraction out")
@@ -248,7 +248,7 @@ def save_run_figures(result: SimulationResult, out_dir: Path) -> dict[str, Path]
         "target_and_error": _save(plot_target_and_error(result), out_dir / "target_and_error.png", rid),
         "snapshots": _save(plot_snapshots(result), out_dir / "snapshots.png", rid),
     }
-    if "fraction_evacuated" in result.dataset:
+    if "fraction_evacuated" in result.timeseries:
         out["evacuation"] = _save(plot_evacuation(result), out_dir / "evacuation.png", rid)
     return out
 
@@ -263,7 +263,7 @@ def save_animation(
     from matplotlib.animation import FuncAnimation, PillowWriter
     from tqdm.auto import tqdm
 
-    ds = result.dataset
+    ds = result.timeseries
     n = ds.sizes["time"]
     frames = np.unique(np.round(np.linspace(0, n - 1, min(n, max_frames))).astype(int))
     fig, ax = subplots(figsize=(5, 5), constrained_layout=True)

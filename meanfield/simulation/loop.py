@@ -332,13 +332,13 @@ class ClosedLoop:
                 loop.observers.remove(obs)
         wall = time.perf_counter() - start
         recorder.finish()
-        dataset = recorder.dataset()
+        timeseries = recorder.timeseries()
         summary = run_summary(
             loop,
             target,
             inputs,
             recorder,
-            dataset,
+            timeseries,
             status=status,
             message=message,
             rho_err0=rho_err0,
@@ -348,8 +348,8 @@ class ClosedLoop:
         )
         rid = run_id(loop, status)
         summary = {"run_id": rid, **summary, "warnings": stability_warnings(sc, loop.grid, summary)}
-        dataset.attrs.update(run_id=rid, status=status, message=message)
-        return SimulationResult(sc, dataset, summary, p.kernel)
+        timeseries.attrs.update(run_id=rid, status=status, message=message)
+        return SimulationResult(sc, timeseries, summary, p.kernel)
 
 
 def _events_summary(loop: ClosedLoop) -> dict[str, Any]:

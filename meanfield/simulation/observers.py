@@ -5,7 +5,8 @@
 * :class:`InputStatistics` — the largest applied speed and turn rate, how often the limits
   cut a command or bind;
 * :class:`Recorder` — the frames of ``timeseries.nc`` (robot states, humans, density, the
-  Lyapunov functions V₁ = ∫ρ̃² and V₂ = ∫½ρ̃² + ½|ṽ|², the law's scalars) as an xarray Dataset.
+  Lyapunov functions V₁ = ∫ρ̃² and V₂ = ∫½ρ̃² + ½|ṽ|², the law's scalars), described once as a
+  :class:`~meanfield.io.netcdf.NetCDFDataset` (written with h5netcdf, an xarray Dataset on request).
 
 Each has ``start(loop)`` and ``step(loop, record)`` (:class:`meanfield.simulation.loop.Observer`).
 """
@@ -20,6 +21,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from meanfield.interfaces import Command, ControlState, Crowd, CrowdOfAgents, EvacuatingCrowd, Observation
+from meanfield.io.netcdf import NetCDFDataset, NetCDFVariable
 from meanfield.scenarios.scenario import Scenario
 from meanfield.signs._robot_loops import input_report
 from meanfield.signs.robots import AT_LIMIT_RTOL, RobotTeam
@@ -314,10 +316,18 @@ class Recorder:
         f["shortfall_applied"].append(np.nan)
         self.last_recorded_step = loop.step_index
 
-    def dataset(self):
-        """The frames as an xarray Dataset (the last frame's control evaluated at the final state)."""
-        import xarray as xr
+    def timeseries(self) -> NetCDFDataset:
+        """The frames as the contents of ``timeseries.nc`` (the last frame's control evaluated at the final state).
 
+        One description of the file, variables, dims, dtypes and CF attributes: :meth:`SimulationResult.save
+        <meanfield.simulation.result.SimulationResult.save>` writes it with h5netcdf
+        (:meth:`~meanfield.io.netcdf.NetCDFDataset.write_netcdf`), :meth:`dataset` turns it into an
+        xarray Dataset.
+
+        Returns
+        -------
+        NetCDFDataset
+        """
         loop = self.loop
         f = self.frames
         g = loop.grid
@@ -329,34 +339,34 @@ class Recorder:
             except (FloatingPointError, ValueError):
                 pass
         stack = np.asarray
-        data: dict[str, Any] = {
-            "robot_x": (("time", "robot"), stack(f["robot_x"])),
-            "robot_y": (("time", "robot"), stack(f["robot_y"])),
-            "robot_heading": (("time", "robot"), stack(f["robot_heading"])),
-            "robot_speed": (("time", "robot"), stack(f["robot_speed"])),
-            "robot_turn_rate": (("time", "robot"), stack(f["robot_turn_rate"])),
+        data: dict[str, NetCDFVariable] = {
+            "robot_x": NetCDFVariable(("time", "robot"), stack(f["robot_x"])),
+            "robot_y": NetCDFVariable(("time", "robot"), stack(f["robot_y"])),
+            "robot_heading": NetCDFVariable(("time", "robot"), stack(f["robot_heading"])),
+            "robot_speed": NetCDFVariable(("time", "robot"), stack(f["robot_speed"])),
+            "robot_turn_rate": NetCDFVariable(("time", "robot"), stack(f["robot_turn_rate"])),
         }
-        coords: dict[str, Any] = {"time": stack(f["time"], float), "x": g.x, "y": g.y}
+        coords: dict[str, np.ndarray] = {"time": stack(f["time"], float), "x": g.x, "y": g.y}
         coords["robot"] = np.arange(loop.robots.n)
         if self.humans is not None:
-            data["human_x"] = (("time", "human"), stack(f["human_x"]))
-            data["human_y"] = (("time", "human"), stack(f["human_y"]))
+            data["human_x"] = NetCDFVariable(("time", "human"), stack(f["human_x"]))
+            data["human_y"] = NetCDFVariable(("time", "human"), stack(f["human_y"]))
             coords["human"] = self.humans
-        data["density"] = (("time", "x", "y"), stack(f["density"]))
-        data["target_density"] = (("x", "y"), loop.target)
+        data["density"] = NetCDFVariable(("time", "x", "y"), stack(f["density"]))
+        data["target_density"] = NetCDFVariable(("x", "y"), loop.target)
         for key in (*_CONTROL_KEYS[:4], "fraction_in_target", *_CONTROL_KEYS[4:]):
-            data[key] = ("time", stack(f[key], float))
-        data["saturated"] = ("time", stack(f["saturated"], np.int8))
+            data[key] = NetCDFVariable(("time",), stack(f[key], float))
+        data["saturated"] = NetCDFVariable(("time",), stack(f["saturated"], np.int8))
         count = np.int16 if loop.robots.n <= np.iinfo(np.int16).max else np.int32  # the smallest that holds n
-        data["robots_at_limit"] = ("time", stack(f["robots_at_limit"], count))
-        data["shortfall_applied"] = ("time", stack(f["shortfall_applied"], float))
-        data["seen_fraction"] = ("time", stack(f["seen_fraction"], float))
+        data["robots_at_limit"] = NetCDFVariable(("time",), stack(f["robots_at_limit"], count))
+        data["shortfall_applied"] = NetCDFVariable(("time",), stack(f["shortfall_applied"], float))
+        data["seen_fraction"] = NetCDFVariable(("time",), stack(f["seen_fraction"], float))
         if "fraction_evacuated" in f:
-            data["fraction_evacuated"] = ("time", stack(f["fraction_evacuated"], float))
+            data["fraction_evacuated"] = NetCDFVariable(("time",), stack(f["fraction_evacuated"], float))
         p = loop.parts
-        ds = xr.Dataset(
+        ds = NetCDFDataset(
             data_vars=data,
-            coords=coords,
+            coords={name: NetCDFVariable((name,), np.array(values)) for name, values in coords.items()},  # (copies)
             attrs={
                 "title": "meanfield closed-loop run (Zheng et al., robot-assisted crowd evacuation)",
                 "scenario_toml": loop.scenario.to_toml(),
@@ -375,25 +385,28 @@ class Recorder:
             },
         )
         if self.humans is not None:
-            ds.variables["human"].attrs["description"] = (
+            ds["human"].attrs["description"] = (
                 "index of the human in the crowd (a spaced subset when record_humans < humans_total)"
             )
         _label_variables(ds, loop.scenario.units)
-        ds.variables["robot_speed"].attrs["description"] = (
-            "applied (saturated) speed |u_i| during the step from this frame"
-        )
-        ds.variables["shortfall"].attrs["description"] = "A minus what the strategy's (unclipped) extra inputs cancel"
-        ds.variables["shortfall_applied"].attrs["description"] = (
+        ds["robot_speed"].attrs["description"] = "applied (saturated) speed |u_i| during the step from this frame"
+        ds["shortfall"].attrs["description"] = "A minus what the strategy's (unclipped) extra inputs cancel"
+        ds["shortfall_applied"].attrs["description"] = (
             "A minus what the applied (saturated) inputs cancel: dV2/dt = -diss - sum k_u|b|^2 - sum k_w g^2 + this"
         )
-        ds.variables["seen_fraction"].attrs["description"] = (
+        ds["seen_fraction"].attrs["description"] = (
             "fraction of humans with a robot within the view radius (1 without gating); recorded at the frame's step"
         )
-        ds.variables["robots_at_limit"].attrs["description"] = (
+        ds["robots_at_limit"].attrs["description"] = (
             "robots whose commanded input reached a speed or turn-rate limit in the step from this frame"
             " (-1: none recorded)"
         )
         return ds
+
+    def dataset(self) -> Any:
+        """The frames as an xarray Dataset: :meth:`timeseries` as :meth:`~meanfield.io.netcdf.NetCDFDataset.to_xarray`
+        builds it (imports xarray)."""
+        return self.timeseries().to_xarray()
 
 
 # CF ``units`` (UDUNITS) of each variable in SI scenarios, and its ``long_name``; "1" marks a
@@ -429,41 +442,39 @@ _INDEX_COORDINATES = {"robot": "index of the robot", "human": "index of the huma
 """Integer coordinates: counts, CF ``units = "1"``."""
 
 
-def _label_variables(ds: Any, units: str) -> None:
+def _label_variables(ds: NetCDFDataset, units: str) -> None:
     """CF attributes: ``long_name`` everywhere, ``units`` in SI or ``"1"`` when dimensionless.
 
     V2, A and the shortfalls mix 1/L² with L⁴/T² (docs page *The paper's slips*, units): they
     get no physical unit, only their ``long_name``.  The index coordinates ``robot`` and ``human``
     are counts (``"1"``); coordinate variables carry no ``_FillValue`` (CF 2.5.1: a coordinate has
-    no missing values).
+    no missing values; :mod:`meanfield.io.netcdf` writes none).
     """
     for name, long_name in _INDEX_COORDINATES.items():
-        if name in ds.variables:
-            ds.variables[name].attrs.setdefault("long_name", long_name)
-            ds.variables[name].attrs["units"] = "1"
-    for name in ds.coords:
-        ds.variables[name].encoding["_FillValue"] = None
+        if name in ds:
+            ds[name].attrs.setdefault("long_name", long_name)
+            ds[name].attrs["units"] = "1"
     for name, (unit, long_name) in _CF.items():
-        if name in ds.variables:
-            ds.variables[name].attrs.setdefault("long_name", long_name)
-            ds.variables[name].attrs["units"] = unit if units == "SI" else "1"
+        if name in ds:
+            ds[name].attrs.setdefault("long_name", long_name)
+            ds[name].attrs["units"] = unit if units == "SI" else "1"
     for name, long_name in (
         ("V2", "V2 = integral of rho_tilde^2/2 + |v_tilde|^2/2 (mixes 1/L^2 and L^4/T^2)"),
         ("A", "cross term A of the robot law, eq. (8)"),
         ("shortfall", "part of A the strategy leaves uncancelled"),
         ("shortfall_applied", "part of A the applied inputs leave uncancelled"),
     ):  # no single unit: each says why (CF: a comment, no units attribute)
-        if name in ds.variables:
-            ds.variables[name].attrs.setdefault("long_name", long_name)
-            ds.variables[name].attrs["comment"] = _MIXED_UNITS
-    if "dissipation" in ds.variables:  # d/dt of V1: V1's unit per second
-        ds.variables["dissipation"].attrs.setdefault("long_name", "integral of alpha |grad rho_tilde|^2")
-        ds.variables["dissipation"].attrs["units"] = "m-2 s-1" if units == "SI" else "1"
-    if "robots_at_limit" in ds.variables:  # a count
-        ds.variables["robots_at_limit"].attrs.setdefault("long_name", "robots whose command reached a limit")
-        ds.variables["robots_at_limit"].attrs["units"] = "1"
-    if "saturated" in ds.variables:  # a flag
-        var = ds.variables["saturated"]
+        if name in ds:
+            ds[name].attrs.setdefault("long_name", long_name)
+            ds[name].attrs["comment"] = _MIXED_UNITS
+    if "dissipation" in ds:  # d/dt of V1: V1's unit per second
+        ds["dissipation"].attrs.setdefault("long_name", "integral of alpha |grad rho_tilde|^2")
+        ds["dissipation"].attrs["units"] = "m-2 s-1" if units == "SI" else "1"
+    if "robots_at_limit" in ds:  # a count
+        ds["robots_at_limit"].attrs.setdefault("long_name", "robots whose command reached a limit")
+        ds["robots_at_limit"].attrs["units"] = "1"
+    if "saturated" in ds:  # a flag
+        var = ds["saturated"]
         var.attrs.setdefault("long_name", "1 if the limits cut a command in this step")
         var.attrs.update(units="1", flag_values=np.array([0, 1], dtype=var.dtype), flag_meanings="within_limits cut")
 

@@ -9,9 +9,11 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
+from meanfield.io.netcdf import NetCDFDataset
 from meanfield.scenarios.scenario import Scenario
 from meanfield.signs.kernels import NavigationKernel
 
@@ -28,8 +30,9 @@ class SimulationResult:
     Attributes
     ----------
     scenario : Scenario
-    dataset : xarray.Dataset
-        Recorded frames (robot states, humans, density estimates, V₁, V₂, errors, speeds).
+    timeseries : NetCDFDataset
+        Recorded frames (robot states, humans, density estimates, V₁, V₂, errors, speeds): the contents of
+        ``timeseries.nc`` as plain numpy arrays and attributes (:mod:`meanfield.io.netcdf`), without xarray.
     summary : dict
         ``fraction_in_target``, ``l2_error_initial``, ``l2_error_final``,
         ``w2_to_target_final``, ``time_to_90``, ``max_robot_speed``, ``speed_limit``,
@@ -39,9 +42,19 @@ class SimulationResult:
     """
 
     scenario: Scenario
-    dataset: Any
+    timeseries: NetCDFDataset
     summary: dict[str, Any]
     kernel: NavigationKernel | None = None
+
+    @cached_property
+    def dataset(self) -> Any:
+        """The recorded frames as an :class:`xarray.Dataset`, built from :attr:`timeseries` on first use
+        (importing xarray and pandas, which a run and its :meth:`save` never do).
+
+        The dataset ``xr.open_dataset(folder / "timeseries.nc", engine="h5netcdf")`` reads back; its arrays
+        are :attr:`timeseries`' own, its attributes copies (:meth:`~meanfield.io.netcdf.NetCDFDataset.to_xarray`).
+        """
+        return self.timeseries.to_xarray()
 
     FILE_NAMES = (
         "timeseries.nc", "scenario.toml", "summary.json", "trajectories.sqlite",
@@ -52,6 +65,10 @@ class SimulationResult:
 
     def save(self, out_dir: str | Path, artifacts: Iterable[ArtifactWriter] = ()) -> dict[str, Path]:
         """Write ``timeseries.nc``, ``scenario.toml``, the ``artifacts`` and (last) ``summary.json``.
+
+        ``timeseries.nc`` is :attr:`timeseries`, written with h5netcdf directly
+        (:meth:`~meanfield.io.netcdf.NetCDFDataset.write_netcdf`: no xarray import; xarray reads the file as
+        :attr:`dataset`).
 
         Every file is written atomically and carries the run's id (``run_id``: the NetCDF
         attribute, a comment in ``scenario.toml``, the figures' PNG metadata); an earlier
@@ -73,9 +90,7 @@ class SimulationResult:
 
         def write_files(out: Path) -> dict[str, Path]:
             paths: dict[str, Path] = {}
-            paths["timeseries"] = atomic_write_with(
-                out / "timeseries.nc", lambda p: self.dataset.to_netcdf(p, engine="h5netcdf")
-            )
+            paths["timeseries"] = atomic_write_with(out / "timeseries.nc", self.timeseries.write_netcdf)
             header = f"# meanfield run {rid}: the scenario of this run (re-runnable as is)\n" if rid else ""
             paths["scenario"] = atomic_write_text(out / "scenario.toml", header + self.scenario.to_toml())
             for writer in artifacts:

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from meanfield.interfaces import CrowdOfAgents, Reports
+from meanfield.io.netcdf import NetCDFDataset
 from meanfield.simulation.observers import InputStatistics, LoopView, Recorder, TargetTracker
 from meanfield.simulation.wasserstein import w2_block_size, wasserstein2_to_grid_density
 
@@ -34,7 +35,7 @@ def run_summary(
     target: TargetTracker,
     inputs: InputStatistics,
     recorder: Recorder,
-    dataset: Any,
+    dataset: NetCDFDataset,
     *,
     status: str,
     message: str,
@@ -51,8 +52,8 @@ def run_summary(
         The loop (:class:`~meanfield.simulation.loop.ClosedLoop`) at its final state.
     target, inputs, recorder
         The standard observers, attached for the whole run.
-    dataset : xarray.Dataset
-        ``recorder.dataset()``.
+    dataset : NetCDFDataset
+        The recorded frames, ``recorder.timeseries()`` (an :class:`xarray.Dataset` of them reads the same).
     status, message : str
         ``"completed"``, ``"diverged"`` or ``"interrupted"``, and why.
     rho_err0 : float
