@@ -14,7 +14,10 @@ a region that becomes wall at 5 s (``, a region blocked at 5 s``) and compliance
 
 People read the signs as the plans' default says (``view.memory = "auto"``: who a sign reaches walks to the exit
 it names).  Each run's figures are appended to ``studies/results/guide.jsonl`` as it finishes, so an interrupted
-study resumes.  The table gives, per plan and setting, the share out at the end and RSET (everyone out) as the
+study resumes.  Each row records how its crowd walks (``walk``, :func:`walk_of`: the point masses' door model and
+(H5), the noise among contacts, or JuPedSim's bodies); the table reads only the rows of today's model, and a case
+whose row was written by an older one is run again (rows without ``walk`` predate (H5), 2026-12-06).
+The table gives, per plan and setting, the share out at the end and RSET (everyone out) as the
 median and worst seed, and the
 ratio to the informed crowd's RSET on the same seed, median and worst; the last column of the guide's rows is the
 smallest team of 4, 8 and 16 whose median ratio is at most 1.1 (the robots a building needs).
@@ -66,6 +69,32 @@ KEYS = ("status", "fraction_evacuated", "evacuation_time_95", "evacuation_time_1
         "wall_seconds", "evacuated_per_exit")  # fmt: skip
 
 
+def walk_of(scenario) -> str:
+    """How the crowd of ``scenario`` walks, as a row records it: the point masses' door model, with (H5)'s power
+    when the headway adds it (docs page *Congestion*, "The headway door model"), or the crowd's kind."""
+    from meanfield.crowds._headway_loops import CONTACT_NOISE_POWER
+
+    if scenario.crowd.kind != "point-mass":
+        return scenario.crowd.kind
+    model = scenario.door_model
+    return f"{model}, (H5) m = {CONTACT_NOISE_POWER:g}" if model == "headway" else model
+
+
+def _today(plan: str, setting: str, cache: dict = {}) -> str:  # noqa: B006 (a cache)
+    """:func:`walk_of` a run of ``setting`` on ``plan`` today."""
+    from meanfield.scenarios.scenario import builtin_scenarios
+
+    key = (plan, setting.endswith(BODIES))
+    if key not in cache:
+        cache[key] = walk_of(builtin_scenarios()[plan]().with_values(SETTINGS[setting]))
+    return cache[key]
+
+
+def _walked(row: dict) -> str:
+    """How a row's crowd walked (rows without ``walk``: the point masses before (H5), or JuPedSim's bodies)."""
+    return row.get("walk", "jupedsim" if row["setting"].endswith(BODIES) else "before (H5)")
+
+
 def applies(plan: str, setting: str) -> bool:
     """Whether ``setting`` is run on ``plan``: the baselines and variants on the building plans (a closed exit where
     there are two exits or more, a block where the plan has one), the informed crowd and the guide everywhere."""
@@ -92,14 +121,15 @@ def one_run(job: tuple) -> dict:
     sc = builtin_scenarios()[plan](seed=seed).with_values(values)
     s = run(sc, progress=False).summary
     return {"plan": plan, "setting": setting, "seed": seed, "robots": sc.robots.n, "memory": sc.memory,
-            **{k: s.get(k) for k in KEYS}}  # fmt: skip
+            "walk": walk_of(sc), **{k: s.get(k) for k in KEYS}}  # fmt: skip
 
 
 def rows() -> list[dict]:
-    """The rows on disk."""
+    """The rows on disk of today's model (:func:`walk_of`)."""
     if not RESULTS.exists():
         return []
-    return [json.loads(line) for line in RESULTS.read_text().splitlines() if line.strip()]
+    every = [json.loads(line) for line in RESULTS.read_text().splitlines() if line.strip()]
+    return [r for r in every if _walked(r) == _today(r["plan"], r["setting"])]
 
 
 def run_all(seeds: int, workers: int | None, plans: list[str], settings: list[str]) -> None:
