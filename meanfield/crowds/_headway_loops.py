@@ -29,11 +29,12 @@ walk of each human's neighbours (and cuts the turned lanes at the walls, :class:
 *Congestion*, "The headway door model", (H4)).
 
 A congested step with the linear diagram is one compiled pass, :func:`headway_step`: the cell list, then each
-human in turn, its lanes (H4), their speed factors (H1), its lane and walk, its contact cone (H2) and soft core
-(H3), and the count of its neighbours that the model reports as its local density, all from one reading of the
-cells round it, in arrays kept between steps (:class:`HeadwayWork`); the numbers of the separate calls, to the
-last bit (docs page *Congestion*, section *Cost*).  The arithmetic of (H2) and (H3) is one function,
-:func:`_cone`, that :func:`contact_cone` and the pass share.
+human in turn, its lanes (H4), their speed factors (H1), its lane and walk, its contact cone (H2), soft core
+(H3) and share of the noise (H5), and the count of its neighbours that the model reports as its local density,
+all from one reading of the cells round it, in arrays kept between steps (:class:`HeadwayWork`); the numbers of
+the separate calls, to the last bit (docs page *Congestion*, section *Cost*).  The arithmetic of (H2) and (H3)
+is one function, :func:`_cone`, and that of (H5) another, :func:`_noise_share`, which :func:`contact_cone`,
+:func:`contact_noise` and the pass share.
 
 The compiled loops search a cell list (cells of width ``d`` over the active humans' bounding box, sorted by
 :func:`cell_list`, itself compiled); the headway's search widens ring by ring and stops once a ring lies farther
