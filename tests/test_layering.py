@@ -240,7 +240,8 @@ def test_the_rooms_have_no_cycle():
 
 COMPILED_LOOP_EXCEPTIONS = {
     "meanfield.crowds._kde_loops": {"meanfield.geometry.grid"},  # its numpy twin is grid.linear_binning itself
-    # the fused headway step's numpy twin counts by the count's own twin (a sibling leaf of compiled loops)
+    # the fused headway step counts by the count's own twin and reads the disk's share by the count's own helper
+    # (a sibling leaf of compiled loops)
     "meanfield.crowds._headway_loops": {"meanfield.crowds._congestion_loops"},
 }
 

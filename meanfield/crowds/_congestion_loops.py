@@ -43,7 +43,7 @@ import math
 
 import numpy as np
 
-from meanfield._compiled.core import compiled
+from meanfield._compiled.core import compiled, inlined
 
 __all__ = ["neighbour_density", "DensityWork", "MAX_CELLS_PER_HUMAN", "MAX_HUMANS"]
 
@@ -167,6 +167,24 @@ def _neighbour_density_numpy(
     if directed:
         out_ahead[idx] = ahead * (2.0 * inv_area) / share
         out_push[idx] = push
+
+
+@inlined
+def disk_share(table, x, y, ox, oy, spacing, floor):
+    """The share of a disk at ``(x, y)`` inside Ω, read bilinearly from ``table`` (origin ``(ox, oy)``, cells of
+    ``spacing``) as :meth:`~meanfield.crowds.local_density.DiskShare.at` reads it (exactly 1 among 1s), at least
+    ``floor``; the compiled loops' per-human form of :func:`_neighbour_density_numpy`'s arithmetic."""
+    tx = table.shape[0]
+    ty = table.shape[1]
+    fx = (x - ox) / spacing
+    fy = (y - oy) / spacing
+    i = min(max(math.floor(fx), 0), tx - 2)
+    k = min(max(math.floor(fy), 0), ty - 2)
+    wx = min(max(fx - i, 0.0), 1.0)
+    wy = min(max(fy - k, 0.0), 1.0)
+    lo = table[i, k] + wy * (table[i, k + 1] - table[i, k])
+    hi = table[i + 1, k] + wy * (table[i + 1, k + 1] - table[i + 1, k])
+    return max(lo + wx * (hi - lo), floor)
 
 
 @compiled(fallback=_neighbour_density_numpy)
@@ -372,21 +390,11 @@ def neighbour_density(
     for p in range(n):  # (cell[p] is free for those not counted: keep who they are before order is rewritten)
         if not valid[p]:
             cell[p] = order[p]
-    tx = table.shape[0]
-    ty = table.shape[1]
     for q in range(m):  # in cell order, so the table is read where the last human read it
         rho = cnt[q] * inv_area
         share = 1.0
         if clipped:
-            fx = (sx[q] - ox) / spacing
-            fy = (sy[q] - oy) / spacing
-            i = min(max(math.floor(fx), 0), tx - 2)
-            k = min(max(math.floor(fy), 0), ty - 2)
-            wx = min(max(fx - i, 0.0), 1.0)
-            wy = min(max(fy - k, 0.0), 1.0)
-            lo = table[i, k] + wy * (table[i, k + 1] - table[i, k])  # as DiskShare.at: exactly 1 among 1s
-            hi = table[i + 1, k] + wy * (table[i + 1, k + 1] - table[i + 1, k])
-            share = max(lo + wx * (hi - lo), floor)
+            share = disk_share(table, sx[q], sy[q], ox, oy, spacing, floor)
             rho = rho / share
         j = ids[q]
         out[j] = rho

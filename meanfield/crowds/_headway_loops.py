@@ -53,6 +53,7 @@ import math
 import numpy as np
 
 from meanfield._compiled.core import PARALLEL_CHUNK, compiled, inlined, inner, prange
+from meanfield.crowds._congestion_loops import _neighbour_density_numpy, disk_share
 
 __all__ = [
     "headways",
@@ -1074,18 +1075,7 @@ def _density_of(count, xj, yj, inv_area, table, tox, toy, spacing, floor, clippe
     share in Ω, read bilinearly)."""
     rho = count * inv_area
     if clipped:
-        tx = table.shape[0]
-        ty = table.shape[1]
-        fx = (xj - tox) / spacing
-        fy = (yj - toy) / spacing
-        i = min(max(math.floor(fx), 0), tx - 2)
-        k = min(max(math.floor(fy), 0), ty - 2)
-        wx = min(max(fx - i, 0.0), 1.0)
-        wy = min(max(fy - k, 0.0), 1.0)
-        lo = table[i, k] + wy * (table[i, k + 1] - table[i, k])  # as DiskShare.at: exactly 1 among 1s
-        hi = table[i + 1, k] + wy * (table[i + 1, k + 1] - table[i + 1, k])
-        share = max(lo + wx * (hi - lo), floor)
-        rho = rho / share
+        rho = rho / disk_share(table, xj, yj, tox, toy, spacing, floor)
     return rho
 
 
@@ -1119,8 +1109,6 @@ def _step_numpy(v, x, active, cos, sin, lane, reach, half, walls, jam, separatio
                 work, s_out, rho_out, phi, grad):  # fmt: skip
     """The numpy twin of :func:`headway_step`: the numpy twins of the cell list, the lanes, the choice, the contact
     cone, the count and (H5), one after the other (``work`` unused)."""
-    from meanfield.crowds._congestion_loops import _neighbour_density_numpy
-
     n = len(x)
     norm = np.hypot(v[:, 0], v[:, 1])
     e = v.copy()
