@@ -35,18 +35,18 @@ For each built-in plan (``l-room``, ``office``, ``hall``, ``hall-crowded-west``)
   the crowds that declare ``changes_walls``: the point masses); its ratios are to the informed crowd of
   the same variant;
 
-and keeps each run's evacuation figures in ``studies/results/buildings.jsonl`` (one line per
-run, appended as each finishes, so that an interrupted study resumes where it stopped).  The
-crowds walk by the plans' own ``crowd.congestion = "auto"``: point masses by the linear diagram
-and their default door model, the headway (docs page *Congestion*), JuPedSim's bodies by their own
-model; each row records the models (``congestion``, ``"none"`` for rows written before congestion;
-``door_model``, ``"count"`` for rows written before the headway became the default), and the table
-reads the rows of the models given by ``--congestion`` (``auto``: the plans' defaults) and today's
-door models.  The table counts the runs
-whose RSET is below the flow bound (``lower_bound_flow``: the crowd over the exits' width at the
-largest specific flow measured, 2.5 persons/(m·s)), which no crowd that queues as people do beats.
-Then it prints the table of the docs page (``--table``: only the table, from the file) and
-draws ``docs/figures/buildings_evacuation.png``.
+every setting whose label names no memory with the paper's humans (``view.memory = "none"``, set by
+:func:`one_run`: the plans' default became ``"auto"``, ``"sign"`` in SI plans, after the table's first rows) and,
+on :data:`BALANCED_BY_DEFAULT`, coverage whose label names no potential with the balanced one, and keeps each run's
+evacuation figures in ``studies/results/buildings.jsonl`` (one line per run, appended as each finishes, so that an
+interrupted study resumes where it stopped). The crowds walk by the plans' own ``crowd.congestion = "auto"``: point
+masses by the linear diagram and their default door model, the headway (docs page *Congestion*), JuPedSim's bodies
+by their own model; each row records the models (``congestion``, ``"none"`` for rows written before congestion;
+``door_model``, ``"count"`` for rows written before the headway became the default), and the table reads the rows
+of the models given by ``--congestion`` (``auto``: the plans' defaults) and today's door models. The table counts
+the runs whose RSET is below the flow bound (``lower_bound_flow``: the crowd over the exits' width at the largest
+specific flow measured, 2.5 persons/(m·s)), which no crowd that queues as people do beats. Then it prints the table
+of the docs page (``--table``: only the table, from the file) and draws ``docs/figures/buildings_evacuation.png``.
 """
 
 from __future__ import annotations
@@ -144,6 +144,9 @@ SETTINGS.update(
 )
 VARIANTS = (SHUT, BLOCK)
 """The endings of the variants' labels: each setting's ratio is to the informed crowd of the same variant."""
+BALANCED_BY_DEFAULT = ("hall-crowded-west",)
+"""The plans whose coverage rows sign the exits balanced by their capacities unless the setting names a potential:
+the plan's own option before the guide became its default (2026-12-05), which the table's rows were measured with."""
 RESULTS = Path("studies/results/buildings.jsonl")
 KEYS = (
     "fraction_evacuated",
@@ -166,6 +169,11 @@ def one_run(plan: str, setting: str, seed: int, backend: str, congestion: str = 
     from meanfield.scenarios.scenario import builtin_scenarios
 
     values = dict(SETTINGS[setting])
+    # A setting that names no memory is the paper's humans, as its label says: the plans' default became
+    # view.memory = "auto" ("sign" in SI plans) after the table's first rows (2026-12-05); the baselines ignore it.
+    values.setdefault("view.memory", "none")
+    if plan in BALANCED_BY_DEFAULT and values.get("controller.kind") == "coverage":
+        values.setdefault("controller.options.coverage.potential", "balanced")
     if setting.endswith(BLOCK):
         values["events"] = [{"time": 5.0, "block": BLOCKS[plan]}]
     sc = builtin_scenarios()[plan](seed=seed).with_values({**values, "crowd.kind": backend})
