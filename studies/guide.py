@@ -26,6 +26,7 @@ smallest team of 4, 8 and 16 whose median ratio is at most 1.1 (the robots a bui
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 from pathlib import Path
@@ -80,14 +81,12 @@ def walk_of(scenario) -> str:
     return f"{model}, (H5) m = {CONTACT_NOISE_POWER:g}" if model == "headway" else model
 
 
-def _today(plan: str, setting: str, cache: dict = {}) -> str:  # noqa: B006 (a cache)
+@functools.cache
+def _today(plan: str, setting: str) -> str:
     """:func:`walk_of` a run of ``setting`` on ``plan`` today."""
     from meanfield.scenarios.scenario import builtin_scenarios
 
-    key = (plan, setting.endswith(BODIES))
-    if key not in cache:
-        cache[key] = walk_of(builtin_scenarios()[plan]().with_values(SETTINGS[setting]))
-    return cache[key]
+    return walk_of(builtin_scenarios()[plan]().with_values(SETTINGS[setting]))
 
 
 def _walked(row: dict) -> str:

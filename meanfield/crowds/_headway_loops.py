@@ -491,6 +491,28 @@ def _turned(ex, ey, cos, sin, tx, ty):
 
 
 @inlined
+def _nearer_in_lanes(dx, dy, r2, kp, w, tx, ty, best2, lane):
+    """A neighbour at the offset ``(dx, dy)``, ``r2`` away squared, tested against each of the ``kp`` lanes
+    ``(tx_q, ty_q)`` of :func:`_lane_search`: where it is ahead (``along > 0``) within the lane's half-width and
+    nearer than the lane's nearest so far, ``best2[q]``, it is the nearest now (a select, not a branch).  With one
+    block of :data:`LANES` lanes the lanes are read from ``w`` at offsets the compiler sees apart, so it
+    vectorises."""
+    if kp == LANES:
+        for q in range(LANES):
+            along = dx * w[q] + dy * w[LANES + q]
+            across = dx * w[LANES + q] - dy * w[q]
+            b2 = w[2 * LANES + q]
+            ok = (r2 < b2) & (along > 0.0) & (abs(across) < lane)
+            w[2 * LANES + q] = r2 if ok else b2
+    else:
+        for q in range(kp):
+            along = dx * tx[q] + dy * ty[q]
+            across = dx * ty[q] - dy * tx[q]
+            b2 = best2[q]
+            best2[q] = r2 if (r2 < b2) & (along > 0.0) & (abs(across) < lane) else b2
+
+
+@inlined
 def _lane_search(t, k, w, tx, ty, best2, lane, reach, half, pos, starts, ox, oy, h, nx, ny, wa, wv, wnorm, wstarts,
                  wlist, wbox, cut, s, radius2, contact2, cdx, cdy, cr2):  # fmt: skip
     """The headways of the human in slot ``t`` of the cell list along its ``k`` lanes ``(tx_q, ty_q)``, into ``s``
@@ -541,19 +563,7 @@ def _lane_search(t, k, w, tx, ty, best2, lane, reach, half, pos, starts, ox, oy,
             cdy[c] = dy
             cr2[c] = r2
             contacts += (r2 > 0.0) & (r2 < contact2)
-            if kp == LANES:  # (one block of lanes: offsets the compiler sees apart, so it vectorises)
-                for q in range(LANES):  # (no branch: a select per lane)
-                    along = dx * w[q] + dy * w[LANES + q]
-                    across = dx * w[LANES + q] - dy * w[q]
-                    b2 = w[2 * LANES + q]
-                    ok = (r2 < b2) & (along > 0.0) & (abs(across) < lane)
-                    w[2 * LANES + q] = r2 if ok else b2
-            else:
-                for q in range(kp):
-                    along = dx * tx[q] + dy * ty[q]
-                    across = dx * ty[q] - dy * tx[q]
-                    b2 = best2[q]
-                    best2[q] = r2 if (r2 < b2) & (along > 0.0) & (abs(across) < lane) else b2
+            _nearer_in_lanes(dx, dy, r2, kp, w, tx, ty, best2, lane)
     if radius2 > 0.0:
         count -= 1  # (X_j itself)
     if searched:
@@ -630,19 +640,7 @@ def _lane_search(t, k, w, tx, ty, best2, lane, reach, half, pos, starts, ox, oy,
                             dx = pos[u, 0] - xj
                             dy = pos[u, 1] - yj
                             r2 = dx * dx + dy * dy
-                            if kp == LANES:
-                                for q in range(LANES):
-                                    along = dx * w[q] + dy * w[LANES + q]
-                                    across = dx * w[LANES + q] - dy * w[q]
-                                    b2 = w[2 * LANES + q]
-                                    ok = (r2 < b2) & (along > 0.0) & (abs(across) < lane)
-                                    w[2 * LANES + q] = r2 if ok else b2
-                            else:
-                                for q in range(kp):
-                                    along = dx * tx[q] + dy * ty[q]
-                                    across = dx * ty[q] - dy * tx[q]
-                                    b2 = best2[q]
-                                    best2[q] = r2 if (r2 < b2) & (along > 0.0) & (abs(across) < lane) else b2
+                            _nearer_in_lanes(dx, dy, r2, kp, w, tx, ty, best2, lane)
                         far2 = -1.0  # (once a run: a bound of the search, not of the minima)
                         for q in range(k):
                             far2 = max(far2, best2[q])
