@@ -155,8 +155,9 @@ def main(argv: list[str] | None = None) -> None:
                         row = one_run(width, sigma, kind, seed, args.dt)
                         with RESULTS.open("a") as f:
                             f.write(json.dumps(row) + "\n")
-                        print(f"{kind} w={width:g} σ={sigma:g} seed={seed} dt={args.dt:g}: "
-                              f"{row['flow_per_m']:.3f} persons/(m·s) ({row['wall_seconds']:.0f} s)", flush=True)  # fmt: skip
+                        flow, wall = row["flow_per_m"], row["wall_seconds"]
+                        label = f"{kind} w={width:g} σ={sigma:g} seed={seed} dt={args.dt:g}"
+                        print(f"{label}: {flow:.3f} persons/(m·s) ({wall:.0f} s)", flush=True)
     print(report(args.dt))
 
 
