@@ -51,9 +51,13 @@ BLOCKS = {
     "office": "POLYGON ((14.5 5.9, 15.5 5.9, 15.5 8.1, 14.5 8.1, 14.5 5.9))",
 }
 """The blocked variant's region (the buildings study's, ``studies/buildings.py``)."""
+STANDING = {"controller.kind": "static-signs", "controller.options": {}}
+"""The robots of the baselines: their crowd reads no sign, so the plan's robots (as many) stand with their signs
+rather than run the plan's controller, whose work changes none of the crowd's figures (the crowd's positions are
+the same to the last bit: ``tests/scenarios/test_baselines_read_no_sign.py``), and costs up to 70 % of a step."""
 SETTINGS: dict[str, dict] = {
-    "informed": {"crowd.guidance": "geodesic"},
-    "uninformed": {"crowd.guidance": "random-walk"},
+    "informed": {"crowd.guidance": "geodesic", **STANDING},
+    "uninformed": {"crowd.guidance": "random-walk", **STANDING},
     "static 8": {"controller.kind": "static-signs", "robots.n": 8, "crowd.guidance": "signs"},
     "evacuation 8": {"controller.kind": "evacuation", "robots.n": 8, "crowd.guidance": "signs",
                      "controller.options": {}},  # fmt: skip
