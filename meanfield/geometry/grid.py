@@ -153,26 +153,17 @@ class Grid:
 
     # ------------------------------------------------------------------ geometry
     def _fractions(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        nx, ny = self.cells
-        if not self.cut_cells:
-            X, Y = np.meshgrid(self.x, self.y, indexing="ij")
-            inside = self.domain.contains(X, Y)
-            frac = inside.astype(float)
-            ax = (inside[1:, :] & inside[:-1, :]).astype(float)
-            ay = (inside[:, 1:] & inside[:, :-1]).astype(float)
-            return frac, ax, ay
-        x0, _, y0, _ = self.domain.bounds
-        xe = x0 + np.arange(nx + 1) * self.dx  # cell edges; xe[1:-1] == self.x_faces
-        ye = y0 + np.arange(ny + 1) * self.dy
-        frac, ax, ay = self.domain.cut_cells(xe, ye, self.dx, self.dy)
-        if frac.all() and ax.all() and ay.all():  # Ω fills its bounding box (a rectangle)
-            return frac, ax, ay
-        frac = np.where(frac < SLIVER, 0.0, frac)  # clipping slivers (a vertex grazing a cell): round-off
-        # a face is open only if both neighbours hold volume
-        act = frac > 0
-        ax = np.where(act[1:, :] & act[:-1, :], ax, 0.0)
-        ay = np.where(act[:, 1:] & act[:, :-1], ay, 0.0)
-        return frac, ax, ay
+        """The cells' volume fractions and the faces' apertures (copies of those remembered for the last few
+        grids: a study that runs one plan over many seeds clips its cells once per process)."""
+        key = exact_key(self.domain)
+        if key is None:  # (a region that cannot say exactly what it is: clipped each time)
+            return _fractions(self.domain, self.cells, self.cut_cells)
+        key = (key, self.cells, self.cut_cells)
+        if key not in _FRACTIONS:
+            if len(_FRACTIONS) >= REMEMBERED:
+                del _FRACTIONS[next(iter(_FRACTIONS))]  # the oldest
+            _FRACTIONS[key] = _fractions(self.domain, self.cells, self.cut_cells)
+        return tuple(a.copy() for a in _FRACTIONS[key])
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -321,3 +312,48 @@ def _weighted_dot(w: np.ndarray, f: np.ndarray, g: np.ndarray) -> Any:
     if a.shape != g.shape:
         return (a * g).sum()
     return np.dot(a.ravel(), g.ravel())  # (dot, not vdot: a complex step must not be conjugated)
+
+
+def _fractions(domain: Region, cells: tuple[int, int], cut_cells: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The volume fraction of each of the ``cells`` over ``domain``'s bounding box and the aperture of each interior
+    face (:meth:`Grid._fractions`): clipped by the region's :meth:`cut_cells`, or the cells whose centre ``domain``
+    contains without ``cut_cells``."""
+    nx, ny = cells
+    x0, x1, y0, y1 = domain.bounds
+    dx = (x1 - x0) / nx
+    dy = (y1 - y0) / ny
+    if not cut_cells:
+        X, Y = np.meshgrid(x0 + (np.arange(nx) + 0.5) * dx, y0 + (np.arange(ny) + 0.5) * dy, indexing="ij")
+        inside = domain.contains(X, Y)
+        frac = inside.astype(float)
+        ax = (inside[1:, :] & inside[:-1, :]).astype(float)
+        ay = (inside[:, 1:] & inside[:, :-1]).astype(float)
+        return frac, ax, ay
+    xe = x0 + np.arange(nx + 1) * dx  # cell edges; xe[1:-1] == Grid.x_faces
+    ye = y0 + np.arange(ny + 1) * dy
+    frac, ax, ay = domain.cut_cells(xe, ye, dx, dy)
+    if frac.all() and ax.all() and ay.all():  # Ω fills its bounding box (a rectangle)
+        return frac, ax, ay
+    frac = np.where(frac < SLIVER, 0.0, frac)  # clipping slivers (a vertex grazing a cell): round-off
+    # a face is open only if both neighbours hold volume
+    act = frac > 0
+    ax = np.where(act[1:, :] & act[:-1, :], ax, 0.0)
+    ay = np.where(act[:, 1:] & act[:, :-1], ay, 0.0)
+    return frac, ax, ay
+
+
+REMEMBERED = 16
+"""How many regions' set-up a process keeps (:data:`_FRACTIONS`; the target's radius likewise)."""
+_FRACTIONS: dict[Any, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+""":func:`_fractions` of the last :data:`REMEMBERED` grids, by :func:`exact_key`, the cells and ``cut_cells``."""
+
+
+def exact_key(region: Any) -> Any:
+    """A key equal for two regions only when they are written the same, vertex for vertex (their class and
+    :meth:`to_dict`), so that what is remembered for one is what would be computed for the other to the last bit;
+    None for a region without ``to_dict``."""
+    to_dict = getattr(region, "to_dict", None)
+    if to_dict is None:
+        return None
+    wkb = getattr(getattr(region, "polygon", None), "wkb", None)  # (a plan's WKT rounds its vertices; its WKB not)
+    return type(region).__qualname__, repr(to_dict()), wkb

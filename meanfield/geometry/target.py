@@ -7,10 +7,12 @@ the radius of the disk that holds 95 % of it; :func:`fraction_in_disk` the fract
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from meanfield.geometry._target_loops import count_in_disk
-from meanfield.geometry.grid import Grid
+from meanfield.geometry.grid import REMEMBERED, Grid, exact_key
 from meanfield.geometry.region import Region
 
 __all__ = ["gaussian_target", "target_region_radius", "fraction_in_disk"]
@@ -38,8 +40,27 @@ def target_region_radius(
     """Smallest ``r`` with ``∫_{Ω ∩ B(center, r)} ρ_* >= mass`` (ρ_* normalised in Ω).
 
     Evaluated on a ``samples × samples`` midpoint lattice over Ω's bounding box
-    (radius resolution about ``diam / samples``).
+    (radius resolution about ``diam / samples``).  Remembered for the last few regions: a study that runs one
+    plan over many seeds draws the lattice once per process (the region is frozen; equal regions, equal radii).
     """
+    args = ((float(center[0]), float(center[1])), float(std), float(mass), int(samples))
+    key = exact_key(domain)
+    if key is None:  # (a region that cannot say exactly what it is: drawn each time)
+        return _radius(domain, *args)
+    key = (key, *args)
+    if key not in _RADII:
+        if len(_RADII) >= REMEMBERED:
+            del _RADII[next(iter(_RADII))]  # the oldest
+        _RADII[key] = _radius(domain, *args)
+    return _RADII[key]
+
+
+_RADII: dict[Any, float] = {}
+""":func:`target_region_radius` of the last :data:`~meanfield.geometry.grid.REMEMBERED` regions and targets."""
+
+
+def _radius(domain: Region, center: tuple[float, float], std: float, mass: float, samples: int) -> float:
+    """:func:`target_region_radius`, drawn."""
     x0, x1, y0, y1 = domain.bounds
     xs = x0 + (np.arange(samples) + 0.5) * (x1 - x0) / samples
     ys = y0 + (np.arange(samples) + 0.5) * (y1 - y0) / samples

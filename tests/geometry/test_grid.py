@@ -302,3 +302,25 @@ def test_linear_binning_keeps_mass_and_mean_position_exactly(rng):
     one = linear_binning(np.array([[cx[3], cy[4]], [10.0, -10.0]]), origin, spacing, shape)
     assert one[3, 4] == pytest.approx(1.0) and one[-1, 0] == pytest.approx(1.0)
     assert one.sum() == pytest.approx(2.0)
+
+
+def test_a_grid_of_a_plan_seen_before_is_the_grid_clipped_afresh() -> None:
+    """The clipped cells are remembered per process (``grid._FRACTIONS``): a second grid of the same plan gets the
+    same fractions to the last bit as a grid clipped afresh, in arrays of its own; a plan one ulp apart is not
+    taken for it."""
+    import meanfield.geometry.grid as grid_module
+    from meanfield.geometry.plan import Plan
+
+    wkt = "POLYGON ((0 0, 10 0, 10 4, 6 4, 6 8, 0 8, 0 0))"
+    grid_module._FRACTIONS.clear()
+    fresh = Grid(Plan.from_wkt(wkt), cells=(40, 32))
+    again = Grid(Plan.from_wkt(wkt), cells=(40, 32))
+    assert len(grid_module._FRACTIONS) == 1
+    for name in ("volume_fraction", "aperture_x", "aperture_y", "volume", "active"):
+        np.testing.assert_array_equal(getattr(again, name), getattr(fresh, name))
+    again.volume_fraction[0, 0] = -1.0  # its own arrays
+    assert Grid(Plan.from_wkt(wkt), cells=(40, 32)).volume_fraction[0, 0] == fresh.volume_fraction[0, 0]
+    nudged = Plan.from_wkt(f"POLYGON ((0 0, 10 0, 10 4, {float(np.nextafter(6.0, 7.0))!r} 4, 6 8, 0 8, 0 0))")
+    assert grid_module.exact_key(nudged) != grid_module.exact_key(Plan.from_wkt(wkt))
+    Grid(nudged, cells=(40, 32))
+    assert len(grid_module._FRACTIONS) == 2
