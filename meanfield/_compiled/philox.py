@@ -402,7 +402,7 @@ def _pair_from_words(wa, wb, key0, key1, step, human, ki, wi, fi):
     """The pair from the attempt-0 words ``(A, B)``, rejections continued on attempts 1, 2, ..."""
     z0, ok0, i0 = _first_attempt(wa, ki, wi)
     z1, ok1, i1 = _first_attempt(wb, ki, wi)
-    attempt = 1
+    attempt = np.int64(1)  # (not the literal 1: one compiled _rejected for both calls below, not two)
     if not ok0:
         z0, attempt = _rejected(wa, i0, z0, key0, key1, step, human, attempt, ki, wi, fi)
     if not ok1:
