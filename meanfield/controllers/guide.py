@@ -40,7 +40,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from meanfield.capabilities import ControllerCapabilities
-from meanfield.controllers._coverage_loops import owners as nearest_owners
+from meanfield.controllers._guide_loops import share_moments
 from meanfield.controllers.coverage import _NOTHING_HIDDEN, walk_towards
 from meanfield.errors import ParameterError, num, options_table
 from meanfield.interfaces import Command, ControllerParts, Observation
@@ -280,23 +280,11 @@ class GuideController:
         if self.sight is not None:
             seen, hidden = np.ascontiguousarray(self.sight.cell_rows(self.grid, robots)).reshape(n, -1), True
         centroid = robots.copy()
-        held = np.ones(n, dtype=bool)
-        cell_owner = np.full(len(share), -1, dtype=np.intp)
-        for k in np.unique(self.team[self.team >= 0]):
-            mine = np.flatnonzero(self.team == k)
-            cells = np.flatnonzero(share == k)
-            if not len(cells):
-                continue
-            rows = seen[mine] if hidden else seen
-            local = nearest_owners(self._xy[cells], np.ascontiguousarray(robots[mine]), np.ascontiguousarray(rows),
-                                   self._cells[cells], hidden, np.empty(len(cells), np.intp))  # fmt: skip
-            cell_owner[cells] = mine[local]
-            m = np.bincount(local, weights=w[cells], minlength=len(mine))
-            px = np.bincount(local, weights=w[cells] * self._xy[cells, 0], minlength=len(mine))
-            py = np.bincount(local, weights=w[cells] * self._xy[cells, 1], minlength=len(mine))
-            has = m > 0
-            centroid[mine[has]] = np.column_stack([px[has] / m[has], py[has] / m[has]])
-            held[mine[has]] = False
+        cell_owner, m, px, py = share_moments(self._xy, np.ascontiguousarray(robots), self.team, share, w,
+                                              np.ascontiguousarray(seen), self._cells, hidden,
+                                              np.empty(len(share), np.intp), *np.empty((3, n)))  # fmt: skip
+        held = ~(m > 0)
+        centroid[~held] = np.column_stack([px[~held] / m[~held], py[~held] / m[~held]])
         pull[~held] = centroid[~held] - robots[~held]
         behind = ~held
         if self.sight is not None and behind.any():

@@ -36,6 +36,7 @@ import dataclasses
 
 import numpy as np
 
+from meanfield.geometry._walking_loops import nearest_walk
 from meanfield.geometry.grid import Grid
 from meanfield.geometry.sight import SightLines
 
@@ -141,6 +142,25 @@ class WalkingDistances:
         cells = np.asarray(cells, np.intp)
         a = anchor[cells]
         return _walks(self.xy[a] - p, D[cells], D[a])
+
+    def walk_to_nearest(self, point: np.ndarray, owner: np.ndarray, robot: int,
+                        target: np.ndarray) -> tuple[float, np.ndarray]:  # fmt: skip
+        """The walk from one point to the cell, of those with ``owner[c] == robot`` that a route reaches, nearest
+        ``target`` (straight, ties: the first): :meth:`walk_to`'s numbers for that cell, without the others
+        (one compiled pass, :func:`meanfield.geometry._walking_loops.nearest_walk`).
+
+        Returns
+        -------
+        distance : float
+            ``d(c)`` (``inf`` when no such cell is reached).
+        leg : ndarray, shape (2,)
+            ``e(c)`` (0 when no such cell is reached).
+        """
+        p = np.real(np.asarray(point, float)).reshape(1, 2)
+        D, anchor = self._trees[int(self._planted(p)[0])]
+        target = np.ascontiguousarray(target, float).reshape(2)
+        out = nearest_walk(self.xy, D, anchor, owner, int(robot), p[0], target, np.empty(3))
+        return float(out[0]), out[1:]
 
     def from_points(self, points: np.ndarray) -> WalkingField:
         """The walking distances, first legs and anchors from each of ``points`` (``(n, 2)``) to every active cell.

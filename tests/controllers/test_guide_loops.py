@@ -1,0 +1,109 @@
+"""The guide's per-step loops, compiled (issue 45, "Small crowds fast"): each against its numpy twin, bit for bit.
+
+* :func:`meanfield.controllers._guide_loops.share_moments` (each cell's robot within its share and the robots'
+  moments) against its twin and the guide's code before it (a compiled ``owners`` call and three ``np.bincount`` per
+  share): the same owners, masses and moments, with walls and without, ties to the first robot, robots without a
+  share, shares without robots or cells, a robot at NaN (as the compiled ``owners`` gave it);
+* :func:`meanfield.geometry._walking_loops.nearest_walk` (the routed pull's walk to a robot's cell nearest its
+  centroid) against its twin and against :meth:`~meanfield.geometry.walking.WalkingDistances.walk_to` followed by the
+  nearest cell, the code before it, round a wall, and with cells no route reaches (a plan a block cut in pieces).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from meanfield import Grid
+from meanfield._compiled import core as compiled
+from meanfield.controllers._coverage_loops import owners
+from meanfield.controllers._guide_loops import share_moments
+from meanfield.geometry._walking_loops import nearest_walk
+from meanfield.geometry.plan import Plan
+from meanfield.geometry.sight import SightLines
+from meanfield.geometry.walking import WalkingDistances
+
+needs_numba = pytest.mark.skipif(not compiled.enabled(), reason="numba is not installed, or MEANFIELD_COMPILED=0")
+
+TWO_ROOMS = Plan.from_wkt("POLYGON ((0 0, 3.9 0, 3.9 3, 4.1 3, 4.1 0, 8 0, 8 4, 0 4, 0 0))")
+"""Two 4 m rooms side by side, a 1 m gap at the top of the wall between them."""
+
+
+def _both(loop, *args):
+    fast = loop(*[a.copy() if isinstance(a, np.ndarray) else a for a in args])
+    assert loop._ready, f"{loop.name} did not run compiled"
+    with compiled.numpy_path():
+        ref = loop(*[a.copy() if isinstance(a, np.ndarray) else a for a in args])
+    return fast, ref
+
+
+@needs_numba
+@pytest.mark.parametrize("hidden", [True, False])
+def test_share_moments_are_its_numpy_twins_bit_for_bit(hidden):
+    rng = np.random.default_rng(4)
+    m, n, k = 500, 9, 4
+    xy = rng.uniform(0, 10, (m, 2))
+    robots = rng.uniform(0, 10, (n, 2))
+    robots[5] = robots[2]  # a tie: the first robot listed wins
+    team = np.array([0, 1, 0, 2, -1, 0, 1, 3, 2], np.intp)  # robot 4 without a share; share 3 without cells
+    share = rng.integers(-1, k - 1, m).astype(np.intp)  # cells of no share; share 3 has none
+    share[:20] = 4  # a share no robot has
+    w = rng.uniform(0, 1, m) * (rng.uniform(size=m) < 0.8)  # cells without weight
+    cells = rng.permutation(800)[:m].astype(np.intp)
+    seen = rng.uniform(size=(n, 800)) < 0.3
+    seen[5] = seen[2]
+    args = (xy, robots, team, share, w, seen, cells, hidden)
+    out = (np.empty(m, np.intp), np.empty(n), np.empty(n), np.empty(n))
+    fast, ref = _both(share_moments, *args, *out)
+    for a, b in zip(fast, ref, strict=True):
+        np.testing.assert_array_equal(a, b)
+    owner, mass = fast[0], fast[1]
+    assert (owner[:20] == -1).all() and (owner[share < 0] == -1).all() and 5 not in owner
+    assert mass[4] == 0 and mass[7] == 0 and (mass[[0, 1, 2, 3]] > 0).all()
+    assert np.array_equal(team[owner[owner >= 0]], share[owner >= 0])  # each cell's robot is of its share
+
+    for k in (0, 1, 2):  # the guide's code before: a compiled owners call and three bincounts per share
+        mine, here = np.flatnonzero(team == k), np.flatnonzero(share == k)
+        local = owners(xy[here], robots[mine], seen[mine], cells[here], hidden, np.empty(len(here), np.intp))
+        assert np.array_equal(owner[here], mine[local])
+        assert np.array_equal(mass[mine], np.bincount(local, weights=w[here], minlength=len(mine)))
+        assert np.array_equal(fast[2][mine], np.bincount(local, weights=w[here] * xy[here, 0], minlength=len(mine)))
+
+    robots[1] = np.nan  # a robot nowhere: its share's cells go to its other robot, as the compiled owners gave them
+    owner, mass, _, _ = share_moments(xy, robots, team, share, w, seen, cells, hidden, *out)
+    mine, here = np.flatnonzero(team == 1), np.flatnonzero(share == 1)
+    local = owners(xy[here], robots[mine], seen[mine], cells[here], hidden, np.empty(len(here), np.intp))
+    assert np.array_equal(owner[here], mine[local]) and 1 not in owner and mass[1] == 0
+
+
+@needs_numba
+def test_the_walk_to_a_robots_nearest_cell_is_walk_to_s_nearest_column_bit_for_bit():
+    plan = TWO_ROOMS
+    walk = WalkingDistances(Grid(plan, (40, 20)), SightLines(plan))
+    rng = np.random.default_rng(11)
+    robots = plan.sample_uniform(6, rng)
+    owner = rng.integers(0, 6, len(walk.cells)).astype(np.intp)
+    for cut in (False, True):
+        for i, target in enumerate(plan.sample_uniform(6, rng)):
+            start = int(walk._planted(robots[i : i + 1])[0])
+            D, anchor = walk._trees[start]
+            if cut:  # the right room beyond reach (a block cut the plan): its cells' trees end at inf
+                D = (
+                    np.where(walk.xy[:, 0] > 4.0, np.inf, D)
+                    if robots[i, 0] < 4.0
+                    else np.where(walk.xy[:, 0] < 4.0, np.inf, D)
+                )
+                walk._trees[start] = D, anchor
+            fast, ref = _both(nearest_walk, walk.xy, D, anchor, owner, i, robots[i], target, np.empty(3))
+            np.testing.assert_array_equal(fast, ref)
+            owned = np.flatnonzero(owner == i)  # the code before: every walk to the robot's cells, then the nearest
+            distance, leg = walk.walk_to(robots[i], owned)
+            reached = np.isfinite(distance)
+            mine = owned[reached]
+            t = np.argmin(np.hypot(walk.xy[mine, 0] - target[0], walk.xy[mine, 1] - target[1]))
+            d, e = walk.walk_to_nearest(robots[i], owner, i, target)
+            assert d == distance[reached][t] and np.array_equal(e, leg[reached][t])
+            assert np.array_equal(d * e, distance[reached][t] * leg[reached][t])
+    nobody = np.full(len(walk.cells), -1, np.intp)  # a robot that owns no cell: no walk
+    d, e = walk.walk_to_nearest(robots[0], nobody, 0, robots[1])
+    assert d == np.inf and np.array_equal(e, [0.0, 0.0])
