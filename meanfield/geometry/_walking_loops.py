@@ -1,8 +1,12 @@
-"""Walking distances, compiled: the walk from a point to the one of its cells nearest a target.
+"""Walking distances, compiled: the anchors of Dijkstra's trees, and the walk from a point to the one of its cells
+nearest a target.
 
-:func:`nearest_walk` is one pass over the active cells, paired with its numpy twin (the walks of
-:meth:`~meanfield.geometry.walking.WalkingDistances.walk_to` to the owned cells, then the nearest of those reached);
-the caller is :meth:`meanfield.geometry.walking.WalkingDistances.walk_to_nearest`.
+* :func:`tree_anchors`: each cell's nearest ancestor in sight on a tree, one pass over the cells (numpy twin: the
+  pointer jumping of :mod:`meanfield.geometry.walking`);
+* :func:`nearest_walk`: one pass over the active cells (numpy twin: the walks of
+  :meth:`~meanfield.geometry.walking.WalkingDistances.walk_to` to the owned cells, then the nearest of those reached).
+
+The caller is :class:`meanfield.geometry.walking.WalkingDistances`.
 """
 
 from __future__ import annotations
@@ -13,7 +17,55 @@ import numpy as np
 
 from meanfield._compiled.core import compiled
 
-__all__ = ["nearest_walk"]
+__all__ = ["nearest_walk", "tree_anchors"]
+
+
+def _tree_anchors_numpy(pred, seen, out):
+    own = np.broadcast_to(np.arange(pred.shape[1]), pred.shape)
+    anchor = np.where(seen | (pred < 0), own, pred)
+    while True:  # pointer jumping to the nearest ancestor in sight
+        nxt = np.take_along_axis(anchor, anchor, axis=1)
+        if np.array_equal(nxt, anchor):
+            break
+        anchor = nxt
+    out[:] = anchor
+    return out
+
+
+@compiled(fallback=_tree_anchors_numpy)
+def tree_anchors(pred, seen, out):
+    """Each cell's anchor on each tree: the first cell of its path to the root, itself included, that is seen or
+    has no predecessor (the root, or a cell the tree does not reach), module :mod:`meanfield.geometry.walking`.
+
+    Each path is walked up once, to the first cell whose anchor is known, and every cell passed takes that anchor
+    (integers: the pointer jumping's fixed point exactly).
+
+    Parameters
+    ----------
+    pred : ndarray of int, shape (n, M)
+        Each tree's predecessors (``< 0``: none).
+    seen : ndarray of bool, shape (n, M)
+        The cells seen from each tree's point.
+    out : ndarray of int, shape (n, M)
+        Out: the anchors.
+    """
+    n, m = pred.shape
+    path = np.empty(m, np.intp)
+    for r in range(n):
+        for c in range(m):
+            out[r, c] = -1
+        for c in range(m):
+            depth = 0
+            x = c
+            while out[r, x] < 0 and not (seen[r, x] or pred[r, x] < 0):
+                path[depth] = x
+                depth += 1
+                x = pred[r, x]
+            a = out[r, x] if out[r, x] >= 0 else x
+            out[r, x] = a
+            for k in range(depth):
+                out[r, path[k]] = a
+    return out
 
 
 def _nearest_walk_numpy(xy, D, anchor, owner, robot, point, target, out):

@@ -18,10 +18,11 @@ active cell ``c`` of the grid:
   the direction in which ``d_i(c)`` falls fastest as ``R_i`` moves (``−∇_{R_i} d_i(c)``);
 * the geodesic Voronoi cells ``V_i = {c : d_i(c) ≤ d_j(c) for all j}``.
 
-The anchor is found by pointer jumping on Dijkstra's trees: ``a_i(c) = c`` where ``R_i``
+The anchor is found on Dijkstra's trees: ``a_i(c) = c`` where ``R_i``
 sees ``c`` or ``c`` is next to its start on the route (through an open face or diagonal, as
-the informed walker's next cell), else ``a_i(pred_i(c))``; the chain halves at each pass, so a route of ``L``
-cells needs ``log₂ L`` passes.  Sight is the grid's (:meth:`SightLines.cell_rows`), the
+the informed walker's next cell), else ``a_i(pred_i(c))``; by pointer jumping (the numpy twin: the chain halves at
+each pass, so a route of ``L`` cells needs ``log₂ L`` passes) or, compiled, each path walked up once
+(:func:`meanfield.geometry._walking_loops.tree_anchors`).  Sight is the grid's (:meth:`SightLines.cell_rows`), the
 same the signs and the coverage controller use.
 
 Reference: A. Bhattacharya, R. Ghrist, V. Kumar, "Multi-robot coverage and exploration on
@@ -36,7 +37,7 @@ import dataclasses
 
 import numpy as np
 
-from meanfield.geometry._walking_loops import nearest_walk
+from meanfield.geometry._walking_loops import nearest_walk, tree_anchors
 from meanfield.geometry.grid import Grid
 from meanfield.geometry.sight import SightLines
 
@@ -108,18 +109,14 @@ class WalkingDistances:
         from scipy.sparse.csgraph import dijkstra
 
         n, m = len(starts), len(self.cells)
-        D, pred = dijkstra(self.graph, directed=False, indices=starts, return_predecessors=True)
+        # (the graph holds each link both ways: as a directed graph, the undirected one's trees, without its transpose)
+        D, pred = dijkstra(self.graph, directed=True, indices=starts, return_predecessors=True)
         D, pred = D.reshape(n, m), pred.reshape(n, m)
         seen = self.sight.cell_rows(self.grid, points).reshape(n, -1)[:, self.cells]
         seen[np.arange(n), starts] = True  # a point sees the cell it starts from,
         seen |= pred == starts[:, None]  # and walks to its neighbours on the routes (open faces or diagonals)
-        own = np.broadcast_to(np.arange(m), (n, m))
-        anchor = np.where(seen | (pred < 0), own, pred)
-        while True:  # pointer jumping to the nearest ancestor in sight
-            nxt = np.take_along_axis(anchor, anchor, axis=1)
-            if np.array_equal(nxt, anchor):
-                break
-            anchor = nxt
+        # the nearest ancestor in sight (pointer jumping, compiled: meanfield.geometry._walking_loops.tree_anchors)
+        anchor = tree_anchors(np.ascontiguousarray(pred), seen, np.empty((n, m), np.int64))
         for k, d, a in zip(starts, D, anchor, strict=True):
             self._trees[int(k)] = (d, a)
 

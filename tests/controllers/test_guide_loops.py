@@ -6,7 +6,10 @@
   share, shares without robots or cells, a robot at NaN (as the compiled ``owners`` gave it);
 * :func:`meanfield.geometry._walking_loops.nearest_walk` (the routed pull's walk to a robot's cell nearest its
   centroid) against its twin and against :meth:`~meanfield.geometry.walking.WalkingDistances.walk_to` followed by the
-  nearest cell, the code before it, round a wall, and with cells no route reaches (a plan a block cut in pieces).
+  nearest cell, the code before it, round a wall, and with cells no route reaches (a plan a block cut in pieces);
+* :func:`meanfield.geometry._walking_loops.tree_anchors` (each cell's nearest ancestor in sight on Dijkstra's trees)
+  against its twin, the pointer jumping before it; the trees planted on the graph as directed are the undirected
+  ones.
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ from meanfield import Grid
 from meanfield._compiled import core as compiled
 from meanfield.controllers._coverage_loops import owners
 from meanfield.controllers._guide_loops import share_moments
-from meanfield.geometry._walking_loops import nearest_walk
+from meanfield.geometry._walking_loops import nearest_walk, tree_anchors
 from meanfield.geometry.plan import Plan
 from meanfield.geometry.sight import SightLines
 from meanfield.geometry.walking import WalkingDistances
@@ -107,3 +110,27 @@ def test_the_walk_to_a_robots_nearest_cell_is_walk_to_s_nearest_column_bit_for_b
     nobody = np.full(len(walk.cells), -1, np.intp)  # a robot that owns no cell: no walk
     d, e = walk.walk_to_nearest(robots[0], nobody, 0, robots[1])
     assert d == np.inf and np.array_equal(e, [0.0, 0.0])
+
+
+@needs_numba
+def test_the_trees_anchors_are_the_pointer_jumping_s_fixed_point():
+    """:func:`tree_anchors` against its twin (pointer jumping) on the trees of every start cell of two rooms, with
+    cells no tree reaches; and a tree planted from scratch is the one the undirected Dijkstra plants."""
+    from scipy.sparse.csgraph import dijkstra
+
+    walk = WalkingDistances(Grid(TWO_ROOMS, (40, 20)), SightLines(TWO_ROOMS))
+    starts = np.arange(0, len(walk.cells), 7)
+    D, pred = dijkstra(walk.graph, directed=False, indices=starts, return_predecessors=True)
+    seen = walk.sight.cell_rows(walk.grid, walk.xy[starts]).reshape(len(starts), -1)[:, walk.cells]
+    seen |= pred == starts[:, None]
+    seen[np.arange(len(starts)), starts] = True
+    with compiled.numpy_path():
+        jumped = tree_anchors(pred, seen, np.empty(pred.shape, np.int64))
+    walk._plant(starts, walk.xy[starts])  # the trees (directed: the graph holds each link both ways) and anchors
+    for row, k in enumerate(starts):
+        np.testing.assert_array_equal(walk._trees[int(k)][0], D[row])
+        np.testing.assert_array_equal(walk._trees[int(k)][1], jumped[row])
+    pred[:, :15] = -9999  # cells no tree reaches (a plan in pieces)
+    fast, ref = _both(tree_anchors, np.ascontiguousarray(pred), seen, np.empty(pred.shape, np.int64))
+    np.testing.assert_array_equal(fast, ref)
+    assert (fast[:, :15] == np.arange(15)).all() and (fast != np.arange(len(walk.cells))).any()
