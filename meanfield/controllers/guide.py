@@ -226,11 +226,12 @@ class GuideController:
 
     def sweep(self, field: Any, t: float) -> np.ndarray:
         """Mark the cells the signs reach now as reached at ``t`` (:func:`~meanfield.signs.kernels.reached_cells`, as
-        coverage's ``unswept`` rule), keeping each robot's reach over the covered cells for the labels."""
+        coverage's ``unswept`` rule), keeping each robot's reach for the labels (:meth:`exit_here`, which reads it over
+        the covered cells)."""
         from meanfield.signs.kernels import reached_cells
 
         reach = reached_cells(field.kernel, field.positions, self.grid, self.sight)
-        self._reach = reach.reshape(len(reach), -1)[:, self._cells]
+        self._reach = reach.reshape(len(reach), -1)
         self.last_reached[reach.any(axis=0)] = t
         return self.last_reached
 
@@ -306,7 +307,7 @@ class GuideController:
         persons = a.people * np.maximum(np.real(rho).ravel()[self._cells], 0.0) * self._volume
         # each covered cell's reader: the nearest robot whose sign reaches it (the strongest kernel it sees)
         d2 = (self._xy[None, :, 0] - robots[:, None, 0]) ** 2 + (self._xy[None, :, 1] - robots[:, None, 1]) ** 2
-        d2 = np.where(self._reach, d2, np.inf)
+        d2 = np.where(self._reach[:, self._cells], d2, np.inf)
         reader = np.where(np.isfinite(d2).any(axis=0), np.argmin(d2, axis=0), -1)
         live = idx >= 0
         reader, persons, cols = reader[live], persons[live], idx[live]

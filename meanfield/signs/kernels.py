@@ -48,6 +48,7 @@ def __getattr__(name: str) -> Any:
         return getattr(interaction, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
+
 REACH_FRACTION = 0.05
 """A sign *reaches* a point where its field is at least this share of one kernel's peak: a human there who sees the
 robot is guided (:attr:`meanfield.crowds.agent_crowd.AgentCrowd.reached`, the stragglers of ``summary.json``, who
@@ -187,12 +188,17 @@ def reached_cells(kernel: NavigationKernel, robots: np.ndarray, grid: Any, sight
         r = radius(floor) * (1.0 + 1e-9) + max(grid.dx, grid.dy)
         i0, i1 = np.searchsorted(grid.x, robots[:, 0] - r), np.searchsorted(grid.x, robots[:, 0] + r, side="right")
         j0, j1 = np.searchsorted(grid.y, robots[:, 1] - r), np.searchsorted(grid.y, robots[:, 1] + r, side="right")
-        reach = np.zeros((len(robots), *grid.shape), dtype=bool)
-        for k, (rx, ry) in enumerate(robots):
-            box = (slice(i0[k], i1[k]), slice(j0[k], j1[k]))
-            reach[k][box] = np.abs(kernel.magnitude(X[box] - rx, Y[box] - ry)) >= floor
+        # every robot's box of one size (the largest, moved inside the grid: its cells beyond the robot's own box are
+        # beyond the kernel's reach, where the test fails), all tested at once; a cell's centre is (x_i, y_j)
+        (nx, ny), n = grid.shape, len(robots)
+        bx, by = int((i1 - i0).max(initial=0)), int((j1 - j0).max(initial=0))
+        ii = np.minimum(i0, nx - bx)[:, None] + np.arange(bx)  # (n, bx)
+        jj = np.minimum(j0, ny - by)[:, None] + np.arange(by)  # (n, by)
+        xi_x, xi_y = grid.x[ii] - robots[:, 0, None], grid.y[jj] - robots[:, 1, None]
+        reach = np.zeros((n, *grid.shape), dtype=bool)
+        flat = (np.arange(n)[:, None, None] * nx + ii[:, :, None]) * ny + jj[:, None, :]
+        reach.reshape(-1)[flat] = np.abs(kernel.magnitude(xi_x[:, :, None], xi_y[:, None, :])) >= floor
     reach &= grid.active
     if sight is not None:
         reach &= np.asarray(sight.cell_rows(grid, robots), bool).reshape(reach.shape)
     return reach
-
