@@ -376,11 +376,9 @@ class GuideController:
         u = self.k_position * self.pulls(robots, self._share, w)
         shows = self._shows
         bearing = headings.copy()
-        for k in np.unique(shows[shows >= 0]):
-            mine = np.flatnonzero(shows == k)
-            e = self.routes.to(int(k)).heading(robots[mine])
-            ok = np.hypot(e[:, 0], e[:, 1]) > 0
-            bearing[mine[ok]] = np.arctan2(e[ok, 1], e[ok, 0])
+        e = self.routes.heading_to_each(robots, shows)  # (0 where a sign names no exit, or no route reaches it)
+        ok = np.hypot(e[:, 0], e[:, 1]) > 0
+        bearing[ok] = np.arctan2(e[ok, 1], e[ok, 0])
         omega = self.k_heading * np.angle(np.exp(1j * (bearing - headings)))
         self.steps += 1
         self.idle_robot_steps += int((self.team < 0).sum())

@@ -91,11 +91,11 @@ class RouteMemory:
             k = named[new]
             said = (k >= 0) & self.plan.open[np.maximum(k, 0)]
             if said.any():
-                far = np.full(len(new), np.inf)
+                way = np.zeros(len(new), dtype=bool)
                 for e in np.unique(k[said]):
                     rows = np.flatnonzero(said & (k == e))
-                    far[rows] = self.plan.to(int(e)).distance(positions[new[rows]])
-                said &= np.isfinite(far)  # (a plan in pieces: an exit of another piece is no way)
+                    way[rows] = self.plan.to(int(e)).reaches(positions[new[rows]])
+                said &= way  # (a plan in pieces: an exit of another piece is no way)
                 self.exit[new[said]] = k[said]
                 new = new[~said]
         if len(new) and self.shown:
