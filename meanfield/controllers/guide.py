@@ -313,17 +313,23 @@ class GuideController:
         reader, persons, cols = reader[live], persons[live], idx[live]
         plan = self._share[live]
         open_k = np.flatnonzero(a.open)
-        arrival = a.arrival[:, cols]  # (K, m)
-        queues = ArrivalOrder(arrival)  # sorted once for the search's makespans
+        kept = self._arrivals  # the covered cells' arrivals, sorted once while the cells and the walls stay
+        if kept is None or kept[0] is not a.arrival or not np.array_equal(kept[1], cols):
+            arrival = a.arrival[:, cols]  # (K, m)
+            kept = self._arrivals = (a.arrival, cols, arrival, ArrivalOrder(arrival))
+        arrival, queues = kept[2], kept[3]  # (the order: sorted once for the search's makespans)
         best_walk = np.where(a.open[:, None], arrival, np.inf).min(axis=0)
         last = LAST_PERSON / max(len(open_k), 1)
         total = max(persons.sum(), 1e-300)
+        reads, at, cells = reader >= 0, np.maximum(reader, 0), np.arange(len(plan))
+        with np.errstate(invalid="ignore"):  # (a reader sent where no route reaches: inf − inf)
+            walked = persons * (arrival - best_walk)  # (K, m): each cell's persons times their detour to each exit
 
         def cost(labels: np.ndarray) -> float:
-            exit_of = np.where(reader >= 0, labels[np.maximum(reader, 0)], plan)
+            exit_of = np.where(reads, labels[at], plan)
             makespan = float(queues.times(exit_of, persons, a.capacity, open_k, last)[0][open_k].max())
-            with np.errstate(invalid="ignore"):  # (a reader sent where no route reaches: inf − inf)
-                detour = (persons * (arrival[exit_of, np.arange(len(exit_of))] - best_walk)).sum() / total
+            with np.errstate(invalid="ignore"):
+                detour = walked[exit_of, cells].sum() / total
             return makespan + detour if np.isfinite(detour) else math.inf
 
         # the labels of least regret: each robot's readers' exits under Step I, weighted by their persons
@@ -410,6 +416,7 @@ class GuideController:
         self.team = np.zeros(0, dtype=np.intp)
         self._share = np.zeros(0, dtype=np.intp)
         self._shows = np.zeros(0, dtype=np.intp)
+        self._arrivals: tuple[Any, ...] | None = None  # exit_here's arrivals of the covered cells, sorted
         self.last_reached = np.full(self.grid.shape, -np.inf)
         self._next_balance = -math.inf
         self.steps = self.idle_robot_steps = 0
