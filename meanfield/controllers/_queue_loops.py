@@ -1,7 +1,10 @@
-"""The exits' clearing times (eq. (B1)), compiled: one pass per exit over its cells in the order of arrival.
+"""The exits' assignment and clearing times (eq. (B1)), compiled.
 
-:func:`clearing_times` is paired with its numpy twin; the caller is
-:class:`meanfield.controllers.exit_assignment.ArrivalOrder`.
+* :func:`assign_exits`: each cell's exit of least arrival plus offset, one pass over the cells;
+* :func:`clearing_times`: one pass per exit over its cells in the order of arrival.
+
+Each is paired with its numpy twin; the callers are :class:`meanfield.controllers.exit_assignment.ExitAssignment` and
+:class:`~meanfield.controllers.exit_assignment.ArrivalOrder`.
 """
 
 from __future__ import annotations
@@ -12,7 +15,40 @@ import numpy as np
 
 from meanfield._compiled.core import compiled
 
-__all__ = ["clearing_times"]
+__all__ = ["assign_exits", "clearing_times"]
+
+
+def _assign_numpy(arrival, offsets, out):
+    out[:] = np.argmin(arrival + offsets[:, None], axis=0)
+    return out
+
+
+@compiled(fallback=_assign_numpy)
+def assign_exits(arrival, offsets, out):
+    """``out[c] = argmin_k (a_k(c) + τ_k)``, as ``np.argmin`` along the exits: ties and a NaN to the first.
+
+    Parameters
+    ----------
+    arrival : ndarray, shape (K, M)
+        ``a_k(c)``.
+    offsets : ndarray, shape (K,)
+        ``τ_k`` (``inf`` for a closed exit).
+    out : ndarray of int, shape (M,)
+    """
+    for c in range(arrival.shape[1]):
+        best = arrival[0, c] + offsets[0]
+        pick = 0
+        if best == best:  # (a NaN first: np.argmin's answer)
+            for k in range(1, arrival.shape[0]):
+                v = arrival[k, c] + offsets[k]
+                if v != v:  # the first NaN
+                    pick = k
+                    break
+                if v < best:
+                    best = v
+                    pick = k
+        out[c] = pick
+    return out
 
 
 def _clearing_numpy(order, arrival, exit_of, persons, capacity, exits, last, clear, walk):

@@ -142,9 +142,10 @@ class ExitAssignment:
         self._order = ArrivalOrder(self.arrival)
 
     def assign(self, offsets: np.ndarray) -> np.ndarray:
-        """Each active cell's exit, ``argmin_k (a_k(c) + τ_k)`` over the open exits: ``(M,)``."""
-        cost = self.arrival + np.where(self.open, offsets, np.inf)[:, None]
-        return np.argmin(cost, axis=0)
+        """Each active cell's exit, ``argmin_k (a_k(c) + τ_k)`` over the open exits: ``(M,)`` (one compiled pass,
+        :func:`~meanfield.controllers._queue_loops.assign_exits`)."""
+        tau = np.where(self.open, np.asarray(offsets, float), np.inf)
+        return _queue_loops.assign_exits(self.arrival, tau, np.empty(self.arrival.shape[1], np.intp))
 
     def clearing_times(self, persons: np.ndarray, offsets: np.ndarray) -> np.ndarray:
         """``T_k`` of eq. (B1) for each exit under the assignment of ``offsets`` (0 for an exit nobody takes)."""

@@ -547,6 +547,20 @@ class AssignedRoutes:
                                     for k in range(len(self.segs))] + [self.nearest.waypoint])  # fmt: skip
         return self._table
 
+    def reaches(self, points: np.ndarray, exit_of: np.ndarray) -> np.ndarray:
+        """Whether a route reaches each point's exit ``exit_of[j]`` from it (:meth:`ExitRoutes.reaches` of :meth:`to`;
+        False where ``exit_of[j] < 0``): ``(N,)``."""
+        out = np.zeros(len(points), dtype=bool)
+        assigned = exit_of >= 0
+        exits = np.unique(exit_of[assigned])
+        if all(self.to(k).everywhere for k in exits):  # (from every point of the plane: its coordinates finite)
+            out[assigned] = np.isfinite(points[assigned]).all(axis=1)
+            return out
+        for k in exits:
+            rows = np.flatnonzero(exit_of == k)
+            out[rows] = self.to(int(k)).reaches(points[rows])
+        return out
+
     def heading_to_each(self, points: np.ndarray, exit_of: np.ndarray) -> np.ndarray:
         """Unit vectors ``(N, 2)`` along each point's route to exit ``exit_of[j]`` alone (:meth:`ExitRoutes.heading` of
         :meth:`to`: 0 on the waypoint and where no route reaches that exit; 0 where ``exit_of[j] < 0``)."""

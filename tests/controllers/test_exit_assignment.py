@@ -203,3 +203,35 @@ def test_the_sorted_queues_give_each_exit_s_clearing_time_to_the_bit(seed):
     assert (fast[0][:2] > 0).all() and (fast[0][2] == 0.0) == (seed == 3)
     only = queues.times(exit_of, persons, capacity, np.array([1]), LAST_PERSON)  # the exits asked for alone
     assert only[0][1] == fast[0][1] and only[0][0] == only[0][2] == 0.0
+
+
+def test_each_cell_s_exit_is_np_argmin_s_to_the_bit():
+    """:func:`~meanfield.controllers._queue_loops.assign_exits` (the assignment of eq. (B1) in one compiled pass) is
+    ``np.argmin(a + τ)`` along the exits, its numpy twin: ties to the first exit, cells no exit reaches (``inf``
+    everywhere: exit 0), closed exits (``τ = inf``), a NaN to the first; and :meth:`ExitAssignment.assign` is it over
+    the open exits."""
+    from meanfield._compiled import core as compiled
+    from meanfield.controllers._queue_loops import assign_exits
+
+    rng = np.random.default_rng(2)
+    k_exits, m = 4, 600
+    arrival = np.round(rng.uniform(0, 30, (k_exits, m)), 0)  # rounded: many ties
+    arrival[:, :5] = np.inf  # no exit reaches these
+    arrival[2, 5:40] = np.inf
+    arrival[1, 40] = arrival[3, 41] = arrival[0, 42] = np.nan
+    for tau in (np.zeros(k_exits), np.array([0.5, 0.0, np.inf, 2.0]), np.round(rng.uniform(0, 5, k_exits))):
+        expected = np.argmin(arrival + tau[:, None], axis=0)
+        fast = assign_exits(arrival, tau, np.empty(m, np.intp))
+        with compiled.numpy_path():
+            twin = assign_exits(arrival, tau, np.empty(m, np.intp))
+        np.testing.assert_array_equal(fast, expected)
+        np.testing.assert_array_equal(twin, expected)
+    assert assign_exits._ready or not compiled.enabled()
+    hall = builtin_scenarios()["hall"](seed=0)
+    loop = ClosedLoop(hall)
+    a = loop.controller.assignment
+    a.open = np.array([True, False, True, True])
+    tau = np.array([1.0, 0.0, 3.0, 0.5])
+    expected = np.argmin(a.arrival + np.where(a.open, tau, np.inf)[:, None], axis=0)
+    np.testing.assert_array_equal(a.assign(tau), expected)
+    assert 1 not in a.assign(tau)

@@ -4,8 +4,9 @@
 :meth:`~meanfield.geometry.geodesic.AssignedRoutes.heading_to_each` read every point's waypoint from one table of the
 planned routes' waypoints when each route reaches every cell: each point's heading is, to the bit, its own exit's
 :meth:`~meanfield.geometry.geodesic.ExitRoutes.heading` (the nearest open exit's for ``-1``), before and after an exit
-closes; :meth:`~meanfield.geometry.geodesic.ExitRoutes.reaches` is ``isfinite(distance)``, on a whole plan and on one
-a block cut in pieces (where the routes go exit by exit, as before).
+closes; :meth:`~meanfield.geometry.geodesic.ExitRoutes.reaches` is ``isfinite(distance)``, and
+:meth:`~meanfield.geometry.geodesic.AssignedRoutes.reaches` each point's own exit's, on a whole plan and on one a block
+cut in pieces (where the routes go exit by exit, as before).
 """
 
 from __future__ import annotations
@@ -53,6 +54,7 @@ def test_every_point_heads_along_its_own_exit_s_route_to_the_bit():
         np.testing.assert_array_equal(each, expected)
     for k in range(4):
         np.testing.assert_array_equal(plan.to(k).reaches(points), np.isfinite(plan.to(k).distance(points)))
+    np.testing.assert_array_equal(plan.reaches(points, exit_of), exit_of >= 0)
 
 
 def test_a_plan_in_pieces_goes_exit_by_exit():
@@ -72,3 +74,5 @@ def test_a_plan_in_pieces_goes_exit_by_exit():
         reaches = plan.to(k).reaches(people)
         np.testing.assert_array_equal(reaches, np.isfinite(plan.to(k).distance(people)))
     assert not plan.to(2).reaches(people[2:])[0] and plan.to(2).reaches(people[:1])[0]
+    np.testing.assert_array_equal(plan.reaches(people, np.array([3, 1, 2])), [False, True, False])
+    np.testing.assert_array_equal(plan.reaches(people, np.array([2, -1, 1])), [True, False, True])
