@@ -158,10 +158,9 @@ def walk_towards(walking: Any, robots: np.ndarray, owner: np.ndarray, centroid: 
     to (a block cut the plan).  ``owner``: each covered cell's robot (``-1``: none), in ``walking``'s cell order."""
     pull = np.zeros((len(rows), 2))
     owner = np.ascontiguousarray(owner, np.intp)
-    for j, i in enumerate(rows):  # the walks to its own cells alone, reached (not another piece's cells)
-        distance, leg = walking.walk_to_nearest(robots[i], owner, int(i), centroid[i])
-        if np.isfinite(distance):
-            pull[j] = distance * leg
+    distance, leg = walking.walks_to_nearest(robots[rows], owner, rows, centroid[rows])  # (its own cells alone)
+    reached = np.isfinite(distance)  # (not another piece's cells)
+    pull[reached] = distance[reached, None] * leg[reached]
     return pull
 
 

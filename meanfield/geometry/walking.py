@@ -153,11 +153,26 @@ class WalkingDistances:
         leg : ndarray, shape (2,)
             ``e(c)`` (0 when no such cell is reached).
         """
-        p = np.real(np.asarray(point, float)).reshape(1, 2)
-        D, anchor = self._trees[int(self._planted(p)[0])]
-        target = np.ascontiguousarray(target, float).reshape(2)
-        out = nearest_walk(self.xy, D, anchor, owner, int(robot), p[0], target, np.empty(3))
-        return float(out[0]), out[1:]
+        distance, leg = self.walks_to_nearest(point, owner, np.array([robot]), target)
+        return float(distance[0]), leg[0]
+
+    def walks_to_nearest(self, points: np.ndarray, owner: np.ndarray, robots: np.ndarray,
+                         targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """:meth:`walk_to_nearest` from each of ``points`` (``(n, 2)``) to the cells of ``robots[i]`` nearest
+        ``targets[i]``, the trees of the points' start cells planted at once.
+
+        Returns
+        -------
+        distance : ndarray, shape (n,)
+        leg : ndarray, shape (n, 2)
+        """
+        p = np.real(np.asarray(points, float)).reshape(-1, 2)
+        targets = np.asarray(targets, float).reshape(-1, 2)
+        out = np.empty((len(p), 3))
+        for i, k in enumerate(self._planted(p)):
+            D, anchor = self._trees[int(k)]
+            nearest_walk(self.xy, D, anchor, owner, int(robots[i]), p[i], targets[i], out[i])
+        return out[:, 0], out[:, 1:]
 
     def from_points(self, points: np.ndarray) -> WalkingField:
         """The walking distances, first legs and anchors from each of ``points`` (``(n, 2)``) to every active cell.
