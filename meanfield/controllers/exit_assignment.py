@@ -160,8 +160,15 @@ class ExitAssignment:
         return np.maximum(clear - walk, 0.0) * self.capacity
 
     def _times(self, persons: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`ArrivalOrder.times` of :meth:`assign`'s exits, in one compiled call
+        (:func:`~meanfield.controllers._queue_loops.assigned_clearing_times`)."""
         last = LAST_PERSON / max(int(self.open.sum()), 1)  # half a person in all: not half a person per exit
-        return self._order.times(self.assign(offsets), persons, self.capacity, np.flatnonzero(self.open), last)
+        tau = np.where(self.open, np.asarray(offsets, float), np.inf)
+        k, m = self.arrival.shape
+        return _queue_loops.assigned_clearing_times(self.arrival, tau, self._order.order, self._order.arrival,
+                                                    np.asarray(persons, float), np.asarray(self.capacity, float),
+                                                    np.flatnonzero(self.open), float(last), np.empty(m, np.intp),
+                                                    np.empty(k), np.empty(k))  # fmt: skip
 
     def solve(self, rho: np.ndarray) -> np.ndarray:
         """The offsets ``τ`` for the unit-mass density ``rho`` on the cells (price iteration, module docstring)."""

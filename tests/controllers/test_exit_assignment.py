@@ -3,6 +3,7 @@ optimum, the potential's field, closed exits, Step II's identity on the balanced
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 import numpy as np
@@ -235,3 +236,35 @@ def test_each_cell_s_exit_is_np_argmin_s_to_the_bit():
     expected = np.argmin(a.arrival + np.where(a.open, tau, np.inf)[:, None], axis=0)
     np.testing.assert_array_equal(a.assign(tau), expected)
     assert 1 not in a.assign(tau)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_pass_of_the_price_iteration_is_the_assignment_then_its_clearing_times(seed):
+    """:func:`~meanfield.controllers._queue_loops.assigned_clearing_times` (one compiled call per pass of the price
+    iteration) gives the exits of :func:`assign_exits` and the clearing times of :func:`clearing_times` on them, to the
+    bit, compiled and on its numpy twin, with a closed exit and cells no exit reaches."""
+    from meanfield._compiled import core as compiled
+    from meanfield.controllers._queue_loops import assign_exits, assigned_clearing_times, clearing_times
+    from meanfield.controllers.exit_assignment import LAST_PERSON, ArrivalOrder
+
+    rng = np.random.default_rng(seed)
+    k_exits, m = 3, 500
+    arrival = np.round(rng.uniform(0, 30, (k_exits, m)), 1)
+    arrival[2, rng.uniform(size=m) < 0.1] = np.inf
+    persons = np.where(rng.uniform(size=m) < 0.3, 0.0, rng.exponential(0.4, m))
+    capacity = np.array([1.8, 3.6, 0.9])
+    tau = np.array([0.0, rng.uniform(0, 5), np.inf if seed == 2 else rng.uniform(0, 5)])  # seed 2: exit 2 closed
+    exits = np.array([0, 1]) if seed == 2 else np.arange(k_exits)
+    queues = ArrivalOrder(arrival)
+    exit_of = assign_exits(arrival, tau, np.empty(m, np.intp))
+    expected = clearing_times(queues.order, queues.arrival, exit_of, persons, capacity, exits, LAST_PERSON,
+                              np.empty(k_exits), np.empty(k_exits))  # fmt: skip
+    for twin in (False, True):
+        with compiled.numpy_path() if twin else contextlib.nullcontext():
+            out = np.empty(m, np.intp)
+            got = assigned_clearing_times(arrival, tau, queues.order, queues.arrival, persons, capacity, exits,
+                                          LAST_PERSON, out, np.empty(k_exits), np.empty(k_exits))  # fmt: skip
+        np.testing.assert_array_equal(out, exit_of)
+        np.testing.assert_array_equal(got[0], expected[0])
+        np.testing.assert_array_equal(got[1], expected[1])
+    assert assigned_clearing_times._ready or not compiled.enabled()
