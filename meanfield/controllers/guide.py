@@ -41,6 +41,7 @@ import numpy as np
 
 from meanfield.capabilities import ControllerCapabilities
 from meanfield.controllers._guide_loops import share_moments
+from meanfield.controllers._queue_loops import label_search
 from meanfield.controllers.coverage import _NOTHING_HIDDEN, walk_towards
 from meanfield.errors import ParameterError, num, options_table
 from meanfield.interfaces import Command, ControllerParts, Observation
@@ -321,16 +322,8 @@ class GuideController:
         best_walk = np.where(a.open[:, None], arrival, np.inf).min(axis=0)
         last = LAST_PERSON / max(len(open_k), 1)
         total = max(persons.sum(), 1e-300)
-        reads, at, cells = reader >= 0, np.maximum(reader, 0), np.arange(len(plan))
         with np.errstate(invalid="ignore"):  # (a reader sent where no route reaches: inf − inf)
             walked = persons * (arrival - best_walk)  # (K, m): each cell's persons times their detour to each exit
-
-        def cost(labels: np.ndarray) -> float:
-            exit_of = np.where(reads, labels[at], plan)
-            makespan = float(queues.times(exit_of, persons, a.capacity, open_k, last)[0][open_k].max())
-            with np.errstate(invalid="ignore"):
-                detour = walked[exit_of, cells].sum() / total
-            return makespan + detour if np.isfinite(detour) else math.inf
 
         # the labels of least regret: each robot's readers' exits under Step I, weighted by their persons
         regret = np.where(np.isfinite(self._regret[:, live]), self._regret[:, live], 1e9)
@@ -341,22 +334,13 @@ class GuideController:
         loss[:, ~a.open] = np.inf
         has = np.bincount(reader[reader >= 0], weights=persons[reader >= 0], minlength=n) > 0
         labels = np.argmin(loss, axis=1)
-        best = start = cost(labels)
         least_regret = labels.copy()
-        for _ in range(SEARCH_SWEEPS):
-            better = False
-            for i in np.flatnonzero(has):
-                keep = labels[i]
-                for k in open_k:
-                    if k == keep:
-                        continue
-                    labels[i] = k
-                    c = cost(labels)
-                    if c < best - 1e-9:
-                        best, keep, better = c, k, True
-                labels[i] = keep
-            if not better:
-                break
+        # robot by robot, each open exit whose labels cost less: the makespan (B1) of the readers sent to their
+        # robot's label and everyone else to Step I's, plus the walkers' mean detour (one compiled call)
+        k_exits, m = arrival.shape
+        best, start = label_search(reader, plan, persons, queues.order, queues.arrival, np.asarray(a.capacity, float),
+                                   open_k, float(last), walked, float(total), has, labels, SEARCH_SWEEPS,
+                                   np.empty(m, np.intp), np.empty(m), np.empty(k_exits), np.empty(k_exits))  # fmt: skip
         if best > (1.0 - MIN_GAIN) * start:  # the search's gain is within the model's error: the least regret
             labels = least_regret
         grid_share = np.full(self.grid.shape[0] * self.grid.shape[1], -1, dtype=np.intp)

@@ -9,10 +9,14 @@
   nearest cell, the code before it, round a wall, and with cells no route reaches (a plan a block cut in pieces);
 * :func:`meanfield.geometry._walking_loops.tree_anchors` (each cell's nearest ancestor in sight on Dijkstra's trees)
   against its twin, the pointer jumping before it; the trees planted on the graph as directed are the undirected
-  ones.
+  ones;
+* :func:`meanfield.controllers._queue_loops.label_search` (the guide's search for its signs' labels) against its twin,
+  the guide's search before it, and the sums of the compiled loops against ``np.sum``.
 """
 
 from __future__ import annotations
+
+import contextlib
 
 import numpy as np
 import pytest
@@ -134,3 +138,61 @@ def test_the_trees_anchors_are_the_pointer_jumping_s_fixed_point():
     fast, ref = _both(tree_anchors, np.ascontiguousarray(pred), seen, np.empty(pred.shape, np.int64))
     np.testing.assert_array_equal(fast, ref)
     assert (fast[:, :15] == np.arange(15)).all() and (fast != np.arange(len(walk.cells))).any()
+
+
+@needs_numba
+def test_sums_in_the_compiled_loops_are_numpy_s_to_the_bit():
+    """The exits' loops sum as ``np.sum`` does (:func:`meanfield.controllers._queue_loops._pairwise_sum`): every length
+    up to a few blocks of 128 and long ones, terms of mixed signs over 16 orders of magnitude."""
+    from meanfield._compiled.core import compile_inner
+    from meanfield.controllers._queue_loops import _pairwise_sum
+
+    pairwise = compile_inner(_pairwise_sum)
+    rng = np.random.default_rng(3)
+    for n in [*range(300), 1000, 1024, 1031, 2376, 8191, 8192, 8200, 20011]:
+        a = rng.standard_normal(n) * 10.0 ** rng.integers(-8, 8, n)
+        assert 0.0 + pairwise(a, 0, n) == a.sum(), n
+        if n > 10:
+            assert 0.0 + pairwise(a, 3, n - 7) == a[3:-4].sum(), n  # (a range inside the array)
+
+
+@needs_numba
+@pytest.mark.parametrize("seed", range(4))
+def test_the_label_search_is_its_numpy_twin_bit_for_bit(seed):
+    """:func:`meanfield.controllers._queue_loops.label_search` (the guide's search for its signs' labels) against its
+    twin, the guide's search before it: the same labels, the same costs, with readers and cells no robot reaches,
+    a closed exit and labels no route takes from some of their readers (seed 3: every cost inf, nothing changes)."""
+    from meanfield.controllers._queue_loops import label_search
+    from meanfield.controllers.exit_assignment import LAST_PERSON, ArrivalOrder
+
+    rng = np.random.default_rng(seed)
+    k_exits, m, n = 4, 700, 6
+    arrival = np.round(rng.uniform(0, 40, (k_exits, m)), 1)
+    arrival[1, rng.uniform(size=m) < 0.05] = np.inf  # cells exit 1 cannot be reached from
+    open_k = np.array([0, 1, 2]) if seed == 3 else np.arange(k_exits)
+    best_walk = arrival[open_k].min(axis=0)
+    persons = np.where(rng.uniform(size=m) < 0.3, 0.0, rng.exponential(0.5 + seed, m))
+    with np.errstate(invalid="ignore"):
+        walked = persons * (arrival - best_walk)
+    reader = np.where(rng.uniform(size=m) < 0.4, -1, rng.integers(0, n, m))
+    plan = open_k[np.argmin(arrival[open_k], axis=0)]
+    has = np.bincount(reader[reader >= 0], weights=persons[reader >= 0], minlength=n) > 0
+    has[2] = False
+    start = rng.choice(open_k, n) if seed == 3 else np.zeros(n, np.intp)  # seed 3: some start where none walks
+    queues = ArrivalOrder(arrival)
+    capacity = np.array([1.2, 2.4, 0.6, 1.8])
+    total = float(persons.sum())
+    out = {}
+    for twin in (False, True):
+        labels = start.copy()
+        with compiled.numpy_path() if twin else contextlib.nullcontext():
+            costs = label_search(reader, plan, persons, queues.order, queues.arrival, capacity, open_k, LAST_PERSON,
+                                 walked, total, has, labels, 3, np.empty(m, np.intp), np.empty(m),
+                                 np.empty(k_exits), np.empty(k_exits))  # fmt: skip
+        out[twin] = labels, costs
+    assert label_search._ready
+    np.testing.assert_array_equal(out[False][0], out[True][0])
+    assert out[False][1] == out[True][1]
+    best, first = out[False][1]
+    assert best <= first and (out[False][0][~has] == start[~has]).all()
+    assert (best < first and np.isfinite(best)) if seed < 3 else best == first == np.inf
