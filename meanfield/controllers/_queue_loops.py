@@ -3,6 +3,8 @@
 * :func:`assign_exits`: each cell's exit of least arrival plus offset, one pass over the cells;
 * :func:`clearing_times`: one pass per exit over its cells in the order of arrival;
 * :func:`assigned_clearing_times`: the two in one call (a pass of the price iteration);
+* :func:`price_iteration`: the passes of the price iteration (:meth:`ExitAssignment.solve
+  <meanfield.controllers.exit_assignment.ExitAssignment.solve>`) in one call;
 * :func:`label_search`: the guide's search for its signs' labels (:meth:`GuideController.exit_here
   <meanfield.controllers.guide.GuideController.exit_here>`), each label's cost a clearing pass and a sum.
 
@@ -20,7 +22,7 @@ import numpy as np
 
 from meanfield._compiled.core import compiled, inner
 
-__all__ = ["assign_exits", "assigned_clearing_times", "clearing_times", "label_search"]
+__all__ = ["assign_exits", "assigned_clearing_times", "clearing_times", "label_search", "price_iteration"]
 
 
 def _assign_numpy(arrival, offsets, out):
@@ -245,6 +247,91 @@ def _largest(values, rows):
         if x != x or x > out:
             out = x
     return out
+
+
+@inner
+def _smallest(values, rows):
+    """``values[rows].min()`` as numpy gives it: a NaN if any."""
+    out = values[rows[0]]
+    for r in range(1, rows.shape[0]):
+        x = values[rows[r]]
+        if out != out:
+            break
+        if x != x or x < out:
+            out = x
+    return out
+
+
+def _price_numpy(arrival, is_open, tau, iterations, order, arrival_sorted, persons, capacity, exits, last, exit_of,
+                 clear, walk, gathered, best_tau):  # fmt: skip
+    best = math.inf
+    best_tau[:] = tau
+    for i in range(iterations):
+        masked = np.where(is_open, tau, np.inf)
+        T = _assigned_clearing_numpy(arrival, masked, order, arrival_sorted, persons, capacity, exits, last, exit_of,
+                                     clear, walk)[0]  # fmt: skip
+        makespan = float(T[is_open].max())
+        if makespan < best:
+            best = makespan
+            best_tau[:] = tau
+        step = 0.5 / (1.0 + i / 10.0)
+        tau[:] = tau + step * np.where(is_open, T - T[is_open].mean(), 0.0)
+        tau[:] = np.where(is_open, tau - tau[is_open].min(), 0.0)
+    return best
+
+
+@compiled(fallback=_price_numpy)
+def price_iteration(arrival, is_open, tau, iterations, order, arrival_sorted, persons, capacity, exits, last, exit_of,
+                    clear, walk, gathered, best_tau):  # fmt: skip
+    """The price iteration of :meth:`ExitAssignment.solve <meanfield.controllers.exit_assignment.ExitAssignment.solve>`
+    from the offsets ``tau`` (in place): ``iterations`` passes, each the clearing times ``T`` of the assignment of
+    ``tau`` (:func:`assigned_clearing_times`), then ``τ += s_i (T − mean T)`` over the open exits, ``s_i = 0.5 /
+    (1 + i/10)``, shifted to a least open offset of 0 (the mean summed as ``np.mean`` does).
+
+    Parameters
+    ----------
+    arrival : ndarray, shape (K, M)
+    is_open : ndarray of bool, shape (K,)
+    tau : ndarray, shape (K,)
+        The offsets to start from (0 for a closed exit); the last pass's (out).
+    iterations : int
+    order, arrival_sorted, persons, capacity, exits, last
+        As :func:`assigned_clearing_times` (``exits``: the open ones, at least one).
+    exit_of, clear, walk, gathered : ndarray
+        Work arrays, shapes (M,) of int, (K,), (K,), (K,).
+    best_tau : ndarray, shape (K,)
+        The offsets of the least makespan (out).
+
+    Returns
+    -------
+    float
+        That makespan (``inf`` when none is finite).
+    """
+    k_exits = tau.shape[0]
+    n_open = exits.shape[0]
+    best = math.inf
+    for k in range(k_exits):
+        best_tau[k] = tau[k]
+    for i in range(iterations):
+        for k in range(k_exits):
+            gathered[k] = tau[k] if is_open[k] else math.inf
+        _assign(arrival, gathered, exit_of)
+        _clearing(order, arrival_sorted, exit_of, persons, capacity, exits, last, clear, walk)
+        makespan = _largest(clear, exits)
+        if makespan < best:
+            best = makespan
+            for k in range(k_exits):
+                best_tau[k] = tau[k]
+        step = 0.5 / (1.0 + i / 10.0)
+        for e in range(n_open):
+            gathered[e] = clear[exits[e]]
+        mean = (0.0 + _pairwise_sum(gathered, 0, n_open)) / n_open
+        for k in range(k_exits):
+            tau[k] = tau[k] + step * ((clear[k] - mean) if is_open[k] else 0.0)
+        least = _smallest(tau, exits)
+        for k in range(k_exits):
+            tau[k] = (tau[k] - least) if is_open[k] else 0.0
+    return best
 
 
 def _label_search_numpy(reader, plan, persons, order, arrival, capacity, exits, last, walked, total, has, labels,

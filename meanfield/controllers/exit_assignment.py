@@ -179,16 +179,14 @@ class ExitAssignment:
         if self._queue_sizes(T, walk).max() < MIN_QUEUE or self.open.sum() < 2:  # no queue, or one exit: no choice
             self.offsets, self.makespan = zero, nearest
             return zero
-        tau = np.where(self.open, self.offsets, 0.0)
-        best, best_tau = math.inf, tau.copy()
-        for i in range(ITERATIONS):
-            T = self.clearing_times(persons, tau)
-            makespan = float(T[self.open].max())
-            if makespan < best:
-                best, best_tau = makespan, tau.copy()
-            step = 0.5 / (1.0 + i / 10.0)
-            tau = tau + step * np.where(self.open, T - T[self.open].mean(), 0.0)
-            tau = np.where(self.open, tau - tau[self.open].min(), 0.0)
+        tau = np.where(self.open, np.asarray(self.offsets, float), 0.0)
+        k, m = self.arrival.shape
+        best_tau, last = np.empty(k), LAST_PERSON / max(int(self.open.sum()), 1)
+        # the passes in one compiled call (meanfield.controllers._queue_loops.price_iteration)
+        best = _queue_loops.price_iteration(self.arrival, self.open, tau, ITERATIONS, self._order.order,
+                                            self._order.arrival, persons, np.asarray(self.capacity, float),
+                                            np.flatnonzero(self.open), last, np.empty(m, np.intp), np.empty(k),
+                                            np.empty(k), np.empty(k), best_tau)  # fmt: skip
         if best >= (1.0 - self.min_gain) * nearest:  # balancing does not pay
             best, best_tau = nearest, zero
         self.offsets = best_tau

@@ -268,3 +268,36 @@ def test_a_pass_of_the_price_iteration_is_the_assignment_then_its_clearing_times
         np.testing.assert_array_equal(got[0], expected[0])
         np.testing.assert_array_equal(got[1], expected[1])
     assert assigned_clearing_times._ready or not compiled.enabled()
+
+
+@pytest.mark.parametrize("closed", [None, 1])
+def test_the_price_iteration_in_one_call_is_its_numpy_twin_to_the_bit(closed):
+    """:func:`~meanfield.controllers._queue_loops.price_iteration` (the passes of :meth:`ExitAssignment.solve` in one
+    compiled call, the mean summed as ``np.mean`` does) against its twin, the passes as the solution ran them before:
+    the same least makespan, its offsets and the last pass's, on the crowded hall with its exits open or one closed."""
+    from meanfield._compiled import core as compiled
+    from meanfield.controllers._queue_loops import price_iteration
+    from meanfield.controllers.exit_assignment import ITERATIONS, LAST_PERSON
+
+    loop = ClosedLoop(builtin_scenarios()["hall-crowded-west"](seed=1))
+    loop.step()
+    a = loop.controller.assignment
+    if closed is not None:
+        a.open = np.arange(len(a.capacity)) != closed
+    persons = a.people * np.maximum(np.real(loop.density)[a.active], 0.0) * a.volume
+    k, m = a.arrival.shape
+    exits = np.flatnonzero(a.open)
+    out = {}
+    for twin in (False, True):
+        tau, best_tau = np.where(a.open, np.linspace(0.0, 3.0, k), 0.0), np.empty(k)
+        with compiled.numpy_path() if twin else contextlib.nullcontext():
+            best = price_iteration(a.arrival, a.open, tau, ITERATIONS, a._order.order, a._order.arrival, persons,
+                                   np.asarray(a.capacity, float), exits, LAST_PERSON / len(exits),
+                                   np.empty(m, np.intp), np.empty(k), np.empty(k), np.empty(k), best_tau)  # fmt: skip
+        out[twin] = best, best_tau, tau
+    assert price_iteration._ready or not compiled.enabled()
+    assert out[False][0] == out[True][0] and np.isfinite(out[False][0])
+    np.testing.assert_array_equal(out[False][1], out[True][1])
+    np.testing.assert_array_equal(out[False][2], out[True][2])
+    if closed is not None:
+        assert out[False][1][closed] == 0.0 and out[False][2][closed] == 0.0
