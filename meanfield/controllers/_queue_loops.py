@@ -93,8 +93,9 @@ def _clearing(order, arrival, exit_of, persons, capacity, exits, last, clear, wa
         longest = -math.inf
         for j in range(m - 1, -1, -1):
             c = order[k, j]
-            if exit_of[c] == k:
-                rest = rest + persons[c]
+            if exit_of[c] != k:  # (its term is at most the next cell's the exit takes, its arrival too: skipped)
+                continue
+            rest = rest + persons[c]
             if rest >= last:
                 a = arrival[k, j]
                 t = a + rest / capacity[k]
@@ -112,8 +113,10 @@ def clearing_times(order, arrival, exit_of, persons, capacity, exits, last, clea
     """``T_k`` of eq. (B1) and the last arrival it counts, for each exit of ``exits`` (0 for the others), in place.
 
     Exit ``k`` reads its row of cells from the last arrival back, adding the persons of the cells assigned to it
-    (``exit_of[c] == k``; the others add nothing), and keeps the largest ``a_j + rest_j / C_k`` and ``a_j`` over
-    the cells with at least ``last`` persons from ``a_j`` on.
+    (``exit_of[c] == k``), and keeps the largest ``a_j + rest_j / C_k`` and ``a_j`` over those cells with at least
+    ``last`` persons from ``a_j`` on.  A cell assigned elsewhere is skipped: with the same persons still to come as
+    the next cell the exit takes and an arrival no later, neither of its terms is larger (rounding is monotone), so
+    the maxima are those over every cell of the row, which the numpy twin takes.
 
     Parameters
     ----------
