@@ -282,7 +282,10 @@ class GuideController:
         if self.sight is not None:
             seen, hidden = np.ascontiguousarray(self.sight.cell_rows(self.grid, robots)).reshape(n, -1), True
         centroid = robots.copy()
-        cell_owner, m, px, py = share_moments(self._xy, np.ascontiguousarray(robots), self.team, share, w,
+        team = self.team
+        if len(team) != n:  # (a team of other robots: those beyond it have no share)
+            team = np.concatenate([team[:n], np.full(max(n - len(team), 0), -1, np.intp)])
+        cell_owner, m, px, py = share_moments(self._xy, np.ascontiguousarray(robots), team, share, w,
                                               np.ascontiguousarray(seen), self._cells, hidden,
                                               np.empty(len(share), np.intp), *np.empty((3, n)))  # fmt: skip
         held = ~(m > 0)

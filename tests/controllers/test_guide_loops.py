@@ -196,3 +196,22 @@ def test_the_label_search_is_its_numpy_twin_bit_for_bit(seed):
     best, first = out[False][1]
     assert best <= first and (out[False][0][~has] == start[~has]).all()
     assert (best < first and np.isfinite(best)) if seed < 3 else best == first == np.inf
+
+
+def test_the_guide_s_pulls_take_a_team_of_other_robots_as_before():
+    """:meth:`GuideController.pulls` with more robots than its team (those beyond it have no share: held, pulled
+    nowhere) and with the team's own robots: the robots of the team pulled as with the team alone."""
+    from meanfield import ClosedLoop
+    from meanfield.scenarios.scenario import builtin_scenarios
+
+    loop = ClosedLoop(builtin_scenarios()["office"](seed=0))
+    for _ in range(12):
+        loop.step()
+    c = loop.controller
+    robots = np.asarray(loop.robots.positions, float)
+    w = c.weight(loop.density, loop.t)
+    alone = c.pulls(robots, c._share, w)
+    more = c.pulls(np.vstack([robots, robots[:2] + 0.25]), c._share, w)
+    np.testing.assert_array_equal(more[: len(robots)], alone)
+    np.testing.assert_array_equal(more[len(robots) :], 0.0)
+    assert np.abs(alone).sum() > 0
