@@ -525,6 +525,7 @@ class AssignedRoutes:
         self.open = np.ones(len(self.segs), dtype=bool)
         self.planned: dict[int, ExitRoutes] = {}  # the routes to each exit alone, once someone is assigned to it
         self._table: np.ndarray | None = None  # the waypoints of each planned exit and of the nearest (_waypoints)
+        self._in_table = np.zeros(len(self.segs), dtype=bool)  # the exits the table holds, reached from every cell
 
     def to(self, k: int) -> ExitRoutes:
         """The routes to exit ``k`` alone (planned at the first call)."""
@@ -545,14 +546,24 @@ class AssignedRoutes:
             nan = np.full_like(self.nearest.waypoint, np.nan)
             self._table = np.stack([self.planned[k].waypoint if k in self.planned else nan
                                     for k in range(len(self.segs))] + [self.nearest.waypoint])  # fmt: skip
+            held = [self.planned.get(k) for k in range(len(self.segs))]
+            self._in_table = np.array([r is not None and r.everywhere and r.grid is self.grid for r in held], bool)
         return self._table
+
+    def _lookup(self, exits_of: np.ndarray) -> np.ndarray | None:
+        """:meth:`_waypoints` of the exits ``exits_of`` (each ``>= 0``, repeated as they come): the table kept when it
+        holds each of them, without sorting them out."""
+        if self._table is not None and self._in_table[exits_of].all():
+            return self._table
+        return self._waypoints(np.unique(exits_of))
 
     def reaches(self, points: np.ndarray, exit_of: np.ndarray) -> np.ndarray:
         """Whether a route reaches each point's exit ``exit_of[j]`` from it (:meth:`ExitRoutes.reaches` of :meth:`to`;
         False where ``exit_of[j] < 0``): ``(N,)``."""
         out = np.zeros(len(points), dtype=bool)
         assigned = exit_of >= 0
-        exits = np.unique(exit_of[assigned])
+        kept = self._table is not None and self._in_table[exit_of[assigned]].all()  # (each planned, reached anywhere)
+        exits = np.zeros(0, np.intp) if kept else np.unique(exit_of[assigned])
         if all(self.to(k).everywhere for k in exits):  # (from every point of the plane: its coordinates finite)
             out[assigned] = np.isfinite(points[assigned]).all(axis=1)
             return out
@@ -566,12 +577,11 @@ class AssignedRoutes:
         :meth:`to`: 0 on the waypoint and where no route reaches that exit; 0 where ``exit_of[j] < 0``)."""
         out = np.zeros((len(points), 2))
         assigned = exit_of >= 0
-        exits = np.unique(exit_of[assigned])
-        table = self._waypoints(exits) if len(exits) > 1 else None
+        table = self._lookup(exit_of[assigned])
         if table is not None:  # one look-up for all: each point's numbers are its exit's
             out[assigned] = _unit(table, self.grid, points[assigned], exit_of[assigned])
             return out
-        for k in exits:
+        for k in np.unique(exit_of[assigned]):
             rows = np.flatnonzero(exit_of == k)
             out[rows] = self.to(int(k)).heading(points[rows])
         return out
@@ -582,10 +592,10 @@ class AssignedRoutes:
         assigned = exit_of >= 0
         if not assigned.any():
             return self.nearest.heading(points)
-        exits = np.unique(exit_of[assigned])
-        table = self._waypoints(exits)
+        table = self._lookup(exit_of[assigned])
         if table is not None:  # every route reached from every cell: one look-up for all, the nearest's last
             return _unit(table, self.grid, points, np.where(assigned, exit_of, len(self.segs)))
+        exits = np.unique(exit_of[assigned])
         out = np.empty((len(points), 2))
         nearest = np.flatnonzero(~assigned)
         for k in exits:

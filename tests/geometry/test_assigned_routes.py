@@ -52,6 +52,8 @@ def test_every_point_heads_along_its_own_exit_s_route_to_the_bit():
         expected = _exit_by_exit(plan, points, exit_of)
         expected[exit_of < 0] = 0.0
         np.testing.assert_array_equal(each, expected)
+        assert plan._in_table.all()  # every exit planned: the table kept, read again without sorting the exits out
+        np.testing.assert_array_equal(plan.heading(points, exit_of), heading)
     for k in range(4):
         np.testing.assert_array_equal(plan.to(k).reaches(points), np.isfinite(plan.to(k).distance(points)))
     np.testing.assert_array_equal(plan.reaches(points, exit_of), exit_of >= 0)
