@@ -157,7 +157,6 @@ def walk_towards(walking: Any, robots: np.ndarray, owner: np.ndarray, centroid: 
     it owns, nearest its centroid, times that walk's length (``routed``); 0 for a robot that owns no cell it can walk
     to (a block cut the plan).  ``owner``: each covered cell's robot (``-1``: none), in ``walking``'s cell order."""
     pull = np.zeros((len(rows), 2))
-    owner = np.ascontiguousarray(owner, np.intp)
     distance, leg = walking.walks_to_nearest(robots[rows], owner, rows, centroid[rows])  # (its own cells alone)
     reached = np.isfinite(distance)  # (not another piece's cells)
     pull[reached] = distance[reached, None] * leg[reached]

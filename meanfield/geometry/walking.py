@@ -168,6 +168,7 @@ class WalkingDistances:
         """
         p = np.real(np.asarray(points, float)).reshape(-1, 2)
         targets = np.asarray(targets, float).reshape(-1, 2)
+        owner = np.ascontiguousarray(owner, np.intp)
         out = np.empty((len(p), 3))
         for i, k in enumerate(self._planted(p)):
             D, anchor = self._trees[int(k)]
