@@ -11,7 +11,9 @@
   against its twin, the pointer jumping before it; the trees planted on the graph as directed are the undirected
   ones;
 * :func:`meanfield.controllers._queue_loops.label_search` (the guide's search for its signs' labels) against its twin,
-  the guide's search before it, and the sums of the compiled loops against ``np.sum``.
+  the guide's search before it, and the sums of the compiled loops against ``np.sum``;
+* :func:`meanfield.signs._reach_loops.boxes_on_grid` (the cells the signs reach, laid on the grid) against its twin
+  (the boxed test against the whole grid's is ``tests/signs/test_kernels.py``'s).
 """
 
 from __future__ import annotations
@@ -215,3 +217,22 @@ def test_the_guide_s_pulls_take_a_team_of_other_robots_as_before():
     np.testing.assert_array_equal(more[: len(robots)], alone)
     np.testing.assert_array_equal(more[len(robots) :], 0.0)
     assert np.abs(alone).sum() > 0
+
+
+@needs_numba
+@pytest.mark.parametrize("hidden", [True, False])
+def test_the_signs_boxes_on_the_grid_are_their_numpy_twins(hidden):
+    """:func:`meanfield.signs._reach_loops.boxes_on_grid` (each robot's box of reached cells laid on the grid, on the
+    cells of Ω it sees) against its twin: boxes at the grid's edges and overlapping, a cell without volume."""
+    from meanfield.signs._reach_loops import boxes_on_grid
+
+    rng = np.random.default_rng(6)
+    n, nx, ny, bx, by = 5, 30, 20, 9, 7
+    inside = rng.uniform(size=(n, bx, by)) < 0.6
+    i0 = np.array([0, nx - bx, 4, 4, 11], np.intp)
+    j0 = np.array([0, ny - by, 2, 3, 13], np.intp)
+    active = rng.uniform(size=(nx, ny)) < 0.9
+    seen = rng.uniform(size=(n, nx, ny)) < 0.7
+    fast, ref = _both(boxes_on_grid, inside, i0, j0, active, seen, hidden, np.empty((n, nx, ny), bool))
+    np.testing.assert_array_equal(fast, ref)
+    assert fast[:, ~active].sum() == 0 and (fast[0, bx:, :] == 0).all() and fast.sum() > 100
