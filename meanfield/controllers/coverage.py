@@ -156,16 +156,10 @@ def walk_towards(walking: Any, robots: np.ndarray, owner: np.ndarray, centroid: 
     """The pull of each robot of ``rows`` whose centroid a wall hides: the first leg of its walk to the cell, of those
     it owns, nearest its centroid, times that walk's length (``routed``); 0 for a robot that owns no cell it can walk
     to (a block cut the plan).  ``owner``: each covered cell's robot (``-1``: none), in ``walking``'s cell order."""
-    xy = walking.xy
     pull = np.zeros((len(rows), 2))
-    for j, i in enumerate(rows):
-        owned = np.flatnonzero(owner == i)
-        distance, leg = walking.walk_to(robots[i], owned)  # the walks to its own cells alone
-        reached = np.isfinite(distance)  # (not another piece's cells)
-        mine = owned[reached]
-        if len(mine):
-            t = np.argmin(np.hypot(xy[mine, 0] - centroid[i, 0], xy[mine, 1] - centroid[i, 1]))
-            pull[j] = distance[reached][t] * leg[reached][t]
+    distance, leg = walking.walks_to_nearest(robots[rows], owner, rows, centroid[rows])  # (its own cells alone)
+    reached = np.isfinite(distance)  # (not another piece's cells)
+    pull[reached] = distance[reached, None] * leg[reached]
     return pull
 
 

@@ -142,9 +142,10 @@ class ExitAssignment:
         self._order = ArrivalOrder(self.arrival)
 
     def assign(self, offsets: np.ndarray) -> np.ndarray:
-        """Each active cell's exit, ``argmin_k (a_k(c) + τ_k)`` over the open exits: ``(M,)``."""
-        cost = self.arrival + np.where(self.open, offsets, np.inf)[:, None]
-        return np.argmin(cost, axis=0)
+        """Each active cell's exit, ``argmin_k (a_k(c) + τ_k)`` over the open exits: ``(M,)`` (one compiled pass,
+        :func:`~meanfield.controllers._queue_loops.assign_exits`)."""
+        tau = np.where(self.open, np.asarray(offsets, float), np.inf)
+        return _queue_loops.assign_exits(self.arrival, tau, np.empty(self.arrival.shape[1], np.intp))
 
     def clearing_times(self, persons: np.ndarray, offsets: np.ndarray) -> np.ndarray:
         """``T_k`` of eq. (B1) for each exit under the assignment of ``offsets`` (0 for an exit nobody takes)."""
@@ -159,8 +160,15 @@ class ExitAssignment:
         return np.maximum(clear - walk, 0.0) * self.capacity
 
     def _times(self, persons: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`ArrivalOrder.times` of :meth:`assign`'s exits, in one compiled call
+        (:func:`~meanfield.controllers._queue_loops.assigned_clearing_times`)."""
         last = LAST_PERSON / max(int(self.open.sum()), 1)  # half a person in all: not half a person per exit
-        return self._order.times(self.assign(offsets), persons, self.capacity, np.flatnonzero(self.open), last)
+        tau = np.where(self.open, np.asarray(offsets, float), np.inf)
+        k, m = self.arrival.shape
+        return _queue_loops.assigned_clearing_times(self.arrival, tau, self._order.order, self._order.arrival,
+                                                    np.asarray(persons, float), np.asarray(self.capacity, float),
+                                                    np.flatnonzero(self.open), float(last), np.empty(m, np.intp),
+                                                    np.empty(k), np.empty(k))  # fmt: skip
 
     def solve(self, rho: np.ndarray) -> np.ndarray:
         """The offsets ``τ`` for the unit-mass density ``rho`` on the cells (price iteration, module docstring)."""
@@ -171,16 +179,14 @@ class ExitAssignment:
         if self._queue_sizes(T, walk).max() < MIN_QUEUE or self.open.sum() < 2:  # no queue, or one exit: no choice
             self.offsets, self.makespan = zero, nearest
             return zero
-        tau = np.where(self.open, self.offsets, 0.0)
-        best, best_tau = math.inf, tau.copy()
-        for i in range(ITERATIONS):
-            T = self.clearing_times(persons, tau)
-            makespan = float(T[self.open].max())
-            if makespan < best:
-                best, best_tau = makespan, tau.copy()
-            step = 0.5 / (1.0 + i / 10.0)
-            tau = tau + step * np.where(self.open, T - T[self.open].mean(), 0.0)
-            tau = np.where(self.open, tau - tau[self.open].min(), 0.0)
+        tau = np.where(self.open, np.asarray(self.offsets, float), 0.0)
+        k, m = self.arrival.shape
+        best_tau, last = np.empty(k), LAST_PERSON / max(int(self.open.sum()), 1)
+        # the passes in one compiled call (meanfield.controllers._queue_loops.price_iteration)
+        best = _queue_loops.price_iteration(self.arrival, self.open, tau, ITERATIONS, self._order.order,
+                                            self._order.arrival, persons, np.asarray(self.capacity, float),
+                                            np.flatnonzero(self.open), last, np.empty(m, np.intp), np.empty(k),
+                                            np.empty(k), np.empty(k), best_tau)  # fmt: skip
         if best >= (1.0 - self.min_gain) * nearest:  # balancing does not pay
             best, best_tau = nearest, zero
         self.offsets = best_tau

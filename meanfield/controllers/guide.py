@@ -40,7 +40,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from meanfield.capabilities import ControllerCapabilities
-from meanfield.controllers._coverage_loops import owners as nearest_owners
+from meanfield.controllers._guide_loops import share_moments
+from meanfield.controllers._queue_loops import label_search
 from meanfield.controllers.coverage import _NOTHING_HIDDEN, walk_towards
 from meanfield.errors import ParameterError, num, options_table
 from meanfield.interfaces import Command, ControllerParts, Observation
@@ -226,11 +227,12 @@ class GuideController:
 
     def sweep(self, field: Any, t: float) -> np.ndarray:
         """Mark the cells the signs reach now as reached at ``t`` (:func:`~meanfield.signs.kernels.reached_cells`, as
-        coverage's ``unswept`` rule), keeping each robot's reach over the covered cells for the labels."""
+        coverage's ``unswept`` rule), keeping each robot's reach for the labels (:meth:`exit_here`, which reads it over
+        the covered cells)."""
         from meanfield.signs.kernels import reached_cells
 
         reach = reached_cells(field.kernel, field.positions, self.grid, self.sight)
-        self._reach = reach.reshape(len(reach), -1)[:, self._cells]
+        self._reach = reach.reshape(len(reach), -1)
         self.last_reached[reach.any(axis=0)] = t
         return self.last_reached
 
@@ -280,23 +282,14 @@ class GuideController:
         if self.sight is not None:
             seen, hidden = np.ascontiguousarray(self.sight.cell_rows(self.grid, robots)).reshape(n, -1), True
         centroid = robots.copy()
-        held = np.ones(n, dtype=bool)
-        cell_owner = np.full(len(share), -1, dtype=np.intp)
-        for k in np.unique(self.team[self.team >= 0]):
-            mine = np.flatnonzero(self.team == k)
-            cells = np.flatnonzero(share == k)
-            if not len(cells):
-                continue
-            rows = seen[mine] if hidden else seen
-            local = nearest_owners(self._xy[cells], np.ascontiguousarray(robots[mine]), np.ascontiguousarray(rows),
-                                   self._cells[cells], hidden, np.empty(len(cells), np.intp))  # fmt: skip
-            cell_owner[cells] = mine[local]
-            m = np.bincount(local, weights=w[cells], minlength=len(mine))
-            px = np.bincount(local, weights=w[cells] * self._xy[cells, 0], minlength=len(mine))
-            py = np.bincount(local, weights=w[cells] * self._xy[cells, 1], minlength=len(mine))
-            has = m > 0
-            centroid[mine[has]] = np.column_stack([px[has] / m[has], py[has] / m[has]])
-            held[mine[has]] = False
+        team = self.team
+        if len(team) != n:  # (a team of other robots: those beyond it have no share)
+            team = np.concatenate([team[:n], np.full(max(n - len(team), 0), -1, np.intp)])
+        cell_owner, m, px, py = share_moments(self._xy, np.ascontiguousarray(robots), team, share, w,
+                                              np.ascontiguousarray(seen), self._cells, hidden,
+                                              np.empty(len(share), np.intp), *np.empty((3, n)))  # fmt: skip
+        held = ~(m > 0)
+        centroid[~held] = np.column_stack([px[~held] / m[~held], py[~held] / m[~held]])
         pull[~held] = centroid[~held] - robots[~held]
         behind = ~held
         if self.sight is not None and behind.any():
@@ -318,24 +311,22 @@ class GuideController:
         persons = a.people * np.maximum(np.real(rho).ravel()[self._cells], 0.0) * self._volume
         # each covered cell's reader: the nearest robot whose sign reaches it (the strongest kernel it sees)
         d2 = (self._xy[None, :, 0] - robots[:, None, 0]) ** 2 + (self._xy[None, :, 1] - robots[:, None, 1]) ** 2
-        d2 = np.where(self._reach, d2, np.inf)
+        d2 = np.where(self._reach[:, self._cells], d2, np.inf)
         reader = np.where(np.isfinite(d2).any(axis=0), np.argmin(d2, axis=0), -1)
         live = idx >= 0
         reader, persons, cols = reader[live], persons[live], idx[live]
         plan = self._share[live]
         open_k = np.flatnonzero(a.open)
-        arrival = a.arrival[:, cols]  # (K, m)
-        queues = ArrivalOrder(arrival)  # sorted once for the search's makespans
+        kept = self._arrivals  # the covered cells' arrivals, sorted once while the cells and the walls stay
+        if kept is None or kept[0] is not a.arrival or not np.array_equal(kept[1], cols):
+            arrival = a.arrival[:, cols]  # (K, m)
+            kept = self._arrivals = (a.arrival, cols, arrival, ArrivalOrder(arrival))
+        arrival, queues = kept[2], kept[3]  # (the order: sorted once for the search's makespans)
         best_walk = np.where(a.open[:, None], arrival, np.inf).min(axis=0)
         last = LAST_PERSON / max(len(open_k), 1)
         total = max(persons.sum(), 1e-300)
-
-        def cost(labels: np.ndarray) -> float:
-            exit_of = np.where(reader >= 0, labels[np.maximum(reader, 0)], plan)
-            makespan = float(queues.times(exit_of, persons, a.capacity, open_k, last)[0][open_k].max())
-            with np.errstate(invalid="ignore"):  # (a reader sent where no route reaches: inf − inf)
-                detour = (persons * (arrival[exit_of, np.arange(len(exit_of))] - best_walk)).sum() / total
-            return makespan + detour if np.isfinite(detour) else math.inf
+        with np.errstate(invalid="ignore"):  # (a reader sent where no route reaches: inf − inf)
+            walked = persons * (arrival - best_walk)  # (K, m): each cell's persons times their detour to each exit
 
         # the labels of least regret: each robot's readers' exits under Step I, weighted by their persons
         regret = np.where(np.isfinite(self._regret[:, live]), self._regret[:, live], 1e9)
@@ -346,22 +337,13 @@ class GuideController:
         loss[:, ~a.open] = np.inf
         has = np.bincount(reader[reader >= 0], weights=persons[reader >= 0], minlength=n) > 0
         labels = np.argmin(loss, axis=1)
-        best = start = cost(labels)
         least_regret = labels.copy()
-        for _ in range(SEARCH_SWEEPS):
-            better = False
-            for i in np.flatnonzero(has):
-                keep = labels[i]
-                for k in open_k:
-                    if k == keep:
-                        continue
-                    labels[i] = k
-                    c = cost(labels)
-                    if c < best - 1e-9:
-                        best, keep, better = c, k, True
-                labels[i] = keep
-            if not better:
-                break
+        # robot by robot, each open exit whose labels cost less: the makespan (B1) of the readers sent to their
+        # robot's label and everyone else to Step I's, plus the walkers' mean detour (one compiled call)
+        k_exits, m = arrival.shape
+        best, start = label_search(reader, plan, persons, queues.order, queues.arrival, np.asarray(a.capacity, float),
+                                   open_k, float(last), walked, float(total), has, labels, SEARCH_SWEEPS,
+                                   np.empty(m, np.intp), np.empty(m), np.empty(k_exits), np.empty(k_exits))  # fmt: skip
         if best > (1.0 - MIN_GAIN) * start:  # the search's gain is within the model's error: the least regret
             labels = least_regret
         grid_share = np.full(self.grid.shape[0] * self.grid.shape[1], -1, dtype=np.intp)
@@ -387,11 +369,9 @@ class GuideController:
         u = self.k_position * self.pulls(robots, self._share, w)
         shows = self._shows
         bearing = headings.copy()
-        for k in np.unique(shows[shows >= 0]):
-            mine = np.flatnonzero(shows == k)
-            e = self.routes.to(int(k)).heading(robots[mine])
-            ok = np.hypot(e[:, 0], e[:, 1]) > 0
-            bearing[mine[ok]] = np.arctan2(e[ok, 1], e[ok, 0])
+        e = self.routes.heading_to_each(robots, shows)  # (0 where a sign names no exit, or no route reaches it)
+        ok = np.hypot(e[:, 0], e[:, 1]) > 0
+        bearing[ok] = np.arctan2(e[ok, 1], e[ok, 0])
         omega = self.k_heading * np.angle(np.exp(1j * (bearing - headings)))
         self.steps += 1
         self.idle_robot_steps += int((self.team < 0).sum())
@@ -423,6 +403,7 @@ class GuideController:
         self.team = np.zeros(0, dtype=np.intp)
         self._share = np.zeros(0, dtype=np.intp)
         self._shows = np.zeros(0, dtype=np.intp)
+        self._arrivals: tuple[Any, ...] | None = None  # exit_here's arrivals of the covered cells, sorted
         self.last_reached = np.full(self.grid.shape, -np.inf)
         self._next_balance = -math.inf
         self.steps = self.idle_robot_steps = 0

@@ -90,12 +90,8 @@ class RouteMemory:
         if len(new) and self.shown and named is not None:  # a sign that names an open exit: that one
             k = named[new]
             said = (k >= 0) & self.plan.open[np.maximum(k, 0)]
-            if said.any():
-                far = np.full(len(new), np.inf)
-                for e in np.unique(k[said]):
-                    rows = np.flatnonzero(said & (k == e))
-                    far[rows] = self.plan.to(int(e)).distance(positions[new[rows]])
-                said &= np.isfinite(far)  # (a plan in pieces: an exit of another piece is no way)
+            if said.any():  # (a plan in pieces: an exit of another piece is no way)
+                said &= self.plan.reaches(positions[new], np.where(said, k, -1))
                 self.exit[new[said]] = k[said]
                 new = new[~said]
         if len(new) and self.shown:

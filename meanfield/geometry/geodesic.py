@@ -489,6 +489,14 @@ class ExitRoutes:
         d = np.hypot(*(self.waypoint[i, j] - points).T) + self.remaining[i, j]
         return d if self.everywhere else np.where(np.isfinite(self.remaining[i, j]), d, np.inf)
 
+    def reaches(self, points: np.ndarray) -> np.ndarray:
+        """Whether a route reaches these exits from each point: ``np.isfinite(self.distance(points))``, without the
+        distances where a route reaches them from every cell (then from every point of the plane, its coordinates
+        finite: the waypoints and their ``φ`` are finite)."""
+        if not self.everywhere:
+            return np.isfinite(self.distance(points))
+        return np.isfinite(points).all(axis=1)
+
 
 class AssignedRoutes:
     """Routes to an assigned exit: each walker to its own exit, or to the nearest open one.
@@ -516,13 +524,67 @@ class AssignedRoutes:
         self.nearest = ExitRoutes(grid, self.segs, sight) if nearest is None else nearest
         self.open = np.ones(len(self.segs), dtype=bool)
         self.planned: dict[int, ExitRoutes] = {}  # the routes to each exit alone, once someone is assigned to it
+        self._table: np.ndarray | None = None  # the waypoints of each planned exit and of the nearest (_waypoints)
+        self._in_table = np.zeros(len(self.segs), dtype=bool)  # the exits the table holds, reached from every cell
 
     def to(self, k: int) -> ExitRoutes:
         """The routes to exit ``k`` alone (planned at the first call)."""
         k = int(k)
         if k not in self.planned:
             self.planned[k] = ExitRoutes(self.grid, self.segs[k : k + 1], self.sight)
+            self._table = None
         return self.planned[k]
+
+    def _waypoints(self, exits: np.ndarray) -> np.ndarray | None:
+        """The waypoints ``(E + 1, nx, ny, 2)`` of the routes to each exit alone (NaN for one not planned) and, last, of
+        the routes to the nearest open exit, when each of ``exits`` is planned and reached from every cell (None
+        otherwise: then each exit's points are taken in turn).  Built again when a route is planned."""
+        planned = [self.to(k) for k in exits]
+        if not all(r.everywhere and r.grid is self.grid for r in (*planned, self.nearest)):
+            return None
+        if self._table is None:
+            nan = np.full_like(self.nearest.waypoint, np.nan)
+            self._table = np.stack([self.planned[k].waypoint if k in self.planned else nan
+                                    for k in range(len(self.segs))] + [self.nearest.waypoint])  # fmt: skip
+            held = [self.planned.get(k) for k in range(len(self.segs))]
+            self._in_table = np.array([r is not None and r.everywhere and r.grid is self.grid for r in held], bool)
+        return self._table
+
+    def _lookup(self, exits_of: np.ndarray) -> np.ndarray | None:
+        """:meth:`_waypoints` of the exits ``exits_of`` (each ``>= 0``, repeated as they come): the table kept when it
+        holds each of them, without sorting them out."""
+        if self._table is not None and self._in_table[exits_of].all():
+            return self._table
+        return self._waypoints(np.unique(exits_of))
+
+    def reaches(self, points: np.ndarray, exit_of: np.ndarray) -> np.ndarray:
+        """Whether a route reaches each point's exit ``exit_of[j]`` from it (:meth:`ExitRoutes.reaches` of :meth:`to`;
+        False where ``exit_of[j] < 0``): ``(N,)``."""
+        out = np.zeros(len(points), dtype=bool)
+        assigned = exit_of >= 0
+        kept = self._table is not None and self._in_table[exit_of[assigned]].all()  # (each planned, reached anywhere)
+        exits = np.zeros(0, np.intp) if kept else np.unique(exit_of[assigned])
+        if all(self.to(k).everywhere for k in exits):  # (from every point of the plane: its coordinates finite)
+            out[assigned] = np.isfinite(points[assigned]).all(axis=1)
+            return out
+        for k in exits:
+            rows = np.flatnonzero(exit_of == k)
+            out[rows] = self.to(int(k)).reaches(points[rows])
+        return out
+
+    def heading_to_each(self, points: np.ndarray, exit_of: np.ndarray) -> np.ndarray:
+        """Unit vectors ``(N, 2)`` along each point's route to exit ``exit_of[j]`` alone (:meth:`ExitRoutes.heading` of
+        :meth:`to`: 0 on the waypoint and where no route reaches that exit; 0 where ``exit_of[j] < 0``)."""
+        out = np.zeros((len(points), 2))
+        assigned = exit_of >= 0
+        table = self._lookup(exit_of[assigned])
+        if table is not None:  # one look-up for all: each point's numbers are its exit's
+            out[assigned] = _unit(table, self.grid, points[assigned], exit_of[assigned])
+            return out
+        for k in np.unique(exit_of[assigned]):
+            rows = np.flatnonzero(exit_of == k)
+            out[rows] = self.to(int(k)).heading(points[rows])
+        return out
 
     def heading(self, points: np.ndarray, exit_of: np.ndarray) -> np.ndarray:
         """Unit vectors ``(N, 2)`` along each point's route to its exit ``exit_of[j]`` (-1: the nearest open; also
@@ -530,9 +592,13 @@ class AssignedRoutes:
         assigned = exit_of >= 0
         if not assigned.any():
             return self.nearest.heading(points)
+        table = self._lookup(exit_of[assigned])
+        if table is not None:  # every route reached from every cell: one look-up for all, the nearest's last
+            return _unit(table, self.grid, points, np.where(assigned, exit_of, len(self.segs)))
+        exits = np.unique(exit_of[assigned])
         out = np.empty((len(points), 2))
         nearest = np.flatnonzero(~assigned)
-        for k in np.unique(exit_of[assigned]):
+        for k in exits:
             rows = np.flatnonzero(exit_of == k)
             routes = self.to(k)
             if not routes.everywhere:  # (a plan in pieces) those whose exit is in another piece: the nearest
@@ -551,6 +617,7 @@ class AssignedRoutes:
         if open_exits.any():
             self.open = open_exits.copy()
             self.nearest = ExitRoutes(self.grid, self.segs[open_exits], self.sight)
+            self._table = None
             exit_of[(exit_of >= 0) & ~open_exits[np.maximum(exit_of, 0)]] = -1
 
     def walls_changed(self, change: Any) -> None:
@@ -559,6 +626,16 @@ class AssignedRoutes:
         self.grid, self.sight = change.grid, change.sight
         self.nearest = ExitRoutes(self.grid, self.segs[self.open], self.sight)
         self.planned = {}
+        self._table = None
+
+
+def _unit(waypoints: np.ndarray, grid: Grid, points: np.ndarray, route: np.ndarray) -> np.ndarray:
+    """:meth:`ExitRoutes.heading` of each point on its routes ``route[j]`` (a row of ``waypoints``, ``(R, nx, ny, 2)``):
+    the unit vector towards its cell's waypoint, 0 on it and where there is none (NaN)."""
+    i, j = grid.cell_of(points)
+    d = waypoints[route, i, j] - points
+    norm = np.hypot(d[:, 0], d[:, 1])
+    return np.divide(d, norm[:, None], out=np.zeros_like(d), where=norm[:, None] > 0)
 
 
 def routes_for(region: Any, grid: Grid, sight: SightLines | None = None) -> ExitRoutes:

@@ -18,10 +18,11 @@ active cell ``c`` of the grid:
   the direction in which ``d_i(c)`` falls fastest as ``R_i`` moves (``−∇_{R_i} d_i(c)``);
 * the geodesic Voronoi cells ``V_i = {c : d_i(c) ≤ d_j(c) for all j}``.
 
-The anchor is found by pointer jumping on Dijkstra's trees: ``a_i(c) = c`` where ``R_i``
+The anchor is found on Dijkstra's trees: ``a_i(c) = c`` where ``R_i``
 sees ``c`` or ``c`` is next to its start on the route (through an open face or diagonal, as
-the informed walker's next cell), else ``a_i(pred_i(c))``; the chain halves at each pass, so a route of ``L``
-cells needs ``log₂ L`` passes.  Sight is the grid's (:meth:`SightLines.cell_rows`), the
+the informed walker's next cell), else ``a_i(pred_i(c))``; by pointer jumping (the numpy twin: the chain halves at
+each pass, so a route of ``L`` cells needs ``log₂ L`` passes) or, compiled, each path walked up once
+(:func:`meanfield.geometry._walking_loops.tree_anchors`).  Sight is the grid's (:meth:`SightLines.cell_rows`), the
 same the signs and the coverage controller use.
 
 Reference: A. Bhattacharya, R. Ghrist, V. Kumar, "Multi-robot coverage and exploration on
@@ -36,6 +37,7 @@ import dataclasses
 
 import numpy as np
 
+from meanfield.geometry._walking_loops import nearest_walk, tree_anchors
 from meanfield.geometry.grid import Grid
 from meanfield.geometry.sight import SightLines
 
@@ -107,18 +109,14 @@ class WalkingDistances:
         from scipy.sparse.csgraph import dijkstra
 
         n, m = len(starts), len(self.cells)
-        D, pred = dijkstra(self.graph, directed=False, indices=starts, return_predecessors=True)
+        # (the graph holds each link both ways: as a directed graph, the undirected one's trees, without its transpose)
+        D, pred = dijkstra(self.graph, directed=True, indices=starts, return_predecessors=True)
         D, pred = D.reshape(n, m), pred.reshape(n, m)
         seen = self.sight.cell_rows(self.grid, points).reshape(n, -1)[:, self.cells]
         seen[np.arange(n), starts] = True  # a point sees the cell it starts from,
         seen |= pred == starts[:, None]  # and walks to its neighbours on the routes (open faces or diagonals)
-        own = np.broadcast_to(np.arange(m), (n, m))
-        anchor = np.where(seen | (pred < 0), own, pred)
-        while True:  # pointer jumping to the nearest ancestor in sight
-            nxt = np.take_along_axis(anchor, anchor, axis=1)
-            if np.array_equal(nxt, anchor):
-                break
-            anchor = nxt
+        # the nearest ancestor in sight (pointer jumping, compiled: meanfield.geometry._walking_loops.tree_anchors)
+        anchor = tree_anchors(np.ascontiguousarray(pred), seen, np.empty((n, m), np.int64))
         for k, d, a in zip(starts, D, anchor, strict=True):
             self._trees[int(k)] = (d, a)
 
@@ -141,6 +139,41 @@ class WalkingDistances:
         cells = np.asarray(cells, np.intp)
         a = anchor[cells]
         return _walks(self.xy[a] - p, D[cells], D[a])
+
+    def walk_to_nearest(self, point: np.ndarray, owner: np.ndarray, robot: int,
+                        target: np.ndarray) -> tuple[float, np.ndarray]:  # fmt: skip
+        """The walk from one point to the cell, of those with ``owner[c] == robot`` that a route reaches, nearest
+        ``target`` (straight, ties: the first): :meth:`walk_to`'s numbers for that cell, without the others
+        (one compiled pass, :func:`meanfield.geometry._walking_loops.nearest_walk`).
+
+        Returns
+        -------
+        distance : float
+            ``d(c)`` (``inf`` when no such cell is reached).
+        leg : ndarray, shape (2,)
+            ``e(c)`` (0 when no such cell is reached).
+        """
+        distance, leg = self.walks_to_nearest(point, owner, np.array([robot]), target)
+        return float(distance[0]), leg[0]
+
+    def walks_to_nearest(self, points: np.ndarray, owner: np.ndarray, robots: np.ndarray,
+                         targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """:meth:`walk_to_nearest` from each of ``points`` (``(n, 2)``) to the cells of ``robots[i]`` nearest
+        ``targets[i]``, the trees of the points' start cells planted at once.
+
+        Returns
+        -------
+        distance : ndarray, shape (n,)
+        leg : ndarray, shape (n, 2)
+        """
+        p = np.real(np.asarray(points, float)).reshape(-1, 2)
+        targets = np.asarray(targets, float).reshape(-1, 2)
+        owner = np.ascontiguousarray(owner, np.intp)
+        out = np.empty((len(p), 3))
+        for i, k in enumerate(self._planted(p)):
+            D, anchor = self._trees[int(k)]
+            nearest_walk(self.xy, D, anchor, owner, int(robots[i]), p[i], targets[i], out[i])
+        return out[:, 0], out[:, 1:]
 
     def from_points(self, points: np.ndarray) -> WalkingField:
         """The walking distances, first legs and anchors from each of ``points`` (``(n, 2)``) to every active cell.

@@ -23,6 +23,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from meanfield.errors import positive_number
+from meanfield.signs._reach_loops import boxes_on_grid
 
 __all__ = [
     "REACH_FRACTION",
@@ -47,6 +48,10 @@ def __getattr__(name: str) -> Any:
         deprecated(f"meanfield.signs.kernels.{name}", f"use meanfield.signs.interaction.{name}")
         return getattr(interaction, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+_NO_SIGHT = np.ones((0, 0, 0), dtype=bool)
+"""The sight rows of :func:`reached_cells` without walls (never read)."""
 
 REACH_FRACTION = 0.05
 """A sign *reaches* a point where its field is at least this share of one kernel's peak: a human there who sees the
@@ -187,12 +192,20 @@ def reached_cells(kernel: NavigationKernel, robots: np.ndarray, grid: Any, sight
         r = radius(floor) * (1.0 + 1e-9) + max(grid.dx, grid.dy)
         i0, i1 = np.searchsorted(grid.x, robots[:, 0] - r), np.searchsorted(grid.x, robots[:, 0] + r, side="right")
         j0, j1 = np.searchsorted(grid.y, robots[:, 1] - r), np.searchsorted(grid.y, robots[:, 1] + r, side="right")
-        reach = np.zeros((len(robots), *grid.shape), dtype=bool)
-        for k, (rx, ry) in enumerate(robots):
-            box = (slice(i0[k], i1[k]), slice(j0[k], j1[k]))
-            reach[k][box] = np.abs(kernel.magnitude(X[box] - rx, Y[box] - ry)) >= floor
+        # every robot's box of one size (the largest, moved inside the grid: its cells beyond the robot's own box are
+        # beyond the kernel's reach, where the test fails), all tested at once; a cell's centre is (x_i, y_j)
+        (nx, ny), n = grid.shape, len(robots)
+        bx, by = int((i1 - i0).max(initial=0)), int((j1 - j0).max(initial=0))
+        i_start, j_start = np.minimum(i0, nx - bx), np.minimum(j0, ny - by)
+        xi_x = grid.x[i_start[:, None] + np.arange(bx)] - robots[:, 0, None]  # (n, bx)
+        xi_y = grid.y[j_start[:, None] + np.arange(by)] - robots[:, 1, None]  # (n, by)
+        inside = np.abs(kernel.magnitude(xi_x[:, :, None], xi_y[:, None, :])) >= floor
+        seen = _NO_SIGHT if sight is None else np.asarray(sight.cell_rows(grid, robots), bool).reshape(n, nx, ny)
+        # the boxes on the grid, on Ω's cells each robot sees, in one compiled pass (meanfield.signs._reach_loops)
+        active = np.ascontiguousarray(grid.active, bool)
+        return boxes_on_grid(np.ascontiguousarray(inside), i_start, j_start, active, np.ascontiguousarray(seen),
+                             sight is not None, np.empty((n, nx, ny), dtype=bool))  # fmt: skip
     reach &= grid.active
     if sight is not None:
         reach &= np.asarray(sight.cell_rows(grid, robots), bool).reshape(reach.shape)
     return reach
-

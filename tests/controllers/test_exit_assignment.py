@@ -3,6 +3,7 @@ optimum, the potential's field, closed exits, Step II's identity on the balanced
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 import numpy as np
@@ -203,3 +204,100 @@ def test_the_sorted_queues_give_each_exit_s_clearing_time_to_the_bit(seed):
     assert (fast[0][:2] > 0).all() and (fast[0][2] == 0.0) == (seed == 3)
     only = queues.times(exit_of, persons, capacity, np.array([1]), LAST_PERSON)  # the exits asked for alone
     assert only[0][1] == fast[0][1] and only[0][0] == only[0][2] == 0.0
+
+
+def test_each_cell_s_exit_is_np_argmin_s_to_the_bit():
+    """:func:`~meanfield.controllers._queue_loops.assign_exits` (the assignment of eq. (B1) in one compiled pass) is
+    ``np.argmin(a + τ)`` along the exits, its numpy twin: ties to the first exit, cells no exit reaches (``inf``
+    everywhere: exit 0), closed exits (``τ = inf``), a NaN to the first; and :meth:`ExitAssignment.assign` is it over
+    the open exits."""
+    from meanfield._compiled import core as compiled
+    from meanfield.controllers._queue_loops import assign_exits
+
+    rng = np.random.default_rng(2)
+    k_exits, m = 4, 600
+    arrival = np.round(rng.uniform(0, 30, (k_exits, m)), 0)  # rounded: many ties
+    arrival[:, :5] = np.inf  # no exit reaches these
+    arrival[2, 5:40] = np.inf
+    arrival[1, 40] = arrival[3, 41] = arrival[0, 42] = np.nan
+    for tau in (np.zeros(k_exits), np.array([0.5, 0.0, np.inf, 2.0]), np.round(rng.uniform(0, 5, k_exits))):
+        expected = np.argmin(arrival + tau[:, None], axis=0)
+        fast = assign_exits(arrival, tau, np.empty(m, np.intp))
+        with compiled.numpy_path():
+            twin = assign_exits(arrival, tau, np.empty(m, np.intp))
+        np.testing.assert_array_equal(fast, expected)
+        np.testing.assert_array_equal(twin, expected)
+    assert assign_exits._ready or not compiled.enabled()
+    hall = builtin_scenarios()["hall"](seed=0)
+    loop = ClosedLoop(hall)
+    a = loop.controller.assignment
+    a.open = np.array([True, False, True, True])
+    tau = np.array([1.0, 0.0, 3.0, 0.5])
+    expected = np.argmin(a.arrival + np.where(a.open, tau, np.inf)[:, None], axis=0)
+    np.testing.assert_array_equal(a.assign(tau), expected)
+    assert 1 not in a.assign(tau)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_pass_of_the_price_iteration_is_the_assignment_then_its_clearing_times(seed):
+    """:func:`~meanfield.controllers._queue_loops.assigned_clearing_times` (one compiled call per pass of the price
+    iteration) gives the exits of :func:`assign_exits` and the clearing times of :func:`clearing_times` on them, to the
+    bit, compiled and on its numpy twin, with a closed exit and cells no exit reaches."""
+    from meanfield._compiled import core as compiled
+    from meanfield.controllers._queue_loops import assign_exits, assigned_clearing_times, clearing_times
+    from meanfield.controllers.exit_assignment import LAST_PERSON, ArrivalOrder
+
+    rng = np.random.default_rng(seed)
+    k_exits, m = 3, 500
+    arrival = np.round(rng.uniform(0, 30, (k_exits, m)), 1)
+    arrival[2, rng.uniform(size=m) < 0.1] = np.inf
+    persons = np.where(rng.uniform(size=m) < 0.3, 0.0, rng.exponential(0.4, m))
+    capacity = np.array([1.8, 3.6, 0.9])
+    tau = np.array([0.0, rng.uniform(0, 5), np.inf if seed == 2 else rng.uniform(0, 5)])  # seed 2: exit 2 closed
+    exits = np.array([0, 1]) if seed == 2 else np.arange(k_exits)
+    queues = ArrivalOrder(arrival)
+    exit_of = assign_exits(arrival, tau, np.empty(m, np.intp))
+    expected = clearing_times(queues.order, queues.arrival, exit_of, persons, capacity, exits, LAST_PERSON,
+                              np.empty(k_exits), np.empty(k_exits))  # fmt: skip
+    for twin in (False, True):
+        with compiled.numpy_path() if twin else contextlib.nullcontext():
+            out = np.empty(m, np.intp)
+            got = assigned_clearing_times(arrival, tau, queues.order, queues.arrival, persons, capacity, exits,
+                                          LAST_PERSON, out, np.empty(k_exits), np.empty(k_exits))  # fmt: skip
+        np.testing.assert_array_equal(out, exit_of)
+        np.testing.assert_array_equal(got[0], expected[0])
+        np.testing.assert_array_equal(got[1], expected[1])
+    assert assigned_clearing_times._ready or not compiled.enabled()
+
+
+@pytest.mark.parametrize("closed", [None, 1])
+def test_the_price_iteration_in_one_call_is_its_numpy_twin_to_the_bit(closed):
+    """:func:`~meanfield.controllers._queue_loops.price_iteration` (the passes of :meth:`ExitAssignment.solve` in one
+    compiled call, the mean summed as ``np.mean`` does) against its twin, the passes as the solution ran them before:
+    the same least makespan, its offsets and the last pass's, on the crowded hall with its exits open or one closed."""
+    from meanfield._compiled import core as compiled
+    from meanfield.controllers._queue_loops import price_iteration
+    from meanfield.controllers.exit_assignment import ITERATIONS, LAST_PERSON
+
+    loop = ClosedLoop(builtin_scenarios()["hall-crowded-west"](seed=1))
+    loop.step()
+    a = loop.controller.assignment
+    if closed is not None:
+        a.open = np.arange(len(a.capacity)) != closed
+    persons = a.people * np.maximum(np.real(loop.density)[a.active], 0.0) * a.volume
+    k, m = a.arrival.shape
+    exits = np.flatnonzero(a.open)
+    out = {}
+    for twin in (False, True):
+        tau, best_tau = np.where(a.open, np.linspace(0.0, 3.0, k), 0.0), np.empty(k)
+        with compiled.numpy_path() if twin else contextlib.nullcontext():
+            best = price_iteration(a.arrival, a.open, tau, ITERATIONS, a._order.order, a._order.arrival, persons,
+                                   np.asarray(a.capacity, float), exits, LAST_PERSON / len(exits),
+                                   np.empty(m, np.intp), np.empty(k), np.empty(k), np.empty(k), best_tau)  # fmt: skip
+        out[twin] = best, best_tau, tau
+    assert price_iteration._ready or not compiled.enabled()
+    assert out[False][0] == out[True][0] and np.isfinite(out[False][0])
+    np.testing.assert_array_equal(out[False][1], out[True][1])
+    np.testing.assert_array_equal(out[False][2], out[True][2])
+    if closed is not None:
+        assert out[False][1][closed] == 0.0 and out[False][2][closed] == 0.0
