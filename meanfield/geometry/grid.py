@@ -27,6 +27,7 @@ paper (Theorems 1–3) hold to round-off.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -158,12 +159,9 @@ class Grid:
         key = exact_key(self.domain)
         if key is None:  # (a region that cannot say exactly what it is: clipped each time)
             return _fractions(self.domain, self.cells, self.cut_cells)
-        key = (key, self.cells, self.cut_cells)
-        if key not in _FRACTIONS:
-            if len(_FRACTIONS) >= REMEMBERED:
-                del _FRACTIONS[next(iter(_FRACTIONS))]  # the oldest
-            _FRACTIONS[key] = _fractions(self.domain, self.cells, self.cut_cells)
-        return tuple(a.copy() for a in _FRACTIONS[key])
+        fractions = remember(_FRACTIONS, (key, self.cells, self.cut_cells),
+                             lambda: _fractions(self.domain, self.cells, self.cut_cells))  # fmt: skip
+        return tuple(a.copy() for a in fractions)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -356,4 +354,13 @@ def exact_key(region: Any) -> Any:
     if to_dict is None:
         return None
     wkb = getattr(getattr(region, "polygon", None), "wkb", None)  # (a plan's WKT rounds its vertices; its WKB not)
-    return type(region).__qualname__, repr(to_dict()), wkb
+    return f"{type(region).__module__}.{type(region).__qualname__}", repr(to_dict()), wkb
+
+
+def remember(table: dict[Any, Any], key: Any, compute: Callable[[], Any]) -> Any:
+    """``table[key]``, from ``compute()`` the first time; the oldest entry dropped beyond :data:`REMEMBERED`."""
+    if key not in table:
+        if len(table) >= REMEMBERED:
+            del table[next(iter(table))]  # (dicts keep their order of insertion: the oldest first)
+        table[key] = compute()
+    return table[key]

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from meanfield.geometry._target_loops import count_in_disk
-from meanfield.geometry.grid import REMEMBERED, Grid, exact_key
+from meanfield.geometry.grid import Grid, exact_key, remember
 from meanfield.geometry.region import Region
 
 __all__ = ["gaussian_target", "target_region_radius", "fraction_in_disk"]
@@ -47,16 +47,12 @@ def target_region_radius(
     key = exact_key(domain)
     if key is None:  # (a region that cannot say exactly what it is: drawn each time)
         return _radius(domain, *args)
-    key = (key, *args)
-    if key not in _RADII:
-        if len(_RADII) >= REMEMBERED:
-            del _RADII[next(iter(_RADII))]  # the oldest
-        _RADII[key] = _radius(domain, *args)
-    return _RADII[key]
+    return remember(_RADII, (key, *args), lambda: _radius(domain, *args))
 
 
 _RADII: dict[Any, float] = {}
-""":func:`target_region_radius` of the last :data:`~meanfield.geometry.grid.REMEMBERED` regions and targets."""
+""":func:`target_region_radius` of the last :data:`~meanfield.geometry.grid.REMEMBERED` regions and targets
+(:func:`~meanfield.geometry.grid.remember`)."""
 
 
 def _radius(domain: Region, center: tuple[float, float], std: float, mass: float, samples: int) -> float:
