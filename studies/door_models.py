@@ -11,11 +11,11 @@ starting in the room (``crowd.initial = "groups"``, the room's rectangle: none i
 informed crowd on the fastest route (``crowd.guidance = "fastest-route"``, docs page *Congestion*,
 "Routes") and the linear diagram, for
 
-* the point masses with each door model (``crowd.door_model`` = ``"count"``, ``"godunov-twin"`` or
-  ``"headway"``, the last with its exits at their capacity), one run per seed: the flow ``J`` between the
-  exits of 10 % and 90 % of the crowd (:func:`bottleneck_flow.steady_flow`) and the packing, the largest
-  over the recorded seconds of the 95th percentile, among those still in the room, of the others within
-  0.5 m over ``π 0.25`` m² (persons/m², the disk cut by the walls as the agents' own), and the same of
+* the point masses with each door model (``crowd.door_model`` = ``"count"``, ``"godunov-twin"``,
+  ``"headway"`` or ``"forward-cell"``, the last two with their exits at their capacity), one run per seed: the
+  flow ``J`` between the exits of 10 % and 90 % of the crowd (:func:`bottleneck_flow.steady_flow`) and the
+  packing, the largest over the recorded seconds of the 95th percentile, among those still in the room, of the
+  others within 0.5 m over ``π 0.25`` m² (persons/m², the disk cut by the walls as the agents' own), and the same of
   their Voronoi densities (:func:`voronoi_densities`, which read the jam density itself in a hexagonal
   jam, where the disk reads 7.6);
 * the density (``crowd.kind = "fokker-planck"``), one run (it is deterministic): ``J`` from its exits'
@@ -40,7 +40,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bottleneck_flow import pde_flow, scenario, steady_flow  # noqa: E402
 
 RESULTS = Path("studies/results/door_models.jsonl")
-MODELS = ("count", "godunov-twin", "headway", "density")
+MODELS = ("count", "godunov-twin", "headway", "forward-cell", "density")
 ROOM = "POLYGON ((0 0, 10 0, 10 8, 0 8, 0 0))"
 PACKING_RADIUS = 0.5
 """m: the packing's disk."""

@@ -45,9 +45,11 @@ WINDOW = (5.0, 15.0)
 CELL = 0.2
 """m: the cells (the routes' for the agents, the density's)."""
 KINDS = ("point-mass", "fokker-planck")
+DOOR_MODELS = ("headway", "forward-cell")
+"""The point masses' door models the study runs (``--door-models``)."""
 
 
-def scenario(width: float, sigma: float, kind: str, seed: int, dt: float) -> Any:
+def scenario(width: float, sigma: float, kind: str, seed: int, dt: float, door_model: str = "headway") -> Any:
     """The corridor ``width`` m wide with the jam over its first :data:`JAM_LENGTH` m (module docstring)."""
     from meanfield.scenarios.scenario import builtin_scenarios
 
@@ -69,7 +71,7 @@ def scenario(width: float, sigma: float, kind: str, seed: int, dt: float) -> Any
         "dt": dt,
     }
     if kind == "point-mass":
-        values["crowd.door_model"] = "headway"
+        values["crowd.door_model"] = door_model
     return builtin_scenarios()["bottleneck"](seed=seed).with_values(values)
 
 
@@ -84,12 +86,13 @@ def past_front(loop: Any) -> float:
     return crowd.people * (beyond + 1.0 - crowd.remaining_fraction())
 
 
-def one_run(width: float, sigma: float, kind: str, seed: int, dt: float) -> dict[str, Any]:
-    """The flow per metre through the jam's front over :data:`WINDOW`, persons/(m·s)."""
+def one_run(width: float, sigma: float, kind: str, seed: int, dt: float, door_model: str = "headway") -> dict[str, Any]:
+    """The flow per metre through the jam's front over :data:`WINDOW`, persons/(m·s) (the point masses with the
+    door model ``door_model``)."""
     from meanfield.simulation.loop import ClosedLoop
 
     start = time.perf_counter()
-    sc = scenario(width, sigma, kind, seed, dt)
+    sc = scenario(width, sigma, kind, seed, dt, door_model)
     loop = ClosedLoop(sc)
     times, past = [], []
     while loop.t < WINDOW[1] - 1e-9:
@@ -100,14 +103,20 @@ def one_run(width: float, sigma: float, kind: str, seed: int, dt: float) -> dict
     inside = (t >= WINDOW[0] - 1e-9) & (t <= WINDOW[1] + 1e-9)
     flow = float(np.polyfit(t[inside], p[inside], 1)[0])
     q_max = sc.crowd.free_speed * sc.crowd.rho_max / 4.0
-    return {"width": width, "sigma": sigma, "kind": kind, "seed": seed, "dt": dt, "people": sc.crowd.n,
+    model = {"door_model": door_model} if kind == "point-mass" else {}
+    return {"width": width, "sigma": sigma, "kind": kind, **model, "seed": seed, "dt": dt, "people": sc.crowd.n,
             "flow_per_m": flow / width, "q_max": q_max, "wall_seconds": time.perf_counter() - start}  # fmt: skip
 
 
 def rows() -> list[dict[str, Any]]:
+    """The results so far (a point-mass row without ``door_model`` was run with the headway model)."""
     if not RESULTS.exists():
         return []
-    return [json.loads(line) for line in RESULTS.read_text().splitlines() if line.strip()]
+    out = [json.loads(line) for line in RESULTS.read_text().splitlines() if line.strip()]
+    for r in out:
+        if r["kind"] == "point-mass":
+            r.setdefault("door_model", "headway")
+    return out
 
 
 def report(dt: float = 0.05) -> str:
@@ -118,10 +127,12 @@ def report(dt: float = 0.05) -> str:
     lines = ["| σ (m²/s) | crowd | " + " | ".join(f"w = {w:g} m" for w in widths) + " |",
              "|---" * (len(widths) + 2) + "|"]  # fmt: skip
     for sigma in sorted({r["sigma"] for r in rs}):
-        for kind, label in (("point-mass", "agents"), ("fokker-planck", "density")):
+        crowds = [(m, f"agents ({m})") for m in DOOR_MODELS if any(r.get("door_model") == m for r in rs)]
+        for model, label in [*crowds, (None, "density")]:
             cells = []
             for w in widths:
-                got = [r["flow_per_m"] for r in rs if r["kind"] == kind and r["sigma"] == sigma and r["width"] == w]
+                got = [r["flow_per_m"] for r in rs
+                       if r.get("door_model") == model and r["sigma"] == sigma and r["width"] == w]  # fmt: skip
                 if not got:
                     cells.append("—")
                 elif len(got) == 1:
@@ -141,22 +152,26 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--seeds", type=int, default=10, help="the agents' seeds 0 … N−1")
     p.add_argument("--dt", type=float, default=0.05, help="s: the step")
     p.add_argument("--kinds", nargs="+", default=list(KINDS), choices=KINDS)
+    p.add_argument("--door-models", nargs="+", default=list(DOOR_MODELS), choices=DOOR_MODELS,
+                   help="the point masses' door models")  # fmt: skip
     p.add_argument("--report", action="store_true", help="only print the table from the results")
     args = p.parse_args(argv)
     if not args.report:
-        done = {(r["kind"], r["width"], r["sigma"], r["seed"], r["dt"]) for r in rows()}
+        done = {(r["kind"], r.get("door_model"), r["width"], r["sigma"], r["seed"], r["dt"]) for r in rows()}
         RESULTS.parent.mkdir(parents=True, exist_ok=True)
         for sigma in args.sigmas:
             for width in args.widths:
-                for kind in args.kinds:
+                runs = [("point-mass", m) for m in args.door_models if "point-mass" in args.kinds]
+                runs += [("fokker-planck", None)] if "fokker-planck" in args.kinds else []
+                for kind, model in runs:
                     for seed in range(args.seeds if kind == "point-mass" else 1):
-                        if (kind, width, sigma, seed, args.dt) in done:
+                        if (kind, model, width, sigma, seed, args.dt) in done:
                             continue
-                        row = one_run(width, sigma, kind, seed, args.dt)
+                        row = one_run(width, sigma, kind, seed, args.dt, model or "headway")
                         with RESULTS.open("a") as f:
                             f.write(json.dumps(row) + "\n")
                         flow, wall = row["flow_per_m"], row["wall_seconds"]
-                        label = f"{kind} w={width:g} σ={sigma:g} seed={seed} dt={args.dt:g}"
+                        label = f"{model or kind} w={width:g} σ={sigma:g} seed={seed} dt={args.dt:g}"
                         print(f"{label}: {flow:.3f} persons/(m·s) ({wall:.0f} s)", flush=True)
     print(report(args.dt))
 

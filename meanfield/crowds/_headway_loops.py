@@ -60,6 +60,7 @@ __all__ = [
     "lane_headways",
     "choose_lanes",
     "contact_cone",
+    "following_cone",
     "headway_step",
     "contact_noise",
     "CONTACT_NOISE_POWER",
@@ -996,6 +997,190 @@ def contact_cone(
     if cells.h < jam:
         raise ValueError(f"contact_cone needs cells at least {jam} m wide, got {cells.h}")
     _cone_compiled(v, x, active, jam, separation, cells.arrays())
+    return v
+
+
+def _nearest_feasible_numpy(vx, vy, n, b):
+    """The point nearest ``(vx, vy)`` of ``{u : u·n_c <= b_c}`` (``n`` (c, 2) unit, ``b >= 0``): the point itself,
+    a projection on one line or a meeting of two, whichever is feasible and nearest (the origin always is)."""
+    tol = 1e-12 * (math.hypot(vx, vy) + float(b.max()))
+    cands = [(vx, vy)]
+    for c in range(len(b)):
+        a = vx * n[c, 0] + vy * n[c, 1] - b[c]
+        cands.append((vx - a * n[c, 0], vy - a * n[c, 1]))
+    for c1 in range(len(b)):
+        for c2 in range(c1 + 1, len(b)):
+            det = n[c1, 0] * n[c2, 1] - n[c1, 1] * n[c2, 0]
+            if abs(det) > 1e-12:
+                cands.append(((b[c1] * n[c2, 1] - b[c2] * n[c1, 1]) / det, (n[c1, 0] * b[c2] - n[c2, 0] * b[c1]) / det))
+    cands.append((0.0, 0.0))
+    best, out = math.inf, (0.0, 0.0)
+    for ux, uy in cands:
+        if np.all(ux * n[:, 0] + uy * n[:, 1] - b <= tol):
+            d = (ux - vx) ** 2 + (uy - vy) ** 2
+            if d < best:
+                best, out = d, (ux, uy)
+    return out
+
+
+def _following_numpy(v, walk, x, active, jam, separation, cells):
+    """The numpy twin of :func:`following_cone` (every pair closer than ``d``; ``cells`` unused)."""
+    v[:] = walk
+    j, k, r2 = _pairs(x, active, jam)
+    keep = r2 > 0.0
+    j, k, r2 = j[keep], k[keep], r2[keep]
+    r = np.sqrt(r2)
+    n = (x[k] - x[j]) / r[:, None]
+    w = separation * (jam - r) / jam
+    b = np.maximum(0.0, np.einsum("ij,ij->i", walk[k], n))
+    for who in np.unique(j):
+        mine = j == who
+        v[who] = _nearest_feasible_numpy(walk[who, 0], walk[who, 1], n[mine], b[mine])
+        v[who, 0] -= float(np.sum(w[mine] * n[mine, 0]))
+        v[who, 1] -= float(np.sum(w[mine] * n[mine, 1]))
+
+
+@inlined
+def _feasible(ux, uy, cnx, cny, cb, contacts, tol):
+    """Whether ``u`` approaches none of the contacts faster than it may: ``u·n_c <= b_c`` (within ``tol``)."""
+    for c in range(contacts):
+        if ux * cnx[c] + uy * cny[c] - cb[c] > tol:
+            return False
+    return True
+
+
+@inlined
+def _nearest_feasible(vx, vy, cnx, cny, cb, contacts):
+    """:func:`_nearest_feasible_numpy`'s point, its candidates in the same order."""
+    bmax = 0.0
+    for c in range(contacts):
+        bmax = max(bmax, cb[c])
+    tol = 1e-12 * (math.hypot(vx, vy) + bmax)
+    if _feasible(vx, vy, cnx, cny, cb, contacts, tol):
+        return vx, vy
+    best = math.inf
+    bx = 0.0
+    by = 0.0
+    for c in range(contacts):
+        a = vx * cnx[c] + vy * cny[c] - cb[c]
+        ux = vx - a * cnx[c]
+        uy = vy - a * cny[c]
+        if _feasible(ux, uy, cnx, cny, cb, contacts, tol):
+            d = (ux - vx) * (ux - vx) + (uy - vy) * (uy - vy)
+            if d < best:
+                best = d
+                bx = ux
+                by = uy
+    for c1 in range(contacts):
+        for c2 in range(c1 + 1, contacts):
+            det = cnx[c1] * cny[c2] - cny[c1] * cnx[c2]
+            if abs(det) > 1e-12:
+                ux = (cb[c1] * cny[c2] - cb[c2] * cny[c1]) / det
+                uy = (cnx[c1] * cb[c2] - cnx[c2] * cb[c1]) / det
+                if _feasible(ux, uy, cnx, cny, cb, contacts, tol):
+                    d = (ux - vx) * (ux - vx) + (uy - vy) * (uy - vy)
+                    if d < best:
+                        best = d
+                        bx = ux
+                        by = uy
+    if vx * vx + vy * vy < best:  # the origin, always feasible
+        bx = 0.0
+        by = 0.0
+    return bx, by
+
+
+@compiled(fallback=_following_numpy, parallel_over="v")
+def _following_compiled(v, walk, x, active, jam, separation, cells):
+    order, starts, pos, origin, h, nx, ny = cells
+    ox = origin[0]
+    oy = origin[1]
+    jam2 = jam * jam
+    m = order.shape[0]
+    for j in prange(v.shape[0]):
+        v[j, 0] = walk[j, 0]
+        v[j, 1] = walk[j, 1]
+    for chunk in prange((m + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):  # the humans in cell order
+        cap = CONTACTS
+        cnx = np.empty(cap)
+        cny = np.empty(cap)
+        cb = np.empty(cap)
+        cw = np.empty(cap)
+        for t in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, m)):
+            j = order[t]
+            xj = pos[t, 0]
+            yj = pos[t, 1]
+            cx = min(int((xj - ox) // h), nx - 1)
+            cy = min(int((yj - oy) // h), ny - 1)
+            contacts = 0
+            for gy in range(max(cy - 1, 0), min(cy + 2, ny)):
+                for u in range(starts[gy * nx + max(cx - 1, 0)], starts[gy * nx + min(cx + 2, nx)]):
+                    dx = pos[u, 0] - xj
+                    dy = pos[u, 1] - yj
+                    r2 = dx * dx + dy * dy
+                    if 0.0 < r2 < jam2:
+                        if contacts == cap:  # more contacts than the buffers hold: grow them
+                            cap *= 2
+                            grown = np.empty((4, cap))
+                            grown[0, :contacts] = cnx[:contacts]
+                            grown[1, :contacts] = cny[:contacts]
+                            grown[2, :contacts] = cb[:contacts]
+                            grown[3, :contacts] = cw[:contacts]
+                            cnx = grown[0].copy()
+                            cny = grown[1].copy()
+                            cb = grown[2].copy()
+                            cw = grown[3].copy()
+                        r = math.sqrt(r2)
+                        k = order[u]
+                        cnx[contacts] = dx / r
+                        cny[contacts] = dy / r
+                        cb[contacts] = max(0.0, walk[k, 0] * (dx / r) + walk[k, 1] * (dy / r))
+                        cw[contacts] = separation * (jam - r) / jam
+                        contacts += 1
+            if contacts == 0:
+                continue
+            vx, vy = _nearest_feasible(walk[j, 0], walk[j, 1], cnx, cny, cb, contacts)
+            for c in range(contacts):
+                vx -= cw[c] * cnx[c]
+                vy -= cw[c] * cny[c]
+            v[j, 0] = vx
+            v[j, 1] = vy
+
+
+def following_cone(
+    v: np.ndarray, walk: np.ndarray, x: np.ndarray, active: np.ndarray, jam: float, separation: float,
+    cells: CellList,
+) -> np.ndarray:  # fmt: skip
+    """(H2') and (H3): each active human's walk, the nearest velocity that approaches nobody it touches faster
+    than that one walks away, then the soft core's separation, into ``v`` (docs page *Congestion*, "The
+    forward-cell door model")::
+
+        v_j = argmin{ |u − w_j| : u·n_jk <= max(0, w_k·n_jk) for every k with |X_k − X_j| < d }
+              − u Σ_k (1 − |X_k − X_j|/d) n_jk,        n_jk = (X_k − X_j)/|X_k − X_j|
+
+    ``w`` the walks before contacts (every human's is read, none is changed, so the order does not matter).  The
+    set is a convex polygon holding the origin; its nearest point is ``w_j``, a projection on one of its lines or
+    a meeting of two.  With ``w_k = 0`` it is (H2)'s cone; a human whose leader walks away is not stopped by it.
+
+    Parameters
+    ----------
+    v : ndarray, shape (N, 2)
+        Written: the velocities (those not active keep their walk).
+    walk : ndarray, shape (N, 2)
+        The walks before contacts, m/s.
+    x : ndarray, shape (N, 2)
+        Positions.
+    active : ndarray of bool, shape (N,)
+        Who counts and is counted.
+    jam : float
+        ``d``: those closer than this touch (m).
+    separation : float
+        ``u``, m/s: the speed at which two people at the same point step apart.
+    cells : CellList
+        The active humans in cells of width at least ``d`` (:func:`cell_list`).
+    """
+    if cells.h < jam:
+        raise ValueError(f"following_cone needs cells at least {jam} m wide, got {cells.h}")
+    _following_compiled(v, walk, x, active, float(jam), float(separation), cells.arrays())
     return v
 
 

@@ -47,6 +47,7 @@ from meanfield import plugins
 from meanfield.capabilities import CrowdCapabilities, declares
 from meanfield.crowds._field_loops import bilinear_at, gaussian_field_at
 from meanfield.crowds.congestion import FundamentalDiagram, GodunovTwin
+from meanfield.crowds.forward_cell import ForwardCell
 from meanfield.crowds.groups import group_positions
 from meanfield.crowds.guidance import Guidance
 from meanfield.crowds.headway import Headway
@@ -89,10 +90,15 @@ def _headway(diagram: FundamentalDiagram, region: Region | None) -> Headway:
     return Headway(diagram, region=region)
 
 
+def _forward_cell(diagram: FundamentalDiagram, region: Region | None) -> ForwardCell:
+    return ForwardCell(diagram, region=region)
+
+
 DOOR_MODELS: dict[str, Callable[[FundamentalDiagram, Region | None], Any] | None] = {
     "count": None,  # g of the count in the whole disk (AgentCrowd._slow_down)
     "godunov-twin": _twin,
     "headway": _headway,
+    "forward-cell": _forward_cell,
 }
 """The agents' door models (``crowd.door_model``; docs page *Congestion*, "The agents' door model"): each makes,
 from the diagram and Ω, an object whose ``slow_down(velocity, positions, active, dt, density)`` changes the walk
@@ -775,8 +781,8 @@ class AgentCrowd:
         places_groups=True,
         group_exits=True,
         # a congested human's speed from the spacing to the person ahead ("headway", the first: the default), the
-        # count round it or the Godunov twin (crowd.door_model, DOOR_MODELS)
-        door_models=("headway", "count", "godunov-twin"),
+        # count round it, the Godunov twin or the density of one's Voronoi cell ahead (crowd.door_model, DOOR_MODELS)
+        door_models=("headway", "count", "godunov-twin", "forward-cell"),
         # a region can become wall during a run ([[events]] block, AgentCrowd.walls_changed): the people in it step
         # out, and the signs, routes and walks go round it
         changes_walls=True,

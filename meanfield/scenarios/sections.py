@@ -106,8 +106,10 @@ class CrowdSpec:
     ``"godunov-twin"`` (the density's Godunov flux between the half disks behind and ahead of it,
     with the excluded volume's push, :class:`~meanfield.crowds.congestion.GodunovTwin`) or
     ``"headway"`` (the diagram's speed at the spacing to the person ahead in one's lane, and a walk
-    that approaches nobody it touches, :class:`~meanfield.crowds.headway.Headway`); a crowd kind
-    takes the models it declares (``door_models``: the point masses all three, the headway first; the
+    that approaches nobody it touches, :class:`~meanfield.crowds.headway.Headway`) or ``"forward-cell"``
+    (the diagram's speed at the density of the part of one's Voronoi cell ahead of one,
+    :class:`~meanfield.crowds.forward_cell.ForwardCell`); a crowd kind
+    takes the models it declares (``door_models``: the point masses all four, the headway first; the
     density's flux is Godunov's and JuPedSim's bodies queue by their own model, so they take ``"auto"``,
     and ``"count"``, the default before ``"auto"``, which they ignore).
 
@@ -191,7 +193,7 @@ MIN_CONGESTION_RADIUS = 0.05
 RHO_MAX_RANGE = (1.0, 20.0)
 """persons/m²: the ``crowd.rho_max`` a fundamental diagram takes (a jam below 1 person/m² freezes everyone; above
 20 persons/m² people would overlap: bodies of 0.2 m radius cannot stand closer than about 8 per m²)."""
-DOOR_MODELS = ("auto", "count", "godunov-twin", "headway")
+DOOR_MODELS = ("auto", "count", "godunov-twin", "headway", "forward-cell")
 """``crowd.door_model``: how a congested agent's speed follows the density round it (docs page *Congestion*)."""
 
 
