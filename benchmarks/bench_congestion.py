@@ -1,5 +1,5 @@
 """A congested closed-loop step against the same step without congestion, at N = 200 and N = 10⁶, for the
-headway door model (the default) and for the count.
+headway door model (the default), for the count and for the forward cell.
 
 Run:  python benchmarks/bench_congestion.py [--quick] [--json FILE]
 
@@ -49,9 +49,11 @@ SETTINGS = {
     "none": {"crowd.congestion": "none"},
     "headway": {"crowd.congestion": "linear"},
     "count": {"crowd.congestion": "linear", "crowd.door_model": "count"},
+    "forward-cell": {"crowd.congestion": "linear", "crowd.door_model": "forward-cell"},
 }
 """The timed settings: the anchor (no congestion), the default door model, the headway (docs page *Congestion*,
-"The headway door model"), and the count."""
+"The headway door model"), the count, and the forward cell (its Voronoi cell ahead, "The forward-cell door
+model")."""
 
 
 def small_scenario(model: str, seed: int) -> Any:
@@ -118,7 +120,7 @@ def suite_records(quick: bool) -> list[dict[str, Any]]:
     Returns
     -------
     list of dict
-        Four records (the count and the headway, at each size); the goal of each is a ratio of at least
+        Six records (the headway, the count and the forward cell, at each size); the goal of each is a ratio of at least
         ``1 / GOAL_COST_RATIO``.
     """
     s = settings("congestion", quick)
@@ -136,6 +138,8 @@ def suite_records(quick: bool) -> list[dict[str, Any]]:
              "crowd.congestion = 'linear' (the default door model, the headway: the person ahead, the contact cone)"),
             ("count", f"congested step, count door model, {size_name}",
              "crowd.congestion = 'linear', crowd.door_model = 'count' (g of the local density within 0.5 m)"),
+            ("forward-cell", f"congested step, forward-cell door model, {size_name}",
+             "crowd.congestion = 'linear', crowd.door_model = 'forward-cell' (the Voronoi cell ahead)"),
         ):  # fmt: skip
             records.append(
                 measured(

@@ -5,17 +5,24 @@ area (m²) of its forward cell::
 
     A_jq = | V_j ∩ { y : (y − X_j)·t_q >= 0 } |,   t_q = e_j turned by θ_q                                  (C1)
 
-where ``V_j`` is its Voronoi cell among the active humans: the points nearer ``X_j`` than any other human, cut by
-the walls (each wall segment whose foot of the perpendicular from ``X_j`` falls on it cuts ``V_j`` along its own
-line, the bisector of ``X_j`` and its mirror image) and by the square of half-side ``R`` (the reach) centred on
-``X_j``.  The door model reads the density ``1 / (2 A_jq)`` (docs page *Congestion*, "The forward-cell door
-model").  ``V_j`` is the intersection of half-planes, built by clipping the square by each bisector in turn
-(Sutherland–Hodgman); a neighbour farther than twice the cell's farthest vertex cannot cut it, so the compiled
-loop reads its neighbours from a cell list ring by ring and stops at the first ring beyond that.  For a standing
-human (``e_j = 0``) every turn reads half the cell.
+where ``V_j`` is the part of its Voronoi cell among the active humans (the points nearer ``X_j`` than any other
+human, within the square of half-side ``R``, the reach, centred on ``X_j``) that ``X_j`` sees: the cell less the
+*shadow* of every wall, the points behind the wall's segment as seen from ``X_j`` (beyond its line, between the
+rays through its ends).  The door model reads the density ``1 / (2 A_jq)`` (docs page *Congestion*, "The
+forward-cell door model").
 
-The numpy twin clips by every neighbour within twice the square's half-diagonal, in the order of their index;
-the cell is the same set, so the areas agree to round-off.  The loop over humans runs on numba's threads above
+The cell is the intersection of half-planes, built by clipping the square by each bisector in turn
+(Sutherland–Hodgman); a neighbour farther than twice the cell's farthest vertex cannot cut it, so the compiled loop
+reads its neighbours from a cell list ring by ring and stops at the first ring beyond that.  A shadow is the
+intersection of three half-planes, so the cell's part ahead within one shadow is convex too; its area is taken
+off, and the part within two shadows put back (inclusion–exclusion to pairs: three walls near one human that
+hide each other's shadows are none of the plans').  The walls are oriented with Ω on their left, and a wall whose
+back faces the human (it is on the wall's outer side) is hidden by others and casts nothing: without this, the
+corridor's side wall seen from the room through the corridor's mouth would take a second time what the room's
+wall hides.  For a standing human (``e_j = 0``) every turn reads half the cell.
+
+The numpy twin clips by every neighbour within twice the square's half-diagonal, in the order of their index, and
+takes the same shadows; the areas agree to round-off.  The loop over humans runs on numba's threads above
 :data:`~meanfield._compiled.core.PARALLEL_CHUNK` humans, each writing its own row: the same numbers on any number
 of threads.
 """
@@ -29,28 +36,33 @@ import numpy as np
 
 from meanfield._compiled.core import PARALLEL_CHUNK, compiled, inlined, prange
 
-__all__ = ["forward_cells", "CELL_VERTICES"]
+__all__ = ["forward_cells", "forward_densities", "CELL_VERTICES"]
 
 CELL_VERTICES = 64
 """The most vertices a cell's polygon holds; a cell with more (none in a crowd: a Voronoi cell has about six)
 stops clipping there, keeping the larger polygon it has."""
 
 
-def _clip_numpy(poly: np.ndarray, nx: float, ny: float, c: float) -> np.ndarray:
-    """``poly`` (m, 2), convex, cut to ``{y : y·(nx, ny) <= c}`` (Sutherland–Hodgman)."""
+def _clip_numpy(poly: np.ndarray, nx: float, ny: float, c: float, labels: list | None = None, label: int = -1):
+    """``poly`` (m, 2), convex, cut to ``{y : y·(nx, ny) <= c}`` (Sutherland–Hodgman).  With ``labels`` (the
+    label of each edge ``i → i + 1``), returns the cut polygon and its edges' labels, the new edge along the line
+    labelled ``label``."""
     if len(poly) == 0:
-        return poly
+        return poly if labels is None else (poly, [])
     a = poly[:, 0] * nx + poly[:, 1] * ny - c
-    out = []
+    out, out_labels = [], []
     m = len(poly)
     for i in range(m):
         k = (i + 1) % m
         if a[i] <= 0.0:
             out.append(poly[i])
+            out_labels.append(-2 if labels is None else labels[i])
         if (a[i] < 0.0 < a[k]) or (a[k] < 0.0 < a[i]):
             t = a[i] / (a[i] - a[k])
             out.append(poly[i] + t * (poly[k] - poly[i]))
-    return np.array(out).reshape(-1, 2)
+            out_labels.append(label if a[i] < 0.0 else (-2 if labels is None else labels[i]))
+    cut = np.array(out).reshape(-1, 2)
+    return cut if labels is None else (cut, out_labels)
 
 
 def _area_numpy(poly: np.ndarray) -> float:
@@ -61,32 +73,71 @@ def _area_numpy(poly: np.ndarray) -> float:
     return 0.5 * abs(float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)))
 
 
-def _cells_numpy(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out):
-    """The numpy twin of :func:`forward_cells` (every neighbour within ``2√2 R``; ``cells`` unused)."""
+def _shadow_planes(ax: float, ay: float, vx: float, vy: float) -> np.ndarray | None:
+    """The shadow of the wall ``a + u v`` (Ω on its left; ``a`` relative to the human) as three half-planes
+    ``y·n <= c``, rows ``(nx, ny, c)``: beyond its line, and between the rays through its ends; None if the human
+    is on its line or behind it."""
+    norm = math.hypot(vx, vy)
+    lx, ly = -vy / norm, vx / norm  # the left normal, toward Ω
+    side = -(lx * ax + ly * ay)  # the human's distance on Ω's side of the line
+    if not side > 0.0:
+        return None
+    bx, by = ax + vx, ay + vy
+    return np.array([[lx, ly, -side], [ay, -ax, 0.0], [-by, bx, 0.0]])
+
+
+def _cells_numpy(x, e, active, cos, sin, reach, wall_a, wall_v, cells, full, out, count, pool):
+    """The numpy twin of :func:`forward_cells`'s loop (every neighbour within ``2√2 R``; ``cells`` unused)."""
     out[:] = np.inf
+    count[:] = 0.0
+    pool[:] = 0.0
     ok = active & np.isfinite(x[:, 0]) & np.isfinite(x[:, 1])
     idx = np.flatnonzero(ok)
-    far2 = 8.0 * reach * reach
+    far2_all = 8.0 * reach * reach
     square = np.array([[-reach, -reach], [reach, -reach], [reach, reach], [-reach, reach]])
     for j in idx:
-        poly = square.copy()
-        t = np.einsum("ij,ij->i", x[j] - wall_a, wall_v) / np.einsum("ij,ij->i", wall_v, wall_v)
-        for w in np.flatnonzero((t >= 0.0) & (t <= 1.0)):
-            f = wall_a[w] + t[w] * wall_v[w] - x[j]
-            h2 = float(f @ f)
-            if h2 > 0.0:
-                poly = _clip_numpy(poly, f[0], f[1], h2)
+        poly, labels = square.copy(), [-1, -1, -1, -1]
         d = x[idx] - x[j]
         d2 = np.einsum("ij,ij->i", d, d)
-        for k in np.flatnonzero((d2 > 0.0) & (d2 < far2)):
-            poly = _clip_numpy(poly, d[k, 0], d[k, 1], 0.5 * d2[k])
+        for k in np.flatnonzero((d2 > 0.0) & (d2 < far2_all)):
+            poly, labels = _clip_numpy(poly, d[k, 0], d[k, 1], 0.5 * d2[k], labels, int(idx[k]))
+        far2 = float(np.max(np.einsum("ij,ij->i", poly, poly))) if len(poly) else 0.0
+        shadows = []
+        for w in range(len(wall_a)):
+            ax, ay = wall_a[w, 0] - x[j, 0], wall_a[w, 1] - x[j, 1]
+            vx, vy = wall_v[w]
+            u = min(1.0, max(0.0, -(ax * vx + ay * vy) / (vx * vx + vy * vy)))
+            if (ax + u * vx) ** 2 + (ay + u * vy) ** 2 < far2:
+                planes = _shadow_planes(ax, ay, vx, vy)
+                if planes is not None:
+                    shadows.append(planes)
+        seen = [k for k in labels if k >= 0 and not any(
+            all(p[0] * (x[k, 0] - x[j, 0]) + p[1] * (x[k, 1] - x[j, 1]) <= p[2] for p in planes) for planes in shadows)]
         for q in range(len(cos)):
             tx = cos[q] * e[j, 0] - sin[q] * e[j, 1]
             ty = sin[q] * e[j, 0] + cos[q] * e[j, 1]
-            if tx == 0.0 and ty == 0.0:
-                out[j, q] = 0.5 * _area_numpy(poly)
-            else:
-                out[j, q] = _area_numpy(_clip_numpy(poly, -tx, -ty, 0.0))
+            ahead = poly if tx == 0.0 and ty == 0.0 else _clip_numpy(poly, -tx, -ty, 0.0)
+            area = _area_numpy(ahead)
+            parts = []
+            for planes in shadows:
+                part = ahead
+                for nx, ny, c in planes:
+                    part = _clip_numpy(part, nx, ny, c)
+                area -= _area_numpy(part)
+                parts.append(part)
+            for i in range(len(parts)):
+                for k in range(i + 1, len(parts)):
+                    both = parts[i]
+                    for nx, ny, c in shadows[k]:
+                        both = _clip_numpy(both, nx, ny, c)
+                    area += _area_numpy(both)
+            area = max(area, 0.0)
+            out[j, q] = 0.5 * area if tx == 0.0 and ty == 0.0 else area
+            if len(full):
+                for k in seen:
+                    if (x[k, 0] - x[j, 0]) * tx + (x[k, 1] - x[j, 1]) * ty > 0.0:
+                        count[j, q] += 1.0
+                        pool[j, q] += full[k]
 
 
 @inlined
@@ -123,34 +174,68 @@ def _area(px, py, m):
 
 
 @inlined
-def _cut(px, py, m, nx, ny, c, qx, qy):
-    """:func:`_clip` in place on ``(px, py)`` (``qx``, ``qy`` scratch); returns the new vertex count and the
-    squared distance of its farthest vertex from the origin."""
-    m = _clip(px, py, m, nx, ny, c, qx, qy)
-    far2 = 0.0
+def _cut_labelled(px, py, pl, m, nx, ny, c, label, qx, qy, ql):
+    """:func:`_cut` that keeps each edge's label (``pl[i]``: the neighbour whose bisector the edge ``i → i + 1`` lies
+    on, −1 for the square's), the new edge labelled ``label``: the twin's labels."""
+    k = 0
     for i in range(m):
+        i1 = i + 1 if i + 1 < m else 0
+        a = px[i] * nx + py[i] * ny - c
+        b = px[i1] * nx + py[i1] * ny - c
+        if a <= 0.0:
+            qx[k] = px[i]
+            qy[k] = py[i]
+            ql[k] = pl[i]
+            k += 1
+        if (a < 0.0 and b > 0.0) or (b < 0.0 and a > 0.0):
+            t = a / (a - b)
+            qx[k] = px[i] + t * (px[i1] - px[i])
+            qy[k] = py[i] + t * (py[i1] - py[i])
+            ql[k] = label if a < 0.0 else pl[i]
+            k += 1
+    far2 = 0.0
+    for i in range(k):
         px[i] = qx[i]
         py[i] = qy[i]
+        pl[i] = ql[i]
         far2 = max(far2, qx[i] * qx[i] + qy[i] * qy[i])
-    return m, far2
+    return k, far2
+
+
+SHADOWS = 16
+"""The most walls whose shadows one human's cell takes; farther ones beyond that many are left out (a cell reaches
+a few metres; no plan has more walls that near)."""
 
 
 @compiled(fallback=_cells_numpy, parallel_over="x")
-def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out):
+def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, full, out, count, pool):
     order, starts, pos, origin, h, nx, ny = cells
     ox = origin[0]
     oy = origin[1]
     for j in prange(x.shape[0]):
         for q in range(cos.shape[0]):
             out[j, q] = math.inf
+            count[j, q] = 0.0
+            pool[j, q] = 0.0
+    pooled = full.shape[0] > 0
     n_walls = wall_a.shape[0]
     m_all = order.shape[0]
     cap = CELL_VERTICES
     for chunk in prange((m_all + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):  # the humans in cell order
         px = np.empty(cap + 2)
         py = np.empty(cap + 2)
+        pl = np.empty(cap + 2, np.int64)
         qx = np.empty(cap + 2)
         qy = np.empty(cap + 2)
+        ql = np.empty(cap + 2, np.int64)
+        rx = np.empty(cap + 2)
+        ry = np.empty(cap + 2)
+        ax_ = np.empty(cap + 2)  # the cell ahead
+        ay_ = np.empty(cap + 2)
+        sx = np.empty((SHADOWS, cap + 2))  # its part in each shadow
+        sy = np.empty((SHADOWS, cap + 2))
+        sm = np.empty(SHADOWS, np.int64)
+        planes = np.empty((SHADOWS, 9))
         for t in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, m_all)):
             j = order[t]
             xj = pos[t, 0]
@@ -163,19 +248,10 @@ def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out):
             py[2] = reach
             px[3] = -reach
             py[3] = reach
+            for i in range(4):
+                pl[i] = -1
             m = 4
             far2 = 2.0 * reach * reach
-            for w in range(n_walls):  # the walls first: their mirror images' bisectors
-                vx = wall_v[w, 0]
-                vy = wall_v[w, 1]
-                u = ((xj - wall_a[w, 0]) * vx + (yj - wall_a[w, 1]) * vy) / (vx * vx + vy * vy)
-                if u < 0.0 or u > 1.0:
-                    continue
-                fx = wall_a[w, 0] + u * vx - xj
-                fy = wall_a[w, 1] + u * vy - yj
-                h2 = fx * fx + fy * fy
-                if h2 > 0.0 and m < cap:
-                    m, far2 = _cut(px, py, m, fx, fy, h2, qx, qy)
             cx = min(int((xj - ox) // h), nx - 1)
             cy = min(int((yj - oy) // h), ny - 1)
             ring = 0
@@ -185,8 +261,7 @@ def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out):
                 if ring > max(cx, nx - 1 - cx, cy, ny - 1 - cy):
                     break
                 for gy in range(max(cy - ring, 0), min(cy + ring, ny - 1) + 1):
-                    edge = gy == cy - ring or gy == cy + ring
-                    step = 1 if edge else 2 * ring
+                    step = 1 if (gy == cy - ring or gy == cy + ring) else 2 * ring
                     gx = cx - ring
                     while gx <= cx + ring:
                         if 0 <= gx < nx:
@@ -196,27 +271,99 @@ def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out):
                                 dy = pos[s, 1] - yj
                                 d2 = dx * dx + dy * dy
                                 if d2 > 0.0 and 0.25 * d2 < far2 and m < cap:
-                                    m, far2 = _cut(px, py, m, dx, dy, 0.5 * d2, qx, qy)
+                                    m, far2 = _cut_labelled(px, py, pl, m, dx, dy, 0.5 * d2, order[s], qx, qy, ql)
                         gx += step
                 ring += 1
+            shadows = 0
+            for w in range(n_walls):  # the walls near enough to hide part of the cell, facing the human
+                wx = wall_a[w, 0] - xj
+                wy = wall_a[w, 1] - yj
+                vx = wall_v[w, 0]
+                vy = wall_v[w, 1]
+                u = min(1.0, max(0.0, -(wx * vx + wy * vy) / (vx * vx + vy * vy)))
+                if (wx + u * vx) * (wx + u * vx) + (wy + u * vy) * (wy + u * vy) >= far2 or shadows == SHADOWS:
+                    continue
+                norm = math.hypot(vx, vy)
+                lx = -vy / norm
+                ly = vx / norm
+                side = -(lx * wx + ly * wy)
+                if not side > 0.0:
+                    continue
+                planes[shadows, 0] = lx
+                planes[shadows, 1] = ly
+                planes[shadows, 2] = -side
+                planes[shadows, 3] = wy
+                planes[shadows, 4] = -wx
+                planes[shadows, 5] = 0.0
+                planes[shadows, 6] = -(wy + vy)
+                planes[shadows, 7] = wx + vx
+                planes[shadows, 8] = 0.0
+                shadows += 1
             ex = e[j, 0]
             ey = e[j, 1]
             for q in range(cos.shape[0]):
                 tx = cos[q] * ex - sin[q] * ey
                 ty = sin[q] * ex + cos[q] * ey
-                if tx == 0.0 and ty == 0.0:
-                    out[j, q] = 0.5 * _area(px, py, m)
+                standing = tx == 0.0 and ty == 0.0
+                if standing:
+                    k = m
+                    for i in range(m):
+                        ax_[i] = px[i]
+                        ay_[i] = py[i]
                 else:
-                    k = _clip(px, py, m, -tx, -ty, 0.0, qx, qy)
-                    out[j, q] = _area(qx, qy, k)
+                    k = _clip(px, py, m, -tx, -ty, 0.0, ax_, ay_)
+                area = _area(ax_, ay_, k)
+                for i in range(shadows):  # less each shadow's part
+                    mi = _clip(ax_, ay_, k, planes[i, 0], planes[i, 1], planes[i, 2], qx, qy)
+                    mi = _clip(qx, qy, mi, planes[i, 3], planes[i, 4], planes[i, 5], sx[i], sy[i])
+                    mi = _clip(sx[i], sy[i], mi, planes[i, 6], planes[i, 7], planes[i, 8], qx, qy)
+                    for v in range(mi):
+                        sx[i, v] = qx[v]
+                        sy[i, v] = qy[v]
+                    sm[i] = mi
+                    area -= _area(sx[i], sy[i], mi)
+                for i in range(shadows):  # and each pair's common part put back
+                    for i2 in range(i + 1, shadows):
+                        mb = _clip(sx[i], sy[i], sm[i], planes[i2, 0], planes[i2, 1], planes[i2, 2], qx, qy)
+                        mb = _clip(qx, qy, mb, planes[i2, 3], planes[i2, 4], planes[i2, 5], rx, ry)
+                        mb = _clip(rx, ry, mb, planes[i2, 6], planes[i2, 7], planes[i2, 8], qx, qy)
+                        area += _area(qx, qy, mb)
+                area = max(area, 0.0)
+                out[j, q] = 0.5 * area if standing else area
+                if pooled:  # the neighbours ahead that it sees: their count and whole cells
+                    for i in range(m):
+                        k2 = pl[i]
+                        if k2 < 0:
+                            continue
+                        kx = x[k2, 0] - xj
+                        ky = x[k2, 1] - yj
+                        if kx * tx + ky * ty <= 0.0:
+                            continue
+                        hidden = False
+                        for i2 in range(shadows):
+                            if (kx * planes[i2, 0] + ky * planes[i2, 1] <= planes[i2, 2]
+                                    and kx * planes[i2, 3] + ky * planes[i2, 4] <= planes[i2, 5]
+                                    and kx * planes[i2, 6] + ky * planes[i2, 7] <= planes[i2, 8]):  # fmt: skip
+                                hidden = True
+                        if not hidden:
+                            count[j, q] += 1.0
+                            pool[j, q] += full[k2]
+
+
+_NO_POOL = np.empty(0)
+
+
+def _walls(wall_starts: np.ndarray, wall_vectors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return (np.ascontiguousarray(wall_starts, dtype=float).reshape(-1, 2),
+            np.ascontiguousarray(wall_vectors, dtype=float).reshape(-1, 2))  # fmt: skip
 
 
 def forward_cells(
     x: np.ndarray, e: np.ndarray, active: np.ndarray, cos: np.ndarray, sin: np.ndarray, reach: float,
     wall_starts: np.ndarray, wall_vectors: np.ndarray, cells: Any, out: np.ndarray,
 ) -> np.ndarray:  # fmt: skip
-    """(C1): each active human's forward cell along each turn of its route's direction, its area in ``out``
-    (module docstring; ``inf`` for those not active).
+    """(C1)'s cells: each active human's forward cell along each turn of its route's direction, its area in
+    ``out`` (module docstring; ``inf`` for those not active).
 
     Parameters
     ----------
@@ -229,8 +376,8 @@ def forward_cells(
     reach : float
         ``R``, m: the square of half-side ``R`` round each human that bounds its cell.
     wall_starts, wall_vectors : ndarray, shape (W, 2)
-        The walls that cut the cells, the segments ``a_w + u v_w``, ``0 <= u <= 1`` (exits are not walls here: a
-        door does not crowd those in front of it).
+        The walls, the segments ``a_w + u v_w``, ``0 <= u <= 1``, with Ω on their left (exits are not walls here:
+        a door does not crowd those in front of it).
     cells : CellList
         The active humans in cells (:func:`~meanfield.crowds._headway_loops.cell_list`).
     out : ndarray, shape (N, K)
@@ -238,7 +385,43 @@ def forward_cells(
     """
     if not reach > 0.0:
         raise ValueError(f"forward_cells needs a reach > 0 m, got {reach!r}")
-    a = np.ascontiguousarray(wall_starts, dtype=float).reshape(-1, 2)
-    v = np.ascontiguousarray(wall_vectors, dtype=float).reshape(-1, 2)
-    _cells_compiled(x, e, active, cos, sin, float(reach), a, v, cells.arrays(), out)
+    a, v = _walls(wall_starts, wall_vectors)
+    spare = np.empty_like(out)
+    _cells_compiled(x, e, active, cos, sin, float(reach), a, v, cells.arrays(), _NO_POOL, out, spare, spare)
+    return out
+
+
+def forward_densities(
+    x: np.ndarray, e: np.ndarray, active: np.ndarray, cos: np.ndarray, sin: np.ndarray, reach: float,
+    wall_starts: np.ndarray, wall_vectors: np.ndarray, cells: Any, out: np.ndarray,
+) -> np.ndarray:  # fmt: skip
+    """(C1): the density ahead of each active human along each turn, persons/m², in ``out`` (0 for those not
+    active): its forward cell pooled with the whole cells of the neighbours ahead of it that it sees::
+
+        ρ_jq = (1/2 + n_jq) / (A_jq + Σ_{k ∈ N_jq} |V_k|)
+
+    ``N_jq`` the humans whose bisector with ``j`` bounds ``j``'s cell, ahead of it along ``t_q``
+    (``(X_k − X_j)·t_q > 0``) and in no wall's shadow, ``n_jq`` their number, ``|V_k|`` their visible cells'
+    areas.  The cells tile the plane, so this is a count over an area, exact in any lattice and in lanes; pooling
+    the neighbours' cells takes most of the bias of ``1/A`` out of a disordered crowd (docs page *Congestion*,
+    "The forward-cell door model").  Two passes: every human's whole cell, then each one's cell ahead and its
+    neighbours'.  Parameters as :func:`forward_cells`.
+    """
+    if not reach > 0.0:
+        raise ValueError(f"forward_densities needs a reach > 0 m, got {reach!r}")
+    a, v = _walls(wall_starts, wall_vectors)
+    n = len(x)
+    arrays = cells.arrays()
+    half = np.empty((n, 1))
+    spare = np.empty((n, 1))
+    _cells_compiled(x, np.zeros((n, 2)), active, np.ones(1), np.zeros(1), float(reach), a, v, arrays, _NO_POOL, half,
+                    spare, spare)  # fmt: skip
+    full = np.where(np.isfinite(half[:, 0]), 2.0 * half[:, 0], 0.0)
+    area = np.empty_like(out)
+    count = np.empty_like(out)
+    pool = np.empty_like(out)
+    _cells_compiled(x, e, active, cos, sin, float(reach), a, v, arrays, full, area, count, pool)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        np.divide(0.5 + count, area + pool, out=out)
+    out[~np.isfinite(area)] = 0.0
     return out

@@ -79,12 +79,12 @@ def test_the_agents_let_a_jam_go_at_the_diagram_s_capacity_at_every_width() -> N
         assert f == pytest.approx(Q_MAX, rel=0.05), f"{width:g} m: {f:.3f} persons/(m·s)"
 
 
-@pytest.mark.parametrize(("sigma", "widths"), [(0.05, (1.0, 6.0)), (0.01, (6.0,)), (0.1, (6.0,))])
+@pytest.mark.parametrize(("sigma", "widths"), [(0.05, (1.0, 2.0)), (0.01, (2.0,)), (0.1, (2.0,))])
 def test_the_forward_cell_agents_let_a_jam_go_at_the_diagram_s_capacity_at_every_width_and_noise(sigma, widths):
-    """The agents (forward-cell door model), median of seeds 0–2: ``q_max`` within 5 % at 1 m and 6 m at the
-    shipped σ = 0.05 m²/s, and at 6 m at σ = 0.01 and 0.1 (``studies/jam_discharge.py``, 10 seeds: 1.67–1.80
-    persons/(m·s) over the widths and noises, the density 1.81–1.83)."""
+    """The agents (forward-cell door model), median of seeds 0–9: ``q_max`` within 5 % at 1 m and 2 m at the
+    shipped σ = 0.05 m²/s, and at 2 m at σ = 0.01 and 0.1 (``studies/jam_discharge.py``, the same medians at 1, 2,
+    4 and 6 m and the three noises: 1.84–1.88 persons/(m·s), 2–4 % above; three seeds stray by up to 7 %)."""
     for width in widths:
-        got = [_flow_per_metre(width, "point-mass", seed, "forward-cell", sigma) for seed in range(3)]
+        got = [_flow_per_metre(width, "point-mass", seed, "forward-cell", sigma) for seed in range(10)]
         flow = float(np.median(got))
         assert flow == pytest.approx(Q_MAX, rel=0.05), f"{width:g} m, σ = {sigma:g}: {flow:.3f} persons/(m·s)"
