@@ -86,11 +86,11 @@ def _shadow_planes(ax: float, ay: float, vx: float, vy: float) -> np.ndarray | N
     return np.array([[lx, ly, -side], [ay, -ax, 0.0], [-by, bx, 0.0]])
 
 
-def _cells_numpy(x, e, active, cos, sin, reach, wall_a, wall_v, cells, full, out, count, pool):
+def _cells_numpy(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out, whole, seen):
     """The numpy twin of :func:`forward_cells`'s loop (every neighbour within ``2√2 R``; ``cells`` unused)."""
     out[:] = np.inf
-    count[:] = 0.0
-    pool[:] = 0.0
+    whole[:] = 0.0
+    seen[:] = -1
     ok = active & np.isfinite(x[:, 0]) & np.isfinite(x[:, 1])
     idx = np.flatnonzero(ok)
     far2_all = 8.0 * reach * reach
@@ -111,11 +111,13 @@ def _cells_numpy(x, e, active, cos, sin, reach, wall_a, wall_v, cells, full, out
                 planes = _shadow_planes(ax, ay, vx, vy)
                 if planes is not None:
                     shadows.append(planes)
-        seen = [k for k in labels if k >= 0 and not any(
+        mine = [k for k in labels if k >= 0 and not any(
             all(p[0] * (x[k, 0] - x[j, 0]) + p[1] * (x[k, 1] - x[j, 1]) <= p[2] for p in planes) for planes in shadows)]
-        for q in range(len(cos)):
-            tx = cos[q] * e[j, 0] - sin[q] * e[j, 1]
-            ty = sin[q] * e[j, 0] + cos[q] * e[j, 1]
+        mine = mine[: seen.shape[1]]
+        seen[j, : len(mine)] = mine
+        for q in range(-1, len(cos)):  # q = -1: the whole cell
+            tx = 0.0 if q < 0 else cos[q] * e[j, 0] - sin[q] * e[j, 1]
+            ty = 0.0 if q < 0 else sin[q] * e[j, 0] + cos[q] * e[j, 1]
             ahead = poly if tx == 0.0 and ty == 0.0 else _clip_numpy(poly, -tx, -ty, 0.0)
             area = _area_numpy(ahead)
             parts = []
@@ -132,12 +134,10 @@ def _cells_numpy(x, e, active, cos, sin, reach, wall_a, wall_v, cells, full, out
                         both = _clip_numpy(both, nx, ny, c)
                     area += _area_numpy(both)
             area = max(area, 0.0)
-            out[j, q] = 0.5 * area if tx == 0.0 and ty == 0.0 else area
-            if len(full):
-                for k in seen:
-                    if (x[k, 0] - x[j, 0]) * tx + (x[k, 1] - x[j, 1]) * ty > 0.0:
-                        count[j, q] += 1.0
-                        pool[j, q] += full[k]
+            if q < 0:
+                whole[j] = area
+            else:
+                out[j, q] = 0.5 * area if tx == 0.0 and ty == 0.0 else area
 
 
 @inlined
@@ -208,16 +208,16 @@ a few metres; no plan has more walls that near)."""
 
 
 @compiled(fallback=_cells_numpy, parallel_over="x")
-def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, full, out, count, pool):
+def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out, whole, seen):
     order, starts, pos, origin, h, nx, ny = cells
     ox = origin[0]
     oy = origin[1]
     for j in prange(x.shape[0]):
         for q in range(cos.shape[0]):
             out[j, q] = math.inf
-            count[j, q] = 0.0
-            pool[j, q] = 0.0
-    pooled = full.shape[0] > 0
+        whole[j] = 0.0
+        for i in range(seen.shape[1]):
+            seen[j, i] = -1
     n_walls = wall_a.shape[0]
     m_all = order.shape[0]
     cap = CELL_VERTICES
@@ -299,11 +299,27 @@ def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, full, 
                 planes[shadows, 7] = wx + vx
                 planes[shadows, 8] = 0.0
                 shadows += 1
+            slots = 0
+            for i in range(m):  # the neighbours that bound the cell and are in no shadow, in the cell's order
+                k2 = pl[i]
+                if k2 < 0 or slots == seen.shape[1]:
+                    continue
+                kx = x[k2, 0] - xj
+                ky = x[k2, 1] - yj
+                hidden = False
+                for i2 in range(shadows):
+                    if (kx * planes[i2, 0] + ky * planes[i2, 1] <= planes[i2, 2]
+                            and kx * planes[i2, 3] + ky * planes[i2, 4] <= planes[i2, 5]
+                            and kx * planes[i2, 6] + ky * planes[i2, 7] <= planes[i2, 8]):  # fmt: skip
+                        hidden = True
+                if not hidden:
+                    seen[j, slots] = k2
+                    slots += 1
             ex = e[j, 0]
             ey = e[j, 1]
-            for q in range(cos.shape[0]):
-                tx = cos[q] * ex - sin[q] * ey
-                ty = sin[q] * ex + cos[q] * ey
+            for q in range(-1, cos.shape[0]):  # q = -1: the whole cell
+                tx = 0.0 if q < 0 else cos[q] * ex - sin[q] * ey
+                ty = 0.0 if q < 0 else sin[q] * ex + cos[q] * ey
                 standing = tx == 0.0 and ty == 0.0
                 if standing:
                     k = m
@@ -329,33 +345,65 @@ def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, full, 
                         mb = _clip(rx, ry, mb, planes[i2, 6], planes[i2, 7], planes[i2, 8], qx, qy)
                         area += _area(qx, qy, mb)
                 area = max(area, 0.0)
-                out[j, q] = 0.5 * area if standing else area
-                if pooled:  # the neighbours ahead that it sees: their count and whole cells
-                    for i in range(m):
-                        k2 = pl[i]
-                        if k2 < 0:
-                            continue
-                        kx = x[k2, 0] - xj
-                        ky = x[k2, 1] - yj
-                        if kx * tx + ky * ty <= 0.0:
-                            continue
-                        hidden = False
-                        for i2 in range(shadows):
-                            if (kx * planes[i2, 0] + ky * planes[i2, 1] <= planes[i2, 2]
-                                    and kx * planes[i2, 3] + ky * planes[i2, 4] <= planes[i2, 5]
-                                    and kx * planes[i2, 6] + ky * planes[i2, 7] <= planes[i2, 8]):  # fmt: skip
-                                hidden = True
-                        if not hidden:
-                            count[j, q] += 1.0
-                            pool[j, q] += full[k2]
+                if q < 0:
+                    whole[j] = area
+                else:
+                    out[j, q] = 0.5 * area if standing else area
 
 
-_NO_POOL = np.empty(0)
+def _pool_numpy(x, e, cos, sin, whole, seen, area, out):
+    """The numpy twin of :func:`forward_densities`' pooling."""
+    for j in range(len(x)):
+        for q in range(len(cos)):
+            tx = cos[q] * e[j, 0] - sin[q] * e[j, 1]
+            ty = sin[q] * e[j, 0] + cos[q] * e[j, 1]
+            count, pool = 0.0, 0.0
+            for k in seen[j]:
+                if k >= 0 and (x[k, 0] - x[j, 0]) * tx + (x[k, 1] - x[j, 1]) * ty > 0.0:
+                    count += 1.0
+                    pool += whole[k]
+            out[j, q] = (0.5 + count) / (area[j, q] + pool) if np.isfinite(area[j, q]) else 0.0
+
+
+@compiled(fallback=_pool_numpy, parallel_over="x")
+def _pool_compiled(x, e, cos, sin, whole, seen, area, out):
+    for j in prange(x.shape[0]):
+        for q in range(cos.shape[0]):
+            if not math.isfinite(area[j, q]):
+                out[j, q] = 0.0
+                continue
+            tx = cos[q] * e[j, 0] - sin[q] * e[j, 1]
+            ty = sin[q] * e[j, 0] + cos[q] * e[j, 1]
+            count = 0.0
+            pool = 0.0
+            for i in range(seen.shape[1]):
+                k = seen[j, i]
+                if k < 0:
+                    break
+                if (x[k, 0] - x[j, 0]) * tx + (x[k, 1] - x[j, 1]) * ty > 0.0:
+                    count += 1.0
+                    pool += whole[k]
+            out[j, q] = (0.5 + count) / (area[j, q] + pool)
+
+
+NEIGHBOURS = 24
+"""The most neighbours ahead a human's density pools (a Voronoi cell has about six; more are left out)."""
 
 
 def _walls(wall_starts: np.ndarray, wall_vectors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (np.ascontiguousarray(wall_starts, dtype=float).reshape(-1, 2),
             np.ascontiguousarray(wall_vectors, dtype=float).reshape(-1, 2))  # fmt: skip
+
+
+def _cells(x, e, active, cos, sin, reach, wall_starts, wall_vectors, cells, out):
+    """The loop's three outputs: ``A_jq`` into ``out``, and each one's whole visible cell and seen neighbours."""
+    if not reach > 0.0:
+        raise ValueError(f"the forward cells need a reach > 0 m, got {reach!r}")
+    a, v = _walls(wall_starts, wall_vectors)
+    whole = np.empty(len(x))
+    seen = np.empty((len(x), NEIGHBOURS), np.int64)
+    _cells_compiled(x, e, active, cos, sin, float(reach), a, v, cells.arrays(), out, whole, seen)
+    return out, whole, seen
 
 
 def forward_cells(
@@ -383,12 +431,7 @@ def forward_cells(
     out : ndarray, shape (N, K)
         Written: ``A_jq``, m².
     """
-    if not reach > 0.0:
-        raise ValueError(f"forward_cells needs a reach > 0 m, got {reach!r}")
-    a, v = _walls(wall_starts, wall_vectors)
-    spare = np.empty_like(out)
-    _cells_compiled(x, e, active, cos, sin, float(reach), a, v, cells.arrays(), _NO_POOL, out, spare, spare)
-    return out
+    return _cells(x, e, active, cos, sin, reach, wall_starts, wall_vectors, cells, out)[0]
 
 
 def forward_densities(
@@ -404,24 +447,9 @@ def forward_densities(
     (``(X_k − X_j)·t_q > 0``) and in no wall's shadow, ``n_jq`` their number, ``|V_k|`` their visible cells'
     areas.  The cells tile the plane, so this is a count over an area, exact in any lattice and in lanes; pooling
     the neighbours' cells takes most of the bias of ``1/A`` out of a disordered crowd (docs page *Congestion*,
-    "The forward-cell door model").  Two passes: every human's whole cell, then each one's cell ahead and its
-    neighbours'.  Parameters as :func:`forward_cells`.
+    "The forward-cell door model").  One pass builds every human's cell once (its parts ahead, the whole, and its
+    neighbours), a second sums each one's neighbours ahead.  Parameters as :func:`forward_cells`.
     """
-    if not reach > 0.0:
-        raise ValueError(f"forward_densities needs a reach > 0 m, got {reach!r}")
-    a, v = _walls(wall_starts, wall_vectors)
-    n = len(x)
-    arrays = cells.arrays()
-    half = np.empty((n, 1))
-    spare = np.empty((n, 1))
-    _cells_compiled(x, np.zeros((n, 2)), active, np.ones(1), np.zeros(1), float(reach), a, v, arrays, _NO_POOL, half,
-                    spare, spare)  # fmt: skip
-    full = np.where(np.isfinite(half[:, 0]), 2.0 * half[:, 0], 0.0)
-    area = np.empty_like(out)
-    count = np.empty_like(out)
-    pool = np.empty_like(out)
-    _cells_compiled(x, e, active, cos, sin, float(reach), a, v, arrays, full, area, count, pool)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        np.divide(0.5 + count, area + pool, out=out)
-    out[~np.isfinite(area)] = 0.0
+    area, whole, seen = _cells(x, e, active, cos, sin, reach, wall_starts, wall_vectors, cells, np.empty_like(out))
+    _pool_compiled(x, e, cos, sin, whole, seen, area, out)
     return out
