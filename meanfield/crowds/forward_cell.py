@@ -105,6 +105,8 @@ class ForwardCell(Headway):
         self, diagram: FundamentalDiagram, region: Any = None, reach: float = CELL_REACH,
         separation: float | None = None, turns: tuple[float, ...] = TURNS, contact_power: float | None = None,
     ) -> None:  # fmt: skip
+        if not (np.isfinite(reach) and reach > 0.0):
+            raise ValueError(f"ForwardCell's reach must be a finite length > 0 m, got {reach!r}")
         extra = {} if contact_power is None else {"contact_power": contact_power}
         super().__init__(diagram, reach=reach, separation=separation, region=None, turns=turns, **extra)
         self._fused = False

@@ -201,3 +201,9 @@ def test_one_alone_walks_free_and_one_touching_the_person_ahead_follows_no_faste
     # the one behind touches the one ahead, which walks on at the free speed: it follows at that pace, no faster
     assert v[0, 0] <= v[1, 0] + 1e-12
     assert v[1, 0] > 0.9 * 1.34
+
+
+@pytest.mark.parametrize("reach", [0.0, -1.0, float("inf"), float("nan")])
+def test_a_reach_that_bounds_no_cell_is_refused_naming_it(reach):
+    with pytest.raises(ValueError, match="reach"):
+        ForwardCell(Linear(1.34, 5.4), reach=reach)
