@@ -175,8 +175,11 @@ def _area(px, py, m):
 
 @inlined
 def _cut_labelled(px, py, pl, m, nx, ny, c, label, qx, qy, ql):
-    """:func:`_cut` that keeps each edge's label (``pl[i]``: the neighbour whose bisector the edge ``i → i + 1`` lies
-    on, −1 for the square's), the new edge labelled ``label``: the twin's labels."""
+    """:func:`_clip` in place on ``(px, py)`` (``qx``, ``qy``, ``ql`` scratch), keeping each edge's label (``pl[i]``:
+    the neighbour whose bisector the edge ``i → i + 1`` lies on, −1 for the square's), the new edge labelled
+    ``label`` (the twin's labels); returns the new vertex count and the squared distance of its farthest vertex.
+    The clipping is :func:`_clip`'s, written out again so that the loop over the turns, which needs no labels,
+    writes none."""
     k = 0
     for i in range(m):
         i1 = i + 1 if i + 1 < m else 0
