@@ -36,7 +36,7 @@ import numpy as np
 
 from meanfield._compiled.core import PARALLEL_CHUNK, compiled, inlined, prange
 
-__all__ = ["forward_cells", "forward_densities", "CELL_VERTICES"]
+__all__ = ["forward_cells", "forward_densities", "CellWork", "CELL_VERTICES", "NEIGHBOURS"]
 
 CELL_VERTICES = 64
 """The most vertices a cell's polygon holds; a cell with more (none in a crowd: a Voronoi cell has about six)
@@ -398,15 +398,30 @@ def _walls(wall_starts: np.ndarray, wall_vectors: np.ndarray) -> tuple[np.ndarra
             np.ascontiguousarray(wall_vectors, dtype=float).reshape(-1, 2))  # fmt: skip
 
 
-def _cells(x, e, active, cos, sin, reach, wall_starts, wall_vectors, cells, out):
-    """The loop's three outputs: ``A_jq`` into ``out``, and each one's whole visible cell and seen neighbours."""
+class CellWork:
+    """What one pass of the cells writes besides ``A_jq``, for ``n`` humans, kept between steps by the door model:
+    ``area`` (N, K), each one's ``whole`` visible cell (N,) and its ``seen`` neighbours (N, :data:`NEIGHBOURS`)."""
+
+    __slots__ = ("area", "whole", "seen")
+
+    def __init__(self, n: int, k: int) -> None:
+        self.area = np.empty((n, k))
+        self.whole = np.empty(n)
+        self.seen = np.empty((n, NEIGHBOURS), np.int64)
+
+    def fits(self, n: int, k: int) -> bool:
+        """Whether it holds ``n`` humans and ``k`` turns."""
+        return self.area.shape == (n, k)
+
+
+def _cells(x, e, active, cos, sin, reach, wall_starts, wall_vectors, cells, out, work):
+    """The loop's three outputs: ``A_jq`` into ``out``, and each one's whole visible cell and seen neighbours
+    into ``work``."""
     if not reach > 0.0:
         raise ValueError(f"the forward cells need a reach > 0 m, got {reach!r}")
     a, v = _walls(wall_starts, wall_vectors)
-    whole = np.empty(len(x))
-    seen = np.empty((len(x), NEIGHBOURS), np.int64)
-    _cells_compiled(x, e, active, cos, sin, float(reach), a, v, cells.arrays(), out, whole, seen)
-    return out, whole, seen
+    _cells_compiled(x, e, active, cos, sin, float(reach), a, v, cells.arrays(), out, work.whole, work.seen)
+    return out
 
 
 def forward_cells(
@@ -434,12 +449,12 @@ def forward_cells(
     out : ndarray, shape (N, K)
         Written: ``A_jq``, m².
     """
-    return _cells(x, e, active, cos, sin, reach, wall_starts, wall_vectors, cells, out)[0]
+    return _cells(x, e, active, cos, sin, reach, wall_starts, wall_vectors, cells, out, CellWork(len(x), 0))
 
 
 def forward_densities(
     x: np.ndarray, e: np.ndarray, active: np.ndarray, cos: np.ndarray, sin: np.ndarray, reach: float,
-    wall_starts: np.ndarray, wall_vectors: np.ndarray, cells: Any, out: np.ndarray,
+    wall_starts: np.ndarray, wall_vectors: np.ndarray, cells: Any, out: np.ndarray, work: CellWork | None = None,
 ) -> np.ndarray:  # fmt: skip
     """(C1): the density ahead of each active human along each turn, persons/m², in ``out`` (0 for those not
     active): its forward cell pooled with the whole cells of the neighbours ahead of it that it sees::
@@ -451,8 +466,11 @@ def forward_densities(
     areas.  The cells tile the plane, so this is a count over an area, exact in any lattice and in lanes; pooling
     the neighbours' cells takes most of the bias of ``1/A`` out of a disordered crowd (docs page *Congestion*,
     "The forward-cell door model").  One pass builds every human's cell once (its parts ahead, the whole, and its
-    neighbours), a second sums each one's neighbours ahead.  Parameters as :func:`forward_cells`.
+    neighbours), a second sums each one's neighbours ahead.  Parameters as :func:`forward_cells`, and ``work``,
+    the passes' arrays (:class:`CellWork`; None: new ones).
     """
-    area, whole, seen = _cells(x, e, active, cos, sin, reach, wall_starts, wall_vectors, cells, np.empty_like(out))
-    _pool_compiled(x, e, cos, sin, whole, seen, area, out)
+    n, k = out.shape
+    work = CellWork(n, k) if work is None or not work.fits(n, k) else work
+    _cells(x, e, active, cos, sin, reach, wall_starts, wall_vectors, cells, work.area, work)
+    _pool_compiled(x, e, cos, sin, work.whole, work.seen, work.area, out)
     return out

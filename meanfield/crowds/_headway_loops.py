@@ -20,6 +20,9 @@ steps away from those it touches, the more the deeper the overlap (a soft core, 
 
     v_j ← v_j − u Σ_{k : 0 < |X_k − X_j| < d} (1 − |X_k − X_j|/d) n_jk
 
+:func:`following_cone` is (H2) made relative, for the forward-cell door model: a walk that approaches nobody it
+touches faster than that one walks away, then (H3).
+
 :func:`contact_noise` gives each the share ``φ_j = Π_k (|X_k − X_j|/d)^m`` of the noise it keeps among those it
 touches, and its gradient (H5).
 

@@ -47,7 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from meanfield.crowds._forward_cell_loops import forward_densities
+from meanfield.crowds._forward_cell_loops import CellWork, forward_densities
 from meanfield.crowds._headway_loops import cell_list, choose_lanes, following_cone
 from meanfield.crowds.congestion import FundamentalDiagram
 from meanfield.crowds.headway import HEADWAY_REACH, TURNS, Headway
@@ -112,6 +112,7 @@ class ForwardCell(Headway):
         self._fused = False
         self.wall_starts, self.wall_vectors = wall_segments(region)
         self._rho = np.empty((0, 0))
+        self._work: CellWork | None = None  # the cell pass's arrays, kept between steps
 
     def choose_direction(
         self, positions: np.ndarray, e: np.ndarray, active: np.ndarray, cells: Any
@@ -136,10 +137,11 @@ class ForwardCell(Headway):
         n, k = len(positions), len(self.turns)
         if self._rho.shape != (n, k):
             self._rho = np.empty((n, k))
+            self._work = CellWork(n, k)
         x = np.ascontiguousarray(positions, dtype=float)
         rho = forward_densities(x, np.ascontiguousarray(e, dtype=float), np.ascontiguousarray(active, dtype=bool),
                                 self._cos, self._sin, self.reach, self.wall_starts, self.wall_vectors, cells,
-                                self._rho)  # fmt: skip
+                                self._rho, self._work)  # fmt: skip
         f = np.asarray(self.diagram.speed_factor(rho), float)
         best_rho, best_f, walk = np.empty(n), np.empty(n), np.empty((n, 2))
         choose_lanes(f, rho, e, self._cos, self._sin, best_rho, best_f, walk)
