@@ -15,10 +15,10 @@ import math
 
 import numpy as np
 
-from meanfield._compiled.core import PARALLEL_CHUNK, compiled, prange
+from meanfield._compiled.core import PARALLEL_CHUNK, compiled, inner, prange
 from meanfield._compiled.philox import fill_normal_pairs, fill_pairs_rows
 
-__all__ = ["euler_maruyama", "hold_at_capacity"]
+__all__ = ["euler_maruyama", "hold_at_capacity", "hold_at_doors"]
 
 
 # ----------------------------------------------------------------------------- the SDE step
@@ -263,3 +263,181 @@ def hold_at_capacity(gone, idx, previous, x, exits, capacity, credit, waiting, w
         out[k] -= min(count, allowed)
     order = np.argsort(held_who[:held])
     return out, held_who[:held][order], held_at[:held][order]
+
+
+# ----------------------------------------------------------------------------- the inner doors' queues
+@inner
+def _door_crossed(p0x, p0y, p1x, p1y, doors, k):
+    """+1 or -1 if the step ``p0 → p1`` crosses door ``k`` (the sign of its side's change: the cross product
+    of the step and the door), 0 if it does not; the ends count as on the door."""
+    ax = doors[k, 0, 0]
+    ay = doors[k, 0, 1]
+    ex = doors[k, 1, 0] - ax
+    ey = doors[k, 1, 1] - ay
+    dx = p1x - p0x
+    dy = p1y - p0y
+    den = dx * ey - dy * ex
+    if den == 0.0:
+        return 0
+    wx = ax - p0x
+    wy = ay - p0y
+    t = (wx * ey - wy * ex) / den
+    u = (wx * dy - wy * dx) / den
+    if t < 0.0 or t > 1.0 or u < 0.0 or u > 1.0:
+        return 0
+    return 1 if den > 0.0 else -1
+
+
+def _hold_doors_numpy(idx, previous, x, doors, capacity, credit, waiting, last_door, last_sign, dt):
+    """The numpy twin of :func:`hold_at_doors` (the same arithmetic, door by door)."""
+    n_doors = len(capacity)
+    p0, p1 = previous[idx], x[idx]
+    crossed = np.full(len(idx), -1, dtype=np.intp)  # the first door (by index) each step crosses
+    sign = np.zeros(len(idx), dtype=np.int8)
+    for k in range(n_doors - 1, -1, -1):
+        a, e = doors[k, 0], doors[k, 1] - doors[k, 0]
+        d = p1 - p0
+        den = d[:, 0] * e[1] - d[:, 1] * e[0]
+        w = a - p0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (w[:, 0] * e[1] - w[:, 1] * e[0]) / den
+            u = (w[:, 0] * d[:, 1] - w[:, 1] * d[:, 0]) / den
+        hit = (den != 0.0) & (t >= 0.0) & (t <= 1.0) & (u >= 0.0) & (u <= 1.0)
+        crossed[hit] = k
+        sign[hit] = np.where(den[hit] > 0.0, 1, -1)
+    busy = np.zeros(n_doors, dtype=bool)
+    before = waiting[idx]
+    busy[before[before >= 0]] = True
+    out = np.where(busy, credit, np.minimum(credit, 1.0)) + capacity * dt
+    who = np.flatnonzero(crossed >= 0)
+    back = who[(last_door[idx[who]] == crossed[who]) & (last_sign[idx[who]] == -sign[who])]
+    np.add.at(out, crossed[back], 1.0)  # a step back through the door one last passed gives its place back
+    last_door[idx[back]] = -1
+    waiting[idx] = -1
+    charged = np.setdiff1d(who, back)
+    for k in np.unique(crossed[charged]):
+        reached = charged[crossed[charged] == k]
+        allowed = int(out[k])
+        passed = reached
+        if len(reached) > allowed:
+            distance = _doorway_distance_numpy(p0[reached], doors[k, 0], doors[k, 1])
+            order = np.lexsort((distance, before[reached] != k))  # those who waited at it first, the nearest first
+            passed, held = reached[order[:allowed]], reached[order[allowed:]]
+            x[idx[held]] = previous[idx[held]]
+            waiting[idx[held]] = k
+        last_door[idx[passed]] = k
+        last_sign[idx[passed]] = sign[passed]
+        out[k] -= len(passed)
+    return out
+
+
+@compiled(fallback=_hold_doors_numpy)
+def hold_at_doors(idx, previous, x, doors, capacity, credit, waiting, last_door, last_sign, dt):
+    """The inner doors' queues, one step (docs page *Congestion*, "The doors' capacity"): each door ``k`` lets
+    at most ``⌊c_k⌋`` steps through it, its credit ``c_k`` refilled by ``q_k dt`` (and kept at most 1 unless
+    someone waited at it since the last step); those it cannot take go back to where they started and wait,
+    to pass first, the nearest first, if their next step crosses it.  A step back through the door one last
+    passed, the other way, takes no place and gives its place back: a door counts its net flow, so that the
+    noise of one standing in the doorway does not use it up.
+
+    Parameters
+    ----------
+    idx : ndarray of intp, shape (M,)
+        The humans who stepped and are still in Ω (sorted).
+    previous, x : ndarray, shape (N, 2)
+        The positions before and after the step (after the walls); those held get ``previous`` in ``x``
+        (in place).
+    doors : ndarray, shape (D, 2, 2)
+        The doors' segments.
+    capacity : ndarray, shape (D,)
+        ``q_k``, persons/s each door passes at most.
+    credit : ndarray, shape (D,)
+        The credits before the step (not changed).
+    waiting : ndarray of intp, shape (N,)
+        The door each human waited at after the last step (-1: none); now, after this one (in place).
+    last_door, last_sign : ndarray of intp and int8, shape (N,)
+        The door each human last passed (-1: none) and the way (±1) (in place).
+    dt : float
+
+    Returns
+    -------
+    credit : ndarray, shape (D,)
+        The credits after the step.
+    """
+    m = idx.shape[0]
+    n_doors = capacity.shape[0]
+    crossed = np.full(m, -1, dtype=np.intp)
+    sign = np.zeros(m, dtype=np.int8)
+    busy = np.zeros(n_doors, dtype=np.bool_)
+    before = np.empty(m, dtype=np.intp)
+    for i in range(m):
+        j = idx[i]
+        before[i] = waiting[j]
+        if waiting[j] >= 0:
+            busy[waiting[j]] = True
+        waiting[j] = -1
+        for k in range(n_doors):
+            s = _door_crossed(previous[j, 0], previous[j, 1], x[j, 0], x[j, 1], doors, k)
+            if s != 0:
+                crossed[i] = k
+                sign[i] = s
+                break
+    out = np.empty(n_doors)
+    for k in range(n_doors):
+        out[k] = (credit[k] if busy[k] else min(credit[k], 1.0)) + capacity[k] * dt
+    for i in range(m):  # a step back through the door one last passed gives its place back
+        k = crossed[i]
+        j = idx[i]
+        if k >= 0 and last_door[j] == k and last_sign[j] == -sign[i]:
+            out[k] += 1.0
+            last_door[j] = -1
+            crossed[i] = -1
+    reached = np.empty(m, dtype=np.intp)
+    first = np.empty(m, dtype=np.bool_)
+    distance = np.empty(m)
+    for k in range(n_doors):
+        count = 0
+        for i in range(m):
+            if crossed[i] == k:
+                reached[count] = i
+                count += 1
+        if count == 0:
+            continue
+        allowed = int(out[k])
+        if count > allowed:
+            ax = doors[k, 0, 0]
+            ay = doors[k, 0, 1]
+            dx = doors[k, 1, 0] - ax
+            dy = doors[k, 1, 1] - ay
+            for c in range(count):  # the arithmetic of _doorway_distance_numpy
+                sx = previous[idx[reached[c]], 0]
+                sy = previous[idx[reached[c]], 1]
+                along = min(max(((sx - ax) * dx + (sy - ay) * dy) / (dx * dx + dy * dy), 0.0), 1.0)
+                distance[c] = math.hypot(sx - (ax + along * dx), sy - (ay + along * dy))
+                first[c] = before[reached[c]] == k
+            for c in range(1, count):  # a stable insertion sort: those who waited first, each the nearest first
+                r = reached[c]
+                f = first[c]
+                d = distance[c]
+                e = c - 1
+                while e >= 0 and ((f and not first[e]) or (f == first[e] and d < distance[e])):
+                    reached[e + 1] = reached[e]
+                    first[e + 1] = first[e]
+                    distance[e + 1] = distance[e]
+                    e -= 1
+                reached[e + 1] = r
+                first[e + 1] = f
+                distance[e + 1] = d
+        passed = min(count, allowed)
+        for c in range(count):
+            i = reached[c]
+            j = idx[i]
+            if c < passed:
+                last_door[j] = k
+                last_sign[j] = sign[i]
+            else:
+                x[j, 0] = previous[j, 0]
+                x[j, 1] = previous[j, 1]
+                waiting[j] = k
+        out[k] -= passed
+    return out

@@ -82,6 +82,7 @@ SAMPLED_FIELD_ABOVE = 2_000_000
 """``crowd.field_evaluation = "auto"`` samples ``v_r`` on a lattice above this many human-robot pairs."""
 _EVERYONE = np.ones((0, 0), dtype=bool)  # no sight mask: every robot seen
 
+
 def _twin(diagram: FundamentalDiagram, region: Region | None) -> GodunovTwin:
     return GodunovTwin(diagram)
 
@@ -103,8 +104,9 @@ DOOR_MODELS: dict[str, Callable[[FundamentalDiagram, Region | None], Any] | None
 """The agents' door models (``crowd.door_model``; docs page *Congestion*, "The agents' door model"): each makes,
 from the diagram and Ω, an object whose ``slow_down(velocity, positions, active, dt, density)`` changes the walk
 in place and returns the local density to report (``density``: the crowd's :class:`LocalDensity`).  One that
-declares ``caps_exits`` has each exit pass at most the diagram's capacity ``q_max`` per metre of its width
-(:meth:`~meanfield.crowds.point_mass.PointMassEngine.cap_exits`, on an engine that can)."""
+declares ``caps_doors`` has each exit and each inner door of the plan pass at most the diagram's capacity ``q_max``
+per metre of its width (:meth:`~meanfield.crowds.point_mass.PointMassEngine.cap_exits` and
+:meth:`~meanfield.crowds.point_mass.PointMassEngine.cap_doors`, on an engine that can)."""
 
 
 class AgentEngine(Protocol):
@@ -441,9 +443,14 @@ class AgentCrowd:
         self.door_model = door_model
         model = DOOR_MODELS[door_model]
         self._door = None if self.congestion is None or model is None else model(self.congestion, domain)
-        if getattr(self._door, "caps_exits", False) and len(getattr(engine, "exits", ())):
-            ends = np.asarray(engine.exits, float)  # each exit passes at most q_max per metre of its width
-            engine.cap_exits(self.congestion.capacity()[0] * np.hypot(*(ends[:, 1] - ends[:, 0]).T))
+        if getattr(self._door, "caps_doors", False):  # each exit and door passes at most q_max per metre of width
+            q_max = self.congestion.capacity()[0]
+            if len(getattr(engine, "exits", ())):
+                ends = np.asarray(engine.exits, float)
+                engine.cap_exits(q_max * np.hypot(*(ends[:, 1] - ends[:, 0]).T))
+            if len(getattr(engine, "doors", ())):
+                ends = np.asarray(engine.doors, float)
+                engine.cap_doors(q_max * np.hypot(*(ends[:, 1] - ends[:, 0]).T))
         self.local_density: np.ndarray | None = None  # persons/m² around each human at the last step (congestion)
         self.congestion_name = "none" if self.congestion is None else type(self.congestion).__name__.lower()
         self.peak_local_density = 0.0  # its largest value over the run so far
@@ -799,4 +806,3 @@ def point_mass_crowd(ctx: CrowdContext) -> AgentCrowd:
     sc = ctx.scenario
     humans = initial_positions(sc, sc.crowd.n, ctx.rng)
     return AgentCrowd.from_context(PointMassEngine(humans, sc.domain, ctx.sigma, ctx.rng), ctx)
-

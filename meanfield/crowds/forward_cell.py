@@ -21,7 +21,8 @@ a count of people over an area, the density the crowd has there whatever its str
   (2015) 831–871), whose many-vehicle limit is the conservation law with the diagram's flux;
 * the head of a queue, with nobody ahead, has the whole square's half ahead of it and walks at the free speed
   (``ρ = 1/(4 R²)``, 0.028 persons/m² at ``R`` = 3 m); the exits do not cut the cells, so the people at a door
-  are not slowed by it, and the exits pass at most ``q_max`` per metre (:attr:`caps_exits`), as the density's do.
+  are not slowed by it, and the exits and inner doors pass at most ``q_max`` per metre (:attr:`caps_doors`), as the
+  density's faces do.
 
 One's own cell ahead alone, ``1/(2 A_jq)``, is as right in a lattice, but in a disordered crowd ``1/A`` is biased
 (a crowd placed at random at 2.5 persons/m² reads 4.3 on average, and walks at 0.41 of ``v₀`` where the diagram

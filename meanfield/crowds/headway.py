@@ -133,10 +133,11 @@ class Headway:
         door model").
     """
 
-    caps_exits = True
-    """Each exit passes at most ``q_max`` per metre of its width, as the density's exit face does (docs page
-    *Congestion*, "The exits' capacity"): without it, people converging on a door in a wall from a half circle
-    find nobody ahead in their lanes and pass it at 3.4–4.2 persons/s per metre (``rimea-9``)."""
+    caps_doors = True
+    """Each exit and each inner door of the plan passes at most ``q_max`` per metre of its width, as the density's
+    faces do (docs page *Congestion*, "The exits' capacity" and "The doors' capacity"): without it, people
+    converging on a door in a wall from a half circle find nobody ahead in their lanes and pass it at 3.4–4.2
+    persons/s per metre (``rimea-9``)."""
 
     def __init__(
         self, diagram: FundamentalDiagram, reach: float = HEADWAY_REACH, separation: float | None = None,

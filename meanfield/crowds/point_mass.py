@@ -17,7 +17,7 @@ import numpy as np
 
 from meanfield._compiled.core import NO_BOX
 from meanfield._compiled.philox import ZIG_FI, ZIG_KI, ZIG_WI, noise_key
-from meanfield.crowds._point_mass_loops import euler_maruyama, hold_at_capacity
+from meanfield.crowds._point_mass_loops import euler_maruyama, hold_at_capacity, hold_at_doors
 from meanfield.errors import ParameterError, SigmaLike, SimulationDiverged, check_sigma
 from meanfield.geometry.region import Region
 
@@ -96,6 +96,10 @@ class PointMassEngine:
         self._credit = np.zeros(0)
         self._waiting = np.empty(0, dtype=np.intp)  # who waits in a doorway (sorted), and at which exit
         self._waiting_at = np.empty(0, dtype=np.intp)
+        from meanfield.geometry.doors import door_segments
+
+        self.doors = door_segments(domain)  # the plan's inner doors (meanfield.geometry.doors)
+        self._door_capacity: np.ndarray | None = None  # persons/s each door passes at most (None: any; cap_doors)
 
     def cap_exits(self, capacity: np.ndarray) -> None:
         """From now on exit ``k`` passes at most ``capacity[k]`` persons/s, and at most one person more over any
@@ -123,6 +127,33 @@ class PointMassEngine:
         self._credit = np.ones(len(capacity))  # the first to come passes at once
         self._waiting = np.empty(0, dtype=np.intp)
         self._waiting_at = np.empty(0, dtype=np.intp)
+
+    def cap_doors(self, capacity: np.ndarray) -> None:
+        """From now on inner door ``k`` (:attr:`doors`) passes at most ``capacity[k]`` persons/s, net, and at most
+        one person more over any time (docs page *Congestion*, "The doors' capacity").
+
+        Each door is a queue as each exit is (:meth:`cap_exits`), served in both ways: its credit grows by
+        ``capacity[k] dt`` a step and each step through it spends one; a step that would cross it with no whole
+        credit left is not taken (the human stays where the step started) and, if the next step crosses it
+        again, is served first (the nearest its segment first).  A step back through the door one last passed,
+        the other way, is free and gives its credit back (:func:`~meanfield.crowds._point_mass_loops.hold_at_doors`).
+
+        Parameters
+        ----------
+        capacity : ndarray, shape (D,)
+            Persons/s, one per door, each > 0.
+        """
+        capacity = np.asarray(capacity, float)
+        if capacity.shape != (len(self.doors),) or not np.all(capacity > 0) or not np.all(np.isfinite(capacity)):
+            raise ParameterError(
+                "door capacity", capacity, f"one finite capacity > 0 per door, shape ({len(self.doors)},)"
+            )
+        n = len(self.positions)
+        self._door_capacity = capacity
+        self._door_credit = np.ones(len(capacity))  # the first to come passes at once
+        self._door_waiting = np.full(n, -1, dtype=np.intp)  # the door each waits at (-1: none)
+        self._last_door = np.full(n, -1, dtype=np.intp)  # the door each last passed, and the way (±1)
+        self._last_door_sign = np.zeros(n, dtype=np.int8)
 
     def exits_closed(self, open_exits: np.ndarray) -> None:
         """From now on nobody leaves through the exits ``k`` with ``open_exits[k]`` false: they are walls."""
@@ -175,7 +206,7 @@ class PointMassEngine:
             amp = self._constant_amplitude(dt)
         if self.noise_factor is not None:  # (H5): σ φ_j (docs page Congestion, "The headway door model")
             amp = amp * np.sqrt(self.noise_factor)[:, None]
-        previous = x.copy() if self._path_reflection or len(self.exits) else None
+        previous = x.copy() if self._path_reflection or len(self.exits) or self._door_capacity is not None else None
         # a box without exits folds its walls into the same pass (meanfield.crowds._field_loops)
         folded = self._box if previous is None else NO_BOX
         step = np.uint64(self._steps)
@@ -188,6 +219,9 @@ class PointMassEngine:
                 self.domain.reflect(x, previous)
             elif not folded.shape[0]:
                 self.domain.reflect(x)
+            if self._door_capacity is not None:
+                moved = self.active if self.standing is None else self.active & ~self.standing
+                self._hold_at_doors(np.flatnonzero(moved), previous, dt)
             return
         self._leave_and_reflect(previous, t, dt)
 
@@ -227,6 +261,8 @@ class PointMassEngine:
         else:
             self.domain.reflect(moved)
         x[stay] = moved
+        if self._door_capacity is not None:
+            self._hold_at_doors(stay, previous, dt)
 
     def _hold_at_capacity(self, gone: np.ndarray, idx: np.ndarray, previous: np.ndarray, dt: float) -> None:
         """The exits' queues (:meth:`cap_exits`; :func:`~meanfield.crowds._point_mass_loops.hold_at_capacity`), in
@@ -235,6 +271,14 @@ class PointMassEngine:
         self._credit, self._waiting, self._waiting_at = hold_at_capacity(
             gone, idx, previous, self.positions, self.exits, self._capacity, self._credit, self._waiting,
             self._waiting_at, self._is_open, float(dt),
+        )  # fmt: skip
+
+    def _hold_at_doors(self, idx: np.ndarray, previous: np.ndarray, dt: float) -> None:
+        """The inner doors' queues (:meth:`cap_doors`) for the humans ``idx`` who stepped and stayed (sorted),
+        after the walls: those a door cannot take this step go back to their step's start."""
+        self._door_credit = hold_at_doors(
+            idx, previous, self.positions, self.doors, self._door_capacity, self._door_credit, self._door_waiting,
+            self._last_door, self._last_door_sign, float(dt),
         )  # fmt: skip
 
     def remaining(self) -> int:

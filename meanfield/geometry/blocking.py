@@ -82,9 +82,22 @@ def blocked_region(region: Any, block: Any, name: str = "block") -> Any:
             name, "a block that cuts people off from every exit", "a region whose every side still has an exit"
         )
     exits = [tuple(map(tuple, seg)) for seg in segs]
-    if len(pieces) == 1:
-        return Plan(shapely.Polygon(pieces[0].exterior, list(pieces[0].interiors)), exits, frame=region.bounds)
-    return Plan(shapely.MultiPolygon(pieces), exits, frame=region.bounds, pieces=True)
+    rest = shapely.Polygon(pieces[0].exterior, list(pieces[0].interiors)) if len(pieces) == 1 else (
+        shapely.MultiPolygon(pieces))  # fmt: skip
+    doors = [d for d in getattr(region, "doors", ()) if _still_a_door(rest, d, exits, region.diameter)]
+    return Plan(rest, exits, frame=region.bounds, pieces=len(pieces) > 1, doors=doors)
+
+
+def _still_a_door(rest: Any, door: Any, exits: list, diameter: float) -> bool:
+    """Whether the inner ``door`` still crosses the plan ``rest`` left by a block from wall to wall (a door the
+    block covered, or one it left in the open, is no longer one)."""
+    from meanfield.geometry.doors import check_doors
+
+    try:
+        check_doors(rest, [door], exits, 1e-9 * diameter)
+    except ParameterError:
+        return False
+    return True
 
 
 def exit_pieces(region: Any) -> list[list[int]]:

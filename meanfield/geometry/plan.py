@@ -8,7 +8,8 @@ metres.  Every wall, of the outline and of the holes, has zero flux (the grid's 
 close it, docs page *Discretisation*) and reflects the humans: a step is followed along its
 segment and mirrored at the first wall it meets, so no step, however long, carries a human
 through a corner or a pillar (:meth:`Plan.reflect`).  ``exits`` are segments of the walls
-through which people leave (:mod:`meanfield.geometry.exits`).
+through which people leave (:mod:`meanfield.geometry.exits`); ``doors`` are segments across the
+openings between rooms, each of which passes at most the crowd's capacity (:mod:`meanfield.geometry.doors`).
 
 Registered as region ``plan`` (:mod:`meanfield.plugins`).
 """
@@ -24,6 +25,7 @@ import numpy as np
 from meanfield.capabilities import RegionCapabilities, declares
 from meanfield.errors import ParameterError
 from meanfield.geometry._wall_loops import reflect_steps, robot_steps
+from meanfield.geometry.doors import check_doors
 from meanfield.geometry.region import (
     BoundaryPart,
     convex_polygon,
@@ -65,13 +67,16 @@ class Plan:
         Allow a plan in several pieces (a ``MULTIPOLYGON``): what is left of a plan when a region blocked
         during a run cuts it in two, each piece with its exits (:mod:`meanfield.geometry.blocking`).  A plan
         that is read is one piece.
+    doors : sequence of segments, optional
+        The inner doors, ``((x0, y0), (x1, y1))`` each: a segment across an opening between two rooms, from
+        one jamb (a wall) to the other, through the plan (:mod:`meanfield.geometry.doors`).
     """
 
     kind = "plan"
     reflects_along_paths = True  # reflect needs the step's start (see Plan.reflect)
 
     def __init__(self, polygon: Any, exits: Any = (), frame: tuple[float, float, float, float] | None = None,
-                 pieces: bool = False):  # fmt: skip
+                 pieces: bool = False, doors: Any = ()):  # fmt: skip
         import shapely
 
         shapes = (shapely.Polygon, shapely.MultiPolygon) if pieces else shapely.Polygon
@@ -90,6 +95,7 @@ class Plan:
         self._inset: dict[float, Any] = {}
         self._frame = None if frame is None else self._check_frame(frame)
         self.exits = self._check_exits(exits or ())
+        self.doors = check_doors(self.polygon, doors or (), self.exits, 1e-9 * self.diameter)
 
     def _check_frame(self, frame: Any) -> tuple[float, float, float, float]:
         """``frame`` as four floats, refused (named ``frame``) unless it holds the polygon."""
@@ -339,10 +345,10 @@ class Plan:
         rings = polygon_rings(self.polygon)
         if not self.exits:
             return tuple(BoundaryPart("wall", np.asarray(r.coords)) for r in rings)
-        doors = shapely.MultiLineString([list(e) for e in self.exits]).buffer(1e-9 * self.diameter)
+        exits_cut = shapely.MultiLineString([list(e) for e in self.exits]).buffer(1e-9 * self.diameter)
         parts = [BoundaryPart("exit", np.asarray(e, float)) for e in self.exits]
         for ring in rings:
-            walls = shapely.line_merge(ring.difference(doors))
+            walls = shapely.line_merge(ring.difference(exits_cut))
             for line in getattr(walls, "geoms", [walls]):
                 if not line.is_empty:
                     parts.append(BoundaryPart("wall", np.asarray(line.coords)))
@@ -359,10 +365,13 @@ class Plan:
         d: dict[str, Any] = {"kind": "plan", "wkt": self.polygon.wkt}
         if self.exits:
             d["exits"] = [[list(a), list(b)] for a, b in self.exits]
+        if self.doors:
+            d["doors"] = [[list(a), list(b)] for a, b in self.doors]
         return d
 
     def __eq__(self, other: object) -> bool:
-        return isinstance(other, Plan) and self.polygon.equals(other.polygon) and self.exits == other.exits
+        return (isinstance(other, Plan) and self.polygon.equals(other.polygon) and self.exits == other.exits
+                and self.doors == other.doors)  # fmt: skip
 
     def __hash__(self) -> int:
         return hash(self.polygon.wkt)
@@ -379,20 +388,22 @@ def plan_from_table(
     walls_layer: str | None = None,
     obstacles_layer: str | None = None,
     exits_layer: str | None = None,
+    doors: Any = (),
 ) -> Plan:
     """Registry factory (kind ``region``, name ``plan``): ``wkt = "POLYGON ((...))"``,
-    ``file = "plan.geojson"`` or ``file = "plan.dxf"`` (lengths in metres), and
-    ``exits = [[[x0, y0], [x1, y1]], ...]``.  A DXF's layers are named by ``walls_layer``,
-    ``obstacles_layer``, ``exits_layer`` (:mod:`meanfield.geometry.dxf`, which also reads its exits)."""
+    ``file = "plan.geojson"`` or ``file = "plan.dxf"`` (lengths in metres),
+    ``exits = [[[x0, y0], [x1, y1]], ...]`` and the inner doors ``doors = [[[x0, y0], [x1, y1]], ...]``
+    (:mod:`meanfield.geometry.doors`).  A DXF's layers are named by ``walls_layer``, ``obstacles_layer``,
+    ``exits_layer`` (:mod:`meanfield.geometry.dxf`, which also reads its exits)."""
     if (wkt is None) == (file is None):
         raise ParameterError("wkt", "wkt and file" if wkt else "neither wkt nor file", "exactly one of wkt, file")
     if file is not None and str(file).lower().endswith(".dxf"):
         from meanfield.geometry.dxf import plan_parts_from_table
 
-        return Plan(*plan_parts_from_table(file, exits, walls_layer, obstacles_layer, exits_layer))
+        return Plan(*plan_parts_from_table(file, exits, walls_layer, obstacles_layer, exits_layer), doors=doors)
     layers = {"walls_layer": walls_layer, "obstacles_layer": obstacles_layer, "exits_layer": exits_layer}
     for key, value in layers.items():
         if value is not None:
             raise ParameterError(key, value, 'a layer name only with a DXF file (file = "plan.dxf")')
     plan = Plan.from_wkt(wkt) if wkt is not None else Plan.from_geojson(file)
-    return Plan(plan.polygon, exits) if exits else plan
+    return Plan(plan.polygon, exits, doors=doors) if exits or doors else plan
