@@ -15,8 +15,9 @@ a region that becomes wall at 5 s (``, a region blocked at 5 s``) and compliance
 People read the signs as the plans' default says (``view.memory = "auto"``: who a sign reaches walks to the exit
 it names).  Each run's figures are appended to ``studies/results/guide.jsonl`` as it finishes, so an interrupted
 study resumes.  Each row records how its crowd walks (``walk``, :func:`walk_of`: the point masses' door model and
-(H5), the noise among contacts, or JuPedSim's bodies); the table reads only the rows of today's model, and a case
-whose row was written by an older one is run again (rows without ``walk`` predate (H5), 2026-12-06).
+(H5), the noise among contacts, whether the plan's inner doors are capped, or JuPedSim's bodies); the table reads
+only the rows of today's model, and a case whose row was written by an older one is run again (rows without ``walk``
+predate (H5), 2026-12-06; rows of a plan with doors without ``inner doors capped`` predate the doors, the same day).
 The table gives, per plan and setting, the share out at the end and RSET (everyone out) as the
 median and worst seed, and the
 ratio to the informed crowd's RSET on the same seed, median and worst; the last column of the guide's rows is the
@@ -70,6 +71,7 @@ SETTINGS.update({s + BODIES: {**SETTINGS[s], "crowd.kind": "jupedsim"} for s in 
 SETTINGS.update({"informed" + COMPLIANCE: dict(SETTINGS["informed"]),
                  "guide 8" + COMPLIANCE: {**SETTINGS["guide 8"], "crowd.compliance": 0.95}})  # fmt: skip
 RESULTS = Path("studies/results/guide.jsonl")
+CAPPING = ("headway", "forward-cell")  # the door models that cap the exits and the plan's inner doors
 KEYS = ("status", "fraction_evacuated", "evacuation_time_95", "evacuation_time_100", "lower_bound_flow", "time_final",
         "wall_seconds", "evacuated_per_exit")  # fmt: skip
 
@@ -82,7 +84,10 @@ def walk_of(scenario) -> str:
     if scenario.crowd.kind != "point-mass":
         return scenario.crowd.kind
     model = scenario.door_model
-    return f"{model}, (H5) m = {CONTACT_NOISE_POWER:g}" if model == "headway" else model
+    walk = f"{model}, (H5) m = {CONTACT_NOISE_POWER:g}" if model == "headway" else model
+    if model in CAPPING and len(getattr(scenario.domain, "doors", ())):  # (the plan's inner doors, 2026-12-06)
+        walk += ", inner doors capped"
+    return walk
 
 
 @functools.cache
