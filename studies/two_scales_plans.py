@@ -5,10 +5,12 @@ Run from the repository's root::
     python studies/two_scales_plans.py [--seeds 10] [--workers 2]
 
 For each of ``l-room``, ``office`` and ``hall`` (the informed crowd on the fastest route; the point masses with
-the headway door model, the density with Godunov's flux; :func:`verification.two_scales.informed`) it runs the
-density once (it is deterministic) and the agents on seeds 0 to ``--seeds − 1``, and appends each run's times
-(:func:`verification.two_scales.exit_times`) to ``studies/results/two_scales_plans.jsonl`` as it finishes (an
-interrupted study resumes).  Then it prints, per plan, the agents' median and worst seed of ``t50`` and ``t90``
+the check's door model, the density with Godunov's flux; :func:`verification.two_scales.informed`, on the check's
+cells, :func:`verification.two_scales.refined`) it runs the density once (it is deterministic) and the agents on
+seeds 0 to ``--seeds − 1``, and appends each run's times (:func:`verification.two_scales.exit_times`) to
+``studies/results/two_scales_plans.jsonl`` as it finishes (an interrupted study resumes).  Each row records the
+door model and the refinement it ran with (:func:`setup`); only the rows of today's are read.
+Then it prints, per plan, the agents' median and worst seed of ``t50`` and ``t90``
 and their gaps to the density's (``meanfield verify``'s ``two_scales`` judges the medians within 10 %; its full
 variant runs the bottleneck and the scaled room as well, 1–2 hours).
 """
@@ -29,17 +31,27 @@ RESULTS = Path("studies/results/two_scales_plans.jsonl")
 def one_run(job: tuple[str, str, int]) -> dict[str, Any]:
     """One run: ``(plan, kind, seed)`` with ``kind`` ``"point-mass"`` or ``"fokker-planck"``."""
     from meanfield.scenarios.scenario import builtin_scenarios
-    from verification.two_scales import exit_times, informed
+    from verification.two_scales import exit_times, informed, refined
 
     plan, kind, seed = job
-    row = exit_times(informed(builtin_scenarios()[plan](seed=seed), kind))
-    return {"plan": plan, "kind": kind, "seed": seed, **row}
+    row = exit_times(refined(informed(builtin_scenarios()[plan](seed=seed), kind)))
+    return {"plan": plan, "kind": kind, "seed": seed, **setup(), **row}
+
+
+def setup() -> dict[str, Any]:
+    """What a row is measured with: the check's door model and cells (rows without them: the headway, the plans'
+    own cells and uncapped inner doors, before 2026-12-06's doors)."""
+    from verification.two_scales import DOOR_MODEL, PLAN_REFINEMENT
+
+    return {"door_model": DOOR_MODEL, "plan_refinement": PLAN_REFINEMENT}
 
 
 def _rows() -> list[dict[str, Any]]:
     if not RESULTS.exists():
         return []
-    return [json.loads(line) for line in RESULTS.read_text().splitlines() if line.strip()]
+    today = setup()
+    rows = [json.loads(line) for line in RESULTS.read_text().splitlines() if line.strip()]
+    return [r for r in rows if all(r.get(k) == v for k, v in today.items())]
 
 
 def report(seeds: int) -> str:

@@ -383,10 +383,11 @@ class AgentCrowd:
     memory : RouteMemory, optional
         People who remember the way once a sign has reached them (``view.memory = "route"`` or ``"sign"``,
         :mod:`meanfield.crowds.memory`); None: the paper's humans.
-    door_model : {"headway", "count", "godunov-twin"}
+    door_model : {"forward-cell", "headway", "count", "godunov-twin"}
         How a congested human's speed follows the crowd round it (``crowd.door_model``, :data:`DOOR_MODELS`):
-        the spacing to the person ahead (:class:`~meanfield.crowds.headway.Headway`, the default), ``g(ρ_j)`` of
-        the count in its disk, or the Godunov twin (:class:`~meanfield.crowds.congestion.GodunovTwin`).
+        the density of its Voronoi cell ahead (:class:`~meanfield.crowds.forward_cell.ForwardCell`, the default),
+        the spacing to the person ahead (:class:`~meanfield.crowds.headway.Headway`), ``g(ρ_j)`` of the count in its
+        disk, or the Godunov twin (:class:`~meanfield.crowds.congestion.GodunovTwin`).
     """
 
     def __init__(
@@ -406,7 +407,7 @@ class AgentCrowd:
         density_radius: float = DENSITY_RADIUS,
         individuals: Individuals | None = None,
         memory: RouteMemory | None = None,
-        door_model: str = "headway",
+        door_model: str = "forward-cell",
     ):
         self.engine = engine
         self.memory = memory
@@ -787,9 +788,10 @@ class AgentCrowd:
         # meanfield.crowds.groups); each person keeps its group's exit
         places_groups=True,
         group_exits=True,
-        # a congested human's speed from the spacing to the person ahead ("headway", the first: the default), the
-        # count round it, the Godunov twin or the density of one's Voronoi cell ahead (crowd.door_model, DOOR_MODELS)
-        door_models=("headway", "count", "godunov-twin", "forward-cell"),
+        # a congested human's speed from the density of one's Voronoi cell ahead ("forward-cell", the first: the
+        # default), the spacing to the person ahead, the count round it or the Godunov twin (crowd.door_model,
+        # DOOR_MODELS)
+        door_models=("forward-cell", "headway", "count", "godunov-twin"),
         # a region can become wall during a run ([[events]] block, AgentCrowd.walls_changed): the people in it step
         # out, and the signs, routes and walks go round it
         changes_walls=True,

@@ -504,8 +504,8 @@ class Scenario:
     @property
     def door_model(self) -> str:
         """How a congested agent's speed follows the crowd round it: ``crowd.door_model``, or for ``"auto"`` the
-        crowd kind's own, the first of the models it declares in ``door_models`` (the point masses: ``"headway"``,
-        docs page *Congestion*, "The headway door model").  A kind that declares none (the density, whose flux is
+        crowd kind's own, the first of the models it declares in ``door_models`` (the point masses: ``"forward-cell"``,
+        docs page *Congestion*, "The forward-cell door model").  A kind that declares none (the density, whose flux is
         Godunov's; JuPedSim's bodies, which queue by their own model) reads ``"count"``, which it ignores.
         """
         if self.crowd.door_model != "auto":

@@ -109,7 +109,7 @@ class CrowdSpec:
     that approaches nobody it touches, :class:`~meanfield.crowds.headway.Headway`) or ``"forward-cell"``
     (the diagram's speed at the density of the part of one's Voronoi cell ahead of one,
     :class:`~meanfield.crowds.forward_cell.ForwardCell`); a crowd kind
-    takes the models it declares (``door_models``: the point masses all four, the headway first; the
+    takes the models it declares (``door_models``: the point masses all four, the forward cell first; the
     density's flux is Godunov's and JuPedSim's bodies queue by their own model, so they take ``"auto"``,
     and ``"count"``, the default before ``"auto"``, which they ignore).
 
