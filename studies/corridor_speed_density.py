@@ -8,8 +8,9 @@ Run from the repository's root::
 
 What an experimenter measures, not the diagram itself: a point mass that walks by the count walks at
 ``g(ρ_j) v₀`` by construction (``ρ_j`` its own count of neighbours within 0.5 m), so plotting that is
-circular; one that walks by the headway (the default door model, ``-headway`` in the models' names,
-:data:`POINT_MASS_MODELS`) walks at the diagram's speed at its spacing to the person ahead.
+circular; one that walks by the headway (``-headway`` in the models' names, :data:`POINT_MASS_MODELS`) walks at
+the diagram's speed at its spacing to the person ahead, and one that walks by the forward cell (the default door
+model, ``-forward-cell``) at the diagram's speed at the density of its Voronoi cell ahead.
 Here the crowd walks one way along a corridor and we measure, in a *measurement area* across the
 corridor, the density (persons in the area over its area, PedPy's *classic* method, and PedPy's
 *Voronoi* method) and the mean speed of the people in it, over time windows, at several initial
@@ -209,10 +210,13 @@ POINT_MASS_MODELS = {
     "linear": ("linear", "count"),
     "weidmann-headway": ("weidmann", "headway"),
     "linear-headway": ("linear", "headway"),
+    "weidmann-forward-cell": ("weidmann", "forward-cell"),
+    "linear-forward-cell": ("linear", "forward-cell"),
 }
 """The point masses' models: ``(crowd.congestion, crowd.door_model)``.  The bare diagrams walk by the count, as
 they were measured before the headway became the default door model (docs page *Congestion*, "The agents' door
-model"); the count's speed is ``g`` of the count within the radius, so those are run at each ``--radii``."""
+model"); the count's speed is ``g`` of the count within the radius, so those are run at each ``--radii``.  The
+forward cell is the default since 2026-12-06, the headway before it."""
 COUNT_MODELS = tuple(m for m, (_, door) in POINT_MASS_MODELS.items() if door == "count")
 """The models whose speed is the count's: their local-density radius is a parameter of the walk."""
 

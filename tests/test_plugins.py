@@ -31,7 +31,7 @@ def test_built_in_parts_declare_what_they_need():
     assert plugins.capabilities("beta_gamma", "bounded").accepts_kernel_scaling is False
     assert plugins.capabilities("crowd", "jupedsim").options.__name__ == "JuPedSimOptions"
     assert plugins.capabilities("crowd", "point-mass").options is None
-    assert plugins.capabilities("crowd", "point-mass").door_models[0] == "headway"
+    assert plugins.capabilities("crowd", "point-mass").door_models[0] == "forward-cell"
     assert plugins.capabilities("crowd", "fokker-planck").door_models == ("count",)
     assert plugins.capabilities("congestion", "none").slows is False
     assert plugins.capabilities("guidance", "hughes").for_density is not None

@@ -26,6 +26,8 @@ from meanfield.crowds.congestion import Linear
 from meanfield.crowds.forward_cell import CELL_REACH, ForwardCell, wall_segments
 from meanfield.crowds.headway import TURNS
 from meanfield.geometry.plan import Plan
+from meanfield.simulation.loop import ClosedLoop
+from tests.crowds.test_agent_congestion import bottleneck
 
 COS, SIN = np.cos(TURNS), np.sin(TURNS)
 NO_WALL = np.empty((0, 2))
@@ -78,7 +80,8 @@ def test_one_alone_has_half_its_square_a_wall_cuts_it_and_an_exit_does_not():
     alone = _areas(np.array([[10.0, 10.0]]), _along(0.0, 1), walls=walls)
     assert alone[0] == pytest.approx(np.full(len(COS), 2.0 * CELL_REACH**2), rel=1e-12)
     assert _densities(np.array([[10.0, 10.0]]), _along(0.0, 1), walls=walls)[0] == pytest.approx(
-        np.full(len(COS), 1.0 / (4.0 * CELL_REACH**2)), rel=1e-12)
+        np.full(len(COS), 1.0 / (4.0 * CELL_REACH**2)), rel=1e-12
+    )
     near_wall = _areas(np.array([[10.0, 1.0]]), _along(0.0, 1), walls=walls)  # walking east, the wall 1 m south
     assert near_wall[0, 0] == pytest.approx(CELL_REACH * (CELL_REACH + 1.0), rel=1e-12)
     at_exit = _areas(np.array([[19.5, 10.0]]), _along(0.0, 1), walls=walls)  # facing the exit, 0.5 m from it
@@ -207,3 +210,20 @@ def test_one_alone_walks_free_and_one_touching_the_person_ahead_follows_no_faste
 def test_a_reach_that_bounds_no_cell_is_refused_naming_it(reach):
     with pytest.raises(ValueError, match="reach"):
         ForwardCell(Linear(1.34, 5.4), reach=reach)
+
+
+def test_the_forward_cell_is_the_point_masses_default_and_auto_each_kind_s_own():
+    """``crowd.door_model = "auto"`` (the default) is the first model a crowd kind declares: the forward cell for the
+    point masses (the headway from 2026-12-05 to 2026-12-06), whose crowd then walks it; the density and the bodies
+    declare none and take ``"auto"``, and ``"count"``, the default before, which a scenario recorded then holds (a
+    run's ``summary.json`` is read again as it was)."""
+    sc = bottleneck("linear", t_final=1.0)
+    assert sc.crowd.door_model == "auto" and sc.door_model == "forward-cell"
+    assert ClosedLoop(sc).crowd.door_model == "forward-cell"
+    assert sc.with_values({"crowd.door_model": "count"}).door_model == "count"
+    assert sc.with_values({"crowd.door_model": "headway"}).door_model == "headway"
+    for kind, congestion in (("fokker-planck", "linear"), ("jupedsim", "none")):
+        assert bottleneck(congestion, **{"crowd.kind": kind}).crowd.door_model == "auto"
+        recorded = bottleneck(congestion, **{"crowd.kind": kind}).to_dict()
+        recorded["crowd"]["door_model"] = "count"
+        assert type(sc).from_dict(recorded).crowd.door_model == "count"

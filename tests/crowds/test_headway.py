@@ -395,21 +395,6 @@ def test_the_density_and_the_bodies_refuse_the_headway_naming_the_door_model(kin
     assert exc.value.name == "crowd.door_model"
 
 
-def test_the_headway_is_the_point_masses_default_and_auto_each_kind_s_own():
-    """``crowd.door_model = "auto"`` (the default) is the first model a crowd kind declares: the headway for the point
-    masses, whose crowd then walks it; the density and the bodies declare none and take ``"auto"``, and ``"count"``,
-    the default before, which a scenario recorded then holds (a run's ``summary.json`` is read again as it was)."""
-    sc = bottleneck("linear", t_final=1.0)
-    assert sc.crowd.door_model == "auto" and sc.door_model == "headway"
-    assert ClosedLoop(sc).crowd.door_model == "headway"
-    assert sc.with_values({"crowd.door_model": "count"}).door_model == "count"
-    for kind, congestion in (("fokker-planck", "linear"), ("jupedsim", "none")):
-        assert bottleneck(congestion, **{"crowd.kind": kind}).crowd.door_model == "auto"
-        recorded = bottleneck(congestion, **{"crowd.kind": kind}).to_dict()
-        recorded["crowd"]["door_model"] = "count"
-        assert type(sc).from_dict(recorded).crowd.door_model == "count"
-
-
 def exit_queue(capacity, n=60, sigma=0.0):
     """A 4 m × 2 m box whose right side (2 m) is an exit, ``n`` people walking at it at 1 m/s, capped."""
     from meanfield import Domain

@@ -13,7 +13,15 @@ from meanfield.geometry.exits import exit_segments
 from meanfield.scenarios.scenario import builtin_scenarios
 from verification import runner
 from verification.result import CHECK_NAMES
-from verification.two_scales import LIMIT_WIDTH, TOLERANCE, bottleneck, informed, summarise, two_scales_verdict
+from verification.two_scales import (
+    LIMIT_WIDTH,
+    TOLERANCE,
+    bottleneck,
+    informed,
+    refined,
+    summarise,
+    two_scales_verdict,
+)
 
 
 def test_the_rule_holds_when_every_gap_is_small_and_the_limit_falls():
@@ -78,10 +86,16 @@ def test_the_scaled_bottleneck_is_the_built_in_one_times_l():
         assert room.area == pytest.approx(80.0 * scale**2) and plan.contains(room.buffer(-1e-9))
 
 
-def test_the_informed_crowd_is_on_the_fastest_route_and_the_agents_on_the_headway():
+def test_the_informed_crowd_is_on_the_fastest_route_and_the_agents_on_the_forward_cell():
     agents, density = (informed(builtin_scenarios()["hall"](), kind) for kind in ("point-mass", "fokker-planck"))
     assert agents.crowd.guidance == density.crowd.guidance == "fastest-route"
-    assert agents.crowd.door_model == "headway" and density.crowd.kind == "fokker-planck"
+    assert agents.crowd.door_model == "forward-cell" and density.crowd.kind == "fokker-planck"
+
+
+def test_the_plans_run_on_cells_halved_at_both_scales():
+    office = builtin_scenarios()["office"]()
+    for kind in ("point-mass", "fokker-planck"):
+        assert refined(informed(office, kind)).grid.cells == (120, 56)  # the office's 60 × 28, halved
 
 
 def test_the_check_is_registered_in_report_order():
