@@ -116,6 +116,36 @@ def euler_maruyama(x, drift, noise, dt, amp, box, standing, key0, key1, step, ki
 
 
 # ----------------------------------------------------------------------------- the exits' queues
+@inner
+def _queue_order(reached, count, first, distance, previous, idx, segments, k):
+    """Order ``reached[:count]`` (indices into ``idx``) in place as door ``k`` of ``segments`` serves them: those
+    flagged in ``first`` (set by the caller) first, each the nearest to the door's segment at its step's start
+    first, ties in their order (a stable insertion sort; the distances in :func:`_doorway_distance_numpy`'s
+    arithmetic, into ``distance``)."""
+    ax = segments[k, 0, 0]
+    ay = segments[k, 0, 1]
+    dx = segments[k, 1, 0] - ax
+    dy = segments[k, 1, 1] - ay
+    for c in range(count):
+        sx = previous[idx[reached[c]], 0]
+        sy = previous[idx[reached[c]], 1]
+        along = min(max(((sx - ax) * dx + (sy - ay) * dy) / (dx * dx + dy * dy), 0.0), 1.0)
+        distance[c] = math.hypot(sx - (ax + along * dx), sy - (ay + along * dy))
+    for c in range(1, count):
+        r = reached[c]
+        f = first[c]
+        d = distance[c]
+        e = c - 1
+        while e >= 0 and ((f and not first[e]) or (f == first[e] and d < distance[e])):
+            reached[e + 1] = reached[e]
+            first[e + 1] = first[e]
+            distance[e + 1] = distance[e]
+            e -= 1
+        reached[e + 1] = r
+        first[e + 1] = f
+        distance[e + 1] = d
+
+
 def _doorway_distance_numpy(start, a, b):
     """The distance from each of ``start`` (M, 2) to the exit ``[a, b]`` (m), in :func:`hold_at_capacity`'s
     arithmetic."""
@@ -229,29 +259,9 @@ def hold_at_capacity(gone, idx, previous, x, exits, capacity, credit, waiting, w
             continue
         allowed = int(out[k])
         if count > allowed:
-            ax = exits[k, 0, 0]
-            ay = exits[k, 0, 1]
-            dx = exits[k, 1, 0] - ax
-            dy = exits[k, 1, 1] - ay
-            for c in range(count):  # the arithmetic of _doorway_distance_numpy
-                sx = previous[idx[reached[c]], 0]
-                sy = previous[idx[reached[c]], 1]
-                along = min(max(((sx - ax) * dx + (sy - ay) * dy) / (dx * dx + dy * dy), 0.0), 1.0)
-                distance[c] = math.hypot(sx - (ax + along * dx), sy - (ay + along * dy))
+            for c in range(count):
                 first[c] = in_doorway[reached[c]]
-            for c in range(1, count):  # a stable insertion sort: the waiting first, each the nearest first
-                r = reached[c]
-                f = first[c]
-                d = distance[c]
-                e = c - 1
-                while e >= 0 and ((f and not first[e]) or (f == first[e] and d < distance[e])):
-                    reached[e + 1] = reached[e]
-                    first[e + 1] = first[e]
-                    distance[e + 1] = distance[e]
-                    e -= 1
-                reached[e + 1] = r
-                first[e + 1] = f
-                distance[e + 1] = d
+            _queue_order(reached, count, first, distance, previous, idx, exits, k)
             for c in range(allowed, count):
                 i = reached[c]
                 gone[i] = -1
@@ -405,29 +415,9 @@ def hold_at_doors(idx, previous, x, doors, capacity, credit, waiting, last_door,
             continue
         allowed = int(out[k])
         if count > allowed:
-            ax = doors[k, 0, 0]
-            ay = doors[k, 0, 1]
-            dx = doors[k, 1, 0] - ax
-            dy = doors[k, 1, 1] - ay
-            for c in range(count):  # the arithmetic of _doorway_distance_numpy
-                sx = previous[idx[reached[c]], 0]
-                sy = previous[idx[reached[c]], 1]
-                along = min(max(((sx - ax) * dx + (sy - ay) * dy) / (dx * dx + dy * dy), 0.0), 1.0)
-                distance[c] = math.hypot(sx - (ax + along * dx), sy - (ay + along * dy))
+            for c in range(count):
                 first[c] = before[reached[c]] == k
-            for c in range(1, count):  # a stable insertion sort: those who waited first, each the nearest first
-                r = reached[c]
-                f = first[c]
-                d = distance[c]
-                e = c - 1
-                while e >= 0 and ((f and not first[e]) or (f == first[e] and d < distance[e])):
-                    reached[e + 1] = reached[e]
-                    first[e + 1] = first[e]
-                    distance[e + 1] = distance[e]
-                    e -= 1
-                reached[e + 1] = r
-                first[e + 1] = f
-                distance[e + 1] = d
+            _queue_order(reached, count, first, distance, previous, idx, doors, k)
         passed = min(count, allowed)
         for c in range(count):
             i = reached[c]
