@@ -117,6 +117,17 @@ def euler_maruyama(x, drift, noise, dt, amp, box, standing, key0, key1, step, ki
 
 # ----------------------------------------------------------------------------- the exits' queues
 @inner
+def _reaching(door_of, k, reached):
+    """Those (indices ``i``) with ``door_of[i] == k``, in order, into ``reached``; returns how many."""
+    count = 0
+    for i in range(door_of.shape[0]):
+        if door_of[i] == k:
+            reached[count] = i
+            count += 1
+    return count
+
+
+@inner
 def _queue_order(reached, count, first, distance, previous, idx, segments, k):
     """Order ``reached[:count]`` (indices into ``idx``) in place as door ``k`` of ``segments`` serves them: those
     flagged in ``first`` (set by the caller) first, each the nearest to the door's segment at its step's start
@@ -250,11 +261,7 @@ def hold_at_capacity(gone, idx, previous, x, exits, capacity, credit, waiting, w
     first = np.empty(m, dtype=np.bool_)  # (waiting first)
     distance = np.empty(m)
     for k in range(n_exits):
-        count = 0
-        for i in range(m):
-            if gone[i] == k:
-                reached[count] = i
-                count += 1
+        count = _reaching(gone, k, reached)
         if count == 0:
             continue
         allowed = int(out[k])
@@ -302,11 +309,11 @@ def _hold_doors_numpy(idx, previous, x, doors, capacity, credit, waiting, last_d
     """The numpy twin of :func:`hold_at_doors` (the same arithmetic, door by door)."""
     n_doors = len(capacity)
     p0, p1 = previous[idx], x[idx]
+    d = p1 - p0
     crossed = np.full(len(idx), -1, dtype=np.intp)  # the first door (by index) each step crosses
     sign = np.zeros(len(idx), dtype=np.int8)
     for k in range(n_doors - 1, -1, -1):
         a, e = doors[k, 0], doors[k, 1] - doors[k, 0]
-        d = p1 - p0
         den = d[:, 0] * e[1] - d[:, 1] * e[0]
         w = a - p0
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -406,11 +413,7 @@ def hold_at_doors(idx, previous, x, doors, capacity, credit, waiting, last_door,
     first = np.empty(m, dtype=np.bool_)
     distance = np.empty(m)
     for k in range(n_doors):
-        count = 0
-        for i in range(m):
-            if crossed[i] == k:
-                reached[count] = i
-                count += 1
+        count = _reaching(crossed, k, reached)
         if count == 0:
             continue
         allowed = int(out[k])

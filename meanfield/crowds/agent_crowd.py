@@ -446,12 +446,10 @@ class AgentCrowd:
         self._door = None if self.congestion is None or model is None else model(self.congestion, domain)
         if getattr(self._door, "caps_doors", False):  # each exit and door passes at most q_max per metre of width
             q_max = self.congestion.capacity()[0]
-            if len(getattr(engine, "exits", ())):
-                ends = np.asarray(engine.exits, float)
-                engine.cap_exits(q_max * np.hypot(*(ends[:, 1] - ends[:, 0]).T))
-            if len(getattr(engine, "doors", ())):
-                ends = np.asarray(engine.doors, float)
-                engine.cap_doors(q_max * np.hypot(*(ends[:, 1] - ends[:, 0]).T))
+            for kind, cap in (("exits", "cap_exits"), ("doors", "cap_doors")):
+                ends = np.asarray(getattr(engine, kind, ()), float).reshape(-1, 2, 2)
+                if len(ends):
+                    getattr(engine, cap)(q_max * np.hypot(*(ends[:, 1] - ends[:, 0]).T))
         self.local_density: np.ndarray | None = None  # persons/m² around each human at the last step (congestion)
         self.congestion_name = "none" if self.congestion is None else type(self.congestion).__name__.lower()
         self.peak_local_density = 0.0  # its largest value over the run so far
