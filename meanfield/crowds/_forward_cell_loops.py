@@ -87,12 +87,15 @@ def _shadow_planes(ax: float, ay: float, vx: float, vy: float) -> np.ndarray | N
 
 
 def _cells_numpy(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out, whole, seen):
-    """The numpy twin of :func:`forward_cells`'s loop (every neighbour within ``2√2 R``; ``cells`` unused)."""
+    """The numpy twin of :func:`forward_cells`'s loop (every neighbour within ``2√2 R``; of ``cells`` only the
+    order, for the slots ``whole`` and ``seen`` are written by)."""
     out[:] = np.inf
     whole[:] = 0.0
     seen[:] = -1
     ok = active & np.isfinite(x[:, 0]) & np.isfinite(x[:, 1])
     idx = np.flatnonzero(ok)
+    slot = np.full(len(x), -1, np.int64)
+    slot[cells[0]] = np.arange(len(cells[0]))
     far2_all = 8.0 * reach * reach
     square = np.array([[-reach, -reach], [reach, -reach], [reach, reach], [-reach, reach]])
     for j in idx:
@@ -114,7 +117,7 @@ def _cells_numpy(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out, whol
         mine = [k for k in labels if k >= 0 and not any(
             all(p[0] * (x[k, 0] - x[j, 0]) + p[1] * (x[k, 1] - x[j, 1]) <= p[2] for p in planes) for planes in shadows)]
         mine = mine[: seen.shape[1]]
-        seen[j, : len(mine)] = mine
+        seen[slot[j], : len(mine)] = slot[mine]
         for q in range(-1, len(cos)):  # q = -1: the whole cell
             tx = 0.0 if q < 0 else cos[q] * e[j, 0] - sin[q] * e[j, 1]
             ty = 0.0 if q < 0 else sin[q] * e[j, 0] + cos[q] * e[j, 1]
@@ -135,7 +138,7 @@ def _cells_numpy(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out, whol
                     area += _area_numpy(both)
             area = max(area, 0.0)
             if q < 0:
-                whole[j] = area
+                whole[slot[j]] = area
             else:
                 out[j, q] = 0.5 * area if tx == 0.0 and ty == 0.0 else area
 
@@ -174,9 +177,20 @@ def _area(px, py, m):
 
 
 @inlined
+def _cuts(px, py, m, nx, ny, c):
+    """Whether the line ``y·(nx, ny) = c`` cuts anything off the polygon ``(px, py)[:m]``: some vertex beyond it
+    (the twin's arithmetic).  Else :func:`_cut_labelled` would give the polygon back as it is, to the last bit."""
+    for i in range(m):
+        if px[i] * nx + py[i] * ny - c > 0.0:
+            return True
+    return False
+
+
+@inlined
 def _cut_labelled(px, py, pl, m, nx, ny, c, label, qx, qy, ql):
     """:func:`_clip` in place on ``(px, py)`` (``qx``, ``qy``, ``ql`` scratch), keeping each edge's label (``pl[i]``:
-    the neighbour whose bisector the edge ``i → i + 1`` lies on, −1 for the square's), the new edge labelled
+    the slot in the cell list's order of the neighbour whose bisector the edge ``i → i + 1`` lies on, −1 for the
+    square's), the new edge labelled
     ``label`` (the twin's labels); returns the new vertex count and the squared distance of its farthest vertex.
     The clipping is :func:`_clip`'s, written out again so that the loop over the turns, which needs no labels,
     writes none."""
@@ -273,8 +287,9 @@ def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out, w
                                 dx = pos[s, 0] - xj
                                 dy = pos[s, 1] - yj
                                 d2 = dx * dx + dy * dy
-                                if d2 > 0.0 and 0.25 * d2 < far2 and m < cap:
-                                    m, far2 = _cut_labelled(px, py, pl, m, dx, dy, 0.5 * d2, order[s], qx, qy, ql)
+                                if (d2 > 0.0 and 0.25 * d2 < far2 and m < cap
+                                        and _cuts(px, py, m, dx, dy, 0.5 * d2)):  # fmt: skip
+                                    m, far2 = _cut_labelled(px, py, pl, m, dx, dy, 0.5 * d2, s, qx, qy, ql)
                         gx += step
                 ring += 1
             shadows = 0
@@ -307,8 +322,8 @@ def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out, w
                 k2 = pl[i]
                 if k2 < 0 or slots == seen.shape[1]:
                     continue
-                kx = x[k2, 0] - xj
-                ky = x[k2, 1] - yj
+                kx = pos[k2, 0] - xj
+                ky = pos[k2, 1] - yj
                 hidden = False
                 for i2 in range(shadows):
                     if (kx * planes[i2, 0] + ky * planes[i2, 1] <= planes[i2, 2]
@@ -316,7 +331,7 @@ def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out, w
                             and kx * planes[i2, 6] + ky * planes[i2, 7] <= planes[i2, 8]):  # fmt: skip
                         hidden = True
                 if not hidden:
-                    seen[j, slots] = k2
+                    seen[t, slots] = k2
                     slots += 1
             ex = e[j, 0]
             ey = e[j, 1]
@@ -349,44 +364,52 @@ def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out, w
                         area += _area(qx, qy, mb)
                 area = max(area, 0.0)
                 if q < 0:
-                    whole[j] = area
+                    whole[t] = area
                 else:
                     out[j, q] = 0.5 * area if standing else area
 
 
-def _pool_numpy(x, e, cos, sin, whole, seen, area, out):
+def _pool_numpy(x, e, cos, sin, whole, seen, area, order, pos, out):
     """The numpy twin of :func:`forward_densities`' pooling."""
-    for j in range(len(x)):
+    out[:] = 0.0
+    for t, j in enumerate(order):
         for q in range(len(cos)):
-            tx = cos[q] * e[j, 0] - sin[q] * e[j, 1]
-            ty = sin[q] * e[j, 0] + cos[q] * e[j, 1]
-            count, pool = 0.0, 0.0
-            for k in seen[j]:
-                if k >= 0 and (x[k, 0] - x[j, 0]) * tx + (x[k, 1] - x[j, 1]) * ty > 0.0:
-                    count += 1.0
-                    pool += whole[k]
-            out[j, q] = (0.5 + count) / (area[j, q] + pool) if np.isfinite(area[j, q]) else 0.0
-
-
-@compiled(fallback=_pool_numpy, parallel_over="x")
-def _pool_compiled(x, e, cos, sin, whole, seen, area, out):
-    for j in prange(x.shape[0]):
-        for q in range(cos.shape[0]):
-            if not math.isfinite(area[j, q]):
-                out[j, q] = 0.0
+            if not np.isfinite(area[j, q]):
                 continue
             tx = cos[q] * e[j, 0] - sin[q] * e[j, 1]
             ty = sin[q] * e[j, 0] + cos[q] * e[j, 1]
-            count = 0.0
-            pool = 0.0
-            for i in range(seen.shape[1]):
-                k = seen[j, i]
-                if k < 0:
-                    break
-                if (x[k, 0] - x[j, 0]) * tx + (x[k, 1] - x[j, 1]) * ty > 0.0:
+            count, pool = 0.0, 0.0
+            for k in seen[t]:
+                if k >= 0 and (pos[k, 0] - pos[t, 0]) * tx + (pos[k, 1] - pos[t, 1]) * ty > 0.0:
                     count += 1.0
                     pool += whole[k]
             out[j, q] = (0.5 + count) / (area[j, q] + pool)
+
+
+@compiled(fallback=_pool_numpy, parallel_over="x")
+def _pool_compiled(x, e, cos, sin, whole, seen, area, order, pos, out):
+    for j in prange(x.shape[0]):  # those not in the cell list
+        for q in range(cos.shape[0]):
+            out[j, q] = 0.0
+    m_all = order.shape[0]
+    for chunk in prange((m_all + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):  # the rest in cell order, near in memory
+        for t in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, m_all)):
+            j = order[t]
+            for q in range(cos.shape[0]):
+                if not math.isfinite(area[j, q]):
+                    continue
+                tx = cos[q] * e[j, 0] - sin[q] * e[j, 1]
+                ty = sin[q] * e[j, 0] + cos[q] * e[j, 1]
+                count = 0.0
+                pool = 0.0
+                for i in range(seen.shape[1]):
+                    k = seen[t, i]
+                    if k < 0:
+                        break
+                    if (pos[k, 0] - pos[t, 0]) * tx + (pos[k, 1] - pos[t, 1]) * ty > 0.0:
+                        count += 1.0
+                        pool += whole[k]
+                out[j, q] = (0.5 + count) / (area[j, q] + pool)
 
 
 NEIGHBOURS = 24
@@ -400,7 +423,9 @@ def _walls(wall_starts: np.ndarray, wall_vectors: np.ndarray) -> tuple[np.ndarra
 
 class CellWork:
     """What one pass of the cells writes besides ``A_jq``, for ``n`` humans, kept between steps by the door model:
-    ``area`` (N, K), each one's ``whole`` visible cell (N,) and its ``seen`` neighbours (N, :data:`NEIGHBOURS`)."""
+    ``area`` (N, K), by human; each one's ``whole`` visible cell (N,) and its ``seen`` neighbours (N,
+    :data:`NEIGHBOURS`), by its slot in the cell list's order, the neighbours too (the pooling then reads memory
+    near the human's own: the cells are near in the order)."""
 
     __slots__ = ("area", "whole", "seen")
 
@@ -472,5 +497,5 @@ def forward_densities(
     n, k = out.shape
     work = CellWork(n, k) if work is None or not work.fits(n, k) else work
     _cells(x, e, active, cos, sin, reach, wall_starts, wall_vectors, cells, work.area, work)
-    _pool_compiled(x, e, cos, sin, work.whole, work.seen, work.area, out)
+    _pool_compiled(x, e, cos, sin, work.whole, work.seen, work.area, cells.order, cells.sorted, out)
     return out

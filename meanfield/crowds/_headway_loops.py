@@ -1026,8 +1026,10 @@ def _nearest_feasible_numpy(vx, vy, n, b):
     return out
 
 
-def _following_numpy(v, walk, x, active, jam, separation, cells):
+def _following_numpy(v, walk, x, active, jam, separation, cells, power, phi, grad):
     """The numpy twin of :func:`following_cone` (every pair closer than ``d``; ``cells`` unused)."""
+    if len(phi):
+        _contact_noise_numpy(x, active, jam, power, phi, grad, cells)
     v[:] = walk
     j, k, r2 = _pairs(x, active, jam)
     keep = r2 > 0.0
@@ -1093,21 +1095,29 @@ def _nearest_feasible(vx, vy, cnx, cny, cb, contacts):
 
 
 @compiled(fallback=_following_numpy, parallel_over="v")
-def _following_compiled(v, walk, x, active, jam, separation, cells):
+def _following_compiled(v, walk, x, active, jam, separation, cells, power, phi, grad):
     order, starts, pos, origin, h, nx, ny = cells
     ox = origin[0]
     oy = origin[1]
     jam2 = jam * jam
     m = order.shape[0]
+    noise = phi.shape[0] > 0
     for j in prange(v.shape[0]):
         v[j, 0] = walk[j, 0]
         v[j, 1] = walk[j, 1]
+        if noise:
+            phi[j] = 1.0
+            grad[j, 0] = 0.0
+            grad[j, 1] = 0.0
     for chunk in prange((m + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):  # the humans in cell order
         cap = CONTACTS
         cnx = np.empty(cap)
         cny = np.empty(cap)
         cb = np.empty(cap)
         cw = np.empty(cap)
+        cdx = np.empty(cap)
+        cdy = np.empty(cap)
+        cr2 = np.empty(cap)
         for t in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, m)):
             j = order[t]
             xj = pos[t, 0]
@@ -1123,24 +1133,35 @@ def _following_compiled(v, walk, x, active, jam, separation, cells):
                     if 0.0 < r2 < jam2:
                         if contacts == cap:  # more contacts than the buffers hold: grow them
                             cap *= 2
-                            grown = np.empty((4, cap))
+                            grown = np.empty((7, cap))
                             grown[0, :contacts] = cnx[:contacts]
                             grown[1, :contacts] = cny[:contacts]
                             grown[2, :contacts] = cb[:contacts]
                             grown[3, :contacts] = cw[:contacts]
+                            grown[4, :contacts] = cdx[:contacts]
+                            grown[5, :contacts] = cdy[:contacts]
+                            grown[6, :contacts] = cr2[:contacts]
                             cnx = grown[0].copy()
                             cny = grown[1].copy()
                             cb = grown[2].copy()
                             cw = grown[3].copy()
+                            cdx = grown[4].copy()
+                            cdy = grown[5].copy()
+                            cr2 = grown[6].copy()
                         r = math.sqrt(r2)
                         k = order[u]
                         cnx[contacts] = dx / r
                         cny[contacts] = dy / r
                         cb[contacts] = max(0.0, walk[k, 0] * (dx / r) + walk[k, 1] * (dy / r))
                         cw[contacts] = separation * (jam - r) / jam
+                        cdx[contacts] = dx
+                        cdy[contacts] = dy
+                        cr2[contacts] = r2
                         contacts += 1
             if contacts == 0:
                 continue
+            if noise:
+                phi[j], grad[j, 0], grad[j, 1] = _noise_share(cdx, cdy, cr2, contacts, jam, power)
             vx, vy = _nearest_feasible(walk[j, 0], walk[j, 1], cnx, cny, cb, contacts)
             for c in range(contacts):
                 vx -= cw[c] * cnx[c]
@@ -1151,7 +1172,7 @@ def _following_compiled(v, walk, x, active, jam, separation, cells):
 
 def following_cone(
     v: np.ndarray, walk: np.ndarray, x: np.ndarray, active: np.ndarray, jam: float, separation: float,
-    cells: CellList,
+    cells: CellList, noise: tuple[np.ndarray, np.ndarray] | None = None, power: float = CONTACT_NOISE_POWER,
 ) -> np.ndarray:  # fmt: skip
     """(H2') and (H3): each active human's walk, the nearest velocity that approaches nobody it touches faster
     than that one walks away, then the soft core's separation, into ``v`` (docs page *Congestion*, "The
@@ -1180,10 +1201,17 @@ def following_cone(
         ``u``, m/s: the speed at which two people at the same point step apart.
     cells : CellList
         The active humans in cells of width at least ``d`` (:func:`cell_list`).
+    noise : tuple of ndarray, optional
+        ``(φ, ∇φ)``, shapes (N,) and (N, 2): written, (H5)'s share of the noise among the same contacts and its
+        gradient, :func:`contact_noise`'s numbers to the last bit in one search of the cells instead of two
+        (None: not computed).
+    power : float
+        ``m`` of (H5) (:data:`CONTACT_NOISE_POWER`), with ``noise``.
     """
     if cells.h < jam:
         raise ValueError(f"following_cone needs cells at least {jam} m wide, got {cells.h}")
-    _following_compiled(v, walk, x, active, float(jam), float(separation), cells.arrays())
+    phi, grad = (np.empty(0), _NO_GRADIENT) if noise is None else noise
+    _following_compiled(v, walk, x, active, float(jam), float(separation), cells.arrays(), float(power), phi, grad)
     return v
 
 

@@ -167,7 +167,7 @@ class ForwardCell(Headway):
         rho, f, walk = self.choose_direction(x, e, active, cells)
         walk = np.ascontiguousarray((norm * f)[:, None] * walk)
         v = np.empty_like(walk)
-        following_cone(v, walk, x, active, self.jam_spacing, self.separation, cells)
+        following_cone(v, walk, x, active, self.jam_spacing, self.separation, cells, self._noise_arrays(n),
+                       self.contact_power)  # fmt: skip
         velocity[:] = v
-        self._contact_noise(x, active, cells)
         return np.where(active, rho, 0.0) if density is None else density(positions, active)

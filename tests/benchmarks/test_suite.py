@@ -204,3 +204,13 @@ def test_a_crashing_benchmark_is_recorded_and_the_others_still_run(tmp_path, mon
     assert doc["records"][0]["error"] == "RuntimeError: solver exploded"
     assert doc["records"][1]["ratio"] == 0.25 and doc["all_goals_pass"] is None
     assert "ERROR: RuntimeError: solver exploded" in capsys.readouterr().out
+
+
+def test_the_congestion_bench_times_the_door_models_it_names():
+    """Each timed setting of ``bench_congestion`` builds the crowd it names: the default is the forward cell, and
+    the headway is asked for by name (it timed the forward cell twice while the default changed)."""
+    from benchmarks import bench_congestion
+
+    models = {m: bench_congestion.small_scenario(m, 0).door_model for m in ("forward-cell", "headway", "count")}
+    assert models == {"forward-cell": "forward-cell", "headway": "headway", "count": "count"}
+    assert bench_congestion.small_scenario("none", 0).congestion_model == "none"

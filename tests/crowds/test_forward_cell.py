@@ -12,6 +12,7 @@ the free speed.
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 import numpy as np
@@ -21,7 +22,7 @@ import shapely
 from meanfield._compiled import core as compiled
 from meanfield._compiled.core import PARALLEL_CHUNK
 from meanfield.crowds._forward_cell_loops import forward_cells, forward_densities
-from meanfield.crowds._headway_loops import cell_list, following_cone
+from meanfield.crowds._headway_loops import cell_list, contact_noise, following_cone
 from meanfield.crowds.congestion import Linear
 from meanfield.crowds.forward_cell import CELL_REACH, ForwardCell, wall_segments
 from meanfield.crowds.headway import TURNS
@@ -174,6 +175,26 @@ def test_the_following_cone_is_its_numpy_twin_s_and_touches_only_those_who_touch
     touching = ((r < D) & active[None, :]).any(axis=1) & active
     assert touching.sum() > 50
     assert np.array_equal(fast[~touching], walk[~touching]) and not np.allclose(fast[touching], walk[touching])
+
+
+@pytest.mark.parametrize("path", ["compiled", "numpy"])
+def test_the_cone_s_noise_share_is_contact_noise_s_to_the_last_bit_and_leaves_the_walk_as_it_was(path):
+    """(H5) from the cone's own search of the contacts: the same ``φ`` and ``∇φ`` as :func:`contact_noise`'s
+    separate pass, a heap of more contacts than the buffers first hold among them, and the same walk as without."""
+    x, e, active, _ = _crowd(300, seed=7)
+    x = x * 0.5
+    x[:40] = 2.0 + 0.05 * np.random.default_rng(4).normal(size=(40, 2))  # 39 contacts each: buffers grow
+    walk = e * np.random.default_rng(2).uniform(0.0, 1.34, (len(x), 1))
+    cells = cell_list(x, active, D)
+    with compiled.numpy_path() if path == "numpy" else contextlib.nullcontext():
+        phi, grad = np.full(len(x), np.nan), np.full((len(x), 2), np.nan)
+        fused = following_cone(np.empty_like(walk), walk, x, active, D, 1.34, cells, (phi, grad), 3.0)
+        alone = following_cone(np.empty_like(walk), walk, x, active, D, 1.34, cells)
+        ref_phi, ref_grad = np.empty(len(x)), np.empty((len(x), 2))
+        contact_noise(x, active, D, cells, ref_phi, ref_grad, 3.0)
+    assert np.array_equal(fused, alone)
+    assert np.array_equal(phi, ref_phi) and np.array_equal(grad, ref_grad)
+    assert (phi[active] < 1.0).sum() > 50 and np.all(phi[~active] == 1.0) and np.all(grad[~active] == 0.0)
 
 
 def test_the_following_cone_stops_a_walk_into_one_standing_and_lets_one_follow_a_leader_walking_away():
