@@ -685,7 +685,8 @@ class AgentCrowd:
         The engine's walls are the new ones (those standing in the block step out of it), the KDE estimates
         on the new grid, the signs are hidden by the new walls (a sampled field, which cannot tell which
         side of a wall, gives way to the exact one), the local density's disks are cut by them, and the
-        guidance, the remembered routes and the non-followers' walk are planned round them.
+        guidance, the remembered routes and the non-followers' walk are planned round them; the door model reads
+        the density by the new walls (its lanes or cells stop at them).
         """
         from meanfield.geometry.blocking import tell_walls_changed
 
@@ -698,7 +699,7 @@ class AgentCrowd:
             self.sampled_field, self.field_evaluation = None, "exact"
         if self._density is not None:
             self._density = LocalDensity(len(self.engine.positions), self.density_radius, change.region)
-        tell_walls_changed((self.engine, self.view, self.guidance, self.memory, self.individuals), change)
+        tell_walls_changed((self.engine, self._door, self.view, self.guidance, self.memory, self.individuals), change)
 
     def fraction_in_disk(self, center: tuple[float, float], radius: float) -> float:
         return fraction_in_disk(self.positions, center, radius)

@@ -115,6 +115,11 @@ class ForwardCell(Headway):
         self._rho = np.empty((0, 0))
         self._work: CellWork | None = None  # the cell pass's arrays, kept between steps
 
+    def walls_changed(self, change: Any) -> None:
+        """Ω is ``change.region`` from now on (a ``block`` event): its walls, the new ones too, cut the cells
+        (:class:`~meanfield.geometry.blocking.WallsChange`)."""
+        self.wall_starts, self.wall_vectors = wall_segments(change.region)
+
     def choose_direction(
         self, positions: np.ndarray, e: np.ndarray, active: np.ndarray, cells: Any
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -152,13 +152,9 @@ class Headway:
         self.turns = tuple(float(t) for t in turns)
         if not self.turns or self.turns[0] != 0.0:
             raise ValueError(f"turns must start with the route's own direction 0.0, got {turns!r}")
-        self.walls = boundary_walls(region) if len(self.turns) > 1 else None
         self._cos = np.array([math.cos(a) for a in self.turns])
         self._sin = np.array([math.sin(a) for a in self.turns])
-        w = self.walls
-        self._lane_walls = NO_WALLS if w is None else LaneWalls(
-            w.a, w.e, (w.origin[0], w.origin[0] + w.shape[0] * w.size, w.origin[1], w.origin[1] + w.shape[1] * w.size),
-            self.reach)  # fmt: skip
+        self._set_walls(region)
         self._headway = np.empty(0)
         self._density = np.empty(0)
         self._fused = type(diagram) is Linear  # (H1) to (H4) in one compiled pass (headway_step)
@@ -257,6 +253,19 @@ class Headway:
         contact_cone(velocity, positions, active, self.jam_spacing, self.separation, cells)
         self._contact_noise(positions, active, cells)
         return self.density(s) if density is None else density(positions, active)
+
+    def _set_walls(self, region: Any) -> None:
+        """The walls (H4) keeps the turned lanes off: ``region``'s (None: none)."""
+        self.walls = boundary_walls(region) if len(self.turns) > 1 else None
+        w = self.walls
+        self._lane_walls = NO_WALLS if w is None else LaneWalls(
+            w.a, w.e, (w.origin[0], w.origin[0] + w.shape[0] * w.size, w.origin[1], w.origin[1] + w.shape[1] * w.size),
+            self.reach)  # fmt: skip
+
+    def walls_changed(self, change: Any) -> None:
+        """Ω is ``change.region`` from now on (a ``block`` event): (H4)'s lanes stop at its walls, the new ones
+        too (:class:`~meanfield.geometry.blocking.WallsChange`)."""
+        self._set_walls(change.region)
 
     def _contact_noise(self, positions: np.ndarray, active: np.ndarray, cells: Any) -> None:
         """(H5): each one's share of the noise among its contacts, :attr:`noise_factor`, and its gradient,

@@ -23,6 +23,8 @@ import pytest
 import shapely
 
 from meanfield.cli.app import main
+from meanfield.crowds._headway_loops import cell_list
+from meanfield.crowds.forward_cell import CELL_REACH
 from meanfield.errors import ParameterError
 from meanfield.geometry.blocking import blocked_region
 from meanfield.geometry.domain import Domain
@@ -103,6 +105,29 @@ def test_the_informed_crowd_the_evacuation_controller_and_coverage_plan_round_it
     c = coverage.controller
     assert c.grid is coverage.grid and c.law.grid is coverage.grid
     assert len(c._cells) == int(coverage.grid.active.sum())  # the block's cells are not covered
+
+
+@pytest.mark.parametrize("door_model", ["forward-cell", "headway"])
+def test_the_door_model_reads_the_density_by_the_block_s_walls(door_model):
+    """After the block, the door model's walls are the plan's new ones: the forward cell's cells and the headway's
+    lanes stop at the block (a person facing it, 0.2 m away, reads the room ahead of it closed off)."""
+    from meanfield.crowds.forward_cell import wall_segments
+    from meanfield.crowds.headway import boundary_walls
+
+    loop = ClosedLoop(hall(**{"crowd.door_model": door_model}))
+    door = loop.crowd._door
+    before = len(door.wall_starts) if door_model == "forward-cell" else len(door.walls.a)
+    run_to(loop, BLOCK_AT + loop.dt)
+    region = loop.crowd.engine.domain
+    if door_model == "forward-cell":
+        new = wall_segments(region)
+        assert len(door.wall_starts) != before  # the block's walls in, the pillars it covers out
+        assert np.array_equal(door.wall_starts, new[0]) and np.array_equal(door.wall_vectors, new[1])
+        x, e = np.array([[9.8, 10.0]]), np.array([[1.0, 0.0]])  # west of the block's face x = 10, facing it
+        rho, _, _ = door.choose_direction(x, e, np.ones(1, bool), cell_list(x, np.ones(1, bool), door.jam_spacing))
+        assert rho[0] > 0.5 / (0.2 * 2 * CELL_REACH)  # ahead: at most 0.2 m × the square's side
+    else:
+        assert len(door.walls.a) != before and np.array_equal(door.walls.a, boundary_walls(region).a)
 
 
 @pytest.mark.parametrize(
