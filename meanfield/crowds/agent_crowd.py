@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any, Protocol
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -118,6 +118,25 @@ class AgentEngine(Protocol):
     def step(self, drift: np.ndarray, t: float, dt: float) -> None: ...
 
     def summary(self) -> dict[str, Any]: ...
+
+
+@runtime_checkable
+class SharesNoise(Protocol):
+    """A door model with (H5), the noise shared among contacts (the headway and the forward cell; docs page
+    *Congestion*, "The headway door model"): after its ``slow_down``, each human's share ``φ_j`` of σ and its
+    gradient (None without (H5))."""
+
+    noise_factor: np.ndarray | None
+    noise_gradient: np.ndarray | None
+
+
+@runtime_checkable
+class TakesNoiseShare(Protocol):
+    """An engine whose noise each human's share scales: ``σ`` (m²/s, a number or ``σ(x, y, t)``) and the share
+    ``φ_j`` it steps with, ``σ φ_j`` (None: σ for all; :class:`~meanfield.crowds.point_mass.PointMassEngine`)."""
+
+    sigma: Any
+    noise_factor: np.ndarray | None
 
 
 def initial_positions(scenario: Any, n: int, rng: np.random.Generator) -> np.ndarray:
@@ -564,7 +583,7 @@ class AgentCrowd:
         else:
             rho = self._door.slow_down(velocity, positions, active, dt, self._density)
             door, engine = self._door, self.engine
-            if isinstance(door, Headway) and door.noise_factor is not None and isinstance(engine, PointMassEngine):
+            if isinstance(door, SharesNoise) and door.noise_factor is not None and isinstance(engine, TakesNoiseShare):
                 sigma = engine.sigma  # (H5): the noise among contacts (docs page Congestion, "The headway door model")
                 s = np.asarray(sigma(positions[:, 0], positions[:, 1], t), float)[:, None] if callable(sigma) else sigma
                 velocity += s * door.noise_gradient  # σ ∇φ: the noise ∇·(σφ∇p), not Itô's Δ(σφp)

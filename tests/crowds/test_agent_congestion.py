@@ -398,3 +398,23 @@ def test_the_density_and_the_bodies_refuse_the_twin_naming_the_door_model(kind):
     with pytest.raises(ParameterError) as exc:
         bottleneck("linear", **{"crowd.door_model": "push"})
     assert exc.value.name == "crowd.door_model"
+
+
+def test_the_crowd_shares_the_noise_where_the_door_model_and_the_engine_declare_it():
+    """(H5) reaches the engine through what the parts declare, not their classes: the headway and the forward cell
+    share the noise among contacts, the Godunov twin does not; the point masses' engine takes a share, and with a
+    door model that shares none (or (H5) off) its noise stays σ for all."""
+    from meanfield.crowds.agent_crowd import SharesNoise, TakesNoiseShare
+    from meanfield.crowds.forward_cell import ForwardCell
+    from meanfield.crowds.headway import Headway
+
+    d = Linear()
+    assert isinstance(Headway(d), SharesNoise) and isinstance(ForwardCell(d), SharesNoise)
+    assert not isinstance(GodunovTwin(d), SharesNoise)
+    for model, shared in (("forward-cell", True), ("headway", True), ("godunov-twin", False), ("count", False)):
+        loop = ClosedLoop(bottleneck("linear", **{"crowd.door_model": model}))
+        for _ in range(40):
+            loop.step()
+        engine = loop.crowd.engine
+        assert isinstance(engine, TakesNoiseShare)
+        assert (engine.noise_factor is not None and (engine.noise_factor < 1.0).any()) == shared, model
