@@ -191,7 +191,8 @@ def _cut_labelled(px, py, pl, m, nx, ny, c, label, qx, qy, ql):
     """:func:`_clip` in place on ``(px, py)`` (``qx``, ``qy``, ``ql`` scratch), keeping each edge's label (``pl[i]``:
     the slot in the cell list's order of the neighbour whose bisector the edge ``i → i + 1`` lies on, −1 for the
     square's), the new edge labelled
-    ``label`` (the twin's labels); returns the new vertex count and the squared distance of its farthest vertex.
+    ``label`` (the twin's labels); returns the new vertex count, the squared distance of its farthest vertex and its
+    bounding box ``(x0, x1, y0, y1)``.
     The clipping is :func:`_clip`'s, written out again so that the loop over the turns, which needs no labels,
     writes none."""
     k = 0
@@ -211,12 +212,20 @@ def _cut_labelled(px, py, pl, m, nx, ny, c, label, qx, qy, ql):
             ql[k] = label if a < 0.0 else pl[i]
             k += 1
     far2 = 0.0
+    x0 = math.inf
+    x1 = -math.inf
+    y0 = math.inf
+    y1 = -math.inf
     for i in range(k):
         px[i] = qx[i]
         py[i] = qy[i]
         pl[i] = ql[i]
         far2 = max(far2, qx[i] * qx[i] + qy[i] * qy[i])
-    return k, far2
+        x0 = min(x0, qx[i])
+        x1 = max(x1, qx[i])
+        y0 = min(y0, qy[i])
+        y1 = max(y1, qy[i])
+    return k, far2, x0, x1, y0, y1
 
 
 SHADOWS = 16
@@ -269,6 +278,10 @@ def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out, w
                 pl[i] = -1
             m = 4
             far2 = 2.0 * reach * reach
+            x0 = -reach  # the cell's bounding box
+            x1 = reach
+            y0 = -reach
+            y1 = reach
             cx = min(int((xj - ox) // h), nx - 1)
             cy = min(int((yj - oy) // h), ny - 1)
             ring = 0
@@ -278,19 +291,28 @@ def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out, w
                 if ring > max(cx, nx - 1 - cx, cy, ny - 1 - cy):
                     break
                 for gy in range(max(cy - ring, 0), min(cy + ring, ny - 1) + 1):
-                    step = 1 if (gy == cy - ring or gy == cy + ring) else 2 * ring
-                    gx = cx - ring
-                    while gx <= cx + ring:
-                        if 0 <= gx < nx:
-                            c = gy * nx + gx
-                            for s in range(starts[c], starts[c + 1]):
-                                dx = pos[s, 0] - xj
-                                dy = pos[s, 1] - yj
-                                d2 = dx * dx + dy * dy
-                                if (d2 > 0.0 and 0.25 * d2 < far2 and m < cap
-                                        and _cuts(px, py, m, dx, dy, 0.5 * d2)):  # fmt: skip
-                                    m, far2 = _cut_labelled(px, py, pl, m, dx, dy, 0.5 * d2, s, qx, qy, ql)
-                        gx += step
+                    full = gy == cy - ring or gy == cy + ring  # the ring's top or bottom row: one run of cells
+                    for part in range(1 if full else 2):  # else its two cells on this row, left then right
+                        if full:
+                            lo = starts[gy * nx + max(cx - ring, 0)]
+                            hi = starts[gy * nx + min(cx + ring, nx - 1) + 1]
+                        else:
+                            gx = cx - ring if part == 0 else cx + ring
+                            if gx < 0 or gx >= nx:
+                                continue
+                            lo = starts[gy * nx + gx]
+                            hi = starts[gy * nx + gx + 1]
+                        for s in range(lo, hi):
+                            dx = pos[s, 0] - xj
+                            dy = pos[s, 1] - yj
+                            d2 = dx * dx + dy * dy
+                            # a bisector can cut only what lies beyond it: within twice the farthest vertex, past
+                            # the bounding box's corner along it, past a vertex (each test exact: no cut is missed)
+                            if (d2 > 0.0 and 0.25 * d2 < far2 and m < cap
+                                    and (x1 * dx if dx > 0.0 else x0 * dx) + (y1 * dy if dy > 0.0 else y0 * dy)
+                                    > 0.5 * d2 and _cuts(px, py, m, dx, dy, 0.5 * d2)):  # fmt: skip
+                                m, far2, x0, x1, y0, y1 = _cut_labelled(px, py, pl, m, dx, dy, 0.5 * d2, s, qx, qy,
+                                                                        ql)  # fmt: skip
                 ring += 1
             shadows = 0
             for w in range(n_walls):  # the walls near enough to hide part of the cell, facing the human
