@@ -125,7 +125,7 @@ def test_the_door_model_reads_the_density_by_the_block_s_walls(door_model):
         assert np.array_equal(door.wall_starts, new[0]) and np.array_equal(door.wall_vectors, new[1])
         x, e = np.array([[9.8, 10.0]]), np.array([[1.0, 0.0]])  # west of the block's face x = 10, facing it
         rho, _, _ = door.choose_direction(x, e, np.ones(1, bool), cell_list(x, np.ones(1, bool), door.jam_spacing))
-        assert rho[0] > 0.5 / (0.2 * 2 * CELL_REACH)  # ahead: at most 0.2 m × the square's side
+        assert rho[0] >= 0.999 * 0.5 / (0.2 * 2 * CELL_REACH)  # ahead: at most 0.2 m × the square's side (alone: 3 m)
     else:
         assert len(door.walls.a) != before and np.array_equal(door.walls.a, boundary_walls(region).a)
 
