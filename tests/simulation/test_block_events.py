@@ -24,7 +24,8 @@ import shapely
 
 from meanfield.cli.app import main
 from meanfield.crowds._headway_loops import cell_list
-from meanfield.crowds.forward_cell import CELL_REACH
+from meanfield.crowds.forward_cell import CELL_REACH, wall_segments
+from meanfield.crowds.headway import boundary_walls
 from meanfield.errors import ParameterError
 from meanfield.geometry.blocking import blocked_region
 from meanfield.geometry.domain import Domain
@@ -111,9 +112,6 @@ def test_the_informed_crowd_the_evacuation_controller_and_coverage_plan_round_it
 def test_the_door_model_reads_the_density_by_the_block_s_walls(door_model):
     """After the block, the door model's walls are the plan's new ones: the forward cell's cells and the headway's
     lanes stop at the block (a person facing it, 0.2 m away, reads the room ahead of it closed off)."""
-    from meanfield.crowds.forward_cell import wall_segments
-    from meanfield.crowds.headway import boundary_walls
-
     loop = ClosedLoop(hall(**{"crowd.door_model": door_model}))
     door = loop.crowd._door
     before = len(door.wall_starts) if door_model == "forward-cell" else len(door.walls.a)
