@@ -277,6 +277,12 @@ def _is_pending_helper(value: Any) -> bool:
 
 
 _helper_dispatchers: dict[Callable[..., Any], Any] = {}  # one per helper, whichever modules import it
+_callable_helpers: dict[Callable[..., Any], Any] = {}  # compile_inner's twins, callable from Python
+
+_INNER_OPTIONS = {"no_cpython_wrapper": True, "no_cfunc_wrapper": True}
+"""An :func:`inner` helper is only ever called from compiled code: numba builds neither the wrapper that lets
+Python call it nor its C-callable one (together about a tenth of a first run's compile, 0.6 s of the paper's 6.5;
+issue 45).  :func:`compile_inner` compiles a twin with them, for the tests that call a helper from Python."""
 
 
 def _resolve_helpers(space: dict[str, Any], nb: Any) -> None:
@@ -291,7 +297,7 @@ def _resolve_helpers(space: dict[str, Any], nb: Any) -> None:
         elif _is_pending_helper(value):
             if value not in _helper_dispatchers:
                 inline = {"inline": "always"} if getattr(value, "_compiled_inline", False) else {}
-                _helper_dispatchers[value] = nb.njit(cache=True, error_model="numpy", **inline)(value)
+                _helper_dispatchers[value] = nb.njit(cache=True, error_model="numpy", **_INNER_OPTIONS, **inline)(value)
             space[name] = _helper_dispatchers[value]
             if value.__globals__ is not space:
                 homes.append(value.__globals__)
@@ -299,15 +305,34 @@ def _resolve_helpers(space: dict[str, Any], nb: Any) -> None:
         _resolve_helpers(home, nb)
 
 
+def _renamed(function: Callable[..., Any], suffix: str) -> Callable[..., Any]:
+    """A copy of ``function`` whose qualified name ends in ``suffix``: numba's on-disk cache, keyed by that name,
+    keeps a compiled version with other options apart from the function's own."""
+    twin = types.FunctionType(
+        function.__code__, function.__globals__, function.__name__, function.__defaults__, function.__closure__
+    )
+    twin.__qualname__ = f"{function.__qualname__}{suffix}"
+    twin.__module__ = function.__module__
+    return twin
+
+
 def compile_inner(helper: Callable[..., Any]) -> Any:
-    """The numba-compiled version of an :func:`inner` helper, its own helpers resolved (for tests)."""
+    """The numba-compiled version of an :func:`inner` helper that Python can call, its own helpers resolved (for
+    tests: the one the loops call has no Python wrapper, :data:`_INNER_OPTIONS`; this twin computes the same)."""
     if hasattr(helper, "py_func"):
-        return helper
+        helper = helper.py_func
     nb = _numba()
     if isinstance(nb, Exception):
         raise nb
     _resolve_helpers(helper.__globals__, nb)
-    return _helper_dispatchers[helper]
+    if helper not in _callable_helpers:
+        inline = {"inline": "always"} if getattr(helper, "_compiled_inline", False) else {}
+        _callable_helpers[helper] = nb.njit(cache=True, error_model="numpy", **inline)(_renamed(helper, "_from_python"))
+    return _callable_helpers[helper]
+
+
+_LOOP_OPTIONS = {"error_model": "numpy", "no_cfunc_wrapper": True}
+"""A loop is called from Python only: no C-callable wrapper (numba builds one by default)."""
 
 
 def _cause(exc: BaseException) -> str:
@@ -351,11 +376,8 @@ class CompiledLoop:
         """The loop's ``parallel=True`` version: a copy of the function under its own name, so that numba's
         on-disk cache keeps the two versions apart (the cache is keyed by the function's qualified name)."""
         nb = _numba()
-        loop = self.loop
-        twin = types.FunctionType(loop.__code__, loop.__globals__, loop.__name__, loop.__defaults__, loop.__closure__)
-        twin.__qualname__ = f"{loop.__qualname__}_on_threads"
-        twin.__module__ = loop.__module__
-        return nb.njit(cache=True, parallel=True, **{"error_model": "numpy", **self._options})(twin)
+        twin = _renamed(self.loop, "_on_threads")
+        return nb.njit(cache=True, parallel=True, **{**_LOOP_OPTIONS, **self._options})(twin)
 
     def _on_threads(self, *args: Any) -> Any:
         """A large call: the threaded version (compiled now on the first), or the one-thread version if it failed."""
@@ -380,7 +402,7 @@ class CompiledLoop:
         if isinstance(nb, Exception):
             return None
         _resolve_helpers(self.loop.__globals__, nb)  # the module's @inner helpers, compiled versions
-        return nb.njit(cache=True, **{"error_model": "numpy", **self._options})(self.loop)
+        return nb.njit(cache=True, **{**_LOOP_OPTIONS, **self._options})(self.loop)
 
     def _fail(self, exc: BaseException) -> None:
         cause = _cause(exc)

@@ -12,8 +12,8 @@ inside the block, a loop is about to compile with nothing in numba's on-disk cac
 process first forks one child per *task* (say, the controller's first call and the crowd's
 first step). Each child runs its task, which compiles that part's loops and writes them to
 the cache, and exits; the block goes on compiling its own loops meanwhile. When the block
-ends, the children are awaited, and the loops they compiled are then read from the cache
-instead of being compiled a second time. A task works on the child's copy of the process
+ends (or later, when the caller says: ``wait=False``), the children are awaited, and the loops they
+compiled are then read from the cache instead of being compiled a second time. A task works on the child's copy of the process
 (a fork), so nothing it changes reaches the parent: the run's results are the same with or
 without this.
 
@@ -35,6 +35,7 @@ import sys
 import threading
 import time
 import warnings
+import weakref
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any
@@ -70,7 +71,7 @@ def parallel_compile_possible() -> bool:
     )
 
 
-def _fork(task: Callable[[], Any], niceness: int = 0) -> int | None:
+def _fork(task: Callable[[], Any]) -> int | None:
     """Run ``task`` in a forked child that exits without returning here; its pid (None: no fork)."""
     sys.stdout.flush()
     sys.stderr.flush()
@@ -88,11 +89,6 @@ def _fork(task: Callable[[], Any], niceness: int = 0) -> int | None:
         os.dup2(devnull, 1)
         os.dup2(devnull, 2)
         warnings.simplefilter("ignore")
-        if niceness:
-            try:
-                os.nice(niceness)
-            except OSError:
-                pass
         task()
         status = 0
     finally:
@@ -106,7 +102,10 @@ def _await(pids: list[int], timeout: float) -> None:
     try:
         while waiting:
             for pid in list(waiting):
-                done, _ = os.waitpid(pid, os.WNOHANG)
+                try:
+                    done, _ = os.waitpid(pid, os.WNOHANG)
+                except ChildProcessError:  # (reaped elsewhere)
+                    done = pid
                 if done:
                     waiting.remove(pid)
             if waiting:
@@ -122,8 +121,35 @@ def _await(pids: list[int], timeout: float) -> None:
                 pass
 
 
+class Compilers:
+    """The children a :func:`compile_in_parallel` block forked (none if it forked nothing), until reaped.
+
+    :meth:`wait` reaps them, waiting at most until the block's ``timeout`` runs out (counted from the
+    block's end) and killing those still running then.  Children never waited for are killed when the
+    process exits (or this object is collected): what they had cached stays cached.
+    """
+
+    def __init__(self, timeout: float) -> None:
+        self.pids: list[int] = []
+        self.timeout = timeout
+        self._deadline: float | None = None
+        self._reap = weakref.finalize(self, _await, self.pids, 0.0)
+
+    def _start_clock(self) -> None:
+        self._deadline = time.monotonic() + self.timeout
+
+    def wait(self) -> None:
+        """Reap the children (at once if there are none, or if they were already reaped)."""
+        if self.pids:
+            deadline = self._deadline if self._deadline is not None else time.monotonic() + self.timeout
+            _await(self.pids, max(0.0, deadline - time.monotonic()))
+        self.pids.clear()
+
+
 @contextmanager
-def compile_in_parallel(tasks: Sequence[Callable[[], Any]], timeout: float = 60.0) -> Iterator[None]:
+def compile_in_parallel(
+    tasks: Sequence[Callable[[], Any]], timeout: float = 60.0, *, wait: bool = True
+) -> Iterator[Compilers]:
     """Run the block; if it meets a loop with an empty cache, compile ``tasks`` in forked children meanwhile.
 
     Parameters
@@ -131,11 +157,21 @@ def compile_in_parallel(tasks: Sequence[Callable[[], Any]], timeout: float = 60.
     tasks : sequence of callables
         Each is called with no argument in its own child process, which then exits; what it
         returns or raises is dropped. A task should call the part of the code whose loops
-        the block does *not* compile (the block's own loops compile in the parent). Put the
-        longest first: the others run at a lower priority (``nice`` 10), so that on two cores
-        the first task and the block get them (the paper's first build: 2.6 s instead of 3.2).
+        the block does *not* compile (the block's own loops compile in the parent). All run at
+        the parent's priority: with three processes on two cores, the block and the longest
+        task finish soonest when they share the cores evenly.
     timeout : float
-        Seconds to wait for the children at the end of the block, in all (then they are killed).
+        Seconds to wait for the children after the block, in all (then they are killed).
+    wait : bool
+        True: the block's end waits for the children. False: it does not; the caller waits with
+        the yielded :class:`Compilers` (``.wait()``) just before it calls what the tasks compile,
+        and meanwhile goes on with work of its own (whatever it compiles there, it compiles
+        itself, beside the children).
+
+    Yields
+    ------
+    Compilers
+        The children forked (none when nothing was).
 
     Examples
     --------
@@ -148,24 +184,29 @@ def compile_in_parallel(tasks: Sequence[Callable[[], Any]], timeout: float = 60.
     When that density compiled nothing (the Fokker-Planck crowd's), it forked nothing, and the
     first step's act (the law, here) runs as ``with compile_in_parallel([crowd_first_step])``.
     """
+    children = Compilers(timeout)
     if not tasks or not parallel_compile_possible():
-        yield
+        yield children
         return
-    pids: list[int] = []
 
     def fork_tasks() -> None:
         global _used
         _used = True
         compiled.prepare_compiler()  # once here rather than once in every child
-        for k, task in enumerate(tasks):
-            pid = _fork(task, 10 if k else 0)
+        for task in tasks:
+            pid = _fork(task)
             if pid is not None:
-                pids.append(pid)
+                children.pids.append(pid)
 
     unregister = compiled.before_cold_compile(fork_tasks)
     try:
-        yield
+        yield children
+    except BaseException:
+        _await(children.pids, 0.0)  # an error in the block (Ctrl-C, say): the children are killed at once
+        children.pids.clear()
+        raise
     finally:
         unregister()
-        if pids:
-            _await(pids, timeout)
+        children._start_clock()
+    if wait:
+        children.wait()

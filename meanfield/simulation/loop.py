@@ -91,11 +91,14 @@ class ClosedLoop:
         self.step_index = 0
         controller_half, plant_half = self._first_step_halves()
         halves = [h for h in (controller_half, plant_half) if h is not None]  # the law compiles longest: first
-        with compile_in_parallel(halves):  # (only on a cold cache: meanfield._compiled.warmup)
+        # (only on a cold cache: meanfield._compiled.warmup) the children are awaited just before the first act,
+        # so that what comes between (the observers' start, say) compiles here beside them
+        with compile_in_parallel(halves, wait=False) as self._compilers:
             self.density: np.ndarray = self.crowd.density()
         # a density that compiled nothing (the Fokker-Planck crowd's) forked nothing: then the plant's half
         # compiles in a child beside the first step's act, which compiles the law here (_act)
         self._plant_beside_first_act = [plant_half] if plant_half and parallel_compile_possible() else None
+        self._first_act = True
         self.last: StepRecord | None = None  # the latest step, as observers saw it
         self._started = False
         # the scenario's [[events]], in time order: each closes an exit before the first step that starts at its time
@@ -162,9 +165,12 @@ class ClosedLoop:
         return NavigationField(self.parts.kernel, self.grid, r.positions, r.headings, self.parts.sight)
 
     def _act(self, observation: Observation) -> Any:
-        """The first step's act, the plant's half compiling in a child meanwhile if the cache is cold (once)."""
+        """The first step's act: once the children compiling the step's halves are done (they cached the loops it
+        calls), or with the plant's half compiling in a child meanwhile if nothing was forked at the build."""
+        self._first_act = False
+        self._compilers.wait()
         tasks, self._plant_beside_first_act = self._plant_beside_first_act, None
-        with compile_in_parallel(tasks):
+        with compile_in_parallel(tasks or ()):
             return self.controller.act(observation)
 
     def start(self) -> None:
@@ -186,7 +192,7 @@ class ClosedLoop:
             event = self._events.pop(0)
             getattr(self, f"_{event.action}")(event)  # _close_exit or _block
         observation = self.observe()
-        command = self.controller.act(observation) if self._plant_beside_first_act is None else self._act(observation)
+        command = self._act(observation) if self._first_act else self.controller.act(observation)
         u, w, report = limited_inputs(command.u, command.omega, self.robots.u_max, self.robots.omega_max)
         if not report[4]:
             raise SimulationDiverged(
