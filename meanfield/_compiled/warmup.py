@@ -12,10 +12,10 @@ inside the block, a loop is about to compile with nothing in numba's on-disk cac
 process first forks one child per *task* (say, the controller's first call and the crowd's
 first step). Each child runs its task, which compiles that part's loops and writes them to
 the cache, and exits; the block goes on compiling its own loops meanwhile. When the block
-ends (or later, when the caller says: ``wait=False``), the children are awaited, and the loops they
-compiled are then read from the cache instead of being compiled a second time. A task works on the child's copy of the process
-(a fork), so nothing it changes reaches the parent: the run's results are the same with or
-without this.
+ends (or later, when the caller says: ``wait=False``), the children are awaited, and the loops
+they compiled are then read from the cache instead of being compiled a second time. A task works
+on the child's copy of the process (a fork), so nothing it changes reaches the parent: the run's
+results are the same with or without this.
 
 Nothing is forked (and the block runs as before) unless all of these hold: the block
 compiles a loop whose cache is empty (a warm cache costs one index read), the platform is
