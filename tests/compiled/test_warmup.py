@@ -141,6 +141,62 @@ def test_a_task_that_fails_or_hangs_costs_only_the_bounded_wait(tmp_path):
     assert "a task that fails" not in out.stderr  # the children's output goes nowhere
 
 
+DEFERRED = textwrap.dedent(
+    """
+    import json, os, sys, time
+    import numpy as np
+    from meanfield._compiled import warmup
+    from meanfield._compiled.core import compiled
+
+    def _twice(x):
+        return 2.0 * x
+
+    @compiled(fallback=_twice)
+    def twice(x):
+        out = np.empty_like(x)
+        for i in range(x.shape[0]):
+            out[i] = 2.0 * x[i]
+        return out
+
+    def hangs():
+        time.sleep(600)
+
+    t0 = time.perf_counter()
+    with warmup.compile_in_parallel([hangs], timeout=float(sys.argv[1]), wait=False) as children:
+        y = twice(np.arange(3.0))
+    pids = list(children.pids)
+    block = time.perf_counter() - t0
+    running = [os.waitpid(pid, os.WNOHANG)[0] == 0 for pid in pids]  # still running after the block
+    t1 = time.perf_counter()
+    children.wait()
+    waited = time.perf_counter() - t1
+    gone = []
+    for pid in pids:
+        try:
+            os.waitpid(pid, os.WNOHANG)
+            gone.append(False)
+        except ChildProcessError:  # reaped: no such child any more
+            gone.append(True)
+    print(json.dumps({"pids": len(pids), "block": block, "running": running, "waited": waited, "gone": gone,
+                      "left": len(children.pids), "y": y.tolist()}))
+    """
+)
+
+
+def test_a_deferred_wait_lets_the_block_end_at_once_and_reaps_the_children_later(tmp_path):
+    script = tmp_path / "deferred.py"
+    script.write_text(DEFERRED)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "h"), "MEANFIELD_COMPILED": "1"}
+    env.pop(warmup.ENV, None)
+    out = subprocess.run([sys.executable, str(script), "3.0"], env=env, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout.strip().splitlines()[-1])
+    assert doc["pids"] == 1 and doc["running"] == [True]  # the block ended with the hanging child still running
+    assert doc["gone"] == [True] and doc["left"] == 0  # wait() killed and reaped it at the timeout
+    assert doc["waited"] < 60  # bounded by the timeout (3 s from the block's end), not the child's 600 s
+    assert doc["y"] == [0.0, 2.0, 4.0]
+
+
 def test_the_switch_and_the_conditions():
     assert warmup.ENV == "MEANFIELD_PARALLEL_COMPILE"
     with compiled.numpy_path():
