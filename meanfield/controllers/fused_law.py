@@ -104,8 +104,12 @@ class FusedLaw:
         if step_one is None:
             px, py = prev[1] if have_prev else vd  # (unused without a previous v_d)
             cst = self._paper_constants(g, field.kernel, n)
-            out = paper_law(rho, law.target, cst, field.positions, field.cos, field.sin, px, py, have_prev, h, rho_t,
-                            vd[0], vd[1], vt[0], vt[1], b, gg, u, w)  # fmt: skip
+            # the fields flat (reshape(-1): views of the outputs, which are new C-ordered arrays; a copy of an input
+            # that is not C-ordered)
+            out = paper_law(nx, ny, rho.reshape(-1), law.target.reshape(-1), cst, field.positions, field.cos,
+                            field.sin, px.reshape(-1), py.reshape(-1), have_prev, h, rho_t.reshape(-1),
+                            vd[0].reshape(-1), vd[1].reshape(-1), vt[0].reshape(-1), vt[1].reshape(-1),
+                            b, gg, u, w)  # fmt: skip
         else:
             k, tg = field.kernel, law.target_gradient
             k_u, k_w = self._gains(n)

@@ -217,6 +217,45 @@ def test_a_loop_that_does_not_compile_falls_back_with_one_warning(monkeypatch):
     assert "_never_compiles" in next(iter(compiled.status()["fallbacks"]))
 
 
+def _doubled(x):
+    return 2.0 * x
+
+
+def test_a_loops_first_call_compiles_with_the_collector_off_and_restores_it(monkeypatch):
+    if not compiled.numba_available():
+        pytest.skip("numba is not installed: nothing compiles")
+    import gc
+
+    monkeypatch.setattr(compiled, "_override", True)
+    monkeypatch.setattr(compiled, "_selected", None)
+    kernel = compiled.compiled(fallback=_doubled)(_doubled)
+    seen = []
+    real = kernel._compile
+
+    def compile_watched():
+        seen.append(gc.isenabled())
+        return real()
+
+    monkeypatch.setattr(kernel, "_compile", compile_watched)
+    was = gc.isenabled()
+    try:
+        gc.enable()
+        assert np.array_equal(kernel(np.arange(3.0)), [0.0, 2.0, 4.0]) and kernel._ready
+        assert seen == [False] and gc.isenabled()  # off while compiling, on again after
+        with compiled.collector_paused():  # a collector its caller had turned off stays off
+            assert not gc.isenabled()
+            with compiled.collector_paused():
+                assert not gc.isenabled()
+            assert not gc.isenabled()
+        assert gc.isenabled()
+        gc.disable()
+        with compiled.collector_paused():
+            pass
+        assert not gc.isenabled()
+    finally:
+        (gc.enable if was else gc.disable)()
+
+
 def test_the_environment_variable_selects_the_numpy_path(monkeypatch):
     monkeypatch.setattr(compiled, "_override", True)
     monkeypatch.setattr(compiled, "_selected", None)
