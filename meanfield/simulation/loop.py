@@ -95,6 +95,8 @@ class ClosedLoop:
         # so that what comes between (the observers' start, say) compiles here beside them
         with compile_in_parallel(halves, wait=False) as self._compilers:
             self.density: np.ndarray = self.crowd.density()
+            r = self.robots  # the step's input limits, a pure function, compile here: less for the plant's child
+            limited_inputs(np.zeros((len(r.positions), 2)), np.zeros(len(r.positions)), r.u_max, r.omega_max)
         # a density that compiled nothing (the Fokker-Planck crowd's) forked nothing: then the plant's half
         # compiles in a child beside the first step's act, which compiles the law here (_act)
         self._plant_beside_first_act = [plant_half] if plant_half and parallel_compile_possible() else None
@@ -114,10 +116,11 @@ class ClosedLoop:
         Each runs in a forked child, on the child's copy of the loop, only to compile (and
         cache) the loops it calls: the controller acts on a stand-in density (zeros: which
         loops compile depends on the arrays' types, not their values); the crowd takes one
-        step under the robots as they are, and the robots one with zero inputs, through the
-        saturation. Only the toolkit's own parts are called in a child: a plug-in's part might
-        act on the world (a real robot taking its command), so its loops compile here, in
-        this process, when it first runs.
+        step under the robots as they are, and the robots one with zero inputs (their
+        saturation, a pure function, compiles in this process beside the first density).
+        Only the toolkit's own parts are called in a child: a plug-in's part might act on the
+        world (a real robot taking its command), so its loops compile here, in this process,
+        when it first runs.
         """
 
         def controller_half() -> None:
@@ -126,8 +129,7 @@ class ClosedLoop:
         def plant_half() -> None:
             self.crowd.advance(self.robots, self.t, self.dt)
             r = self.robots
-            u, w, _ = limited_inputs(np.zeros((len(r.positions), 2)), np.zeros(len(r.positions)), r.u_max, r.omega_max)
-            r.advance(u, w, self.dt, self.parts.robot_region)
+            r.advance(np.zeros((len(r.positions), 2)), np.zeros(len(r.positions)), self.dt, self.parts.robot_region)
 
         plant = _toolkit_part(self.crowd) and _toolkit_part(self.robots)
         return (controller_half if _toolkit_part(self.controller) else None), (plant_half if plant else None)

@@ -45,11 +45,12 @@ BUILD = textwrap.dedent(
 )
 
 
-def _python(code: str, cache: str, **env: str) -> dict:
+def _python(code: str, cache: str, args: tuple[str, ...] | list[str] = (), **env: str) -> dict:
     environment = {**os.environ, "NUMBA_CACHE_DIR": cache, "MEANFIELD_COMPILED": "1", **env}
     environment.pop(warmup.ENV, None)
     environment.update(env)
-    out = subprocess.run([sys.executable, "-c", code], env=environment, capture_output=True, text=True, timeout=300)
+    command = [sys.executable, "-c", code, *args]
+    out = subprocess.run(command, env=environment, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     return json.loads(out.stdout.strip().splitlines()[-1])
 
@@ -68,9 +69,13 @@ def test_children_cache_the_law_the_parent_has_not_called_and_the_numbers_do_not
 
 FOKKER_PLANCK = textwrap.dedent(
     """
-    import json
+    import json, sys
+    import numpy as np
     from meanfield import ClosedLoop, paper_scenario
     from meanfield._compiled import warmup
+    from meanfield.signs.robots import limited_inputs
+    if sys.argv[1] == "saturation-first":  # the saturation compiled before: then the build compiles nothing
+        limited_inputs(np.zeros((1, 2)), np.zeros(1), 1.0, 1.0)
     sc = paper_scenario(seed=3).with_values({"pedestrians.backend": "fokker-planck"}).replace(t_final=0.05)
     loop = ClosedLoop(sc)
     forked_at_build = warmup._used
@@ -82,13 +87,17 @@ FOKKER_PLANCK = textwrap.dedent(
 )
 
 
-def test_a_density_that_compiles_nothing_forks_the_plant_beside_the_first_act(tmp_path):
-    parallel = _python(FOKKER_PLANCK, str(tmp_path / "fp"))
-    # the PDE's first density compiles nothing, so nothing forks then; the first step's act does
-    assert not parallel["forked_at_build"] and parallel["forked"]
-    serial = _python(FOKKER_PLANCK, str(tmp_path / "fp1"), MEANFIELD_PARALLEL_COMPILE="0")
+def test_a_build_that_compiles_nothing_forks_the_plant_beside_the_first_act(tmp_path):
+    # the PDE's first density compiles nothing; the build still compiles the robots' saturation, and forks then
+    at_build = _python(FOKKER_PLANCK, str(tmp_path / "fp"), args=["plain"])
+    assert at_build["forked_at_build"] and at_build["forked"]
+    # with the saturation compiled before, the build compiles nothing and forks nothing; the first step's act does
+    at_act = _python(FOKKER_PLANCK, str(tmp_path / "fp0"), args=["saturation-first"])
+    assert not at_act["forked_at_build"] and at_act["forked"]
+    serial = _python(FOKKER_PLANCK, str(tmp_path / "fp1"), MEANFIELD_PARALLEL_COMPILE="0", args=["plain"])
     assert not serial["forked"]
-    assert parallel["density"] == serial["density"] and parallel["robots"] == serial["robots"]  # bit for bit
+    for run in (at_build, at_act):  # bit for bit
+        assert run["density"] == serial["density"] and run["robots"] == serial["robots"]
 
 
 def test_nothing_is_forked_on_a_warm_cache(tmp_path):
