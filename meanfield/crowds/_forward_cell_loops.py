@@ -492,7 +492,7 @@ def forward_cells(
         The walls, the segments ``a_w + u v_w``, ``0 <= u <= 1``, with Ω on their left (exits are not walls here:
         a door does not crowd those in front of it).
     cells : CellList
-        The active humans in cells (:func:`~meanfield.crowds._headway_loops.cell_list`).
+        The active humans in cells (:func:`~meanfield.crowds._cell_list.cell_list`).
     out : ndarray, shape (N, K)
         Written: ``A_jq``, m².
     """

@@ -35,7 +35,7 @@ PedPy measures with; taking its half ahead makes it the downwind density that a 
 discretisation of the conservation law needs.  Every human then chooses its turn as the headway model's (H4)
 does, by ``f_jq cos θ_q``, and the contacts are (H2'), (H3) (the soft core) and (H5) (the noise among contacts).
 (H2') is the headway model's cone (H2) made relative: a human's walk is the nearest that approaches nobody it
-touches faster than that one walks away (:func:`~meanfield.crowds._headway_loops.following_cone`).  (H2) itself
+touches faster than that one walks away (:func:`~meanfield.crowds._contact_loops.following_cone`).  (H2) itself
 stopped a human whose leader, touching, walked away, and so took 15 % of the walk in a jam let go at σ = 0.1
 m²/s; without any cone a single file in the open, whose cells reach sideways to the square's edge, would walk
 into a person standing at its head (docs page *Congestion*, "The forward-cell door model", where the choices
@@ -48,8 +48,10 @@ from typing import Any
 
 import numpy as np
 
+from meanfield.crowds._cell_list import cell_list
+from meanfield.crowds._contact_loops import following_cone
 from meanfield.crowds._forward_cell_loops import CellWork, forward_densities
-from meanfield.crowds._headway_loops import cell_list, choose_lanes, following_cone
+from meanfield.crowds._headway_loops import choose_lanes
 from meanfield.crowds.congestion import FundamentalDiagram
 from meanfield.crowds.headway import HEADWAY_REACH, TURNS, Headway
 
@@ -99,7 +101,7 @@ class ForwardCell(Headway):
     turns : tuple of float, optional
         (H4)'s directions off the route's, rad (default :data:`~meanfield.crowds.headway.TURNS`).
     contact_power : float, optional
-        ``m`` of (H5) (default :data:`~meanfield.crowds._headway_loops.CONTACT_NOISE_POWER`).
+        ``m`` of (H5) (default :data:`~meanfield.crowds._contact_loops.CONTACT_NOISE_POWER`).
     """
 
     def __init__(
@@ -131,7 +133,7 @@ class ForwardCell(Headway):
             Positions (m) and the routes' unit directions (0 for one standing).
         active : ndarray of bool, shape (N,)
         cells : CellList
-            The active humans in cells (:func:`~meanfield.crowds._headway_loops.cell_list`).
+            The active humans in cells (:func:`~meanfield.crowds._cell_list.cell_list`).
 
         Returns
         -------

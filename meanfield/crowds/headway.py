@@ -36,7 +36,7 @@ people step into the gaps, as the heuristic walkers of M. Moussaïd, D. Helbing 
 rules determine pedestrian behavior and crowd disasters", PNAS 108 (2011) 6884–6888) choose the direction of
 least obstruction within their field of view.
 
-The excluded volume is a velocity, never a displacement (:func:`~meanfield.crowds._headway_loops.contact_cone`):
+The excluded volume is a velocity, never a displacement (:func:`~meanfield.crowds._contact_loops.contact_cone`):
 
 * (H2) each human's walk is projected onto the velocities that do not approach anyone it touches (closer than
   ``d``): it slides past a neighbour instead of walking into it, and pushes nobody on;
@@ -44,7 +44,7 @@ The excluded volume is a velocity, never a displacement (:func:`~meanfield.crowd
   ``u (1 − r/d)`` each, so that the overlaps the noise makes are undone at a walker's pace.
 
 * (H5) the noise among contacts: a human's diffusion is ``σ φ_j``, each contact at ``r < d`` scaling it by
-  ``(r/d)^m``, and its drift gains ``σ ∇_j φ_j`` (:func:`~meanfield.crowds._headway_loops.contact_noise`), so that
+  ``(r/d)^m``, and its drift gains ``σ ∇_j φ_j`` (:func:`~meanfield.crowds._contact_loops.contact_noise`), so that
   the noise is ``∇·(σ φ ∇p)`` and not Itô's ``Δ(σ φ p)``, which would pile people into their contacts.  A touching
   pair's overlap is no longer the Ornstein–Uhlenbeck pair's ``√(σ d/u)``, which packed the queues beyond
   ``1.25 ρ_max`` at σ = 0.1 m²/s; at the jam spacing and beyond nobody's noise changes, so no queue is frozen.
@@ -62,16 +62,14 @@ from typing import Any
 
 import numpy as np
 
+from meanfield.crowds._cell_list import cell_list
+from meanfield.crowds._contact_loops import CONTACT_NOISE_POWER, contact_cone, contact_noise
 from meanfield.crowds._headway_loops import (
-    CONTACT_NOISE_POWER,
     NO_COUNT,
     NO_WALLS,
     HeadwayWork,
     LaneWalls,
-    cell_list,
     choose_lanes,
-    contact_cone,
-    contact_noise,
     headway_step,
     lane_headways,
 )
@@ -122,8 +120,8 @@ class Headway:
         (H4)'s directions off the route's, rad (default :data:`TURNS`; ``(0.0,)``: (H1) to (H3) alone).
     contact_power : float, optional
         ``m`` of (H5), each contact at ``r < d`` scaling one's noise by ``(r/d)^m``
-        (:func:`~meanfield.crowds._headway_loops.contact_noise`; default
-        :data:`~meanfield.crowds._headway_loops.CONTACT_NOISE_POWER`; 0: the noise unchanged).
+        (:func:`~meanfield.crowds._contact_loops.contact_noise`; default
+        :data:`~meanfield.crowds._contact_loops.CONTACT_NOISE_POWER`; 0: the noise unchanged).
 
     Attributes
     ----------
@@ -197,7 +195,7 @@ class Headway:
         positions, e : ndarray, shape (N, 2)
         active : ndarray of bool, shape (N,)
         cells : CellList
-            The active humans in cells (:func:`~meanfield.crowds._headway_loops.cell_list`).
+            The active humans in cells (:func:`~meanfield.crowds._cell_list.cell_list`).
 
         Returns
         -------

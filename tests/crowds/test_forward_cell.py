@@ -21,8 +21,9 @@ import shapely
 
 from meanfield._compiled import core as compiled
 from meanfield._compiled.core import PARALLEL_CHUNK
+from meanfield.crowds._cell_list import cell_list
+from meanfield.crowds._contact_loops import contact_noise, following_cone
 from meanfield.crowds._forward_cell_loops import forward_cells, forward_densities
-from meanfield.crowds._headway_loops import cell_list, contact_noise, following_cone
 from meanfield.crowds.congestion import Linear
 from meanfield.crowds.forward_cell import CELL_REACH, ForwardCell, wall_segments
 from meanfield.crowds.headway import TURNS

@@ -21,7 +21,9 @@ import numpy as np
 import pytest
 
 from meanfield._compiled import core as compiled
-from meanfield.crowds._headway_loops import cell_list, contact_cone, contact_noise, headways
+from meanfield.crowds._cell_list import cell_list
+from meanfield.crowds._contact_loops import contact_cone, contact_noise
+from meanfield.crowds._headway_loops import headways
 from meanfield.crowds.congestion import Linear, Weidmann
 from meanfield.crowds.headway import HEADWAY_REACH, TURNS, Headway
 from meanfield.errors import ParameterError
@@ -315,7 +317,7 @@ def test_a_touching_pair_keeps_the_stationary_separation_of_h5():
     drift: their separation ``r < d`` has the density ``r p(r)``, ``p(r) ∝ exp(−∫_r^d u (1 − s/d) / (σ (s/d)^m) ds)``
     (zero flux of ``∂p = ∇·(2σφ ∇p) − ∇·(2u (1 − r/d) r̂ p)``), whatever ``φ``'s steepness; without ``σ ∇φ``
     the Itô step packs the pair (its law is ``p / φ``, piled where the noise is weakest)."""
-    from meanfield.crowds._headway_loops import CONTACT_NOISE_POWER as m
+    from meanfield.crowds._contact_loops import CONTACT_NOISE_POWER as m
 
     sigma, u = 0.1, 1.34
     s = np.linspace(1e-3, JAM, 4001)
@@ -333,7 +335,8 @@ def test_a_touching_pair_keeps_the_stationary_separation_of_h5():
 
 @needs_numba
 def test_compiled_loops_equal_their_numpy_twins():
-    from meanfield.crowds._headway_loops import _cone_compiled, _contact_noise_compiled, _headways_compiled
+    from meanfield.crowds._contact_loops import _cone_compiled, _contact_noise_compiled
+    from meanfield.crowds._headway_loops import _headways_compiled
 
     if not compiled.enabled():
         pytest.skip("the compiled path is off (MEANFIELD_COMPILED=0): nothing to compare")

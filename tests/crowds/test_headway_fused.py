@@ -20,10 +20,10 @@ import numpy as np
 import pytest
 
 from meanfield._compiled import core as compiled
+from meanfield.crowds._cell_list import cell_list
 from meanfield.crowds._headway_loops import (
     NO_WALLS,
     LaneWalls,
-    cell_list,
     choose_lanes,
     headways,
     lane_headways,
@@ -274,7 +274,7 @@ def test_the_compiled_cell_list_is_the_stable_counting_sort(seed, n, h):
 def separate_calls(model, v, x, active, density, noise=False):
     """The reference for the one-pass step: :meth:`Headway.slow_down`'s separate calls (the cell list, the lanes,
     the diagram in numpy, the choice, the product, the contact cone, the count, (H5)'s
-    :func:`~meanfield.crowds._headway_loops.contact_noise`); with ``noise``, also (H5)'s ``φ`` and ``∇φ``."""
+    :func:`~meanfield.crowds._contact_loops.contact_noise`); with ``noise``, also (H5)'s ``φ`` and ``∇φ``."""
     v = v.copy()
     model._fused = False
     try:
@@ -340,7 +340,7 @@ def test_the_one_pass_step_is_the_separate_calls_to_the_last_bit(walled, counted
 def test_the_one_pass_step_reads_again_the_contacts_its_buffers_do_not_hold():
     """A human with more contacts than the buffers hold (``CONTACTS``) has its contacts read again: its cone and
     (H5)'s share of the noise are still those of the separate calls."""
-    from meanfield.crowds._headway_loops import CONTACTS
+    from meanfield.crowds._contact_loops import CONTACTS
 
     model = Headway(Linear())
     v, x, active = step_crowd(300, 5)

@@ -23,7 +23,7 @@ import pytest
 import shapely
 
 from meanfield.cli.app import main
-from meanfield.crowds._headway_loops import cell_list
+from meanfield.crowds._cell_list import cell_list
 from meanfield.crowds.forward_cell import CELL_REACH, wall_segments
 from meanfield.crowds.headway import boundary_walls
 from meanfield.errors import ParameterError

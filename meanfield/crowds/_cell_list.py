@@ -1,0 +1,190 @@
+"""The humans near each human: the active humans sorted into square cells, compiled (a cell list).
+
+:func:`cell_list` sorts the active humans with finite positions into cells of width ``h`` over their bounding box
+(a stable counting sort, the width doubled while there would be more than ``4 m + 64`` cells for ``m`` humans), in
+one compiled pass that finds them and a second that sorts them; its numpy twin is numpy's stable ``argsort``, the
+same arrays to the last bit.  The door models' compiled loops search it for their neighbours: the headway and the
+contacts (:mod:`meanfield.crowds._headway_loops`, :mod:`meanfield.crowds._contact_loops`) and the forward cell
+(:mod:`meanfield.crowds._forward_cell_loops`).
+
+Their numpy twins list every pair closer than a radius instead, :func:`_pairs` (cells as wide as the radius, each
+against its nine neighbours, vectorised): the same candidates, so the same minima (docs page *Congestion*, "The
+headway door model").
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from meanfield._compiled.core import compiled, inner
+
+__all__ = ["cell_list", "CellList"]
+
+
+class CellList:
+    """The active humans sorted into square cells of width ``h`` over their bounding box.
+
+    ``order`` lists the humans cell by cell (row-major, ``cy * nx + cx``), ``starts`` (length ``nx·ny + 1``)
+    where each cell's run begins, ``sorted`` (``len(order)``, 2) their positions in that order (the compiled
+    loops read neighbours from contiguous memory); ``origin`` is the lattice's lower-left corner.
+    """
+
+    __slots__ = ("order", "starts", "sorted", "origin", "h", "nx", "ny")
+
+    def __init__(
+        self, order: np.ndarray, starts: np.ndarray, sorted_positions: np.ndarray, origin: tuple[float, float],
+        h: float, nx: int, ny: int,
+    ):  # fmt: skip
+        self.order, self.starts, self.sorted, self.origin = order, starts, sorted_positions, origin
+        self.h, self.nx, self.ny = h, nx, ny
+
+    def arrays(self) -> tuple:
+        """What the compiled loops take: ``(order, starts, sorted, origin, h, nx, ny)``."""
+        return self.order, self.starts, self.sorted, self.origin, self.h, self.nx, self.ny
+
+
+def cell_list(x: np.ndarray, active: np.ndarray, h: float) -> CellList:
+    """Sort the active humans with finite positions into cells of width ``h`` (a stable counting sort; the width
+    doubled while there would be more than ``4 m + 64`` cells for ``m`` humans).
+
+    One compiled pass finds them and their bounding box, a second sorts them (the same arrays as its numpy twin's
+    stable ``argsort``, to the last bit; docs page *Congestion*, "The headway door model").
+    """
+    order, starts, sorted_positions, x0, y0, h, nx, ny = _cells_compiled(x, active, float(h))
+    return CellList(order, starts, sorted_positions, (x0, y0), h, int(nx), int(ny))
+
+
+def _cells_numpy(x, active, h):
+    """The numpy twin of :func:`cell_list`'s loop: ``(order, starts, sorted, x0, y0, h, nx, ny)``."""
+    ok = active & np.isfinite(x[:, 0]) & np.isfinite(x[:, 1])
+    idx = np.flatnonzero(ok)
+    if not len(idx):
+        return idx.astype(np.int64), np.zeros(2, np.int64), np.zeros((0, 2)), 0.0, 0.0, h, 1, 1
+    p = x[idx]
+    x0, y0, h, nx, ny = _lattice(p, h)
+    cx = np.minimum(((p[:, 0] - x0) // h).astype(np.int64), nx - 1)
+    cy = np.minimum(((p[:, 1] - y0) // h).astype(np.int64), ny - 1)
+    key = cy * nx + cx
+    sort = np.argsort(key, kind="stable")
+    starts = np.zeros(nx * ny + 1, np.int64)
+    np.cumsum(np.bincount(key, minlength=nx * ny), out=starts[1:])
+    order = idx[sort].astype(np.int64)
+    return order, starts, np.ascontiguousarray(x[order]), x0, y0, h, nx, ny
+
+
+@inner
+def _sort_cells(x, active, h, order, starts, pos, key, idx, cursor):
+    """:func:`cell_list`'s counting sort into the given arrays (``order``, ``key``, ``idx``: at least ``N``;
+    ``pos``: at least (N, 2); ``starts``, ``cursor``: at least ``4 N + 65``): returns ``(m, x0, y0, h, nx, ny)``,
+    ``order[:m]``, ``starts[:nx·ny + 1]`` and ``pos[:m]`` the cell list's arrays (``starts[:2]`` zero for
+    ``m = 0``)."""
+    n = x.shape[0]
+    m = 0
+    x0 = math.inf
+    y0 = math.inf
+    x1 = -math.inf
+    y1 = -math.inf
+    for j in range(n):  # who, and their bounding box
+        if active[j] and math.isfinite(x[j, 0]) and math.isfinite(x[j, 1]):
+            m += 1
+            x0 = min(x0, x[j, 0])
+            x1 = max(x1, x[j, 0])
+            y0 = min(y0, x[j, 1])
+            y1 = max(y1, x[j, 1])
+    if m == 0:
+        starts[0] = 0
+        starts[1] = 0
+        return 0, 0.0, 0.0, h, 1, 1
+    wx = x1 - x0
+    wy = y1 - y0
+    nx = int(wx // h) + 1
+    ny = int(wy // h) + 1
+    while nx * ny > 4 * m + 64:  # (_lattice)
+        h *= 2.0
+        nx = int(wx // h) + 1
+        ny = int(wy // h) + 1
+    for c in range(nx * ny + 1):
+        starts[c] = 0
+    i = 0
+    for j in range(n):
+        if active[j] and math.isfinite(x[j, 0]) and math.isfinite(x[j, 1]):
+            c = min(int((x[j, 1] - y0) // h), ny - 1) * nx + min(int((x[j, 0] - x0) // h), nx - 1)
+            key[i] = c
+            idx[i] = j
+            starts[c + 1] += 1
+            i += 1
+    for c in range(nx * ny):
+        starts[c + 1] += starts[c]
+    for c in range(nx * ny):
+        cursor[c] = starts[c]
+    for i in range(m):  # stable: each cell's humans in their order
+        slot = cursor[key[i]]
+        cursor[key[i]] = slot + 1
+        j = idx[i]
+        order[slot] = j
+        pos[slot, 0] = x[j, 0]
+        pos[slot, 1] = x[j, 1]
+    return m, x0, y0, h, nx, ny
+
+
+@compiled(fallback=_cells_numpy)
+def _cells_compiled(x, active, h):
+    n = x.shape[0]
+    order = np.empty(n, np.int64)
+    starts = np.empty(4 * n + 66, np.int64)
+    pos = np.empty((n, 2))
+    key = np.empty(n, np.int64)
+    idx = np.empty(n, np.int64)
+    cursor = np.empty(4 * n + 66, np.int64)
+    m, x0, y0, h, nx, ny = _sort_cells(x, active, h, order, starts, pos, key, idx, cursor)
+    return order[:m].copy(), starts[: nx * ny + 1].copy(), pos[:m].copy(), x0, y0, h, nx, ny
+
+
+def _lattice(p: np.ndarray, h: float) -> tuple[float, float, float, int, int]:
+    """Cells of width at least ``h`` over the points' bounding box, at most ``4 m + 64`` of them for ``m``
+    points (the width doubled until they are): ``(x0, y0, h, nx, ny)``."""
+    x0, y0 = float(p[:, 0].min()), float(p[:, 1].min())
+    wx, wy = float(p[:, 0].max()) - x0, float(p[:, 1].max()) - y0
+    while True:
+        nx, ny = int(wx // h) + 1, int(wy // h) + 1
+        if nx * ny <= 4 * len(p) + 64:
+            return x0, y0, h, nx, ny
+        h *= 2.0
+
+
+def _pairs(x: np.ndarray, active: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every ordered pair ``(j, k)`` of active humans closer than ``radius`` (``|X_k − X_j|² < radius²``), and
+    its squared distance: a cell list of cells at least ``radius`` wide, each cell against its 9 neighbours."""
+    ok = active & np.isfinite(x[:, 0]) & np.isfinite(x[:, 1])
+    idx = np.flatnonzero(ok)
+    empty = np.empty(0, np.int64)
+    if len(idx) < 2:
+        return empty, empty, np.empty(0)
+    p = x[idx]
+    x0, y0, h, nx, ny = _lattice(p, radius)
+    ci = np.minimum(((p[:, 0] - x0) // h).astype(np.int64), nx - 1)
+    ck = np.minimum(((p[:, 1] - y0) // h).astype(np.int64), ny - 1)
+    cell = ck * nx + ci
+    order = np.argsort(cell, kind="stable")
+    occupancy = np.bincount(cell, minlength=nx * ny)
+    start = np.cumsum(occupancy) - occupancy
+    js, ks, r2s = [], [], []
+    for di in (-1, 0, 1):
+        for dk in (-1, 0, 1):
+            ni, nk = ci + di, ck + dk
+            a = np.flatnonzero((ni >= 0) & (ni < nx) & (nk >= 0) & (nk < ny))
+            nc = nk[a] * nx + ni[a]
+            count = occupancy[nc]
+            rows = np.repeat(a, count)
+            offsets = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+            cand = order[np.repeat(start[nc], count) + offsets]
+            dx = p[cand, 0] - p[rows, 0]
+            dy = p[cand, 1] - p[rows, 1]
+            r2 = dx * dx + dy * dy
+            hit = (r2 < radius * radius) & (cand != rows)
+            js.append(idx[rows[hit]])
+            ks.append(idx[cand[hit]])
+            r2s.append(r2[hit])
+    return np.concatenate(js), np.concatenate(ks), np.concatenate(r2s)
