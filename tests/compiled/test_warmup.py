@@ -106,7 +106,7 @@ def test_nothing_is_forked_on_a_warm_cache(tmp_path):
     assert not _python(BUILD, cache)["forked"]
 
 
-TASKS = textwrap.dedent(
+LOOP_AND_TASKS = textwrap.dedent(
     """
     import json, os, sys, time
     import numpy as np
@@ -128,6 +128,12 @@ TASKS = textwrap.dedent(
 
     def hangs():
         time.sleep(600)
+    """
+)
+"""A compiled loop to compile in the block, and two tasks for the children: one fails, one hangs."""
+
+TASKS = LOOP_AND_TASKS + textwrap.dedent(
+    """
 
     t0 = time.perf_counter()
     with warmup.compile_in_parallel([fails, hangs], timeout=float(sys.argv[1])):
@@ -150,26 +156,8 @@ def test_a_task_that_fails_or_hangs_costs_only_the_bounded_wait(tmp_path):
     assert "a task that fails" not in out.stderr  # the children's output goes nowhere
 
 
-DEFERRED = textwrap.dedent(
+DEFERRED = LOOP_AND_TASKS + textwrap.dedent(
     """
-    import json, os, sys, time
-    import numpy as np
-    from meanfield._compiled import warmup
-    from meanfield._compiled.core import compiled
-
-    def _twice(x):
-        return 2.0 * x
-
-    @compiled(fallback=_twice)
-    def twice(x):
-        out = np.empty_like(x)
-        for i in range(x.shape[0]):
-            out[i] = 2.0 * x[i]
-        return out
-
-    def hangs():
-        time.sleep(600)
-
     t0 = time.perf_counter()
     with warmup.compile_in_parallel([hangs], timeout=float(sys.argv[1]), wait=False) as children:
         y = twice(np.arange(3.0))
