@@ -283,8 +283,8 @@ _callable_helpers: dict[Callable[..., Any], Any] = {}  # compile_inner's twins, 
 
 _INNER_OPTIONS = {"no_cpython_wrapper": True, "no_cfunc_wrapper": True}
 """An :func:`inner` helper is only ever called from compiled code: numba builds neither the wrapper that lets
-Python call it nor its C-callable one (together about a tenth of a first run's compile, 0.6 s of the paper's 6.5;
-issue 45).  :func:`compile_inner` compiles a twin with them, for the tests that call a helper from Python."""
+Python call it nor its C-callable one (about 0.45 s of the paper's 6.4 s of compiling on one core; issue 45).
+:func:`compile_inner` compiles a twin with them, for the tests that call a helper from Python."""
 
 
 def _resolve_helpers(space: dict[str, Any], nb: Any) -> None:

@@ -97,8 +97,9 @@ class ClosedLoop:
             self.density: np.ndarray = self.crowd.density()
             r = self.robots  # the step's input limits, a pure function, compile here: less for the plant's child
             limited_inputs(np.zeros((len(r.positions), 2)), np.zeros(len(r.positions)), r.u_max, r.omega_max)
-        # a density that compiled nothing (the Fokker-Planck crowd's) forked nothing: then the plant's half
-        # compiles in a child beside the first step's act, which compiles the law here (_act)
+        # a build that compiled nothing (the saturation already compiled, and a density that compiles nothing, as
+        # the Fokker-Planck crowd's) forked nothing: then the plant's half compiles in a child beside the first
+        # step's act, which compiles the law here (_act)
         self._plant_beside_first_act = [plant_half] if plant_half and parallel_compile_possible() else None
         self._first_act = True
         self.last: StepRecord | None = None  # the latest step, as observers saw it
