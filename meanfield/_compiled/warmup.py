@@ -133,7 +133,7 @@ class Compilers:
         self.pids: list[int] = []
         self.timeout = timeout
         self._deadline: float | None = None
-        self._reap = weakref.finalize(self, _await, self.pids, 0.0)
+        weakref.finalize(self, _await, self.pids, 0.0)
 
     def _start_clock(self) -> None:
         self._deadline = time.monotonic() + self.timeout

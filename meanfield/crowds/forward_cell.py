@@ -111,16 +111,16 @@ class ForwardCell(Headway):
         if not (np.isfinite(reach) and reach > 0.0):
             raise ValueError(f"ForwardCell's reach must be a finite length > 0 m, got {reach!r}")
         extra = {} if contact_power is None else {"contact_power": contact_power}
-        super().__init__(diagram, reach=reach, separation=separation, region=None, turns=turns, **extra)
+        super().__init__(diagram, reach=reach, separation=separation, region=region, turns=turns, **extra)
         self._fused = False
-        self.wall_starts, self.wall_vectors = wall_segments(region)
         self._rho = np.empty((0, 0))
         self._work: CellWork | None = None  # the cell pass's arrays, kept between steps
 
-    def walls_changed(self, change: Any) -> None:
-        """Ω is ``change.region`` from now on (a ``block`` event): its walls, the new ones too, cut the cells
-        (:class:`~meanfield.geometry.blocking.WallsChange`)."""
-        self.wall_starts, self.wall_vectors = wall_segments(change.region)
+    def _set_walls(self, region: Any) -> None:
+        """``region``'s walls cut the cells (at the start, and after a ``block`` event: the headway's
+        ``walls_changed``); the headway's lanes, which the cells replace, keep none."""
+        super()._set_walls(None)
+        self.wall_starts, self.wall_vectors = wall_segments(region)
 
     def choose_direction(
         self, positions: np.ndarray, e: np.ndarray, active: np.ndarray, cells: Any

@@ -101,7 +101,6 @@ class ClosedLoop:
         # the Fokker-Planck crowd's) forked nothing: then the plant's half compiles in a child beside the first
         # step's act, which compiles the law here (_act)
         self._plant_beside_first_act = [plant_half] if plant_half and parallel_compile_possible() else None
-        self._first_act = True
         self.last: StepRecord | None = None  # the latest step, as observers saw it
         self._started = False
         # the scenario's [[events]], in time order: each closes an exit before the first step that starts at its time
@@ -170,8 +169,8 @@ class ClosedLoop:
     def _act(self, observation: Observation) -> Any:
         """The first step's act: once the children compiling the step's halves are done (they cached the loops it
         calls), or with the plant's half compiling in a child meanwhile if nothing was forked at the build."""
-        self._first_act = False
-        self._compilers.wait()
+        compilers, self._compilers = self._compilers, None  # (None: the first act is done)
+        compilers.wait()
         tasks, self._plant_beside_first_act = self._plant_beside_first_act, None
         with compile_in_parallel(tasks or ()):
             return self.controller.act(observation)
@@ -195,7 +194,7 @@ class ClosedLoop:
             event = self._events.pop(0)
             getattr(self, f"_{event.action}")(event)  # _close_exit or _block
         observation = self.observe()
-        command = self._act(observation) if self._first_act else self.controller.act(observation)
+        command = self.controller.act(observation) if self._compilers is None else self._act(observation)
         u, w, report = limited_inputs(command.u, command.omega, self.robots.u_max, self.robots.omega_max)
         if not report[4]:
             raise SimulationDiverged(

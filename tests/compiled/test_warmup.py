@@ -55,6 +55,20 @@ def _python(code: str, cache: str, args: tuple[str, ...] | list[str] = (), **env
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+def _script(tmp_path, name: str, code: str, *args: str, **env: str) -> tuple[dict, str]:
+    """``code`` run as the file ``name``.py (numba caches a loop only if its source is a file), on its own empty
+    cache: the JSON of its last line of output, and its stderr."""
+    script = tmp_path / f"{name}.py"
+    script.write_text(code)
+    environment = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / name), "MEANFIELD_COMPILED": "1"}
+    environment.pop(warmup.ENV, None)
+    environment.update(env)
+    out = subprocess.run([sys.executable, str(script), *args], env=environment, capture_output=True, text=True,
+                         timeout=120)  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    return json.loads(out.stdout.strip().splitlines()[-1]), out.stderr
+
+
 def test_children_cache_the_law_the_parent_has_not_called_and_the_numbers_do_not_change(tmp_path):
     parallel = _python(BUILD, str(tmp_path / "a"))
     assert parallel["forked"]
@@ -144,25 +158,17 @@ TASKS = LOOP_AND_TASKS + textwrap.dedent(
 
 
 def test_a_task_that_fails_or_hangs_costs_only_the_bounded_wait(tmp_path):
-    script = tmp_path / "tasks.py"
-    script.write_text(TASKS)
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "d"), "MEANFIELD_COMPILED": "1"}
-    env.pop(warmup.ENV, None)
-    out = subprocess.run([sys.executable, str(script), "2.0"], env=env, capture_output=True, text=True, timeout=120)
-    assert out.returncode == 0, out.stderr
-    doc = json.loads(out.stdout.strip().splitlines()[-1])
+    doc, stderr = _script(tmp_path, "tasks", TASKS, "2.0")
     assert doc["forked"] and doc["y"] == [0.0, 2.0, 4.0]
     assert doc["seconds"] < 60  # the hanging child was killed at the 2 s timeout, not waited for (600 s)
-    assert "a task that fails" not in out.stderr  # the children's output goes nowhere
+    assert "a task that fails" not in stderr  # the children's output goes nowhere
 
 
 DEFERRED = LOOP_AND_TASKS + textwrap.dedent(
     """
-    t0 = time.perf_counter()
     with warmup.compile_in_parallel([hangs], timeout=float(sys.argv[1]), wait=False) as children:
         y = twice(np.arange(3.0))
     pids = list(children.pids)
-    block = time.perf_counter() - t0
     running = [os.waitpid(pid, os.WNOHANG)[0] == 0 for pid in pids]  # still running after the block
     t1 = time.perf_counter()
     children.wait()
@@ -174,20 +180,14 @@ DEFERRED = LOOP_AND_TASKS + textwrap.dedent(
             gone.append(False)
         except ChildProcessError:  # reaped: no such child any more
             gone.append(True)
-    print(json.dumps({"pids": len(pids), "block": block, "running": running, "waited": waited, "gone": gone,
+    print(json.dumps({"pids": len(pids), "running": running, "waited": waited, "gone": gone,
                       "left": len(children.pids), "y": y.tolist()}))
     """
 )
 
 
 def test_a_deferred_wait_lets_the_block_end_at_once_and_reaps_the_children_later(tmp_path):
-    script = tmp_path / "deferred.py"
-    script.write_text(DEFERRED)
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "h"), "MEANFIELD_COMPILED": "1"}
-    env.pop(warmup.ENV, None)
-    out = subprocess.run([sys.executable, str(script), "3.0"], env=env, capture_output=True, text=True, timeout=120)
-    assert out.returncode == 0, out.stderr
-    doc = json.loads(out.stdout.strip().splitlines()[-1])
+    doc, _ = _script(tmp_path, "deferred", DEFERRED, "3.0")
     assert doc["pids"] == 1 and doc["running"] == [True]  # the block ended with the hanging child still running
     assert doc["gone"] == [True] and doc["left"] == 0  # wait() killed and reaped it at the timeout
     assert doc["waited"] < 60  # bounded by the timeout (3 s from the block's end), not the child's 600 s
@@ -209,12 +209,7 @@ def test_the_switch_and_the_conditions():
 
 
 def test_the_switch_turns_it_off(tmp_path):
-    script = tmp_path / "off.py"
-    script.write_text(TASKS)
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "e"), "MEANFIELD_COMPILED": "1", warmup.ENV: "0"}
-    out = subprocess.run([sys.executable, str(script), "2.0"], env=env, capture_output=True, text=True, timeout=120)
-    assert out.returncode == 0, out.stderr
-    doc = json.loads(out.stdout.strip().splitlines()[-1])
+    doc, _ = _script(tmp_path, "off", TASKS, "2.0", **{warmup.ENV: "0"})
     assert not doc["forked"] and doc["y"] == [0.0, 2.0, 4.0]
 
 
