@@ -31,6 +31,7 @@ _LAZY = {
     "compile_inner": "meanfield._compiled.core",
     "compiled": "meanfield._compiled.core",
     "compiled_loops": "meanfield._compiled.core",
+    "empty_array": "meanfield._compiled.core",
     "enabled": "meanfield._compiled.core",
     "exp_inplace": "meanfield._compiled.vector_exp",
     "fill_normal_pairs": "meanfield._compiled.philox",

@@ -56,6 +56,7 @@ __all__ = [
     "CompiledLoop",
     "CompiledFallbackWarning",
     "bits_as_float",
+    "empty_array",
     "compile_inner",
     "before_cold_compile",
     "collector_paused",
@@ -255,6 +256,70 @@ def _bitcast_intrinsic() -> Any:
     return bits_as_float
 
 
+def empty_array(shape: int | tuple[int, ...], dtype: Any) -> np.ndarray:
+    """A new C-ordered array of ``shape`` (an integer or a tuple of integers, each >= 0) and ``dtype`` (a numpy
+    scalar type, ``np.float64`` say), not initialised: ``np.empty(shape, dtype)``.
+
+    Inside a compiled loop this is a numba intrinsic (put in place of this function when a loop of the module
+    compiles, as :func:`bits_as_float` is): the allocation is lowered where it is called. ``np.empty`` is an
+    overload that numba compiles, with its allocator, in every process and for every new combination of shape
+    and dtype, about 0.03 to 0.1 s each and never cached on disk (issue 45: about 0.5 s of CPU in the paper's
+    first run, over its three compiling processes). The sizes are not checked (a loop asks for what it needs).
+    """
+    return np.empty(shape, dtype)
+
+
+@functools.cache
+def _empty_intrinsic() -> Any:
+    from numba.core import cgutils, types
+    from numba.extending import intrinsic
+    from numba.np.arrayobj import make_array, populate_array
+
+    @intrinsic
+    def empty_array(typingctx: Any, shape: Any, dtype: Any) -> Any:
+        if isinstance(shape, types.Integer):
+            dims: tuple[Any, ...] = (shape,)
+        elif isinstance(shape, types.BaseTuple) and len(shape) and all(isinstance(t, types.Integer) for t in shape):
+            dims = tuple(shape)
+        else:
+            return None
+        if not isinstance(dtype, types.NumberClass):
+            return None
+        array = types.Array(dtype.dtype, len(dims), "C")
+
+        def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+            intp = context.get_value_type(types.intp)
+            if isinstance(shape, types.Integer):
+                sizes = [context.cast(builder, args[0], shape, types.intp)]
+            else:
+                sizes = [context.cast(builder, builder.extract_value(args[0], i), t, types.intp)
+                         for i, t in enumerate(dims)]  # fmt: skip
+            data_type = context.get_data_type(array.dtype)
+            itemsize = context.get_constant(types.intp, context.get_abi_sizeof(data_type))
+            strides = [itemsize]  # C order: the last axis is contiguous
+            for size in reversed(sizes[1:]):
+                strides.append(builder.mul(strides[-1], size))
+            nbytes = itemsize
+            for size in sizes:
+                nbytes = builder.mul(nbytes, size)
+            align = context.get_constant(types.uint32, context.get_preferred_array_alignment(array.dtype))
+            meminfo = context.nrt.meminfo_alloc_aligned(builder, nbytes, align)  # (freed with the array, by NRT)
+            out = make_array(array)(context, builder)
+            populate_array(
+                out,
+                data=builder.bitcast(context.nrt.meminfo_data(builder, meminfo), data_type.as_pointer()),
+                shape=cgutils.pack_array(builder, sizes, ty=intp),
+                strides=cgutils.pack_array(builder, strides[::-1], ty=intp),
+                itemsize=itemsize,
+                meminfo=meminfo,
+            )
+            return out._getvalue()
+
+        return array(shape, dtype), codegen
+
+    return empty_array
+
+
 def prange(*args: int) -> range:
     """``range`` everywhere but inside a loop compiled with ``parallel=True``, where it is ``numba.prange``.
 
@@ -288,12 +353,15 @@ Python call it nor its C-callable one (about 0.45 s of the paper's 6.4 s of comp
 
 
 def _resolve_helpers(space: dict[str, Any], nb: Any) -> None:
-    """In one module's namespace: each :func:`inner` helper by its dispatcher, :func:`bits_as_float` by
-    its intrinsic; then the same in the modules the helpers come from (before anything compiles)."""
+    """In one module's namespace: each :func:`inner` helper by its dispatcher, :func:`bits_as_float` and
+    :func:`empty_array` by their intrinsics; then the same in the modules the helpers come from (before anything
+    compiles)."""
     homes = []
     for name, value in list(space.items()):
         if value is bits_as_float:
             space[name] = _bitcast_intrinsic()
+        elif value is empty_array:
+            space[name] = _empty_intrinsic()
         elif value is prange:
             space[name] = nb.prange
         elif _is_pending_helper(value):

@@ -86,7 +86,7 @@ import math
 
 import numpy as np
 
-from meanfield._compiled.core import PARALLEL_CHUNK, compiled, inner, prange
+from meanfield._compiled.core import PARALLEL_CHUNK, compiled, empty_array, inner, prange
 
 __all__ = [
     "philox4x32_block",
@@ -333,7 +333,7 @@ def _exp_neg(y):
     p = 0.0
     for c in _EXP_TERMS:
         p = p * t + c
-    return math.ldexp(p, int(k))
+    return math.ldexp(p, k)  # (k: math.floor's integer)
 
 
 def _exp_neg_numpy(y):
@@ -530,10 +530,10 @@ def fill_pairs_rows(key0, key1, step, first, out, lo, hi, ki, wi, fi):
     k0, k1 = np.uint64(key0), np.uint64(key1)
     st = np.uint64(step)
     s_lo, s_hi = st & _MASK32, st >> _S32
-    words_a = np.empty(CHUNK, np.uint64)
-    words_b = np.empty(CHUNK, np.uint64)
+    words_a = empty_array(CHUNK, np.uint64)
+    words_b = empty_array(CHUNK, np.uint64)
     for r0 in range(lo, hi, CHUNK):
-        m = min(CHUNK, hi - r0)
+        m = hi - r0 if hi - r0 < CHUNK else CHUNK
         for j in range(m):  # branch-free: vectorised across the humans
             x0, x1, x2, x3 = np.uint64(first + r0 + j), s_lo, _ZERO, s_hi
             ka, kb = k0, k1
@@ -596,7 +596,8 @@ def fill_normal_pairs(
     n = out.shape[0]
     for c in prange((n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):
         lo = c * PARALLEL_CHUNK
-        fill_pairs_rows(key0, key1, step, first, out, lo, min(lo + PARALLEL_CHUNK, n), ki, wi, fi)
+        hi = n if n < lo + PARALLEL_CHUNK else lo + PARALLEL_CHUNK
+        fill_pairs_rows(key0, key1, step, first, out, lo, hi, ki, wi, fi)
     return out
 
 

@@ -48,7 +48,9 @@ def exp_inplace(vals: np.ndarray, count: int) -> None:
         How many leading entries to transform.
     """
     for i in range(count):
-        v = min(max(vals[i], ARG_MIN), ARG_MAX)
+        a = vals[i]  # min(max(a, ARG_MIN), ARG_MAX), as numba's min and max select (NaN stays)
+        v = ARG_MIN if ARG_MIN > a else a
+        v = ARG_MAX if ARG_MAX < v else v
         kf = np.floor(v * _LOG2E + 0.5)
         r = (v - kf * _LN2_HI) - kf * _LN2_LO
         p = _C13  # Horner, degree 13

@@ -42,7 +42,7 @@ import math
 import numpy as np
 
 from meanfield._compiled.blas import gemm
-from meanfield._compiled.core import compiled, inner
+from meanfield._compiled.core import compiled, empty_array, inner
 from meanfield._compiled.vector_exp import exp_inplace
 
 __all__ = ["paper_law", "face_law", "PAPER_STEP_ONE", "HUGHES_STEP_ONE"]
@@ -137,7 +137,7 @@ def paper_law(nx, ny, rho, target, cst, pos, cos, sin, prev_x, prev_y, have_prev
     oq = orr + 8 * n
     ov = oq + 2 * (2 * ny - 1) * n
     ofam = ov + 2 * nr * n + 2 * 64 + n
-    w = np.empty(ofam + 3 * (nfx + nfy))
+    w = empty_array(ofam + 3 * (nfx + nfy), np.float64)
     for i in range(n):
         w[_U(orr + i)] = pos[i, 0]
         w[_U(orr + n + i)] = pos[i, 1]
@@ -149,7 +149,8 @@ def paper_law(nx, ny, rho, target, cst, pos, cos, sin, prev_x, prev_y, have_prev
     seg = 64
     for d in (dx, dy):
         if d > 0.0 and reach < seg * d:
-            seg = max(1, int(reach / d))
+            s = np.int64(reach / d)  # (not max and int: numba compiles their overloads in every process)
+            seg = s if s > 1 else 1
     ns = 0  # segments so far
     for k in range(nr):
         lat = (k >= nx) + (k >= nxr) + (k >= nxr + ny)  # x centres, x faces, y centres, y faces
@@ -217,12 +218,12 @@ def paper_law(nx, ny, rho, target, cst, pos, cos, sin, prev_x, prev_y, have_prev
                 w[_U(ot + a * n1 + bb)] = 0.5 * (rr[_U(lo + off)] + rr[_U(lo)])
                 w[_U(ot + N + a * n1 + bb)] = (rt[_U(lo + off)] - rt[_U(lo)]) * inv_d
         p1, d1, t1 = prv, vd, vt
-        lanes = np.empty((2, _LANES))
+        lanes = empty_array((2, _LANES), np.float64)
         for j in range(_LANES):
             lanes[0, j] = 0.0
             lanes[1, j] = 0.0
         for k0 in range(0, N, _LANES):
-            for j in range(min(_LANES, N - k0)):
+            for j in range(N - k0 if N - k0 < _LANES else _LANES):
                 k = _U(k0 + j)
                 f = w[_U(ot) + k]
                 gr = w[_U(ot + N) + k]

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from meanfield._compiled.core import PARALLEL_CHUNK, compiled, prange
+from meanfield._compiled.core import PARALLEL_CHUNK, compiled, empty_array, prange
 from meanfield._compiled.vector_exp import exp_inplace
 
 __all__ = ["gaussian_field_at", "bilinear_at"]
@@ -70,7 +70,8 @@ def gaussian_field_at(points, robots, headings, c, inv_eta, visible, reach, out,
     reached : ndarray of bool, shape (N,)
     """
     n = robots.shape[0]
-    rx, ry, ex, ey = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    rx, ry = empty_array(n, np.float64), empty_array(n, np.float64)
+    ex, ey = empty_array(n, np.float64), empty_array(n, np.float64)
     for i in range(n):
         rx[i] = robots[i, 0]
         ry[i] = robots[i, 1]
@@ -81,10 +82,10 @@ def gaussian_field_at(points, robots, headings, c, inv_eta, visible, reach, out,
     total = points.shape[0]
     for chunk in prange((total + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):
         lo = chunk * PARALLEL_CHUNK
-        hi = min(lo + PARALLEL_CHUNK, total)
-        xs, ys = np.empty(_FIELD_BLOCK), np.empty(_FIELD_BLOCK)  # (each chunk its own buffers)
-        sx, sy = np.empty(_FIELD_BLOCK), np.empty(_FIELD_BLOCK)
-        k = np.empty(_FIELD_BLOCK)
+        hi = total if total < lo + PARALLEL_CHUNK else lo + PARALLEL_CHUNK
+        xs, ys = empty_array(_FIELD_BLOCK, np.float64), empty_array(_FIELD_BLOCK, np.float64)  # (each chunk its own)
+        sx, sy = empty_array(_FIELD_BLOCK, np.float64), empty_array(_FIELD_BLOCK, np.float64)
+        k = empty_array(_FIELD_BLOCK, np.float64)
         for first in range(lo, hi, _FIELD_BLOCK):  # blocks of humans, robot by robot: the exp vectorises
             m = _FIELD_BLOCK if hi - first > _FIELD_BLOCK else hi - first
             for j in range(m):

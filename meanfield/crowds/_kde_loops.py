@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from meanfield._compiled.blas import gemm
-from meanfield._compiled.core import PARALLEL_CHUNK, compiled, prange
+from meanfield._compiled.core import PARALLEL_CHUNK, compiled, empty_array, prange
 from meanfield._compiled.vector_exp import ARG_MAX, exp_inplace
 from meanfield.geometry.grid import linear_binning
 
@@ -189,7 +189,7 @@ def separable_sum(
     row_g = nx + ny
     row_cur = row_g + 2 * n_seg
     row_c = row_cur + 1
-    work = np.empty((row_c + 1, width))
+    work = empty_array((row_c + 1, width), np.float64)
     for first in range(0, n_pts, per_pass):
         cnt = n_pts - first if n_pts - first < per_pass else per_pass
         for ax in range(2):

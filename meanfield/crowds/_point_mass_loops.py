@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from meanfield._compiled.core import PARALLEL_CHUNK, compiled, inner, prange
+from meanfield._compiled.core import PARALLEL_CHUNK, compiled, empty_array, inner, prange
 from meanfield._compiled.philox import fill_normal_pairs, fill_pairs_rows
 
 __all__ = ["euler_maruyama", "hold_at_capacity", "hold_at_doors"]
@@ -79,10 +79,10 @@ def euler_maruyama(x, drift, noise, dt, amp, box, standing, key0, key1, step, ki
     """
     n = x.shape[0]
     chunks = (n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
-    finite = np.empty(chunks, np.bool_)
+    finite = empty_array(chunks, np.bool_)
     for c in prange(chunks):  # every drift finite, or nothing moves (the caller keeps the last good state)
         good = True
-        for j in range(c * PARALLEL_CHUNK, min((c + 1) * PARALLEL_CHUNK, n)):
+        for j in range(c * PARALLEL_CHUNK, n if n < (c + 1) * PARALLEL_CHUNK else (c + 1) * PARALLEL_CHUNK):
             if not (math.isfinite(drift[j, 0]) and math.isfinite(drift[j, 1])):
                 good = False
                 break
@@ -94,7 +94,7 @@ def euler_maruyama(x, drift, noise, dt, amp, box, standing, key0, key1, step, ki
     one = amp.shape[0] == 1
     for c in prange(chunks):
         lo = c * PARALLEL_CHUNK
-        hi = min(lo + PARALLEL_CHUNK, n)
+        hi = n if n < lo + PARALLEL_CHUNK else lo + PARALLEL_CHUNK
         fill_pairs_rows(key0, key1, step, 0, noise, lo, hi, ki, wi, fi)  # the chunk's draws, used at once
         for j in range(lo, hi):
             if standing.shape[0] and standing[j]:

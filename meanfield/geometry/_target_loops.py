@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from meanfield._compiled.core import PARALLEL_CHUNK, compiled, prange
+from meanfield._compiled.core import PARALLEL_CHUNK, compiled, empty_array, prange
 
 __all__ = ["count_in_disk"]
 
@@ -33,10 +33,10 @@ def count_in_disk(points, cx, cy, radius):
     r2 = radius * radius
     n = points.shape[0]
     chunks = (n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK
-    counts = np.zeros(chunks, np.int64)
+    counts = empty_array(chunks, np.int64)  # (each chunk writes its slot)
     for c in prange(chunks):
         count = 0
-        for j in range(c * PARALLEL_CHUNK, min((c + 1) * PARALLEL_CHUNK, n)):
+        for j in range(c * PARALLEL_CHUNK, n if n < (c + 1) * PARALLEL_CHUNK else (c + 1) * PARALLEL_CHUNK):
             dx = points[j, 0] - cx
             dy = points[j, 1] - cy
             if dx * dx + dy * dy <= r2:

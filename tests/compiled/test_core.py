@@ -18,7 +18,7 @@ import pytest
 
 from meanfield import ClosedLoop, Domain, GaussianKernel, ParameterError, paper_scenario
 from meanfield._compiled import core as compiled
-from meanfield._compiled.core import PARALLEL_CHUNK
+from meanfield._compiled.core import PARALLEL_CHUNK, empty_array
 from meanfield._compiled.philox import ZIG_FI, ZIG_KI, ZIG_WI, noise_key, standard_normals
 from meanfield.crowds._field_loops import bilinear_at, gaussian_field_at
 from meanfield.crowds._point_mass_loops import euler_maruyama
@@ -254,6 +254,76 @@ def test_a_loops_first_call_compiles_with_the_collector_off_and_restores_it(monk
         assert not gc.isenabled()
     finally:
         (gc.enable if was else gc.disable)()
+
+
+def _allocations(n):  # (compiled: its module's empty_array is then the intrinsic, not for Python)
+    a = empty_array(n, np.float64)
+    b = empty_array((n, 3), np.int64)
+    c = empty_array((2, n, 2), np.uint64)
+    d = empty_array(n, np.bool_)
+    for i in range(n):
+        a[i] = 0.5 * i
+        d[i] = i % 2 == 0
+        for j in range(3):
+            b[i, j] = 3 * i + j
+        for k in range(2):
+            for j in range(2):
+                c[k, i, j] = 100 * k + 10 * i + j
+    return a, b, c, d
+
+
+def _allocations_numpy(n):
+    i = np.arange(n)
+    c = 100 * np.arange(2)[:, None, None] + 10 * i[None, :, None] + np.arange(2)[None, None, :]
+    return 0.5 * i, np.arange(3 * n, dtype=np.int64).reshape(n, 3), c.astype(np.uint64), i % 2 == 0
+
+
+def test_empty_array_is_np_empty_on_both_paths(monkeypatch):
+    if not compiled.numba_available():
+        pytest.skip("numba is not installed: nothing compiles")
+    monkeypatch.setattr(compiled, "_override", True)
+    monkeypatch.setattr(compiled, "_selected", None)
+    plain = compiled.empty_array((2, 3), np.int64)  # from Python: np.empty
+    assert plain.shape == (2, 3) and plain.dtype == np.int64 and plain.flags.c_contiguous
+    kernel = compiled.compiled(fallback=_allocations_numpy)(_allocations)
+    got = kernel(5)
+    assert kernel._ready
+    for x, ref in zip(got, _allocations_numpy(5), strict=True):
+        assert x.dtype == ref.dtype and x.shape == ref.shape and x.flags.c_contiguous and x.flags.writeable
+        assert x.strides == ref.strides and np.array_equal(x, ref)
+    assert kernel(0)[2].shape == (2, 0, 2)
+
+
+def test_empty_array_compiles_no_overload_where_np_empty_does():
+    numba = pytest.importorskip("numba")
+    from numba.core import event
+
+    allocate = compiled._empty_intrinsic()
+
+    @numba.njit
+    def by_intrinsic(n):  # a shape and dtype no loop of the toolkit asks for
+        out = allocate((n, 2, 3), np.uint16)
+        out[:] = 7
+        return out
+
+    @numba.njit
+    def by_numpy(n):
+        out = np.empty((n, 3, 2), np.uint16)
+        out[:] = 7
+        return out
+
+    def compiled_names(function):
+        with event.install_recorder("numba:compile") as record:
+            out = function(4)
+        names = [e.data["dispatcher"].py_func.__qualname__ for _, e in record.buffer if e.is_start]
+        return out, names
+
+    out, names = compiled_names(by_intrinsic)
+    assert out.shape == (4, 2, 3) and out.dtype == np.uint16 and (out == 7).all() and out.flags.c_contiguous
+    assert "test_empty_array_compiles_no_overload_where_np_empty_does.<locals>.by_intrinsic" in names
+    assert not [n for n in names if n.startswith(("ol_np_empty", "_ol_array_allocate"))]
+    out, names = compiled_names(by_numpy)  # the recorder does see np.empty's overload when there is one
+    assert out.shape == (4, 3, 2) and [n for n in names if n.startswith("ol_np_empty")]
 
 
 def test_the_environment_variable_selects_the_numpy_path(monkeypatch):
