@@ -21,6 +21,7 @@ solvers.  :meth:`ClosedLoop.run` attaches the standard observers and returns a r
 
 from __future__ import annotations
 
+import copy
 import signal
 import threading
 import time
@@ -96,7 +97,10 @@ class ClosedLoop:
         with compile_in_parallel(halves, wait=False) as self._compilers:
             self.density: np.ndarray = self.crowd.density()
             r = self.robots  # the step's input limits, a pure function, compile here: less for the plant's child
-            limited_inputs(np.zeros((len(r.positions), 2)), np.zeros(len(r.positions)), r.u_max, r.omega_max)
+            zeros_u, zeros_w = np.zeros((len(r.positions), 2)), np.zeros(len(r.positions))
+            limited_inputs(zeros_u, zeros_w, r.u_max, r.omega_max)
+            if plant_half is not None:  # and the robots' step, on a copy of them (the plant's child ends last)
+                copy.deepcopy(r).advance(zeros_u, zeros_w, self.dt, self.parts.robot_region)
         # a build that compiled nothing (the saturation already compiled, and a density that compiles nothing, as
         # the Fokker-Planck crowd's) forked nothing: then the plant's half compiles in a child beside the first
         # step's act, which compiles the law here (_act)
@@ -117,7 +121,8 @@ class ClosedLoop:
         cache) the loops it calls: the controller acts on a stand-in density (zeros: which
         loops compile depends on the arrays' types, not their values); the crowd takes one
         step under the robots as they are, and the robots one with zero inputs (their
-        saturation, a pure function, compiles in this process beside the first density).
+        saturation, a pure function, and their step, on a copy of them, compile in this process
+        beside the first density: the child then reads them from the cache, and ends sooner).
         Only the toolkit's own parts are called in a child: a plug-in's part might act on the
         world (a real robot taking its command), so its loops compile here, in this process,
         when it first runs.

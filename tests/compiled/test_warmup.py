@@ -88,9 +88,13 @@ FOKKER_PLANCK = textwrap.dedent(
     from meanfield import ClosedLoop, paper_scenario
     from meanfield._compiled import warmup
     from meanfield.signs.robots import limited_inputs
-    if sys.argv[1] == "saturation-first":  # the saturation compiled before: then the build compiles nothing
-        limited_inputs(np.zeros((1, 2)), np.zeros(1), 1.0, 1.0)
     sc = paper_scenario(seed=3).with_values({"pedestrians.backend": "fokker-planck"}).replace(t_final=0.05)
+    if sys.argv[1] == "robots-first":  # the saturation and the robots' step compiled before: the build compiles nothing
+        from meanfield.simulation.assembly import assemble
+        parts = assemble(sc)
+        n = len(parts.robots.positions)
+        limited_inputs(np.zeros((n, 2)), np.zeros(n), 1.0, 1.0)
+        parts.robots.advance(np.zeros((n, 2)), np.zeros(n), sc.dt, parts.robot_region)
     loop = ClosedLoop(sc)
     forked_at_build = warmup._used
     for _ in range(5):
@@ -102,11 +106,11 @@ FOKKER_PLANCK = textwrap.dedent(
 
 
 def test_a_build_that_compiles_nothing_forks_the_plant_beside_the_first_act(tmp_path):
-    # the PDE's first density compiles nothing; the build still compiles the robots' saturation, and forks then
+    # the PDE's first density compiles nothing; the build still compiles the robots' saturation and step, and forks
     at_build = _python(FOKKER_PLANCK, str(tmp_path / "fp"), args=["plain"])
     assert at_build["forked_at_build"] and at_build["forked"]
-    # with the saturation compiled before, the build compiles nothing and forks nothing; the first step's act does
-    at_act = _python(FOKKER_PLANCK, str(tmp_path / "fp0"), args=["saturation-first"])
+    # with those compiled before, the build compiles nothing and forks nothing; the first step's act does
+    at_act = _python(FOKKER_PLANCK, str(tmp_path / "fp0"), args=["robots-first"])
     assert not at_act["forked_at_build"] and at_act["forked"]
     serial = _python(FOKKER_PLANCK, str(tmp_path / "fp1"), MEANFIELD_PARALLEL_COMPILE="0", args=["plain"])
     assert not serial["forked"]
