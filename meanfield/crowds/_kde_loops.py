@@ -250,7 +250,9 @@ def separable_sum(
                             work[row_cur, j] = v
                             work[a, j] = v
         # out = Fx Fyᵀ on the first pass, += on the others (BLAS dgemm)
-        gemm(False, True, nx, ny, cnt, work, width, work[nx:], width, out, ny, first > 0)
+        # (rows as 1-D views, the same pointers, and bools that are not literals: the types of the law's calls,
+        # so that one compiled gemm serves both, cached by whichever process compiles it first)
+        gemm(nx < 0, nx > 0, nx, ny, cnt, work[0], width, work[nx], width, out[0], ny, first > 0)
     if cell_area > 0.0:
         total = 0.0
         for a in range(nx):
