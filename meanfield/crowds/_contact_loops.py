@@ -33,7 +33,7 @@ import math
 
 import numpy as np
 
-from meanfield._compiled.core import PARALLEL_CHUNK, compiled, inlined, inner, prange
+from meanfield._compiled.core import PARALLEL_CHUNK, compiled, empty_array, inlined, inner, prange
 from meanfield.crowds._cell_list import CellList, _pairs
 
 __all__ = ["contact_cone", "following_cone", "contact_noise", "CONTACT_NOISE_POWER", "CONTACTS"]
@@ -296,7 +296,7 @@ def _nearest_feasible(vx, vy, cnx, cny, cb, contacts):
     """:func:`_nearest_feasible_numpy`'s point, its candidates in the same order."""
     bmax = 0.0
     for c in range(contacts):
-        bmax = max(bmax, cb[c])
+        bmax = cb[c] if cb[c] > bmax else bmax  # (max(bmax, cb[c]) as numba selects, no overload)
     tol = 1e-12 * (math.hypot(vx, vy) + bmax)
     if _feasible(vx, vy, cnx, cny, cb, contacts, tol):
         return vx, vy
@@ -331,6 +331,16 @@ def _nearest_feasible(vx, vy, cnx, cny, cb, contacts):
     return bx, by
 
 
+@inner
+def _grown(values, cap):
+    """A buffer of ``cap`` entries that begins with ``values`` (element by element: a slice assignment would have
+    numba compile its shape-mismatch message, about 2 s of string formatting, in every process)."""
+    out = empty_array(cap, np.float64)
+    for i in range(values.shape[0]):
+        out[i] = values[i]
+    return out
+
+
 @compiled(fallback=_following_numpy, parallel_over="v")
 def _following_compiled(v, walk, x, active, jam, separation, cells, power, phi, grad):
     order, starts, pos, origin, h, nx, ny = cells
@@ -347,49 +357,47 @@ def _following_compiled(v, walk, x, active, jam, separation, cells, power, phi, 
             grad[j, 0] = 0.0
             grad[j, 1] = 0.0
     for chunk in prange((m + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):  # the humans in cell order
-        cap = CONTACTS
-        cnx = np.empty(cap)
-        cny = np.empty(cap)
-        cb = np.empty(cap)
-        cw = np.empty(cap)
-        cdx = np.empty(cap)
-        cdy = np.empty(cap)
-        cr2 = np.empty(cap)
-        for t in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, m)):
+        cap = CONTACTS  # (empty_array and conditional expressions: no overload of numba's to compile, _grown)
+        cnx = empty_array(cap, np.float64)
+        cny = empty_array(cap, np.float64)
+        cb = empty_array(cap, np.float64)
+        cw = empty_array(cap, np.float64)
+        cdx = empty_array(cap, np.float64)
+        cdy = empty_array(cap, np.float64)
+        cr2 = empty_array(cap, np.float64)
+        end = (chunk + 1) * PARALLEL_CHUNK
+        for t in range(chunk * PARALLEL_CHUNK, m if m < end else end):
             j = order[t]
             xj = pos[t, 0]
             yj = pos[t, 1]
-            cx = min(int((xj - ox) // h), nx - 1)
-            cy = min(int((yj - oy) // h), ny - 1)
+            cx = np.int64((xj - ox) // h)
+            cx = nx - 1 if nx - 1 < cx else cx
+            cy = np.int64((yj - oy) // h)
+            cy = ny - 1 if ny - 1 < cy else cy
             contacts = 0
-            for gy in range(max(cy - 1, 0), min(cy + 2, ny)):
-                for u in range(starts[gy * nx + max(cx - 1, 0)], starts[gy * nx + min(cx + 2, nx)]):
+            x0 = 0 if 0 > cx - 1 else cx - 1
+            x1 = nx if nx < cx + 2 else cx + 2
+            for gy in range(0 if 0 > cy - 1 else cy - 1, ny if ny < cy + 2 else cy + 2):
+                for u in range(starts[gy * nx + x0], starts[gy * nx + x1]):
                     dx = pos[u, 0] - xj
                     dy = pos[u, 1] - yj
                     r2 = dx * dx + dy * dy
                     if 0.0 < r2 < jam2:
                         if contacts == cap:  # more contacts than the buffers hold: grow them
                             cap *= 2
-                            grown = np.empty((7, cap))
-                            grown[0, :contacts] = cnx[:contacts]
-                            grown[1, :contacts] = cny[:contacts]
-                            grown[2, :contacts] = cb[:contacts]
-                            grown[3, :contacts] = cw[:contacts]
-                            grown[4, :contacts] = cdx[:contacts]
-                            grown[5, :contacts] = cdy[:contacts]
-                            grown[6, :contacts] = cr2[:contacts]
-                            cnx = grown[0].copy()
-                            cny = grown[1].copy()
-                            cb = grown[2].copy()
-                            cw = grown[3].copy()
-                            cdx = grown[4].copy()
-                            cdy = grown[5].copy()
-                            cr2 = grown[6].copy()
+                            cnx = _grown(cnx, cap)
+                            cny = _grown(cny, cap)
+                            cb = _grown(cb, cap)
+                            cw = _grown(cw, cap)
+                            cdx = _grown(cdx, cap)
+                            cdy = _grown(cdy, cap)
+                            cr2 = _grown(cr2, cap)
                         r = math.sqrt(r2)
                         k = order[u]
                         cnx[contacts] = dx / r
                         cny[contacts] = dy / r
-                        cb[contacts] = max(0.0, walk[k, 0] * (dx / r) + walk[k, 1] * (dy / r))
+                        ahead = walk[k, 0] * (dx / r) + walk[k, 1] * (dy / r)
+                        cb[contacts] = ahead if ahead > 0.0 else 0.0
                         cw[contacts] = separation * (jam - r) / jam
                         cdx[contacts] = dx
                         cdy[contacts] = dy

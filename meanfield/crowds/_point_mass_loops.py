@@ -140,7 +140,9 @@ def _queue_order(reached, count, first, distance, previous, idx, segments, k):
     for c in range(count):
         sx = previous[idx[reached[c]], 0]
         sy = previous[idx[reached[c]], 1]
-        along = min(max(((sx - ax) * dx + (sy - ay) * dy) / (dx * dx + dy * dy), 0.0), 1.0)
+        along = ((sx - ax) * dx + (sy - ay) * dy) / (dx * dx + dy * dy)  # min(max(along, 0), 1), as numba's select
+        along = 0.0 if 0.0 > along else along
+        along = 1.0 if 1.0 < along else along
         distance[c] = math.hypot(sx - (ax + along * dx), sy - (ay + along * dy))
     for c in range(1, count):
         r = reached[c]
@@ -230,41 +232,46 @@ def hold_at_capacity(gone, idx, previous, x, exits, capacity, credit, waiting, w
     credit, waiting, waiting_at : ndarray
         The credits after the step, and who waits in a doorway now (sorted) and at which exit.
     """
+    # (no np.zeros, min, int or argsort: numba compiles their overloads in every process, the sort's alone 2 s)
     m = idx.shape[0]
     n_exits = capacity.shape[0]
-    out = np.empty(n_exits)
+    out = empty_array(n_exits, np.float64)
     anyone = waiting.shape[0] > 0
     for i in range(m):
         anyone = anyone or gone[i] >= 0
     if not anyone:  # nobody at a door: the credits refill, nothing else
         for k in range(n_exits):
-            out[k] = min(credit[k], 1.0) + capacity[k] * dt
+            out[k] = (1.0 if 1.0 < credit[k] else credit[k]) + capacity[k] * dt
         return out, waiting, waiting_at
-    in_doorway = np.zeros(m, dtype=np.bool_)
-    busy = np.zeros(n_exits, dtype=np.bool_)
+    in_doorway = empty_array(m, np.bool_)
+    held_by = empty_array(m, np.intp)  # the exit holding each human of idx, -1: none
+    for i in range(m):
+        in_doorway[i] = False
+        held_by[i] = -1
+    busy = empty_array(n_exits, np.bool_)
+    for k in range(n_exits):
+        busy[k] = False
     if waiting.shape[0] and m:  # those in a doorway reach it again, whatever their step, while it is open
         p = 0
         for w in range(waiting.shape[0]):  # (both sorted: a merge, numpy's searchsorted)
             while p < m and idx[p] < waiting[w]:
                 p += 1
-            at = min(p, m - 1)
+            at = m - 1 if m - 1 < p else p
             if idx[at] == waiting[w] and is_open[waiting_at[w]]:
                 gone[at] = waiting_at[w]
                 busy[waiting_at[w]] = True
                 in_doorway[at] = True
     for k in range(n_exits):
-        out[k] = (credit[k] if busy[k] else min(credit[k], 1.0)) + capacity[k] * dt
-    held_who = np.empty(m, dtype=np.intp)
-    held_at = np.empty(m, dtype=np.intp)
+        out[k] = (credit[k] if busy[k] else (1.0 if 1.0 < credit[k] else credit[k])) + capacity[k] * dt
     held = 0
-    reached = np.empty(m, dtype=np.intp)
-    first = np.empty(m, dtype=np.bool_)  # (waiting first)
-    distance = np.empty(m)
+    reached = empty_array(m, np.intp)
+    first = empty_array(m, np.bool_)  # (waiting first)
+    distance = empty_array(m, np.float64)
     for k in range(n_exits):
         count = _reaching(gone, k, reached)
         if count == 0:
             continue
-        allowed = int(out[k])
+        allowed = np.int64(out[k])
         if count > allowed:
             for c in range(count):
                 first[c] = in_doorway[reached[c]]
@@ -274,12 +281,18 @@ def hold_at_capacity(gone, idx, previous, x, exits, capacity, credit, waiting, w
                 gone[i] = -1
                 x[idx[i], 0] = previous[idx[i], 0]
                 x[idx[i], 1] = previous[idx[i], 1]
-                held_who[held] = idx[i]
-                held_at[held] = k
+                held_by[i] = k
                 held += 1
-        out[k] -= min(count, allowed)
-    order = np.argsort(held_who[:held])
-    return out, held_who[:held][order], held_at[:held][order]
+        out[k] -= allowed if allowed < count else count
+    held_who = empty_array(held, np.intp)  # by idx's order, which is the humans' (idx is sorted)
+    held_at = empty_array(held, np.intp)
+    h = 0
+    for i in range(m):
+        if held_by[i] >= 0:
+            held_who[h] = idx[i]
+            held_at[h] = held_by[i]
+            h += 1
+    return out, held_who, held_at
 
 
 # ----------------------------------------------------------------------------- the inner doors' queues
@@ -383,11 +396,15 @@ def hold_at_doors(idx, previous, x, doors, capacity, credit, waiting, last_door,
     """
     m = idx.shape[0]
     n_doors = capacity.shape[0]
-    crossed = np.full(m, -1, dtype=np.intp)
-    sign = np.zeros(m, dtype=np.int8)
-    busy = np.zeros(n_doors, dtype=np.bool_)
-    before = np.empty(m, dtype=np.intp)
+    crossed = empty_array(m, np.intp)  # (not np.full, np.zeros, min or int: their overloads compile in every process)
+    sign = empty_array(m, np.int8)
+    busy = empty_array(n_doors, np.bool_)
+    for k in range(n_doors):
+        busy[k] = False
+    before = empty_array(m, np.intp)
     for i in range(m):
+        crossed[i] = -1
+        sign[i] = 0
         j = idx[i]
         before[i] = waiting[j]
         if waiting[j] >= 0:
@@ -399,9 +416,9 @@ def hold_at_doors(idx, previous, x, doors, capacity, credit, waiting, last_door,
                 crossed[i] = k
                 sign[i] = s
                 break
-    out = np.empty(n_doors)
+    out = empty_array(n_doors, np.float64)
     for k in range(n_doors):
-        out[k] = (credit[k] if busy[k] else min(credit[k], 1.0)) + capacity[k] * dt
+        out[k] = (credit[k] if busy[k] else (1.0 if 1.0 < credit[k] else credit[k])) + capacity[k] * dt
     for i in range(m):  # a step back through the door one last passed gives its place back
         k = crossed[i]
         j = idx[i]
@@ -409,19 +426,19 @@ def hold_at_doors(idx, previous, x, doors, capacity, credit, waiting, last_door,
             out[k] += 1.0
             last_door[j] = -1
             crossed[i] = -1
-    reached = np.empty(m, dtype=np.intp)
-    first = np.empty(m, dtype=np.bool_)
-    distance = np.empty(m)
+    reached = empty_array(m, np.intp)
+    first = empty_array(m, np.bool_)
+    distance = empty_array(m, np.float64)
     for k in range(n_doors):
         count = _reaching(crossed, k, reached)
         if count == 0:
             continue
-        allowed = int(out[k])
+        allowed = np.int64(out[k])
         if count > allowed:
             for c in range(count):
                 first[c] = before[reached[c]] == k
             _queue_order(reached, count, first, distance, previous, idx, doors, k)
-        passed = min(count, allowed)
+        passed = allowed if allowed < count else count
         for c in range(count):
             i = reached[c]
             j = idx[i]
