@@ -326,6 +326,38 @@ def test_empty_array_compiles_no_overload_where_np_empty_does():
     assert out.shape == (4, 3, 2) and [n for n in names if n.startswith("ol_np_empty")]
 
 
+def test_empty_array_s_arrays_are_freed():
+    numba = pytest.importorskip("numba")
+    from numba.core.runtime import _nrt_python as nrt
+    from numba.core.runtime import rtsys
+
+    allocate = compiled._empty_intrinsic()
+
+    @numba.njit
+    def churn(n):
+        total = 0.0
+        for r in range(50):
+            a = allocate((n, 3), np.float64)
+            for i in range(n):
+                a[i, 0] = r
+            total += a[n - 1, 0]
+        return total
+
+    assert churn(4) == sum(range(50))
+    was = numba.config.NRT_STATS
+    nrt.memsys_enable_stats()
+    try:
+        before = rtsys.get_allocation_stats()
+        for _ in range(20):
+            churn(4)
+        after = rtsys.get_allocation_stats()
+    finally:
+        if not was:
+            nrt.memsys_disable_stats()
+    assert after.mi_alloc - before.mi_alloc == 1000  # each array allocated once and freed once: nothing leaks
+    assert after.mi_free - before.mi_free == 1000
+
+
 def test_the_environment_variable_selects_the_numpy_path(monkeypatch):
     monkeypatch.setattr(compiled, "_override", True)
     monkeypatch.setattr(compiled, "_selected", None)
