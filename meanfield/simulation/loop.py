@@ -99,7 +99,7 @@ class ClosedLoop:
             r = self.robots  # the step's input limits, a pure function, compile here: less for the plant's child
             zeros_u, zeros_w = np.zeros((len(r.positions), 2)), np.zeros(len(r.positions))
             limited_inputs(zeros_u, zeros_w, r.u_max, r.omega_max)
-            if plant_half is not None:  # and the robots' step, on a copy of them (the plant's child ends last)
+            if plant_half is not None:  # and the robots' step, on a copy of them: one loop less for the plant's child
                 copy.deepcopy(r).advance(zeros_u, zeros_w, self.dt, self.parts.robot_region)
         # a build that compiled nothing (the saturation already compiled, and a density that compiles nothing, as
         # the Fokker-Planck crowd's) forked nothing: then the plant's half compiles in a child beside the first
