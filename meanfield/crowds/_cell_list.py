@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from meanfield._compiled.core import compiled, inner
+from meanfield._compiled.core import compiled, empty_array, inner
 
 __all__ = ["cell_list", "CellList"]
 
@@ -88,29 +88,31 @@ def _sort_cells(x, active, h, order, starts, pos, key, idx, cursor):
     y1 = -math.inf
     for j in range(n):  # who, and their bounding box
         if active[j] and math.isfinite(x[j, 0]) and math.isfinite(x[j, 1]):
-            m += 1
-            x0 = min(x0, x[j, 0])
-            x1 = max(x1, x[j, 0])
-            y0 = min(y0, x[j, 1])
-            y1 = max(y1, x[j, 1])
+            m += 1  # (min, max and int as numba's select and cast: no overload of numba's to compile)
+            x0 = x[j, 0] if x[j, 0] < x0 else x0
+            x1 = x[j, 0] if x[j, 0] > x1 else x1
+            y0 = x[j, 1] if x[j, 1] < y0 else y0
+            y1 = x[j, 1] if x[j, 1] > y1 else y1
     if m == 0:
         starts[0] = 0
         starts[1] = 0
         return 0, 0.0, 0.0, h, 1, 1
     wx = x1 - x0
     wy = y1 - y0
-    nx = int(wx // h) + 1
-    ny = int(wy // h) + 1
+    nx = np.int64(wx // h) + 1
+    ny = np.int64(wy // h) + 1
     while nx * ny > 4 * m + 64:  # (_lattice)
         h *= 2.0
-        nx = int(wx // h) + 1
-        ny = int(wy // h) + 1
+        nx = np.int64(wx // h) + 1
+        ny = np.int64(wy // h) + 1
     for c in range(nx * ny + 1):
         starts[c] = 0
     i = 0
     for j in range(n):
         if active[j] and math.isfinite(x[j, 0]) and math.isfinite(x[j, 1]):
-            c = min(int((x[j, 1] - y0) // h), ny - 1) * nx + min(int((x[j, 0] - x0) // h), nx - 1)
+            gy = np.int64((x[j, 1] - y0) // h)
+            gx = np.int64((x[j, 0] - x0) // h)
+            c = (ny - 1 if ny - 1 < gy else gy) * nx + (nx - 1 if nx - 1 < gx else gx)
             key[i] = c
             idx[i] = j
             starts[c + 1] += 1
@@ -132,12 +134,12 @@ def _sort_cells(x, active, h, order, starts, pos, key, idx, cursor):
 @compiled(fallback=_cells_numpy)
 def _cells_compiled(x, active, h):
     n = x.shape[0]
-    order = np.empty(n, np.int64)
-    starts = np.empty(4 * n + 66, np.int64)
-    pos = np.empty((n, 2))
-    key = np.empty(n, np.int64)
-    idx = np.empty(n, np.int64)
-    cursor = np.empty(4 * n + 66, np.int64)
+    order = empty_array(n, np.int64)
+    starts = empty_array(4 * n + 66, np.int64)
+    pos = empty_array((n, 2), np.float64)
+    key = empty_array(n, np.int64)
+    idx = empty_array(n, np.int64)
+    cursor = empty_array(4 * n + 66, np.int64)
     m, x0, y0, h, nx, ny = _sort_cells(x, active, h, order, starts, pos, key, idx, cursor)
     return order[:m].copy(), starts[: nx * ny + 1].copy(), pos[:m].copy(), x0, y0, h, nx, ny
 

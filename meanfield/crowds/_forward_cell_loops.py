@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from meanfield._compiled.core import PARALLEL_CHUNK, compiled, inlined, prange
+from meanfield._compiled.core import PARALLEL_CHUNK, compiled, empty_array, inlined, prange
 
 __all__ = ["forward_cells", "forward_densities", "CellWork", "CELL_VERTICES", "NEIGHBOURS"]
 
@@ -220,11 +220,12 @@ def _cut_labelled(px, py, pl, m, nx, ny, c, label, qx, qy, ql):
         px[i] = qx[i]
         py[i] = qy[i]
         pl[i] = ql[i]
-        far2 = max(far2, qx[i] * qx[i] + qy[i] * qy[i])
-        x0 = min(x0, qx[i])
-        x1 = max(x1, qx[i])
-        y0 = min(y0, qy[i])
-        y1 = max(y1, qy[i])
+        r2 = qx[i] * qx[i] + qy[i] * qy[i]  # (max and min as numba's select them, without their overloads)
+        far2 = r2 if r2 > far2 else far2
+        x0 = qx[i] if qx[i] < x0 else x0
+        x1 = qx[i] if qx[i] > x1 else x1
+        y0 = qy[i] if qy[i] < y0 else y0
+        y1 = qy[i] if qy[i] > y1 else y1
     return k, far2, x0, x1, y0, y1
 
 
@@ -248,21 +249,23 @@ def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out, w
     m_all = order.shape[0]
     cap = CELL_VERTICES
     for chunk in prange((m_all + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):  # the humans in cell order
-        px = np.empty(cap + 2)
-        py = np.empty(cap + 2)
-        pl = np.empty(cap + 2, np.int64)
-        qx = np.empty(cap + 2)
-        qy = np.empty(cap + 2)
-        ql = np.empty(cap + 2, np.int64)
-        rx = np.empty(cap + 2)
-        ry = np.empty(cap + 2)
-        ax_ = np.empty(cap + 2)  # the cell ahead
-        ay_ = np.empty(cap + 2)
-        sx = np.empty((SHADOWS, cap + 2))  # its part in each shadow
-        sy = np.empty((SHADOWS, cap + 2))
-        sm = np.empty(SHADOWS, np.int64)
-        planes = np.empty((SHADOWS, 9))
-        for t in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, m_all)):
+        # (empty_array and conditional expressions for min, max and int: no overload of numba's to compile)
+        px = empty_array(cap + 2, np.float64)
+        py = empty_array(cap + 2, np.float64)
+        pl = empty_array(cap + 2, np.int64)
+        qx = empty_array(cap + 2, np.float64)
+        qy = empty_array(cap + 2, np.float64)
+        ql = empty_array(cap + 2, np.int64)
+        rx = empty_array(cap + 2, np.float64)
+        ry = empty_array(cap + 2, np.float64)
+        ax_ = empty_array(cap + 2, np.float64)  # the cell ahead
+        ay_ = empty_array(cap + 2, np.float64)
+        sx = empty_array((SHADOWS, cap + 2), np.float64)  # its part in each shadow
+        sy = empty_array((SHADOWS, cap + 2), np.float64)
+        sm = empty_array(SHADOWS, np.int64)
+        planes = empty_array((SHADOWS, 9), np.float64)
+        end = (chunk + 1) * PARALLEL_CHUNK
+        for t in range(chunk * PARALLEL_CHUNK, m_all if m_all < end else end):
             j = order[t]
             xj = pos[t, 0]
             yj = pos[t, 1]
@@ -282,20 +285,25 @@ def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out, w
             x1 = reach
             y0 = -reach
             y1 = reach
-            cx = min(int((xj - ox) // h), nx - 1)
-            cy = min(int((yj - oy) // h), ny - 1)
+            cx = np.int64((xj - ox) // h)
+            cx = nx - 1 if nx - 1 < cx else cx
+            cy = np.int64((yj - oy) // h)
+            cy = ny - 1 if ny - 1 < cy else cy
+            rings = cx if cx > nx - 1 - cx else nx - 1 - cx  # the farthest ring with a cell of the list
+            rings = cy if cy > rings else rings
+            rings = ny - 1 - cy if ny - 1 - cy > rings else rings
             ring = 0
             while True:  # the neighbours ring by ring, until no farther one can cut the cell
                 if ring > 0 and (ring - 1) * h * ((ring - 1) * h) >= 4.0 * far2:
                     break
-                if ring > max(cx, nx - 1 - cx, cy, ny - 1 - cy):
+                if ring > rings:
                     break
-                for gy in range(max(cy - ring, 0), min(cy + ring, ny - 1) + 1):
+                for gy in range(0 if cy - ring < 0 else cy - ring, (ny - 1 if ny - 1 < cy + ring else cy + ring) + 1):
                     full = gy == cy - ring or gy == cy + ring  # the ring's top or bottom row: one run of cells
                     for part in range(1 if full else 2):  # else its two cells on this row, left then right
                         if full:
-                            lo = starts[gy * nx + max(cx - ring, 0)]
-                            hi = starts[gy * nx + min(cx + ring, nx - 1) + 1]
+                            lo = starts[gy * nx + (0 if cx - ring < 0 else cx - ring)]
+                            hi = starts[gy * nx + (nx - 1 if nx - 1 < cx + ring else cx + ring) + 1]
                         else:
                             gx = cx - ring if part == 0 else cx + ring
                             if gx < 0 or gx >= nx:
@@ -320,7 +328,9 @@ def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out, w
                 wy = wall_a[w, 1] - yj
                 vx = wall_v[w, 0]
                 vy = wall_v[w, 1]
-                u = min(1.0, max(0.0, -(wx * vx + wy * vy) / (vx * vx + vy * vy)))
+                u = -(wx * vx + wy * vy) / (vx * vx + vy * vy)  # min(1, max(0, u)), as numba selects
+                u = u if u > 0.0 else 0.0
+                u = u if u < 1.0 else 1.0
                 if (wx + u * vx) * (wx + u * vx) + (wy + u * vy) * (wy + u * vy) >= far2 or shadows == SHADOWS:
                     continue
                 norm = math.hypot(vx, vy)
@@ -384,7 +394,7 @@ def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out, w
                         mb = _clip(qx, qy, mb, planes[i2, 3], planes[i2, 4], planes[i2, 5], rx, ry)
                         mb = _clip(rx, ry, mb, planes[i2, 6], planes[i2, 7], planes[i2, 8], qx, qy)
                         area += _area(qx, qy, mb)
-                area = max(area, 0.0)
+                area = 0.0 if 0.0 > area else area
                 if q < 0:
                     whole[t] = area
                 else:
@@ -415,7 +425,8 @@ def _pool_compiled(x, e, cos, sin, whole, seen, area, order, pos, out):
             out[j, q] = 0.0
     m_all = order.shape[0]
     for chunk in prange((m_all + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):  # the rest in cell order, near in memory
-        for t in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, m_all)):
+        end = (chunk + 1) * PARALLEL_CHUNK
+        for t in range(chunk * PARALLEL_CHUNK, m_all if m_all < end else end):
             j = order[t]
             for q in range(cos.shape[0]):
                 if not math.isfinite(area[j, q]):

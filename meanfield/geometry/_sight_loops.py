@@ -120,7 +120,8 @@ def sight_row(p, q, a, e, order, wall, out):
     for w in range(nw):  # the squared distance from p to each wall, in column 6 of wall
         ee = e[w, 0] * e[w, 0] + e[w, 1] * e[w, 1]
         s = ((px - a[w, 0]) * e[w, 0] + (py - a[w, 1]) * e[w, 1]) / ee if ee > 0 else 0.0
-        s = min(max(s, 0.0), 1.0)
+        s = 0.0 if 0.0 > s else s  # min(max(s, 0), 1) as numba's select (no overload of numba's to compile)
+        s = 1.0 if 1.0 < s else s
         dx, dy = a[w, 0] + s * e[w, 0] - px, a[w, 1] + s * e[w, 1] - py
         wall[w, 6] = dx * dx + dy * dy
     for w in range(nw):  # by insertion (a few dozen walls; np.argsort costs a second of compilation)
@@ -130,16 +131,25 @@ def sight_row(p, q, a, e, order, wall, out):
             k -= 1
         order[k] = w
     lo_x, hi_x, lo_y, hi_y = px, px, py, py  # the box of the points and walls: the margins' scale
-    for k in range(q.shape[0]):
-        lo_x, hi_x = min(lo_x, q[k, 0]), max(hi_x, q[k, 0])
-        lo_y, hi_y = min(lo_y, q[k, 1]), max(hi_y, q[k, 1])
+    for k in range(q.shape[0]):  # (min and max as numba selects: v if v < m else m)
+        lo_x = q[k, 0] if q[k, 0] < lo_x else lo_x
+        hi_x = q[k, 0] if q[k, 0] > hi_x else hi_x
+        lo_y = q[k, 1] if q[k, 1] < lo_y else lo_y
+        hi_y = q[k, 1] if q[k, 1] > hi_y else hi_y
     e_max = 0.0
     for w in range(nw):
         bx, by = a[w, 0] + e[w, 0], a[w, 1] + e[w, 1]
-        lo_x, hi_x = min(lo_x, min(a[w, 0], bx)), max(hi_x, max(a[w, 0], bx))
-        lo_y, hi_y = min(lo_y, min(a[w, 1], by)), max(hi_y, max(a[w, 1], by))
-        e_max = max(e_max, abs(e[w, 0]) + abs(e[w, 1]))
-    span = max(hi_x - lo_x, hi_y - lo_y)
+        v = bx if bx < a[w, 0] else a[w, 0]
+        lo_x = v if v < lo_x else lo_x
+        v = bx if bx > a[w, 0] else a[w, 0]
+        hi_x = v if v > hi_x else hi_x
+        v = by if by < a[w, 1] else a[w, 1]
+        lo_y = v if v < lo_y else lo_y
+        v = by if by > a[w, 1] else a[w, 1]
+        hi_y = v if v > hi_y else hi_y
+        v = abs(e[w, 0]) + abs(e[w, 1])
+        e_max = v if v > e_max else e_max
+    span = hi_y - lo_y if hi_y - lo_y > hi_x - lo_x else hi_x - lo_x
     reach = 1e-6 * span + 2.0 * eps * e_max  # M: a wall this much farther than q is out of the segment's reach
     # columns 0-5 of wall: a, e, the side of p, the margin; column 6: the squared distance beyond which q is
     # out of reach (-1: never). Rows: first the walls whose line passes by p (always tried), then the others,
@@ -163,7 +173,8 @@ def sight_row(p, q, a, e, order, wall, out):
             r, i_far = i_far, i_far + 1
             ee = ex * ex + ey * ey
             s = ((px - ax) * ex + (py - ay) * ey) / ee if ee > 0 else 0.0
-            s = min(max(s, 0.0), 1.0)
+            s = 0.0 if 0.0 > s else s
+            s = 1.0 if 1.0 < s else s
             gap = math.hypot(ax + s * ex - px, ay + s * ey - py) - reach
             key = gap * gap if gap > 0.0 else -1.0
         wall[r, 0], wall[r, 1], wall[r, 2], wall[r, 3], wall[r, 4], wall[r, 5], wall[r, 6] = ax, ay, ex, ey, side, \
@@ -221,8 +232,8 @@ def cell_index(points, x0, y0, dx, dy, ii, jj, out):
     for k in range(points.shape[0]):
         s = (points[k, 0] - x0) / dx
         t = (points[k, 1] - y0) / dy
-        i = int(min(s, nx - 1.0)) if s >= 0 else 0  # NaN: 0 (some cell, never read)
-        j = int(min(t, ny - 1.0)) if t >= 0 else 0
+        i = np.int64(nx - 1.0 if nx - 1.0 < s else s) if s >= 0 else 0  # NaN: 0 (some cell, never read)
+        j = np.int64(ny - 1.0 if ny - 1.0 < t else t) if t >= 0 else 0
         out[k, 0] = ii[i, j]
         out[k, 1] = jj[i, j]
     return out

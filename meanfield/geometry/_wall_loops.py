@@ -197,7 +197,7 @@ def _first_wall(px, py, qx, qy, a, e, near, box):
     fx, fy = (px - box[0]) / size, (py - box[1]) / size
     best, k = np.inf, 0
     if abs(dx) <= size and abs(dy) <= size and fx >= 0.0 and fy >= 0.0 and fx < box[3] and fy < box[4]:
-        c = int(math.floor(fx)) * int(box[4]) + int(math.floor(fy))
+        c = math.floor(fx) * np.int64(box[4]) + math.floor(fy)  # (math.floor's integers; no int overload)
         for s in range(near.shape[1]):
             w = near[c, s]
             if w < 0:
@@ -253,7 +253,8 @@ def reflect_steps(previous, points, a, e, near, box):
     """
     n = points.shape[0]
     for chunk in prange((n + PARALLEL_CHUNK - 1) // PARALLEL_CHUNK):
-        for i in range(chunk * PARALLEL_CHUNK, min((chunk + 1) * PARALLEL_CHUNK, n)):
+        end = (chunk + 1) * PARALLEL_CHUNK  # (not min: numba compiles its overload in every process)
+        for i in range(chunk * PARALLEL_CHUNK, n if n < end else end):
             sx, sy = previous[i, 0], previous[i, 1]
             px, py = points[i, 0], points[i, 1]
             for _ in range(BOUNCES):
@@ -280,7 +281,8 @@ def _stop_at(sx, sy, qx, qy, a, e, near, box):
     """The end of the step ``s → q`` cut :data:`STOP_BEFORE` before its first wall (``q`` if none)."""
     t, _ = _first_wall(sx, sy, qx, qy, a, e, near, box)
     if t < np.inf:
-        t = max(t - STOP_BEFORE, 0.0)
+        t = t - STOP_BEFORE  # max(t - STOP_BEFORE, 0), as numba's max selects
+        t = 0.0 if 0.0 > t else t
         return sx + t * (qx - sx), sy + t * (qy - sy)
     return qx, qy
 
@@ -302,7 +304,8 @@ def robot_steps(start, end, a, e, near, box, slide):
         t, k = _first_wall(sx, sy, qx, qy, a, e, near, box)
         if not t < np.inf:
             continue
-        t = max(t - STOP_BEFORE, 0.0)
+        t = t - STOP_BEFORE
+        t = 0.0 if 0.0 > t else t
         xx, xy = sx + t * (qx - sx), sy + t * (qy - sy)
         if not slide:
             end[i, 0] = xx
