@@ -118,8 +118,10 @@ class ClosedLoop:
         :func:`~meanfield._compiled.warmup.compile_in_parallel` (None: a half that may not run in a child).
 
         Each runs in a forked child, on the child's copy of the loop, only to compile (and
-        cache) the loops it calls: the controller acts on a stand-in density (zeros: which
-        loops compile depends on the arrays' types, not their values); the crowd takes one
+        cache) the loops it calls: the controller acts on a stand-in density, the target ``ρ_*``
+        (which loops compile depends on the arrays' types, and on the branches their values take:
+        on zeros the guide skipped its exits' price iteration, which the parent then compiled
+        after the children); the crowd takes one
         step under the robots as they are, and the robots one with zero inputs (their
         saturation, a pure function, and their step, on a copy of them, compile in this process
         beside the first density: the child then reads them from the cache, and ends sooner).
@@ -129,7 +131,7 @@ class ClosedLoop:
         """
 
         def controller_half() -> None:
-            self.controller.act(Observation(np.zeros(self.grid.shape), self._field(), self.t, self.dt))
+            self.controller.act(Observation(np.array(self.parts.target, float), self._field(), self.t, self.dt))
 
         def plant_half() -> None:
             self.crowd.advance(self.robots, self.t, self.dt)
