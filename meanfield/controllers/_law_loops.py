@@ -149,8 +149,8 @@ def paper_law(nx, ny, rho, target, cst, pos, cos, sin, prev_x, prev_y, have_prev
     seg = 64
     for d in (dx, dy):
         if d > 0.0 and reach < seg * d:
-            s = np.int64(reach / d)  # (not max and int: numba compiles their overloads in every process)
-            seg = s if s > 1 else 1
+            fit = np.int64(reach / d)  # (not max and int: numba compiles their overloads in every process)
+            seg = fit if fit > 1 else 1
     ns = 0  # segments so far
     for k in range(nr):
         lat = (k >= nx) + (k >= nxr) + (k >= nxr + ny)  # x centres, x faces, y centres, y faces
