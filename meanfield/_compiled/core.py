@@ -25,6 +25,14 @@ What "the same results" means: the two paths do the same floating-point operatio
 different order, so they agree to round-off on one call (the tests check this for every
 pair); a chaotic closed loop then amplifies round-off, so whole runs agree in distribution,
 not bit for bit.  A given path is deterministic: the same seed gives the same numbers.
+
+How a loop is written so that its first compile stays short: numba compiles its own overloads
+(``np.empty``, ``np.zeros``, ``np.full``, ``min``, ``max``, ``int``, ``np.argsort``, a slice assignment's
+shape-mismatch message) as functions of their own, in every process and for every new combination of
+argument types, and never caches them on disk (issue 45: up to 2 s each for the sort and the message).
+So a loop allocates with :func:`empty_array` (filling what it reads), writes ``min(a, b)`` as
+``b if b < a else a`` and ``max(a, b)`` as ``b if b > a else a`` (numba's own select, NaN included),
+``int(x)`` of a float as ``np.int64(x)``, and copies element by element.
 """
 
 from __future__ import annotations
