@@ -17,6 +17,11 @@ machine code as an address, and numba does not cache such a loop).
   or the transpose (``.T``) of a C-contiguous array, shapes and layouts checked.  About
   0.15 s of compilation for each combination of layouts.
 
+* :func:`numpy_gemm`: :func:`gemm`'s convention, by *numpy's* own BLAS (the library numpy's ``@`` calls, which
+  need not be scipy's: numpy 2.4's wheel ships OpenBLAS 0.3.31, scipy 1.17's 0.3.30, and their ``dgemm`` can
+  differ in the last bit).  A loop that moves numpy products onto numba's threads calls it, so that each product
+  is numpy's to the bit (issue 45: the same numbers as before, on any number of threads).
+
 Row-major ``C = op(A) op(B)`` is column-major ``Cᵀ = op(B)ᵀ op(A)ᵀ``, which is the call made:
 ``dgemm(op_b, op_a, n, m, k, 1, B, ldb, A, lda, beta, C, ldc)``.  Operands are float64; ``C``
 must not overlap ``A`` or ``B``; with ``beta = 0`` it is not read (it may come from ``np.empty``).
@@ -37,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["gemm", "matmul_into"]
+__all__ = ["gemm", "matmul_into", "numpy_gemm", "numpy_gemm_found", "numpy_uses_gemm", "register_symbols"]
 
 _KIND = 100  # ord("d"): float64
 _NO = 78  # ord("N")
@@ -99,6 +104,97 @@ class _XXGemm:
 
 
 _xxgemm = _XXGemm()
+
+_ROW_MAJOR, _CBLAS_NO, _CBLAS_TRANS = 101, 111, 112  # CBLAS's enums: CblasRowMajor, CblasNoTrans, CblasTrans
+_NUMPY_DGEMM_NAMES = ("scipy_cblas_dgemm64_", "cblas_dgemm64_")
+"""numpy's ILP64 ``cblas_dgemm`` (64-bit sizes), as numpy's wheels name it: ``scipy-openblas64`` (numpy >= 2.0) and
+``openblas64_`` (numpy 1.26).  The ``64_`` suffix says the integer width; a BLAS named otherwise (numpy built
+against Accelerate, MKL or a system BLAS) is not called: :func:`numpy_gemm_found` is then False."""
+
+
+class _NumpyDgemm:
+    """numpy's own ``cblas_dgemm`` (:data:`_NUMPY_DGEMM_NAMES`), found among the libraries numpy's core module
+    loaded, ``void (order, transa, transb, m, n, k, alpha, A, lda, B, ldb, beta, C, ldc)`` with 64-bit sizes.
+
+    Compiled code calls it by the name :attr:`ALIAS`, which :func:`register_symbols` makes known to numba's JIT
+    (numpy loads its BLAS privately, so its symbols are not the process's): found by name when machine code is
+    loaded, as ``numba_xxgemm``, the loop is cached on disk as usual.  A Python call goes through ``ctypes``.
+    """
+
+    ALIAS = "meanfield_numpy_cblas_dgemm64"
+    _address: int | None = None
+    _type: Any = None
+    _python: Any = None
+
+    @staticmethod
+    def address() -> int:
+        """The function's address, 0 when numpy's BLAS has none of :data:`_NUMPY_DGEMM_NAMES` (looked up once)."""
+        if _NumpyDgemm._address is None:
+            _NumpyDgemm._address = 0
+            for module in ("numpy._core._multiarray_umath", "numpy.core._multiarray_umath"):
+                try:
+                    path = __import__(module, fromlist=["_"]).__file__
+                    library = ctypes.CDLL(path)  # (numpy's own handle: a lookup searches its BLAS too)
+                except (ImportError, OSError, AttributeError, TypeError):
+                    continue
+                for name in _NUMPY_DGEMM_NAMES:
+                    function = getattr(library, name, None)
+                    if function is not None:
+                        _NumpyDgemm._address = ctypes.cast(function, ctypes.c_void_p).value or 0
+                        return _NumpyDgemm._address
+        return _NumpyDgemm._address
+
+    @property
+    def _numba_type_(self) -> Any:
+        if _NumpyDgemm._type is None:
+            from numba.core import types
+
+            if not register_symbols():  # the calling loop falls back to its numpy twin
+                raise TypeError("numpy's BLAS has no ILP64 cblas_dgemm (scipy_cblas_dgemm64_ or cblas_dgemm64_)")
+            i32, i64, f64, p = types.int32, types.int64, types.float64, types.voidptr
+            signature = types.void(i32, i32, i32, i64, i64, i64, f64, p, i64, p, i64, f64, p, i64)
+            _NumpyDgemm._type = types.ExternalFunction(_NumpyDgemm.ALIAS, signature)
+        return _NumpyDgemm._type
+
+    def __call__(self, *args: Any) -> None:
+        if _NumpyDgemm._python is None:
+            if not self.address():
+                raise RuntimeError("numpy_gemm: numpy's BLAS has no ILP64 cblas_dgemm (numpy_gemm_found() is False)")
+            i32, i64, f64, p = ctypes.c_int32, ctypes.c_int64, ctypes.c_double, ctypes.c_void_p
+            proto = ctypes.CFUNCTYPE(None, i32, i32, i32, i64, i64, i64, f64, p, i64, p, i64, f64, p, i64)
+            _NumpyDgemm._python = proto(self.address())
+        order, ta, tb, m, n, k, alpha, a, lda, b, ldb, beta, c, ldc = args
+        _NumpyDgemm._python(order, ta, tb, m, n, k, alpha, a.data, lda, b.data, ldb, beta, c.data, ldc)
+
+
+_numpy_dgemm = _NumpyDgemm()
+_registered = False
+
+
+def numpy_gemm_found() -> bool:
+    """Whether :func:`numpy_gemm` can call numpy's BLAS (numpy's wheels: yes); else a caller keeps numpy's ``@``."""
+    return bool(_NumpyDgemm.address())
+
+
+def numpy_uses_gemm(m: int, n: int, k: int) -> bool:
+    """Whether numpy's ``@`` of an ``m × k`` by a ``k × n`` matrix is one ``dgemm`` (or zeros, with nothing to sum):
+    every size at least 2.  numpy computes the other shapes by ``ddot``, ``dgemv`` or a loop of its own
+    (``numpy/_core/src/umath/matmul.c.src``), whose last bits :func:`numpy_gemm` does not reproduce: a caller that
+    must give numpy's numbers keeps numpy's ``@`` for them."""
+    return m == 0 or n == 0 or k == 0 or (m >= 2 and n >= 2 and k >= 2)
+
+
+def register_symbols() -> bool:
+    """Make numpy's ``cblas_dgemm`` known to numba's JIT under :attr:`_NumpyDgemm.ALIAS` (once per process, before
+    any compiled loop is compiled or read from the cache: :func:`meanfield._compiled.core` calls it when it imports
+    numba).  Returns whether it was found."""
+    global _registered
+    if not _registered and _NumpyDgemm.address():
+        from llvmlite import binding
+
+        binding.add_symbol(_NumpyDgemm.ALIAS, _NumpyDgemm.address())
+        _registered = True
+    return _registered
 
 
 class _Helper:
@@ -236,3 +332,43 @@ def matmul_into(a: np.ndarray, b: np.ndarray, out: np.ndarray, accumulate: bool 
         if _xxgemm(_KIND, op_b, op_a, n, m, k, one, b.ctypes, ldb, a.ctypes, lda, beta.ctypes, out.ctypes, ldc):
             raise RuntimeError("matmul_into: scipy's BLAS (scipy.linalg.cython_blas) could not be loaded")
     return out
+
+
+@_Helper
+def numpy_gemm(
+    trans_a: bool,
+    trans_b: bool,
+    m: int,
+    n: int,
+    k: int,
+    a: np.ndarray,
+    lda: int,
+    b: np.ndarray,
+    ldb: int,
+    c: np.ndarray,
+    ldc: int,
+) -> None:
+    """``C = op(A) op(B)`` as :func:`gemm` (row-major, the arrays giving their data pointers, nothing checked), by
+    numpy's own BLAS: the call numpy's ``a @ b`` makes on these operands wherever :func:`numpy_uses_gemm`, so the
+    same numbers to the bit.
+
+    ``C`` is overwritten and not read (BLAS ``beta = 0``: with ``k = 0`` it is set to zeros, as numpy's ``@``
+    gives).  Only where :func:`numpy_gemm_found`; a compiled loop that calls it elsewhere falls back to its numpy
+    twin.
+
+    Parameters
+    ----------
+    trans_a, trans_b : bool
+        Whether ``A``, ``B`` are stored transposed.
+    m, n, k : int
+        The product's sizes.
+    a, b, c : ndarray of float64
+        The buffers (a view's first element); ``c`` must not overlap ``a`` or ``b``.
+    lda, ldb, ldc : int
+        Leading dimensions, in entries.
+    """
+    if m == 0 or n == 0:
+        return
+    op_a = _CBLAS_TRANS if trans_a else _CBLAS_NO
+    op_b = _CBLAS_TRANS if trans_b else _CBLAS_NO
+    _numpy_dgemm(_ROW_MAJOR, op_a, op_b, m, n, k, 1.0, a.ctypes, lda, b.ctypes, ldb, 0.0, c.ctypes, ldc)

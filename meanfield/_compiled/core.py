@@ -100,6 +100,9 @@ def _numba() -> Any:
                 stacklevel=4,
             )  # fmt: skip
         return exc
+    from meanfield._compiled.blas import register_symbols
+
+    register_symbols()  # numpy's BLAS by name, before any loop that calls it is compiled or read from the cache
     return numba
 
 
@@ -511,7 +514,10 @@ class CompiledLoop:
                 if _before_cold_compile and not cached_on_disk(self._jitted):
                     while _before_cold_compile:  # (meanfield._compiled.warmup: other processes start compiling too)
                         _before_cold_compile.pop(0)()
-                out = self._jitted(*args)
+                large = self._over is not None and args[self._over].shape[0] > PARALLEL_CHUNK
+                # a large first call runs on threads as every later one (the one-thread version, the same numbers,
+                # compiles at the first small call): a million humans' first step no longer runs on one thread
+                out = self._on_threads(*args) if large and not self._threads_failed else self._jitted(*args)
         except Exception as exc:  # numba's typing/lowering errors, a cache it cannot write
             self._fail(exc)
             return self._numpy(*args)

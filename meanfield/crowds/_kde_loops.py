@@ -19,6 +19,8 @@ with the mirror images across the walls within ``IMAGE_REACH`` bandwidths of the
   where numba's ``np.dot`` takes a few tenths).
 * :func:`linear_binning_into`: cloud-in-cell weights of the points on a lattice, one pass
   per point (numpy: :func:`meanfield.geometry.grid.linear_binning`, four ``bincount`` scatters).
+* :func:`banded_products`: the binned estimate's ``Fx C Fyᵀ`` band by band, the bands on numba's threads, each
+  band's product numpy's own (:func:`meanfield._compiled.blas.numpy_gemm`): the numbers of numpy's ``@``.
 """
 
 from __future__ import annotations
@@ -27,12 +29,12 @@ import math
 
 import numpy as np
 
-from meanfield._compiled.blas import gemm
+from meanfield._compiled.blas import gemm, numpy_gemm
 from meanfield._compiled.core import PARALLEL_CHUNK, compiled, empty_array, prange
 from meanfield._compiled.vector_exp import ARG_MAX, exp_inplace
 from meanfield.geometry.grid import linear_binning
 
-__all__ = ["axis_factors", "separable_sum", "linear_binning_into", "IMAGE_REACH"]
+__all__ = ["axis_factors", "separable_sum", "linear_binning_into", "banded_products", "IMAGE_REACH"]
 
 IMAGE_REACH = 8.0
 """Wall images are kept for the cells within this many bandwidths of a wall (tail ``e^{-32}``)."""
@@ -341,3 +343,60 @@ def linear_binning_into(
                     total += partial[q, c]
                 flat[c] = total
     return counts
+
+
+# ----------------------------------------------------------------------------- the binned estimate's products
+def _banded_numpy(fx, counts, bands_x, fy, bands_y, half, out):
+    for a, b, c0, c1 in bands_x:
+        np.matmul(fx[a:b, c0:c1], counts[c0:c1], out=half[a:b])
+    for a, b, c0, c1 in bands_y:
+        out[:, a:b] = half[:, c0:c1] @ fy[a:b, c0:c1].T
+    return out
+
+
+@compiled(fallback=_banded_numpy, parallel=True)
+def banded_products(fx, counts, bands_x, fy, bands_y, half, out):
+    """``out = Fx counts Fyᵀ`` band by band (docs page *Discretisation*, "Kernel density estimation": the binned
+    estimate): ``half[a:b] = Fx[a:b, c0:c1] counts[c0:c1]`` for each row ``(a, b, c0, c1)`` of ``bands_x``, then
+    ``out[:, a:b] = half[:, c0:c1] Fy[a:b, c0:c1]ᵀ`` for each of ``bands_y``.
+
+    Each band is one call of numpy's own ``dgemm`` with the operands numpy's ``@`` passes
+    (:func:`~meanfield._compiled.blas.numpy_gemm`), so ``out`` is the numpy twin's to the bit; the bands of each
+    stage run on numba's threads (each writes its own rows, then its own columns): the same numbers on any number
+    of threads.
+
+    Parameters
+    ----------
+    fx, fy : ndarray, shape (nx, mx), (ny, my), C-contiguous
+        The axis factors from the fine lattice to the cell centres.
+    counts : ndarray, shape (mx, my), C-contiguous
+        The binned weights.
+    bands_x, bands_y : ndarray of int64, shape (B, 4)
+        ``(a, b, c0, c1)``: rows ``a:b`` of the factor are kept in columns ``c0:c1`` only.
+    half : ndarray, shape (nx, my), C-contiguous
+        Work (overwritten).
+    out : ndarray, shape (nx, ny), C-contiguous
+        Overwritten with the product.
+    """
+    mx = counts.shape[1]
+    no = mx < 0  # (not literals: one compilation of numpy_gemm for both stages)
+    yes = mx >= 0
+    lx = fx.shape[1]
+    ly = fy.shape[1]
+    ny = out.shape[1]
+    fxf = fx.reshape(fx.size)
+    cf = counts.reshape(counts.size)
+    hf = half.reshape(half.size)
+    fyf = fy.reshape(fy.size)
+    of = out.reshape(out.size)
+    for t in prange(bands_x.shape[0]):
+        a = bands_x[t, 0]
+        c0 = bands_x[t, 2]
+        numpy_gemm(no, no, bands_x[t, 1] - a, mx, bands_x[t, 3] - c0, fxf[a * lx + c0 :], lx, cf[c0 * mx :], mx,
+                   hf[a * mx :], mx)  # fmt: skip
+    for t in prange(bands_y.shape[0]):
+        a = bands_y[t, 0]
+        c0 = bands_y[t, 2]
+        numpy_gemm(no, yes, out.shape[0], bands_y[t, 1] - a, bands_y[t, 3] - c0, hf[c0:], mx, fyf[a * ly + c0 :], ly,
+                   of[a:], ny)  # fmt: skip
+    return out

@@ -44,7 +44,8 @@ from typing import Literal
 
 import numpy as np
 
-from meanfield.crowds._kde_loops import axis_factors, linear_binning_into, separable_sum
+from meanfield._compiled.blas import numpy_gemm_found, numpy_uses_gemm
+from meanfield.crowds._kde_loops import _banded_numpy, axis_factors, banded_products, linear_binning_into, separable_sum
 from meanfield.errors import ParameterError
 from meanfield.geometry.grid import Grid
 
@@ -223,7 +224,9 @@ class KernelDensityEstimator:
         self.oversample: int | Literal["auto"] = oversample
         self.convolution: Convolution = convolution
         self._mass_cache: dict[float, np.ndarray] = {}
-        self._factor_cache: tuple[float, int, np.ndarray, np.ndarray, list, list] | None = None
+        self._factor_cache: tuple[float, int, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._half: np.ndarray | None = None  # the banded product's work rows (nx × the fine lattice's my)
+        self._bands_are_gemm = False  # whether numpy's `@` is one dgemm for each band (numpy_uses_gemm)
 
     def bandwidth_for(self, points: np.ndarray) -> float:
         """The bandwidth used for ``points``."""
@@ -373,15 +376,15 @@ class KernelDensityEstimator:
         """
         fx, fy, bands_x, bands_y = self._fine_factors(h, r)
         nx, ny = self.grid.shape
-        half = np.empty((nx, counts.shape[1]))
-        for a, b, c0, c1 in bands_x:
-            np.matmul(fx[a:b, c0:c1], counts[c0:c1], out=half[a:b])
+        if self._half is None or self._half.shape != (nx, counts.shape[1]):
+            self._half = np.empty((nx, counts.shape[1]))  # (work, kept between steps)
         out = np.empty((nx, ny))
-        for a, b, c0, c1 in bands_y:
-            out[:, a:b] = half[:, c0:c1] @ fy[a:b, c0:c1].T
-        return out
+        # the bands on numba's threads, each numpy's own product (the same numbers); numpy's `@` where its BLAS
+        # cannot be called from compiled code, or where numpy would not call dgemm for a band (a size of 1)
+        products = banded_products if self._bands_are_gemm and numpy_gemm_found() else _banded_numpy
+        return products(fx, np.ascontiguousarray(counts), bands_x, fy, bands_y, self._half, out)
 
-    def _fine_factors(self, h: float, r: int) -> tuple[np.ndarray, np.ndarray, list, list]:
+    def _fine_factors(self, h: float, r: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Axis factors from the fine lattice's centres to the cell centres, and their bands (last ``h`` cached)."""
         c = self._factor_cache
         if c is None or c[0] != h or c[1] != r:
@@ -389,9 +392,14 @@ class KernelDensityEstimator:
             x0, x1, y0, y1 = g.domain.bounds
             fine_x = x0 + (np.arange(g.shape[0] * r) + 0.5) * (g.dx / r)
             fine_y = y0 + (np.arange(g.shape[1] * r) + 0.5) * (g.dy / r)
-            fx = self._axis_factors(g.x, fine_x, h, x0, x1)
-            fy = self._axis_factors(g.y, fine_y, h, y0, y1)
-            c = self._factor_cache = (h, r, fx, fy, _bands(fx), _bands(fy))
+            fx = np.ascontiguousarray(self._axis_factors(g.x, fine_x, h, x0, x1))
+            fy = np.ascontiguousarray(self._axis_factors(g.y, fine_y, h, y0, y1))
+            bands_x, bands_y = (np.array(_bands(f), np.int64).reshape(-1, 4) for f in (fx, fy))
+            c = self._factor_cache = (h, r, fx, fy, bands_x, bands_y)
+            nx, my = fx.shape[0], fy.shape[1]
+            self._bands_are_gemm = all(numpy_uses_gemm(b - a, my, c1 - c0) for a, b, c0, c1 in bands_x) and all(
+                numpy_uses_gemm(nx, b - a, c1 - c0) for a, b, c0, c1 in bands_y
+            )
         return c[2], c[3], c[4], c[5]
 
     def _kernel_mass(self, h: float) -> np.ndarray:

@@ -20,7 +20,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from meanfield._compiled.blas import numpy_gemm_found, numpy_uses_gemm
 from meanfield.errors import ParameterError
+from meanfield.signs._lattice_loops import _lattice_numpy, lattice_products
 from meanfield.signs.kernels import NavigationKernel
 
 __all__ = ["SampledNavigationField"]
@@ -66,9 +68,14 @@ class SampledNavigationField:
         k = self.kernel
         if getattr(k, "separable", False) and hasattr(k, "factor"):
             fx = k.factor(self.xs[None, :] - positions[:, 0:1])  # (n, mx)
-            fy = k.factor(self.ys[None, :] - positions[:, 1:2])  # (n, my)
-            self.vx = (k.c * cos[:, None] * fx).T @ fy
-            self.vy = (k.c * sin[:, None] * fx).T @ fy
+            fy = np.ascontiguousarray(k.factor(self.ys[None, :] - positions[:, 1:2]))  # (n, my)
+            ax = np.ascontiguousarray(k.c * cos[:, None] * fx)
+            ay = np.ascontiguousarray(k.c * sin[:, None] * fx)
+            self.vx, self.vy = np.empty(self.shape), np.empty(self.shape)  # (new arrays: a reader may hold the last)
+            # the two products side by side on numba's threads, each numpy's own (the same numbers as `ax.T @ fy`)
+            gemm = numpy_uses_gemm(*self.shape, len(positions)) and numpy_gemm_found()  # (numpy's dgemm: 2+ robots)
+            products = lattice_products if gemm else _lattice_numpy
+            products(ax, ay, fy, self.vx, self.vy)
         else:
             X, Y = np.meshgrid(self.xs, self.ys, indexing="ij")
             self.vx = np.zeros(self.shape)

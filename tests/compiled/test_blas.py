@@ -4,6 +4,8 @@
   Python and from a compiled loop, for C-contiguous operands, transposed ones (``x.T``), blocks
   of rows or columns of larger arrays, and the degenerate sizes (1, and an empty inner dimension);
 * what does not multiply, or has no unit stride, is refused;
+* :func:`numpy_gemm` is numpy's ``a @ b`` to the bit (numpy's own BLAS, which need not be scipy's), from Python
+  and from a compiled loop, and a ``@compiled`` loop that calls it is read from the cache in a new process;
 * importing the module does not import numba, and a loop that calls it is cached on disk.
 """
 
@@ -18,7 +20,7 @@ import numpy as np
 import pytest
 
 from meanfield._compiled import core as compiled
-from meanfield._compiled.blas import gemm, matmul_into
+from meanfield._compiled.blas import gemm, matmul_into, numpy_gemm, numpy_gemm_found, numpy_uses_gemm
 
 needs_numba = pytest.mark.skipif(not compiled.numba_available(), reason="numba is not installed")
 
@@ -140,7 +142,8 @@ def test_what_does_not_multiply_is_refused(path):
 
 
 def test_importing_the_module_does_not_import_numba():
-    code = "import sys, meanfield._compiled.blas, meanfield.crowds._kde_loops; assert 'numba' not in sys.modules"
+    code = ("import sys, meanfield._compiled.blas, meanfield.crowds._kde_loops, meanfield.signs._lattice_loops; "
+            "assert 'numba' not in sys.modules and 'llvmlite' not in sys.modules")
     subprocess.run([sys.executable, "-c", code], check=True)
 
 
@@ -168,3 +171,85 @@ def test_a_loop_that_calls_gemm_is_cached_on_disk(tmp_path):
     runs = [subprocess.run([sys.executable, str(script)], env=env, capture_output=True, text=True) for _ in range(2)]
     assert [r.returncode for r in runs] == [0, 0], [r.stderr[-2000:] for r in runs]
     assert [r.stdout.split()[-1] for r in runs] == ["0", "1"]
+
+
+needs_numpy_blas = pytest.mark.skipif(not numpy_gemm_found(), reason="numpy's BLAS has no ILP64 cblas_dgemm here")
+
+
+def _numpy_gemm_call(a, b, out):
+    """``out = a @ b`` by :func:`numpy_gemm` for operands each C-contiguous or transposed (``x.T``), ``out`` a block of
+    columns of a wider array (leading dimension its row stride)."""
+    ta, tb = not a.flags.c_contiguous, not b.flags.c_contiguous
+    lda = a.shape[0] if ta else a.shape[1]
+    ldb = b.shape[0] if tb else b.shape[1]
+    base_a = a.T if ta else a
+    base_b = b.T if tb else b
+    m, k, n = a.shape[0], a.shape[1], b.shape[1]
+    return ta, tb, m, n, k, base_a, max(lda, 1), base_b, max(ldb, 1), out, out.strides[0] // 8
+
+
+@needs_numpy_blas
+@pytest.mark.parametrize("path", ["python", pytest.param("compiled", marks=needs_numba)])
+def test_numpy_gemm_is_numpys_product_to_the_bit(path):
+    """The same numbers as numpy's ``@`` on every layout, bit for bit, wherever numpy calls ``dgemm`` (scipy's
+    ``dgemm``, which :func:`gemm` calls, differs from it in the last bit on the first shape with numpy 2.4 and
+    scipy 1.17), including an empty inner dimension (zeros) and an output that is a block of columns of a wider
+    array; a size of 1 is numpy's ``ddot``, ``dgemv`` or its own loop, which :func:`numpy_uses_gemm` tells."""
+    rng = np.random.default_rng(7)
+    call = numpy_gemm
+    if path == "compiled":
+        import numba
+
+        call = numba.njit(lambda *args: numpy_gemm(*args))
+    shapes = [(257, 64, 257), (43, 120, 384), (16, 50, 384), (7, 13, 5), (2, 2, 2), (4, 0, 3), (0, 3, 2)]
+    for m, k, n in shapes:
+        assert numpy_uses_gemm(m, n, k)
+        for ta in (False, True):
+            for tb in (False, True):
+                a, b = operands(rng, m, k, n, ta, tb)
+                wide = np.full((m, n + 5), np.nan)
+                out = wide[:, 2 : 2 + n]
+                call(*_numpy_gemm_call(a, b, out))
+                assert np.array_equal(out, a @ b), (m, k, n, ta, tb)
+                assert np.isnan(wide[:, :2]).all() and np.isnan(wide[:, 2 + n :]).all()  # nothing beside it written
+
+
+@needs_numpy_blas
+@needs_numba
+def test_a_compiled_loop_that_calls_numpy_gemm_is_read_from_the_cache(tmp_path):
+    """numpy's BLAS is made known to numba's JIT by name before any loop loads (``meanfield._compiled.core``): a
+    second process reads the binned estimate's products from the cache, compiles nothing, warns nothing, and gets
+    numpy's numbers."""
+    script = tmp_path / "loop.py"
+    script.write_text(
+        textwrap.dedent(
+            """
+            import warnings
+            import numpy as np
+            from meanfield.crowds._kde_loops import _banded_numpy, banded_products
+
+            warnings.simplefilter("error")
+            rng = np.random.default_rng(0)
+            fx, fy, counts = rng.random((32, 96)), rng.random((24, 80)), rng.random((96, 80))
+            bands_x = np.array([[0, 16, 0, 60], [16, 32, 30, 96]], np.int64)
+            bands_y = np.array([[0, 16, 0, 50], [16, 24, 40, 80]], np.int64)
+            got = banded_products(fx, counts, bands_x, fy, bands_y, np.empty((32, 80)), np.empty((32, 24)))
+            want = _banded_numpy(fx, counts, bands_x, fy, bands_y, np.empty((32, 80)), np.empty((32, 24)))
+            assert np.array_equal(got, want)
+            print(sum(banded_products._jitted.stats.cache_hits.values()))
+            """
+        )
+    )
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    runs = [subprocess.run([sys.executable, str(script)], env=env, capture_output=True, text=True) for _ in range(2)]
+    assert [r.returncode for r in runs] == [0, 0], [r.stderr[-2000:] for r in runs]
+    assert [r.stdout.split()[-1] for r in runs] == ["0", "1"]
+
+
+def test_numpy_uses_gemm_only_for_every_size_two_or_more():
+    """numpy's ``@`` calls ``dgemm`` for matrices with every size at least 2 (or zeros); a size of 1 is another
+    routine (``numpy/_core/src/umath/matmul.c.src``), which the callers of :func:`numpy_gemm` leave to numpy."""
+    for m, n, k in [(1, 9, 4), (9, 1, 4), (9, 4, 1), (1, 1, 1)]:
+        assert not numpy_uses_gemm(m, n, k)
+    for m, n, k in [(2, 2, 2), (257, 257, 64), (3, 4, 0), (0, 1, 1)]:
+        assert numpy_uses_gemm(m, n, k)

@@ -627,3 +627,21 @@ def test_a_loop_runs_on_threads_only_above_one_chunk_and_falls_back_to_one_threa
         assert failing(large, 0.5, 0.5, 0.3) == expected
     messages = [str(w.message) for w in caught if issubclass(w.category, compiled.CompiledFallbackWarning)]
     assert len(messages) == 1 and "could not run on threads" in messages[0] and "no threading layer" in messages[0]
+
+
+@needs_numba
+def test_a_large_first_call_runs_on_threads_without_compiling_the_one_thread_version():
+    """A loop's first call with more than one chunk runs the threaded version, as every later large call does
+    (before, it ran the one-thread version: a million humans' first step on one thread); the one-thread version
+    compiles at the first small call, and the two give the same count."""
+    from meanfield.geometry._target_loops import count_in_disk
+
+    loop = compiled.CompiledLoop(count_in_disk.loop, count_in_disk.fallback, {}, parallel_over="points")
+    large = np.random.default_rng(3).uniform(0, 1, (3 * PARALLEL_CHUNK + 1, 2))
+    expected = int((np.hypot(large[:, 0] - 0.5, large[:, 1] - 0.5) <= 0.3).sum())
+    assert loop(large, 0.5, 0.5, 0.3) == expected
+    assert loop._threaded is not None and loop._threaded.signatures  # the threaded version ran
+    assert not loop._jitted.signatures  # the one-thread version did not compile
+    small = large[:PARALLEL_CHUNK]
+    assert loop(small, 0.5, 0.5, 0.3) == int((np.hypot(small[:, 0] - 0.5, small[:, 1] - 0.5) <= 0.3).sum())
+    assert loop._jitted.signatures

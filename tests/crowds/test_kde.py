@@ -181,3 +181,21 @@ def test_separable_is_evaluated_in_blocks_with_the_same_result(rng, monkeypatch)
     monkeypatch.setattr(density, "_SEPARABLE_CHUNK", 24 * 37)  # blocks of 37 points
     blocks = KernelDensityEstimator(g, 0.07, method="separable")(pts)
     np.testing.assert_allclose(blocks, whole, rtol=1e-12)
+
+
+@pytest.mark.parametrize("cells", [(32, 24), (17, 33)])
+def test_the_banded_products_are_numpys_whichever_path_runs_them(cells, rng):
+    """The binned estimate's ``Fx C Fyᵀ`` is numpy's band by band to the bit (issue 45: the bands on threads by numpy's
+    own ``dgemm``); with 17 rows the last band has one row, which numpy computes without ``dgemm``, and the estimate
+    keeps numpy's ``@`` for every band."""
+    from meanfield.crowds._kde_loops import _banded_numpy
+
+    g = Grid(Domain.box(1.0, 1.0), cells)
+    h, r = 0.05, 2
+    est = KernelDensityEstimator(g, h, method="binned", oversample=r, convolution="matrix")
+    counts = rng.poisson(3.0, (cells[0] * r, cells[1] * r)).astype(float)
+    got = est._banded_product(counts, h, r)
+    fx, fy, bands_x, bands_y = est._fine_factors(h, r)
+    assert est._bands_are_gemm == (cells[0] % 16 != 1)
+    want = _banded_numpy(fx, counts, bands_x, fy, bands_y, np.empty((cells[0], counts.shape[1])), np.empty(cells))
+    assert np.array_equal(got, want)

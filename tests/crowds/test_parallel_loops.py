@@ -13,11 +13,14 @@ import pytest
 
 from meanfield import ClosedLoop, GaussianKernel
 from meanfield._compiled import core as compiled
+from meanfield._compiled.blas import numpy_gemm_found
 from meanfield._compiled.core import PARALLEL_CHUNK
 from meanfield.crowds._field_loops import bilinear_at, gaussian_field_at
-from meanfield.crowds._kde_loops import BINNING_PARTS, linear_binning_into
+from meanfield.crowds._kde_loops import BINNING_PARTS, _banded_numpy, banded_products, linear_binning_into
+from meanfield.crowds.kde import _bands
 from meanfield.geometry.grid import linear_binning
 from meanfield.scenarios.scenario import stadium_scenario
+from meanfield.signs._lattice_loops import _lattice_numpy, lattice_products
 
 numba = pytest.importorskip("numba")
 needs_two = pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="numba has one thread here")
@@ -131,3 +134,45 @@ def test_the_count_in_the_target_is_the_same_on_one_and_two_threads():
     two = on_threads(2, lambda: count_in_disk(pts, 0.6, 0.4, 0.3))
     inside = np.hypot(pts[:, 0] - 0.6, pts[:, 1] - 0.4) <= 0.3
     assert one == two == int(inside.sum()) > 0
+
+
+needs_numpy_blas = pytest.mark.skipif(not numpy_gemm_found(), reason="numpy's BLAS has no ILP64 cblas_dgemm here")
+
+
+@needs_two
+@needs_numpy_blas
+def test_the_binned_estimates_products_are_numpys_on_one_and_two_threads():
+    """The bands of ``Fx C Fyᵀ`` on threads (issue 45, item 3): numpy's numbers to the bit, on one and two threads,
+    on the stadium's sizes (a 128² grid, its 256² fine lattice) with Gaussian factors and their bands."""
+    rng = np.random.default_rng(13)
+    centres, fine = (np.arange(128) + 0.5) / 128, (np.arange(256) + 0.5) / 256
+    fx = np.exp(-0.5 * (centres[:, None] - fine[None, :]) ** 2 / 0.03**2)
+    fy = np.exp(-0.5 * (centres[:, None] - fine[None, :] - 0.01) ** 2 / 0.04**2)
+    counts = rng.poisson(15.0, (256, 256)).astype(float)
+    bx, by = (np.array(_bands(f), np.int64) for f in (fx, fy))
+    assert (bx[:, 3] - bx[:, 2] < 256).any()  # banded: some bands skip columns
+
+    def products():
+        return banded_products(fx, counts, bx, fy, by, np.empty((128, 256)), np.empty((128, 128)))
+
+    one, two = on_threads(1, products), on_threads(2, products)
+    want = _banded_numpy(fx, counts, bx, fy, by, np.empty((128, 256)), np.empty((128, 128)))
+    assert np.array_equal(one, want) and np.array_equal(two, want)
+
+
+@needs_two
+@needs_numpy_blas
+def test_the_sampled_lattice_is_numpys_on_one_and_two_threads():
+    """The sampled field's two products side by side (issue 45, item 3): ``axᵀ fy`` and ``ayᵀ fy`` as numpy's
+    ``@`` gives them, to the bit, on one and two threads, at the stadium's 257² nodes and 64 robots."""
+    rng = np.random.default_rng(14)
+    ax, ay, fy = rng.standard_normal((64, 257)), rng.standard_normal((64, 257)), rng.standard_normal((64, 257))
+
+    def products():
+        return lattice_products(ax, ay, fy, np.empty((257, 257)), np.empty((257, 257)))
+
+    one, two = on_threads(1, products), on_threads(2, products)
+    assert np.array_equal(one[0], ax.T @ fy) and np.array_equal(one[1], ay.T @ fy)
+    assert np.array_equal(two[0], one[0]) and np.array_equal(two[1], one[1])
+    want = _lattice_numpy(ax, ay, fy, np.empty((257, 257)), np.empty((257, 257)))
+    assert np.array_equal(want[0], one[0]) and np.array_equal(want[1], one[1])
