@@ -131,17 +131,19 @@ class _NumpyDgemm:
         """The function's address, 0 when numpy's BLAS has none of :data:`_NUMPY_DGEMM_NAMES` (looked up once)."""
         if _NumpyDgemm._address is None:
             _NumpyDgemm._address = 0
-            for module in ("numpy._core._multiarray_umath", "numpy.core._multiarray_umath"):
-                try:
-                    path = __import__(module, fromlist=["_"]).__file__
-                    library = ctypes.CDLL(path)  # (numpy's own handle: a lookup searches its BLAS too)
-                except (ImportError, OSError, AttributeError, TypeError):
-                    continue
-                for name in _NUMPY_DGEMM_NAMES:
-                    function = getattr(library, name, None)
-                    if function is not None:
-                        _NumpyDgemm._address = ctypes.cast(function, ctypes.c_void_p).value or 0
-                        return _NumpyDgemm._address
+            try:
+                from numpy._core import _multiarray_umath as core  # numpy >= 2.0
+            except ImportError:
+                from numpy.core import _multiarray_umath as core  # numpy 1.26
+            try:
+                library = ctypes.CDLL(core.__file__)  # (numpy's own handle: a lookup searches its BLAS too)
+            except (OSError, AttributeError, TypeError):
+                return 0
+            for name in _NUMPY_DGEMM_NAMES:
+                function = getattr(library, name, None)
+                if function is not None:
+                    _NumpyDgemm._address = ctypes.cast(function, ctypes.c_void_p).value or 0
+                    break
         return _NumpyDgemm._address
 
     @property

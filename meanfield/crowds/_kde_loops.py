@@ -378,25 +378,23 @@ def banded_products(fx, counts, bands_x, fy, bands_y, half, out):
     out : ndarray, shape (nx, ny), C-contiguous
         Overwritten with the product.
     """
-    mx = counts.shape[1]
-    no = mx < 0  # (not literals: one compilation of numpy_gemm for both stages)
-    yes = mx >= 0
-    lx = fx.shape[1]
-    ly = fy.shape[1]
-    ny = out.shape[1]
-    fxf = fx.reshape(fx.size)
+    mx, my = counts.shape
+    nx, ny = out.shape
+    no = my < 0  # (not literals: one compilation of numpy_gemm for both stages)
+    yes = my >= 0
+    fxf = fx.reshape(fx.size)  # (1-D views: a band's first entry is an offset; every offset is inside its array)
     cf = counts.reshape(counts.size)
     hf = half.reshape(half.size)
     fyf = fy.reshape(fy.size)
     of = out.reshape(out.size)
-    for t in prange(bands_x.shape[0]):
+    for t in prange(bands_x.shape[0]):  # half[a:b] = Fx[a:b, c0:c1] counts[c0:c1]
         a = bands_x[t, 0]
         c0 = bands_x[t, 2]
-        numpy_gemm(no, no, bands_x[t, 1] - a, mx, bands_x[t, 3] - c0, fxf[a * lx + c0 :], lx, cf[c0 * mx :], mx,
-                   hf[a * mx :], mx)  # fmt: skip
-    for t in prange(bands_y.shape[0]):
+        numpy_gemm(no, no, bands_x[t, 1] - a, my, bands_x[t, 3] - c0, fxf[a * mx + c0 :], mx, cf[c0 * my :], my,
+                   hf[a * my :], my)  # fmt: skip
+    for t in prange(bands_y.shape[0]):  # out[:, a:b] = half[:, c0:c1] Fy[a:b, c0:c1]ᵀ
         a = bands_y[t, 0]
         c0 = bands_y[t, 2]
-        numpy_gemm(no, yes, out.shape[0], bands_y[t, 1] - a, bands_y[t, 3] - c0, hf[c0:], mx, fyf[a * ly + c0 :], ly,
+        numpy_gemm(no, yes, nx, bands_y[t, 1] - a, bands_y[t, 3] - c0, hf[c0:], my, fyf[a * my + c0 :], my,
                    of[a:], ny)  # fmt: skip
     return out
