@@ -149,6 +149,7 @@ class GuideController:
     """
 
     capabilities: ClassVar[ControllerCapabilities] = ControllerCapabilities(
+        requires_exits=True,  # it guides to the plan's exits: a region without has nothing to offer it
         changes_walls=True,  # a region can become wall during a run ([[events]] block, walls_changed)
         options=GuideOptions,  # [controller.options.guide]
     )

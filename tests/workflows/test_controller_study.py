@@ -21,6 +21,18 @@ def test_the_candidates_are_the_installed_controllers_that_apply():
     assert "evacuation" in candidates(builtin_scenarios()["l-room"](seed=0))  # a room with exits
 
 
+def test_every_candidate_builds_on_its_scenario():
+    """A controller that needs exits says so in its record (``requires_exits``): the guide did not, so the paper's
+    candidates named it and ``meanfield bench``'s controllers record failed on it (found 2026-12-07)."""
+    from meanfield import ClosedLoop
+
+    paper = paper_scenario(seed=0)
+    found = candidates(paper)
+    assert "guide" not in found and "guide" in candidates(builtin_scenarios()["l-room"](seed=0))
+    for overrides in found.values():
+        ClosedLoop(paper.with_values(overrides))  # builds (a ParameterError here: a record that does not tell)
+
+
 def test_a_small_study_writes_its_table_and_figure_and_resumes(tmp_path):
     sc = paper_scenario(seed=0).replace(t_final=0.2)
     rows = study_controllers(sc, 2, tmp_path, controllers=["backstepping", "coverage"], workers=1, progress=False)
