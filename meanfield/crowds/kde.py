@@ -45,7 +45,7 @@ from typing import Literal
 import numpy as np
 
 from meanfield._compiled.blas import numpy_gemm_found, numpy_uses_gemm
-from meanfield.crowds._kde_loops import _banded_numpy, axis_factors, banded_products, linear_binning_into, separable_sum
+from meanfield.crowds._kde_loops import axis_factors, banded_products, linear_binning_into, separable_sum
 from meanfield.errors import ParameterError
 from meanfield.geometry.grid import Grid
 
@@ -381,7 +381,7 @@ class KernelDensityEstimator:
         out = np.empty((nx, ny))
         # the bands on numba's threads, each numpy's own product (the same numbers); numpy's `@` where its BLAS
         # cannot be called from compiled code, or where numpy would not call dgemm for a band (a size of 1)
-        products = banded_products if self._bands_are_gemm and numpy_gemm_found() else _banded_numpy
+        products = banded_products if self._bands_are_gemm and numpy_gemm_found() else banded_products.fallback
         return products(fx, np.ascontiguousarray(counts), bands_x, fy, bands_y, self._half, out)
 
     def _fine_factors(self, h: float, r: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -7,8 +7,8 @@ lattice's nodes is two products over the robots (:meth:`meanfield.signs.sampled_
 
 :func:`lattice_products` runs the two side by side, each one call of numpy's own ``dgemm`` with the operands
 numpy's ``A.T @ Fy`` passes (:func:`meanfield._compiled.blas.numpy_gemm`): the numbers of its numpy twin to the
-bit, on any number of threads.  At the ``stadium``'s 257² nodes and 64 robots the two took 0.5 ms a step on one
-thread in numpy, about a fortieth of a step on two threads (issue 45, item 3).
+bit, on any number of threads.  At the ``stadium``'s 257² nodes and 64 robots the two took 0.39 ms a step in numpy
+(on one thread whatever numba's count), 0.18 ms on two threads (issue 45, item 3; docs page *Large crowds*).
 """
 
 from __future__ import annotations

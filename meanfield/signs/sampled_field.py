@@ -22,7 +22,7 @@ import numpy as np
 
 from meanfield._compiled.blas import numpy_gemm_found, numpy_uses_gemm
 from meanfield.errors import ParameterError
-from meanfield.signs._lattice_loops import _lattice_numpy, lattice_products
+from meanfield.signs._lattice_loops import lattice_products
 from meanfield.signs.kernels import NavigationKernel
 
 __all__ = ["SampledNavigationField"]
@@ -74,7 +74,7 @@ class SampledNavigationField:
             self.vx, self.vy = np.empty(self.shape), np.empty(self.shape)  # (new arrays: a reader may hold the last)
             # the two products side by side on numba's threads, each numpy's own (the same numbers as `ax.T @ fy`)
             gemm = numpy_uses_gemm(*self.shape, len(positions)) and numpy_gemm_found()  # (numpy's dgemm: 2+ robots)
-            products = lattice_products if gemm else _lattice_numpy
+            products = lattice_products if gemm else lattice_products.fallback  # (numpy's `@`)
             products(ax, ay, fy, self.vx, self.vy)
         else:
             X, Y = np.meshgrid(self.xs, self.ys, indexing="ij")
