@@ -82,6 +82,31 @@ def _optional_dependencies_hidden(request: pytest.FixtureRequest):
         sys.modules.update(saved)
 
 
+@pytest.fixture(autouse=True)
+def _thread_settings_kept():
+    """A test leaves the run's BLAS threads (``MEANFIELD_BLAS_THREADS``) and numba's thread count as it found them: a
+    test that ran ``meanfield run --threads 2`` in this process once left the variable set, and every later run's
+    small products ran on two BLAS threads (RiMEA 12's runs 5x slower; found 2026-12-07).  A leak is put back and
+    reported as the test's error."""
+    variable = "MEANFIELD_BLAS_THREADS"
+    before = os.environ.get(variable)
+    numba = sys.modules.get("numba")
+    threads = numba.get_num_threads() if numba is not None else None
+    yield
+    leaks = []
+    if os.environ.get(variable) != before:
+        leaks.append(f"{variable}={os.environ.get(variable)!r} (was {before!r})")
+        if before is None:
+            del os.environ[variable]
+        else:
+            os.environ[variable] = before
+    if threads is not None and numba.get_num_threads() != threads:
+        leaks.append(f"numba's threads {numba.get_num_threads()} (was {threads})")
+        numba.set_num_threads(threads)
+    if leaks:
+        pytest.fail(f"the test left {', '.join(leaks)}: restore it (monkeypatch, or try/finally)")
+
+
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
     outcome = yield
