@@ -517,7 +517,7 @@ class CompiledLoop:
                 large = self._over is not None and args[self._over].shape[0] > PARALLEL_CHUNK
                 # a large first call runs on threads as every later one (the one-thread version, the same numbers,
                 # compiles at the first small call): a million humans' first step no longer runs on one thread
-                out = self._on_threads(*args) if large and not self._threads_failed else self._jitted(*args)
+                out = self._on_threads(*args) if large else self._jitted(*args)
         except Exception as exc:  # numba's typing/lowering errors, a cache it cannot write
             self._fail(exc)
             return self._numpy(*args)
