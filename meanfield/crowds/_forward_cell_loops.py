@@ -177,29 +177,80 @@ def _area(px, py, m):
 
 
 @inlined
-def _cuts(px, py, m, nx, ny, c):
-    """Whether the line ``y·(nx, ny) = c`` cuts anything off the polygon ``(px, py)[:m]``: some vertex beyond it
-    (the twin's arithmetic).  Else :func:`_cut_labelled` would give the polygon back as it is, to the last bit."""
+def _clip_area(px, py, m, nx, ny, c):
+    """:func:`_area` of :func:`_clip`'s polygon, without writing it: the same vertices, each computed as
+    :func:`_clip` computes it, and the shoelace's terms added in :func:`_area`'s order (the first vertex's term with
+    the second first, the last's with the first at the end), so the same number to the last bit."""
+    if m == 0:
+        return 0.0
+    a0 = px[0] * nx + py[0] * ny - c
+    a = a0
+    k = 0
+    s = 0.0
+    fx = 0.0  # the first vertex
+    fy = 0.0
+    lx = 0.0  # the last one so far
+    ly = 0.0
     for i in range(m):
-        if px[i] * nx + py[i] * ny - c > 0.0:
-            return True
-    return False
+        i1 = i + 1 if i + 1 < m else 0
+        b = px[i1] * nx + py[i1] * ny - c if i + 1 < m else a0
+        if a <= 0.0:
+            vx = px[i]
+            vy = py[i]
+            if k == 0:
+                fx = vx
+                fy = vy
+            else:
+                s += lx * vy - vx * ly
+            lx = vx
+            ly = vy
+            k += 1
+        if (a < 0.0 and b > 0.0) or (b < 0.0 and a > 0.0):
+            t = a / (a - b)
+            vx = px[i] + t * (px[i1] - px[i])
+            vy = py[i] + t * (py[i1] - py[i])
+            if k == 0:
+                fx = vx
+                fy = vy
+            else:
+                s += lx * vy - vx * ly
+            lx = vx
+            ly = vy
+            k += 1
+        a = b
+    if k < 3:
+        return 0.0
+    s += lx * fy - fx * ly
+    return 0.5 * abs(s)
 
 
 @inlined
-def _cut_labelled(px, py, pl, m, nx, ny, c, label, qx, qy, ql):
-    """:func:`_clip` in place on ``(px, py)`` (``qx``, ``qy``, ``ql`` scratch), keeping each edge's label (``pl[i]``:
-    the slot in the cell list's order of the neighbour whose bisector the edge ``i → i + 1`` lies on, −1 for the
-    square's), the new edge labelled
-    ``label`` (the twin's labels); returns the new vertex count, the squared distance of its farthest vertex and its
-    bounding box ``(x0, x1, y0, y1)``.
-    The clipping is :func:`_clip`'s, written out again so that the loop over the turns, which needs no labels,
-    writes none."""
+def _beyond(px, py, m, nx, ny, c, da):
+    """Each vertex's ``y·(nx, ny) - c`` into ``da`` (the twin's arithmetic); whether some vertex lies beyond the line
+    ``y·(nx, ny) = c``.  Else :func:`_cut_labelled` would give the polygon back as it is, to the last bit."""
+    cut = False
+    for i in range(m):
+        a = px[i] * nx + py[i] * ny - c
+        da[i] = a
+        if a > 0.0:
+            cut = True
+    return cut
+
+
+@inlined
+def _cut_labelled(px, py, pl, m, da, label, qx, qy, ql):
+    """:func:`_clip` of ``(px, py)`` into ``(qx, qy)`` by the line whose vertex values :func:`_beyond` wrote into
+    ``da``, keeping each edge's label (``pl[i]``: the slot in the cell list's order of the neighbour whose bisector
+    the edge ``i → i + 1`` lies on, −1 for the square's) into ``ql``, the new edge labelled ``label`` (the twin's
+    labels); returns the new vertex count, the squared distance of its farthest vertex and its bounding box
+    ``(x0, x1, y0, y1)``; the cut polygon is copied back into ``(px, py, pl)``.  The clipping is :func:`_clip`'s,
+    each vertex's value computed once (by :func:`_beyond`), written out again so that the loop over the turns, which
+    needs no labels, writes none."""
     k = 0
     for i in range(m):
         i1 = i + 1 if i + 1 < m else 0
-        a = px[i] * nx + py[i] * ny - c
-        b = px[i1] * nx + py[i1] * ny - c
+        a = da[i]
+        b = da[i1]
         if a <= 0.0:
             qx[k] = px[i]
             qy[k] = py[i]
@@ -256,6 +307,7 @@ def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out, w
         qx = empty_array(cap + 2, np.float64)
         qy = empty_array(cap + 2, np.float64)
         ql = empty_array(cap + 2, np.int64)
+        da = empty_array(cap + 2, np.float64)  # each vertex's side of a bisector
         rx = empty_array(cap + 2, np.float64)
         ry = empty_array(cap + 2, np.float64)
         ax_ = empty_array(cap + 2, np.float64)  # the cell ahead
@@ -318,9 +370,8 @@ def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out, w
                             # the bounding box's corner along it, past a vertex (each test exact: no cut is missed)
                             if (d2 > 0.0 and 0.25 * d2 < far2 and m < cap
                                     and (x1 * dx if dx > 0.0 else x0 * dx) + (y1 * dy if dy > 0.0 else y0 * dy)
-                                    > 0.5 * d2 and _cuts(px, py, m, dx, dy, 0.5 * d2)):  # fmt: skip
-                                m, far2, x0, x1, y0, y1 = _cut_labelled(px, py, pl, m, dx, dy, 0.5 * d2, s, qx, qy,
-                                                                        ql)  # fmt: skip
+                                    > 0.5 * d2 and _beyond(px, py, m, dx, dy, 0.5 * d2, da)):  # fmt: skip
+                                m, far2, x0, x1, y0, y1 = _cut_labelled(px, py, pl, m, da, s, qx, qy, ql)
                 ring += 1
             shadows = 0
             for w in range(n_walls):  # the walls near enough to hide part of the cell, facing the human
@@ -371,6 +422,14 @@ def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out, w
                 tx = 0.0 if q < 0 else cos[q] * ex - sin[q] * ey
                 ty = 0.0 if q < 0 else sin[q] * ex + cos[q] * ey
                 standing = tx == 0.0 and ty == 0.0
+                if shadows == 0:  # the common case: the area alone, the polygon ahead never written
+                    area = _area(px, py, m) if standing else _clip_area(px, py, m, -tx, -ty, 0.0)
+                    area = 0.0 if 0.0 > area else area
+                    if q < 0:
+                        whole[t] = area
+                    else:
+                        out[j, q] = 0.5 * area if standing else area
+                    continue
                 if standing:
                     k = m
                     for i in range(m):
