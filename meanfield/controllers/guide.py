@@ -292,8 +292,8 @@ class GuideController:
         held = ~(m > 0)
         centroid[~held] = np.column_stack([px[~held] / m[~held], py[~held] / m[~held]])
         pull[~held] = centroid[~held] - robots[~held]
-        behind = ~held
-        if self.sight is not None and behind.any():
+        behind = ~held if self.sight is not None else np.zeros(n, dtype=bool)  # (no wall hides anything)
+        if behind.any():
             behind[behind] = ~np.asarray(self.sight.visible(robots[behind], centroid[behind]), bool)
         if behind.any():  # a wall hides the centroid: the first leg of the walk to the robot's cell nearest it
             rows = np.flatnonzero(behind)

@@ -16,6 +16,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from meanfield import ClosedLoop, Grid, ParameterError, run
+from meanfield.controllers._guide_loops import share_moments
+from meanfield.controllers.coverage import _NOTHING_HIDDEN
 from meanfield.controllers.guide import GuideController, GuideOptions, allocate
 from meanfield.crowds.memory import RouteMemory
 from meanfield.geometry.exits import exit_segments
@@ -131,6 +133,32 @@ def test_a_region_that_becomes_wall_is_planned_round():
     assert g.grid is loop.grid and np.isfinite(g.assignment.arrival).any()
     blocked = ~loop.grid.active.ravel()[g._cells]
     assert not blocked.any()  # the covered cells are the new grid's
+
+
+def test_in_a_room_no_wall_divides_each_robot_drives_straight_at_its_centroid():
+    # rimea-9 (a 30 m x 20 m room, four exits): nothing hides a centroid, so no robot walks round a wall (the guide
+    # used to take every pull along its walking tree there, as if a wall hid the centroid)
+    sc = builtin_scenarios()["rimea-9"](seed=0).with_values(
+        {"controller.kind": "guide", "crowd.guidance": "signs", "robots.n": 8, "controller.options": {},
+         "t_final": 1.0}  # fmt: skip
+    )
+    loop = ClosedLoop(sc)
+    for _ in range(10):
+        loop.step()
+    g = loop.controller
+    assert g.sight is None and not g.walking._trees  # no tree planted
+    robots = np.asarray(loop.robots.positions, float)
+    w = g.weight(loop.density, loop.t)
+    pull = g.pulls(robots, g._share, w)
+    moving = np.hypot(pull[:, 0], pull[:, 1]) > 0
+    assert moving.any()
+    # the pull is the offset to the weighted centroid of the robot's cells of its share (its moments)
+    _, m, px, py = share_moments(g._xy, np.ascontiguousarray(robots), g.team, g._share, w, _NOTHING_HIDDEN, g._cells,
+                                 False, np.empty(len(g._share), np.intp), *np.empty((3, len(robots))))  # fmt: skip
+    held = m > 0
+    np.testing.assert_array_equal(moving, held)
+    centroid = np.column_stack([px[held] / m[held], py[held] / m[held]])
+    np.testing.assert_allclose(pull[held], centroid - robots[held], rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize(
