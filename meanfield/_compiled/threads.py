@@ -11,6 +11,9 @@ The crowd's per-human loops (the field at each human, the noise and Euler–Maru
 run on numba's threads, every core by default (numba's ``NUMBA_NUM_THREADS``); :func:`set_loop_threads`
 (``meanfield run --crowd-threads``) uses fewer.  Their results do not depend on the count
 (:data:`meanfield._compiled.core.PARALLEL_CHUNK`).
+
+A command's counts hold while it runs (:func:`command_threads`): ``meanfield.cli.app.main(["run", ...,
+"--threads", "2"])`` called from Python leaves the caller's variable and loop threads as they were.
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ from contextlib import contextmanager
 
 from meanfield.errors import ParameterError
 
-__all__ = ["ENV", "blas_threads", "limited_blas", "loop_threads", "set_loop_threads"]
+__all__ = ["ENV", "blas_threads", "command_threads", "limited_blas", "loop_threads", "set_loop_threads"]
 
 ENV = "MEANFIELD_BLAS_THREADS"
 """The environment variable that sets the BLAS threads of a run (default 1)."""
@@ -83,3 +86,36 @@ def set_loop_threads(threads: int) -> None:
     if isinstance(threads, bool) or not isinstance(threads, int) or not 1 <= threads <= most:
         raise ParameterError("threads", threads, f"an integer from 1 to {most} (numba's NUMBA_NUM_THREADS)")
     numba.set_num_threads(threads)
+
+
+@contextmanager
+def command_threads(blas: int | None = None, loops: int | None = None) -> Iterator[None]:
+    """Inside the block, ``MEANFIELD_BLAS_THREADS`` is ``blas`` and the compiled loops run on ``loops`` threads (None:
+    as they are); after it, the variable (set or unset) and the loops' count are as they were.
+
+    ``meanfield run --threads N --crowd-threads M``: a command's threads end with the command, in its own process
+    and in a Python caller of :func:`meanfield.cli.app.main` alike (until 2026-12-07 the variable stayed set in the
+    caller, and every later run there held BLAS to ``N`` threads).
+
+    Raises
+    ------
+    ParameterError
+        As :func:`set_loop_threads`, for a bad ``loops``.
+    """
+    env = os.environ.get(ENV)
+    before = loop_threads()
+    try:
+        if blas is not None:
+            os.environ[ENV] = str(int(blas))
+        if loops is not None:
+            set_loop_threads(loops)
+        yield
+    finally:
+        if env is None:
+            os.environ.pop(ENV, None)
+        else:
+            os.environ[ENV] = env
+        if loops is not None and before is not None:
+            import numba
+
+            numba.set_num_threads(before)

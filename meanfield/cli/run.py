@@ -154,26 +154,26 @@ def available_cores() -> int:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    """``meanfield run``: the threads it asks for hold while it runs (:func:`~meanfield._compiled.threads.
+    command_threads`: a caller of :func:`meanfield.cli.app.main` from Python gets its own back), then the run."""
+    from meanfield._compiled.threads import command_threads
+
+    for name, value, what in (("--threads", args.threads, "BLAS threads"),
+                              ("--crowd-threads", args.crowd_threads, "the crowd's loops")):  # fmt: skip
+        cores = available_cores()
+        if value is not None and not 1 <= value <= cores:
+            raise ParameterError(name, value, f"an integer from 1 to {cores}, the cores available ({what})")
+    with command_threads(args.threads, args.crowd_threads):
+        return _run_scenario(args)
+
+
+def _run_scenario(args: argparse.Namespace) -> int:
     from meanfield._compiled import core as compiled
     from meanfield.io.atomic import check_output_names, folder_lock
     from meanfield.simulation.loop import ClosedLoop, signals_deferred
     from meanfield.simulation.preflight import check_fits
     from meanfield.simulation.result import SimulationResult
 
-    if args.threads is not None:
-        cores = available_cores()
-        if not 1 <= args.threads <= cores:
-            allowed = f"an integer from 1 to {cores}, the cores available (BLAS threads)"
-            raise ParameterError("--threads", args.threads, allowed)
-        os.environ["MEANFIELD_BLAS_THREADS"] = str(args.threads)
-    if args.crowd_threads is not None:
-        from meanfield._compiled.threads import set_loop_threads
-
-        cores = available_cores()
-        if not 1 <= args.crowd_threads <= cores:
-            allowed = f"an integer from 1 to {cores}, the cores available (the crowd's loops)"
-            raise ParameterError("--crowd-threads", args.crowd_threads, allowed)
-        set_loop_threads(args.crowd_threads)
     sc = scenario_from_args(args)
     export = _webapp_export(args)
     own = Path(args.scenario)

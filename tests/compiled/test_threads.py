@@ -47,9 +47,8 @@ def test_nmpc_reports_its_real_time_factor():
 def test_the_command_line_sets_the_count_and_refuses_a_bad_one(tmp_path, capsys, monkeypatch):
     from meanfield.cli.app import main
 
-    # unset for the test, and unset again after it: `meanfield run --threads` sets the variable in this process, and a
-    # bare delenv of an unset variable records nothing to undo (every later test then ran its BLAS on two threads:
-    # RiMEA 12's runs 5x slower, the suite's tests 931 s instead of 619 s; found 2026-12-07)
+    # unset for the test, and unset again after it (a bare delenv of an unset variable records nothing to undo: when
+    # the command left the variable set, every later test ran its BLAS on two threads, RiMEA 12's runs 5x slower)
     monkeypatch.setenv(ENV, "1")
     monkeypatch.delenv(ENV)
     from meanfield.cli.run import available_cores
@@ -63,10 +62,26 @@ def test_the_command_line_sets_the_count_and_refuses_a_bad_one(tmp_path, capsys,
         with pytest.raises(SystemExit) as exc:
             main([*argv, "--threads", bad, "--out", str(tmp_path / bad)])
         assert exc.value.code == 2 and "--threads" in capsys.readouterr().err
-    assert main([*argv, "--threads", str(cores), "--out", str(tmp_path / "b")]) == 0
+    import json
     import os
 
-    assert os.environ[ENV] == str(cores)
+    from meanfield._compiled import threads
+
+    seen = []
+    blas_threads = threads.blas_threads
+
+    def counted() -> int:  # what the run's limited_blas reads
+        seen.append(blas_threads())
+        return seen[-1]
+
+    monkeypatch.setattr(threads, "blas_threads", counted)
+    assert main([*argv, "--threads", str(cores), "--out", str(tmp_path / "b")]) == 0
+    assert seen and set(seen) == {cores}  # the run held BLAS to the count asked for
+    assert ENV not in os.environ  # and the command's count ended with it: the caller's (unset) is back
+    monkeypatch.setenv(ENV, "1")
+    assert main([*argv, "--threads", str(cores), "--out", str(tmp_path / "c")]) == 0
+    assert os.environ[ENV] == "1"  # a caller's own value, too
+    assert json.loads((tmp_path / "c" / "summary.json").read_text())["status"] == "completed"
 
 
 def test_the_crowds_threads_are_set_from_the_command_line_and_a_bad_count_is_refused(tmp_path, capsys):
@@ -89,6 +104,7 @@ def test_the_crowds_threads_are_set_from_the_command_line_and_a_bad_count_is_ref
     try:
         assert main([*argv, "--crowd-threads", "1", "--out", str(tmp_path / "one")]) == 0
         summary = json.loads((tmp_path / "one" / "summary.json").read_text())
-        assert numba.get_num_threads() == 1 and summary["compiled_loops"]["threads"] == 1
+        assert summary["compiled_loops"]["threads"] == 1  # the run's loops ran on the count asked for
+        assert numba.get_num_threads() == before  # and the caller's count is back after the command
     finally:
         numba.set_num_threads(before)
