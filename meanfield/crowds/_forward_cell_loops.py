@@ -280,6 +280,11 @@ def _cut_labelled(px, py, pl, m, da, label, qx, qy, ql):
     return k, far2, x0, x1, y0, y1
 
 
+_SHADOW_MARGIN = 1e-9
+"""A shadow is left out of a cell's areas where every vertex of the cell lies beyond one of its three lines by this
+share of the line's scale (``(|n_x| + |n_y|) R + |c| + 1``): the parts ahead are the cell clipped, their vertices
+within a few ulps of it, so each would clip to nothing and take exactly 0.0 off; the same areas to the last bit."""
+
 SHADOWS = 16
 """The most walls whose shadows one human's cell takes; farther ones beyond that many are left out (a cell reaches
 a few metres; no plan has more walls that near)."""
@@ -315,6 +320,7 @@ def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out, w
         sx = empty_array((SHADOWS, cap + 2), np.float64)  # its part in each shadow
         sy = empty_array((SHADOWS, cap + 2), np.float64)
         sm = empty_array(SHADOWS, np.int64)
+        lv = empty_array(SHADOWS, np.int64)  # the shadows that fall on the cell
         planes = empty_array((SHADOWS, 9), np.float64)
         end = (chunk + 1) * PARALLEL_CHUNK
         for t in range(chunk * PARALLEL_CHUNK, m_all if m_all < end else end):
@@ -416,13 +422,33 @@ def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out, w
                 if not hidden:
                     seen[t, slots] = k2
                     slots += 1
+            live = 0  # the shadows that fall on the cell: a shadow whose half-plane holds no vertex of the cell, by a
+            for i in range(shadows):  # margin, takes nothing off any part of it (each of its terms below is 0.0)
+                dead = False
+                for p3 in range(0, 9, 3):
+                    pnx = planes[i, p3]
+                    pny = planes[i, p3 + 1]
+                    pc = planes[i, p3 + 2]
+                    tol = _SHADOW_MARGIN * (((pnx if pnx > 0.0 else -pnx) + (pny if pny > 0.0 else -pny)) * reach
+                                            + (pc if pc > 0.0 else -pc) + 1.0)  # fmt: skip
+                    beyond = True
+                    for v in range(m):
+                        if not px[v] * pnx + py[v] * pny - pc > tol:
+                            beyond = False
+                            break
+                    if beyond:
+                        dead = True
+                        break
+                if not dead:
+                    lv[live] = i
+                    live += 1
             ex = e[j, 0]
             ey = e[j, 1]
             for q in range(-1, cos.shape[0]):  # q = -1: the whole cell
                 tx = 0.0 if q < 0 else cos[q] * ex - sin[q] * ey
                 ty = 0.0 if q < 0 else sin[q] * ex + cos[q] * ey
                 standing = tx == 0.0 and ty == 0.0
-                if shadows == 0:  # the common case: the area alone, the polygon ahead never written
+                if live == 0:  # the common case: the area alone, the polygon ahead never written
                     area = _area(px, py, m) if standing else _clip_area(px, py, m, -tx, -ty, 0.0)
                     area = 0.0 if 0.0 > area else area
                     if q < 0:
@@ -438,7 +464,8 @@ def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out, w
                 else:
                     k = _clip(px, py, m, -tx, -ty, 0.0, ax_, ay_)
                 area = _area(ax_, ay_, k)
-                for i in range(shadows):  # less each shadow's part
+                for a in range(live):  # less each shadow's part
+                    i = lv[a]
                     mi = _clip(ax_, ay_, k, planes[i, 0], planes[i, 1], planes[i, 2], qx, qy)
                     mi = _clip(qx, qy, mi, planes[i, 3], planes[i, 4], planes[i, 5], sx[i], sy[i])
                     mi = _clip(sx[i], sy[i], mi, planes[i, 6], planes[i, 7], planes[i, 8], qx, qy)
@@ -447,8 +474,10 @@ def _cells_compiled(x, e, active, cos, sin, reach, wall_a, wall_v, cells, out, w
                         sy[i, v] = qy[v]
                     sm[i] = mi
                     area -= _area(sx[i], sy[i], mi)
-                for i in range(shadows):  # and each pair's common part put back
-                    for i2 in range(i + 1, shadows):
+                for a in range(live):  # and each pair's common part put back
+                    i = lv[a]
+                    for b in range(a + 1, live):
+                        i2 = lv[b]
                         mb = _clip(sx[i], sy[i], sm[i], planes[i2, 0], planes[i2, 1], planes[i2, 2], qx, qy)
                         mb = _clip(qx, qy, mb, planes[i2, 3], planes[i2, 4], planes[i2, 5], rx, ry)
                         mb = _clip(rx, ry, mb, planes[i2, 6], planes[i2, 7], planes[i2, 8], qx, qy)
