@@ -158,9 +158,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     command_threads`: a caller of :func:`meanfield.cli.app.main` from Python gets its own back), then the run."""
     from meanfield._compiled.threads import command_threads
 
+    cores = available_cores()
     for name, value, what in (("--threads", args.threads, "BLAS threads"),
                               ("--crowd-threads", args.crowd_threads, "the crowd's loops")):  # fmt: skip
-        cores = available_cores()
         if value is not None and not 1 <= value <= cores:
             raise ParameterError(name, value, f"an integer from 1 to {cores}, the cores available ({what})")
     with command_threads(args.threads, args.crowd_threads):
