@@ -177,6 +177,15 @@ def _area(px, py, m):
 
 
 @inlined
+def _shoelace_add(s, k, fx, fy, lx, ly, vx, vy):
+    """The ``k``-th vertex ``(vx, vy)`` of a polygon into :func:`_clip_area`'s running shoelace sum ``s``: the first
+    is kept as ``(fx, fy)``, each later one adds its term with the last ``(lx, ly)``; returns ``(s, k + 1, fx, fy)``."""
+    if k == 0:
+        return s, 1, vx, vy
+    return s + (lx * vy - vx * ly), k + 1, fx, fy
+
+
+@inlined
 def _clip_area(px, py, m, nx, ny, c):
     """:func:`_area` of :func:`_clip`'s polygon, without writing it: the same vertices, each computed as
     :func:`_clip` computes it, and the shoelace's terms added in :func:`_area`'s order (the first vertex's term with
@@ -195,28 +204,16 @@ def _clip_area(px, py, m, nx, ny, c):
         i1 = i + 1 if i + 1 < m else 0
         b = px[i1] * nx + py[i1] * ny - c if i + 1 < m else a0
         if a <= 0.0:
-            vx = px[i]
-            vy = py[i]
-            if k == 0:
-                fx = vx
-                fy = vy
-            else:
-                s += lx * vy - vx * ly
-            lx = vx
-            ly = vy
-            k += 1
+            s, k, fx, fy = _shoelace_add(s, k, fx, fy, lx, ly, px[i], py[i])
+            lx = px[i]
+            ly = py[i]
         if (a < 0.0 and b > 0.0) or (b < 0.0 and a > 0.0):
             t = a / (a - b)
             vx = px[i] + t * (px[i1] - px[i])
             vy = py[i] + t * (py[i1] - py[i])
-            if k == 0:
-                fx = vx
-                fy = vy
-            else:
-                s += lx * vy - vx * ly
+            s, k, fx, fy = _shoelace_add(s, k, fx, fy, lx, ly, vx, vy)
             lx = vx
             ly = vy
-            k += 1
         a = b
     if k < 3:
         return 0.0
