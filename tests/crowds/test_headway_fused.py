@@ -271,6 +271,31 @@ def test_the_compiled_cell_list_is_the_stable_counting_sort(seed, n, h):
     assert len(empty.order) == 0 and empty.starts.tolist() == [0, 0] and empty.sorted.shape == (0, 2)
 
 
+def test_the_cell_list_sorted_in_runs_on_threads_is_the_one_run_sort():
+    """Above PARALLEL_CHUNK humans the sort runs on threads, in runs of the humans; any number of runs, on one thread
+    or two, gives the numpy twin's arrays to the last bit."""
+    numba = pytest.importorskip("numba")
+    from meanfield._compiled.core import PARALLEL_CHUNK
+    from meanfield.crowds._cell_list import _cells_compiled
+
+    n = 3 * PARALLEL_CHUNK + 77
+    x, _, active = crowd(n, np.random.default_rng(11), 60.0)
+    x[5] = np.nan  # one without a position: not sorted
+    with compiled.numpy_path():
+        want = cell_list(x, active, JAM).arrays()
+    before = numba.get_num_threads()
+    try:
+        for threads in {1, min(2, numba.config.NUMBA_NUM_THREADS)}:
+            numba.set_num_threads(threads)
+            for parts in (1, 2, 3, 7):
+                got = _cells_compiled(x, active, JAM, parts)
+                order, starts, pos, x0, y0, h, nx, ny = got
+                assert np.array_equal(order, want[0]) and np.array_equal(starts, want[1])
+                assert np.array_equal(pos, want[2]) and (x0, y0) == want[3] and (h, nx, ny) == want[4:]
+    finally:
+        numba.set_num_threads(before)
+
+
 def separate_calls(model, v, x, active, density, noise=False):
     """The reference for the one-pass step: :meth:`Headway.slow_down`'s separate calls (the cell list, the lanes,
     the diagram in numpy, the choice, the product, the contact cone, the count, (H5)'s
