@@ -195,6 +195,11 @@ def _cells_compiled(x, active, h, parts):
         nx = np.int64(wx // h) + 1
         ny = np.int64(wy // h) + 1
     cells = nx * ny
+    if runs * cells > 8 * n + 64:  # each run counts into a row of every cell: at most about 8 N counts in all
+        runs = (8 * n + 64) // cells
+        runs = 1 if runs < 1 else runs
+        size = (n + runs - 1) // runs
+        runs = (n + size - 1) // size
     key = empty_array(n, np.int64)  # each human's cell (-1: not sorted)
     count = empty_array((runs, cells), np.int64)  # each run's humans per cell
     for r in prange(runs):

@@ -287,7 +287,7 @@ def test_the_cell_list_sorted_in_runs_on_threads_is_the_one_run_sort():
     try:
         for threads in {1, min(2, numba.config.NUMBA_NUM_THREADS)}:
             numba.set_num_threads(threads)
-            for parts in (1, 2, 3, 7):
+            for parts in (1, 2, 3, 7, 10_000):  # (so many runs that their counts are capped)
                 got = _cells_compiled(x, active, JAM, parts)
                 order, starts, pos, x0, y0, h, nx, ny = got
                 assert np.array_equal(order, want[0]) and np.array_equal(starts, want[1])
