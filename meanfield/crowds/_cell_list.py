@@ -20,7 +20,8 @@ import math
 
 import numpy as np
 
-from meanfield._compiled.core import compiled, empty_array, inner, prange
+from meanfield._compiled.core import compiled, empty_array, inlined, inner, prange
+from meanfield._compiled.threads import loop_threads
 
 __all__ = ["cell_list", "CellList"]
 
@@ -55,8 +56,6 @@ def cell_list(x: np.ndarray, active: np.ndarray, h: float) -> CellList:
     cell and sort them (the same arrays as its numpy twin's stable ``argsort``, to the last bit; docs page
     *Congestion*, "The headway door model").
     """
-    from meanfield._compiled.threads import loop_threads
-
     parts = loop_threads() or 1  # (the sort's parts: any number gives the same arrays)
     order, starts, sorted_positions, x0, y0, h, nx, ny = _cells_compiled(x, active, float(h), parts)
     return CellList(order, starts, sorted_positions, (x0, y0), h, int(nx), int(ny))
@@ -81,6 +80,53 @@ def _cells_numpy(x, active, h, parts=1):
     return order, starts, np.ascontiguousarray(x[order]), x0, y0, h, nx, ny
 
 
+@inlined
+def _sorted(x, active, j):
+    """Whether human ``j`` goes into the cell list: active, with a finite position."""
+    return active[j] and math.isfinite(x[j, 0]) and math.isfinite(x[j, 1])
+
+
+@inlined
+def _box(x, active, lo, hi):
+    """How many of the humans ``lo`` to ``hi - 1`` go into the cell list, and their bounding box:
+    ``(m, x0, x1, y0, y1)`` (infinities for none)."""
+    m = 0
+    x0 = math.inf
+    x1 = -math.inf
+    y0 = math.inf
+    y1 = -math.inf
+    for j in range(lo, hi):
+        if _sorted(x, active, j):
+            m += 1  # (min, max and int as numba's select and cast: no overload of numba's to compile)
+            x0 = x[j, 0] if x[j, 0] < x0 else x0
+            x1 = x[j, 0] if x[j, 0] > x1 else x1
+            y0 = x[j, 1] if x[j, 1] < y0 else y0
+            y1 = x[j, 1] if x[j, 1] > y1 else y1
+    return m, x0, x1, y0, y1
+
+
+@inlined
+def _lattice_size(wx, wy, h, m):
+    """:func:`_lattice`'s cells over a box ``wx`` × ``wy`` for ``m`` humans: ``(h, nx, ny)``, the width doubled while
+    there would be more than ``4 m + 64`` cells."""
+    nx = np.int64(wx // h) + 1
+    ny = np.int64(wy // h) + 1
+    while nx * ny > 4 * m + 64:
+        h *= 2.0
+        nx = np.int64(wx // h) + 1
+        ny = np.int64(wy // h) + 1
+    return h, nx, ny
+
+
+@inlined
+def _cell_of(px, py, x0, y0, h, nx, ny):
+    """The row-major cell (``cy * nx + cx``) of the point ``(px, py)``, the lattice's last row and column taking
+    what lies on its far edge."""
+    gy = np.int64((py - y0) // h)
+    gx = np.int64((px - x0) // h)
+    return (ny - 1 if ny - 1 < gy else gy) * nx + (nx - 1 if nx - 1 < gx else gx)
+
+
 @inner
 def _sort_cells(x, active, h, order, starts, pos, key, idx, cursor):
     """:func:`cell_list`'s counting sort into the given arrays (``order``, ``key``, ``idx``: at least ``N``;
@@ -88,38 +134,18 @@ def _sort_cells(x, active, h, order, starts, pos, key, idx, cursor):
     ``order[:m]``, ``starts[:nx·ny + 1]`` and ``pos[:m]`` the cell list's arrays (``starts[:2]`` zero for
     ``m = 0``)."""
     n = x.shape[0]
-    m = 0
-    x0 = math.inf
-    y0 = math.inf
-    x1 = -math.inf
-    y1 = -math.inf
-    for j in range(n):  # who, and their bounding box
-        if active[j] and math.isfinite(x[j, 0]) and math.isfinite(x[j, 1]):
-            m += 1  # (min, max and int as numba's select and cast: no overload of numba's to compile)
-            x0 = x[j, 0] if x[j, 0] < x0 else x0
-            x1 = x[j, 0] if x[j, 0] > x1 else x1
-            y0 = x[j, 1] if x[j, 1] < y0 else y0
-            y1 = x[j, 1] if x[j, 1] > y1 else y1
+    m, x0, x1, y0, y1 = _box(x, active, 0, n)  # who, and their bounding box
     if m == 0:
         starts[0] = 0
         starts[1] = 0
         return 0, 0.0, 0.0, h, 1, 1
-    wx = x1 - x0
-    wy = y1 - y0
-    nx = np.int64(wx // h) + 1
-    ny = np.int64(wy // h) + 1
-    while nx * ny > 4 * m + 64:  # (_lattice)
-        h *= 2.0
-        nx = np.int64(wx // h) + 1
-        ny = np.int64(wy // h) + 1
+    h, nx, ny = _lattice_size(x1 - x0, y1 - y0, h, m)
     for c in range(nx * ny + 1):
         starts[c] = 0
     i = 0
     for j in range(n):
-        if active[j] and math.isfinite(x[j, 0]) and math.isfinite(x[j, 1]):
-            gy = np.int64((x[j, 1] - y0) // h)
-            gx = np.int64((x[j, 0] - x0) // h)
-            c = (ny - 1 if ny - 1 < gy else gy) * nx + (nx - 1 if nx - 1 < gx else gx)
+        if _sorted(x, active, j):
+            c = _cell_of(x[j, 0], x[j, 1], x0, y0, h, nx, ny)
             key[i] = c
             idx[i] = j
             starts[c + 1] += 1
@@ -153,18 +179,7 @@ def _cells_compiled(x, active, h, parts):
     runs = 1 if runs < 1 else runs
     box = empty_array((runs, 5), np.float64)  # each run's count and bounding box
     for r in prange(runs):  # who, and their bounding box
-        c = 0
-        a0 = math.inf
-        a1 = -math.inf
-        b0 = math.inf
-        b1 = -math.inf
-        for j in range(r * size, n if n < (r + 1) * size else (r + 1) * size):
-            if active[j] and math.isfinite(x[j, 0]) and math.isfinite(x[j, 1]):
-                c += 1  # (min, max and int as numba's select and cast: no overload of numba's to compile)
-                a0 = x[j, 0] if x[j, 0] < a0 else a0
-                a1 = x[j, 0] if x[j, 0] > a1 else a1
-                b0 = x[j, 1] if x[j, 1] < b0 else b0
-                b1 = x[j, 1] if x[j, 1] > b1 else b1
+        c, a0, a1, b0, b1 = _box(x, active, r * size, n if n < (r + 1) * size else (r + 1) * size)
         box[r, 0] = c
         box[r, 1] = a0
         box[r, 2] = a1
@@ -186,14 +201,7 @@ def _cells_compiled(x, active, h, parts):
         none[0] = 0
         none[1] = 0
         return empty_array(0, np.int64), none, empty_array((0, 2), np.float64), 0.0, 0.0, h, 1, 1
-    wx = x1 - x0
-    wy = y1 - y0
-    nx = np.int64(wx // h) + 1
-    ny = np.int64(wy // h) + 1
-    while nx * ny > 4 * m + 64:  # (_lattice)
-        h *= 2.0
-        nx = np.int64(wx // h) + 1
-        ny = np.int64(wy // h) + 1
+    h, nx, ny = _lattice_size(x1 - x0, y1 - y0, h, m)
     cells = nx * ny
     if runs * cells > 8 * n + 64:  # each run counts into a row of every cell: at most about 8 N counts in all
         runs = (8 * n + 64) // cells
@@ -206,10 +214,8 @@ def _cells_compiled(x, active, h, parts):
         for c in range(cells):
             count[r, c] = 0
         for j in range(r * size, n if n < (r + 1) * size else (r + 1) * size):
-            if active[j] and math.isfinite(x[j, 0]) and math.isfinite(x[j, 1]):
-                gy = np.int64((x[j, 1] - y0) // h)
-                gx = np.int64((x[j, 0] - x0) // h)
-                c = (ny - 1 if ny - 1 < gy else gy) * nx + (nx - 1 if nx - 1 < gx else gx)
+            if _sorted(x, active, j):
+                c = _cell_of(x[j, 0], x[j, 1], x0, y0, h, nx, ny)
                 key[j] = c
                 count[r, c] += 1
             else:
