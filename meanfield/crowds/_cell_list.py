@@ -164,6 +164,12 @@ def _sort_cells(x, active, h, order, starts, pos, key, idx, cursor):
     return m, x0, y0, h, nx, ny
 
 
+@inlined
+def _run_end(r, size, n):
+    """One past the last human of run ``r`` (runs of ``size`` consecutive humans of ``n``)."""
+    return n if n < (r + 1) * size else (r + 1) * size
+
+
 @compiled(fallback=_cells_numpy, parallel_over="x")
 def _cells_compiled(x, active, h, parts):
     """:func:`_sort_cells`'s stable counting sort in ``parts`` runs of the humans, each on a thread above
@@ -179,7 +185,7 @@ def _cells_compiled(x, active, h, parts):
     runs = 1 if runs < 1 else runs
     box = empty_array((runs, 5), np.float64)  # each run's count and bounding box
     for r in prange(runs):  # who, and their bounding box
-        c, a0, a1, b0, b1 = _box(x, active, r * size, n if n < (r + 1) * size else (r + 1) * size)
+        c, a0, a1, b0, b1 = _box(x, active, r * size, _run_end(r, size, n))
         box[r, 0] = c
         box[r, 1] = a0
         box[r, 2] = a1
@@ -213,7 +219,7 @@ def _cells_compiled(x, active, h, parts):
     for r in prange(runs):
         for c in range(cells):
             count[r, c] = 0
-        for j in range(r * size, n if n < (r + 1) * size else (r + 1) * size):
+        for j in range(r * size, _run_end(r, size, n)):
             if _sorted(x, active, j):
                 c = _cell_of(x[j, 0], x[j, 1], x0, y0, h, nx, ny)
                 key[j] = c
@@ -232,7 +238,7 @@ def _cells_compiled(x, active, h, parts):
     order = empty_array(m, np.int64)
     pos = empty_array((m, 2), np.float64)
     for r in prange(runs):  # stable: each cell's humans in their order
-        for j in range(r * size, n if n < (r + 1) * size else (r + 1) * size):
+        for j in range(r * size, _run_end(r, size, n)):
             c = key[j]
             if c >= 0:
                 slot = count[r, c]
